@@ -1,0 +1,177 @@
+"""The `modb` command: load, export, list, db."""
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+import psycopg
+
+from . import __version__
+
+
+def _connect(args: argparse.Namespace) -> psycopg.Connection:
+    from .connection import connect
+    from .dsn import resolve
+
+    conninfo, origin = resolve(args.dsn)
+    if args.verbose:
+        print(f"database: {origin}", file=sys.stderr)
+    return connect(conninfo)
+
+
+def cmd_load(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from .loader.errors import MotionFileError
+    from .loader.ingest import find_files, load_files
+    from .loader.units import UnitsError, parse_units
+
+    try:
+        units = parse_units(args.units)
+        jobs = find_files(args.paths, args.collection)
+    except (UnitsError, MotionFileError) as e:
+        print(f"modb load: {e}", file=sys.stderr)
+        return 2
+    if not jobs:
+        print("modb load: no motion files (.bvh) found in " + " ".join(args.paths), file=sys.stderr)
+        return 2
+    with _connect(args) as conn, tqdm(total=len(jobs), unit="file", disable=args.quiet or len(jobs) < 2,
+                                      file=sys.stderr) as bar:
+        def progress(result) -> None:
+            bar.update(1)
+            if result.status == "failed":
+                bar.write(f"error: {result.message}", file=sys.stderr)
+
+        summary = load_files(conn, jobs, units, args.units, args.keep_going, progress)
+    if not args.quiet:
+        rules = list(dict.fromkeys(r.units_rule for r in summary.results if r.units_rule))
+        for rule in rules[:3]:
+            print(rule, file=sys.stderr)
+        if len(rules) > 3:
+            print(f"... and {len(rules) - 3} more files with their own figures", file=sys.stderr)
+        print(summary.describe())
+    if summary.failed:
+        if args.keep_going:
+            print(f"{len(summary.failed)} file(s) not loaded:", file=sys.stderr)
+            for r in summary.failed:
+                print(f"  {r.message}", file=sys.stderr)
+        elif len(summary.results) < len(jobs):
+            print(f"stopped at the first bad file; {len(jobs) - len(summary.results)} not tried "
+                  f"(--keep-going loads the good ones)", file=sys.stderr)
+        return 1
+    return 0
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    from .bvh_export import write_bvh
+    from .clips import ClipNotFound, read_motion, resolve_clip
+
+    with _connect(args) as conn:
+        try:
+            motion = read_motion(conn, resolve_clip(conn, args.clip), args.version)
+        except ClipNotFound as e:
+            print(f"modb export: {e}", file=sys.stderr)
+            return 1
+    if args.out in (None, "-"):
+        write_bvh(motion, sys.stdout)
+    else:
+        tmp = args.out + ".partial"
+        with open(tmp, "w") as f:
+            write_bvh(motion, f)
+        import os
+
+        os.replace(tmp, args.out)  # never leave a half-written file under the real name
+        print(f"wrote {args.out}: clip {motion.name} version {motion.meta['version']}, "
+              f"{motion.n_frames} frames at {motion.fps:g} fps", file=sys.stderr)
+    return 0
+
+
+def cmd_list(args: argparse.Namespace) -> int:
+    with _connect(args) as conn:
+        rows = conn.execute(
+            "SELECT clip_id, collection, name, version, n_frames, fps, round(seconds::numeric, 1) "
+            "FROM modb.current_clips ORDER BY collection, name").fetchall()
+    if not rows:
+        print("no clips stored yet: `modb load PATH` loads BVH files")
+        return 0
+    print(f"{'id':>6}  {'version':>7}  {'frames':>7}  {'fps':>5}  {'seconds':>7}  clip")
+    for clip_id, collection, name, version, n_frames, fps, seconds in rows:
+        print(f"{clip_id:>6}  {version:>7}  {n_frames:>7}  {fps:>5g}  {seconds:>7}  {collection}/{name}")
+    print(f"{len(rows)} clips, {sum(r[4] for r in rows):,} frames")
+    return 0
+
+
+def cmd_db(args: argparse.Namespace) -> int:
+    from .cluster import Cluster, ClusterError
+
+    cluster = Cluster.default()
+    try:
+        if args.action == "start":
+            cluster.start()
+            print(f"running: {cluster.dsn()}")
+        elif args.action == "stop":
+            cluster.stop()
+            print(cluster.status())
+        elif args.action == "status":
+            print(cluster.status())
+            return 0 if cluster.is_running() else 3
+        elif args.action == "url":
+            print(cluster.dsn())
+    except ClusterError as e:
+        print(f"modb db {args.action}: {e}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="modb", description="MoDB for PostgreSQL: motion capture in a database.")
+    p.add_argument("--version", action="version", version=f"modb {__version__}")
+    p.add_argument("--dsn", help="libpq connection string (default: $MODB_DSN, then libpq's PG* environment, "
+                                 "then the embedded cluster under $MODB_HOME)")
+    p.add_argument("-v", "--verbose", action="store_true", help="say which database is used")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    load = sub.add_parser("load", help="load BVH files and directories (recursively)")
+    load.add_argument("paths", nargs="+", metavar="PATH")
+    load.add_argument("--collection", help="collection path a/b (default: named after the directory)")
+    load.add_argument("--units", default="auto",
+                      help="auto | m | cm | mm | in | metres per unit (default auto: judged from the figure's size)")
+    load.add_argument("--keep-going", action="store_true", help="load the good files, list the bad, exit non-zero")
+    load.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
+    load.set_defaults(func=cmd_load)
+
+    export = sub.add_parser("export", help="write a clip as BVH")
+    export.add_argument("clip", metavar="CLIP", help="clip id, name, or collection/name")
+    export.add_argument("--version", type=int, dest="version", help="clip version (default: newest)")
+    export.add_argument("--out", help="output file (default: standard output)")
+    export.set_defaults(func=cmd_export)
+
+    lst = sub.add_parser("list", help="list stored clips (newest versions)")
+    lst.set_defaults(func=cmd_list)
+
+    db = sub.add_parser("db", help="the embedded database cluster")
+    db.add_argument("action", choices=["start", "stop", "status", "url"])
+    db.set_defaults(func=cmd_db)
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except psycopg.OperationalError as e:
+        print(f"modb: cannot connect to the database: {str(e).strip()}\n"
+              f"  (check --dsn / MODB_DSN, or `modb db start` for the embedded one)", file=sys.stderr)
+        return 2
+    except psycopg.Error as e:
+        print(f"modb: database error: {e.diag.message_primary or e}"
+              + (f"\n  hint: {e.diag.message_hint}" if e.diag.message_hint else ""), file=sys.stderr)
+        return 2
+    except RuntimeError as e:  # NotInstalledError, ClusterError
+        print(f"modb: {e}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,134 @@
+"""The embedded default database: a private PostgreSQL cluster that modb creates and runs itself.
+
+It listens only on a unix socket under $MODB_HOME/run (no TCP), trusts
+connections through that socket, and keeps the socket directory closed to
+other users. initdb refuses root, so when run as root the cluster lives in
+/var/lib/modb and is run by the `postgres` OS user.
+"""
+from __future__ import annotations
+
+import os
+import pwd
+import shutil
+import subprocess
+from dataclasses import dataclass
+from pathlib import Path
+
+DATABASE = "modb"
+PORT = 5432  # names the socket file only: the cluster has no TCP listener
+
+
+class ClusterError(RuntimeError):
+    pass
+
+
+def _bindir() -> Path:
+    try:
+        out = subprocess.run(["pg_config", "--bindir"], capture_output=True, text=True, check=True).stdout.strip()
+        if (Path(out) / "initdb").exists():
+            return Path(out)
+    except (OSError, subprocess.CalledProcessError):
+        pass
+    fallback = Path("/usr/lib/postgresql/15/bin")
+    if (fallback / "initdb").exists():
+        return fallback
+    raise ClusterError("PostgreSQL 15 server binaries not found (no initdb): run `make setup`")
+
+
+def default_home() -> Path:
+    if os.environ.get("MODB_HOME"):
+        return Path(os.environ["MODB_HOME"])
+    if os.geteuid() == 0:
+        return Path("/var/lib/modb")
+    return Path(os.environ.get("XDG_DATA_HOME", Path.home() / ".local" / "share")) / "modb"
+
+
+@dataclass
+class Cluster:
+    home: Path
+
+    @classmethod
+    def default(cls) -> Cluster:
+        return cls(default_home())
+
+    @property
+    def datadir(self) -> Path:
+        return self.home / "pgdata"
+
+    @property
+    def socket_dir(self) -> Path:
+        return self.home / "run"
+
+    @property
+    def logfile(self) -> Path:
+        return self.home / "postgres.log"
+
+    @property
+    def os_user(self) -> str:
+        """The OS user that owns and runs the cluster (and its superuser's name)."""
+        return "postgres" if os.geteuid() == 0 else pwd.getpwuid(os.geteuid()).pw_name
+
+    def dsn(self, dbname: str = DATABASE) -> str:
+        return f"host={self.socket_dir} port={PORT} dbname={dbname} user={self.os_user}"
+
+    def _run(self, *args: str, check: bool = True) -> subprocess.CompletedProcess:
+        cmd = [str(a) for a in args]
+        if os.geteuid() == 0:
+            cmd = ["runuser", "-u", "postgres", "--", *cmd]
+        result = subprocess.run(cmd, capture_output=True, text=True)
+        if check and result.returncode != 0:
+            raise ClusterError(f"{' '.join(args[:2])} failed: {(result.stderr or result.stdout).strip()}"
+                               f" (log: {self.logfile})")
+        return result
+
+    def is_initialized(self) -> bool:
+        return (self.datadir / "PG_VERSION").exists()
+
+    def is_running(self) -> bool:
+        if not self.is_initialized():
+            return False
+        return self._run(_bindir() / "pg_ctl", "status", "-D", self.datadir, check=False).returncode == 0
+
+    def init(self) -> None:
+        for d in (self.home, self.socket_dir):
+            d.mkdir(parents=True, exist_ok=True)
+            os.chmod(d, 0o700)
+            if os.geteuid() == 0:
+                shutil.chown(d, "postgres", "postgres")
+        self._run(_bindir() / "initdb", "-D", self.datadir, "-U", self.os_user, "--auth=trust",
+                  "--encoding=UTF8", "--locale=C.UTF-8")
+        with open(self.datadir / "postgresql.auto.conf", "a") as conf:
+            conf.write(
+                "# written by modb: private cluster, unix socket only\n"
+                "listen_addresses = ''\n"
+                f"unix_socket_directories = '{self.socket_dir}'\n"
+                "unix_socket_permissions = 0700\n"
+                f"port = {PORT}\n")
+
+    def start(self) -> None:
+        """Create the cluster if needed, start it, and make sure database `modb` has the extension."""
+        if not self.is_initialized():
+            self.init()
+        if not self.is_running():
+            self._run(_bindir() / "pg_ctl", "start", "-w", "-D", self.datadir, "-l", self.logfile)
+        self.ensure_database(DATABASE)
+
+    def ensure_database(self, dbname: str) -> None:
+        import psycopg
+
+        with psycopg.connect(self.dsn("postgres"), autocommit=True) as conn:
+            if not conn.execute("SELECT 1 FROM pg_database WHERE datname = %s", [dbname]).fetchone():
+                conn.execute(f'CREATE DATABASE "{dbname}"')
+        with psycopg.connect(self.dsn(dbname), autocommit=True) as conn:
+            conn.execute("CREATE EXTENSION IF NOT EXISTS modb CASCADE")
+            conn.execute("ALTER EXTENSION modb UPDATE")
+
+    def stop(self) -> None:
+        if self.is_running():
+            self._run(_bindir() / "pg_ctl", "stop", "-w", "-m", "fast", "-D", self.datadir)
+
+    def status(self) -> str:
+        if not self.is_initialized():
+            return f"not created (MODB_HOME={self.home}); `modb db start` creates it"
+        state = "running" if self.is_running() else "stopped"
+        return f"{state}: data {self.datadir}, socket {self.socket_dir}, log {self.logfile}"

@@ -1,0 +1,106 @@
+"""Quaternion and Euler-angle arithmetic on numpy arrays of shape (..., 4), (w, x, y, z)."""
+import numpy as np
+
+_AXIS_INDEX = {"X": 0, "Y": 1, "Z": 2}
+
+
+def canonical(q):
+    """Normalise to unit length and choose the sign with w >= 0 (q and -q are one rotation)."""
+    q = np.asarray(q, dtype=np.float64)
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    return np.where(q[..., :1] < 0.0, -q, q)
+
+
+def multiply(a, b):
+    """Hamilton product a * b (apply b first, then a)."""
+    aw, ax, ay, az = np.moveaxis(np.asarray(a, dtype=np.float64), -1, 0)
+    bw, bx, by, bz = np.moveaxis(np.asarray(b, dtype=np.float64), -1, 0)
+    return np.stack(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ],
+        axis=-1,
+    )
+
+
+def rotate(q, v):
+    """Rotate vectors v (..., 3) by unit quaternions q (..., 4)."""
+    q = np.asarray(q, dtype=np.float64)
+    v = np.asarray(v, dtype=np.float64)
+    w = q[..., :1]
+    u = q[..., 1:]
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
+def about_axis(axis, angle):
+    """Quaternions for rotations by `angle` (radians, any shape) about the principal axis 'X', 'Y' or 'Z'."""
+    angle = np.asarray(angle, dtype=np.float64)
+    q = np.zeros(angle.shape + (4,))
+    q[..., 0] = np.cos(angle / 2.0)
+    q[..., 1 + _AXIS_INDEX[axis]] = np.sin(angle / 2.0)
+    return q
+
+
+def from_euler(angles, order):
+    """Quaternions from Euler angles (radians, shape (..., len(order))).
+
+    `order` lists the axes as the channels do, e.g. 'ZXY' for BVH channels
+    'Zrotation Xrotation Yrotation': R = Rz(a0) * Rx(a1) * Ry(a2), so the
+    rightmost axis is applied to the vector first (intrinsic rotations).
+    """
+    angles = np.asarray(angles, dtype=np.float64)
+    q = np.zeros(angles.shape[:-1] + (4,))
+    q[..., 0] = 1.0
+    for i, axis in enumerate(order):
+        q = multiply(q, about_axis(axis, angles[..., i]))
+    return canonical(q)
+
+
+def to_matrix(q):
+    """Rotation matrices (..., 3, 3) from unit quaternions."""
+    w, x, y, z = np.moveaxis(np.asarray(q, dtype=np.float64), -1, 0)
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+        ],
+        axis=-2,
+    )
+
+
+def is_supported_order(order):
+    """Euler orders we can both read and write back: up to three distinct axes."""
+    return 0 < len(order) <= 3 and set(order) <= set("XYZ") and len(set(order)) == len(order)
+
+
+def to_euler(q, order):
+    """Euler angles (radians, (..., len(order))) for `order`, the inverse of from_euler.
+
+    Orders of one or two axes are completed with the missing axes, decomposed,
+    and the extra angles dropped: exact when the rotation has no component
+    about the missing axes, which holds for data read through those channels.
+    """
+    if not is_supported_order(order):
+        raise ValueError(f"unsupported Euler order {order!r}: need 1-3 distinct axes of X, Y, Z")
+    full = order + "".join(a for a in "XYZ" if a not in order)
+    i, j, k = (_AXIS_INDEX[a] for a in full)
+    # +1 when (i, j, k) is a cyclic permutation of (x, y, z).
+    s = 1.0 if (j - i) % 3 == 1 else -1.0
+    r = to_matrix(q)
+    b = np.arcsin(np.clip(s * r[..., i, k], -1.0, 1.0))
+    a = np.arctan2(-s * r[..., j, k], r[..., k, k])
+    c = np.arctan2(-s * r[..., i, j], r[..., i, i])
+    return np.stack([a, b, c], axis=-1)[..., : len(order)]
+
+
+def angle_between(a, b):
+    """Rotation angle (radians, 0..pi) taking a to b; q and -q count as the same rotation."""
+    d = np.abs(np.sum(np.asarray(a, dtype=np.float64) * np.asarray(b, dtype=np.float64), axis=-1))
+    # 2*atan2(|a - b|, |a + b|) is accurate near 0 and pi, where 2*acos(d) is not.
+    d = np.clip(d, 0.0, 1.0)
+    return 2.0 * np.arctan2(np.sqrt(np.maximum(1.0 - d * d, 0.0)), d)

@@ -1,0 +1,1 @@
+"""Parsers for motion-capture files and their ingest into the modb schema."""

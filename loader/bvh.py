@@ -1,0 +1,287 @@
+"""BVH reader: hierarchy and motion into the shared `Motion` model.
+
+Handles what real files contain: any rotation channel order per joint,
+position channels on any joint (their values replace the joint's offset, as
+in bvhio and most tools), End Sites, CRLF, tabs, numbers like `.0083333`,
+and colons in joint names. Names may not contain whitespace.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from modb.motion import Joint, Motion, Skeleton, Source
+from modb_kernel import quaternion
+
+from .errors import MotionFileError
+from .skeleton_maps import guess_joint_map, guess_mirror_pairs
+from .units import UnitsError, resolve_units
+
+_CHANNELS = {"Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation"}
+
+
+@dataclass
+class _RawJoint:
+    name: str
+    parent: int
+    line: int
+    offset: list[float] = field(default_factory=list)
+    channels: list[str] = field(default_factory=list)
+    end_site: list[float] | None = None
+
+
+class _Tokens:
+    """Whitespace tokens of the HIERARCHY section with their 1-based line numbers."""
+
+    def __init__(self, path: str, lines: list[str]):
+        self.path = path
+        self.items: list[tuple[str, int]] = []
+        self.motion_line = 0
+        for number, line in enumerate(lines, start=1):
+            words = line.split()
+            if words[:1] == ["MOTION"]:
+                self.motion_line = number
+                break
+            self.items.extend((w, number) for w in words)
+        self.pos = 0
+
+    def error(self, message: str, hint: str = "") -> MotionFileError:
+        line = self.items[min(self.pos, len(self.items) - 1)][1] if self.items else 1
+        return MotionFileError(self.path, line, message, hint)
+
+    def next(self, what: str) -> tuple[str, int]:
+        if self.pos >= len(self.items):
+            raise MotionFileError(self.path, self.items[-1][1] if self.items else 1,
+                                  f"file ends inside the hierarchy, expected {what}",
+                                  "the file is truncated or not a BVH file")
+        item = self.items[self.pos]
+        self.pos += 1
+        return item
+
+    def expect(self, word: str) -> int:
+        token, line = self.next(repr(word))
+        if token != word:
+            self.pos -= 1
+            raise self.error(f"expected {word!r}, found {token!r}")
+        return line
+
+    def number(self, what: str) -> float:
+        token, line = self.next(what)
+        try:
+            value = float(token)
+        except ValueError:
+            self.pos -= 1
+            raise self.error(f"expected a number for {what}, found {token!r}")
+        if not np.isfinite(value):
+            self.pos -= 1
+            raise self.error(f"{what} is {token}, not a finite number")
+        return value
+
+
+def _parse_joint(tokens: _Tokens, name: str, parent: int, line: int, joints: list[_RawJoint]) -> None:
+    joint = _RawJoint(name=name, parent=parent, line=line)
+    index = len(joints)
+    joints.append(joint)
+    tokens.expect("{")
+    tokens.expect("OFFSET")
+    joint.offset = [tokens.number(f"{name} OFFSET") for _ in range(3)]
+    token, _ = tokens.next("CHANNELS or a child joint")
+    if token == "CHANNELS":
+        count = tokens.number(f"{name} CHANNELS count")
+        if count != int(count) or not 0 <= count <= 6:
+            raise tokens.error(f"channel count of {name} must be a whole number 0-6, found {count:g}")
+        for _ in range(int(count)):
+            channel, _ = tokens.next(f"a channel name of {name}")
+            if channel not in _CHANNELS:
+                tokens.pos -= 1
+                raise tokens.error(f"unknown channel {channel!r} on joint {name}",
+                                   "channels are Xposition Yposition Zposition Xrotation Yrotation Zrotation")
+            if channel in joint.channels:
+                tokens.pos -= 1
+                raise tokens.error(f"channel {channel} appears twice on joint {name}")
+            joint.channels.append(channel)
+    else:
+        tokens.pos -= 1
+    while True:
+        token, line = tokens.next(f"JOINT, End Site or '}}' closing {name}")
+        if token == "}":
+            return
+        if token == "JOINT":
+            child, line = tokens.next("a joint name")
+            _parse_joint(tokens, child, index, line, joints)
+        elif token == "End":
+            tokens.expect("Site")
+            tokens.expect("{")
+            tokens.expect("OFFSET")
+            joint.end_site = [tokens.number(f"{name} End Site OFFSET") for _ in range(3)]
+            tokens.expect("}")
+        else:
+            tokens.pos -= 1
+            raise tokens.error(f"unexpected {token!r} in joint {name}", "expected JOINT, End Site or '}'")
+
+
+def _parse_header(path: str, lines: list[str], start: int) -> tuple[int, float, int]:
+    """Frames and Frame Time after MOTION; returns (frames, frame_time, index of first data line)."""
+    values: dict[str, tuple[str, int]] = {}
+    i = start
+    for key in ("Frames:", "Frame Time:"):
+        while i < len(lines) and not lines[i].strip():
+            i += 1
+        text = lines[i].strip() if i < len(lines) else ""
+        if not text.startswith(key):
+            raise MotionFileError(path, i + 1, f"expected '{key} ...' after MOTION, found {text[:40]!r}")
+        values[key] = (text[len(key):].strip(), i + 1)
+        i += 1
+    frames_text, frames_line = values["Frames:"]
+    time_text, time_line = values["Frame Time:"]
+    try:
+        frames = int(frames_text)
+    except ValueError:
+        raise MotionFileError(path, frames_line, f"frame count {frames_text!r} is not a whole number")
+    try:
+        frame_time = float(time_text)
+    except ValueError:
+        raise MotionFileError(path, time_line, f"frame time {time_text!r} is not a number")
+    if frames <= 0:
+        raise MotionFileError(path, frames_line, f"the file declares {frames} frames",
+                              "a clip needs at least one frame")
+    if not (np.isfinite(frame_time) and frame_time > 0):
+        raise MotionFileError(path, time_line, f"frame time {time_text} must be a positive number of seconds")
+    return frames, frame_time, i
+
+
+def _scan_for_bad_line(path: str, data_lines: list[str], first_line: int, n_channels: int) -> MotionFileError:
+    """Slow path, taken only when the fast parse failed: find the first offending line."""
+    for k, text in enumerate(data_lines):
+        words = text.split()
+        if len(words) != n_channels:
+            return MotionFileError(path, first_line + k,
+                                   f"frame {k + 1} has {len(words)} values, the hierarchy declares {n_channels} channels",
+                                   "the line is cut short or has extra values")
+        for column, word in enumerate(words, start=1):
+            try:
+                value = float(word)
+            except ValueError:
+                return MotionFileError(path, first_line + k, f"value {column} of frame {k + 1} is {word!r}, not a number")
+            if not np.isfinite(value):
+                return MotionFileError(path, first_line + k, f"value {column} of frame {k + 1} is {word}, not finite")
+    return MotionFileError(path, first_line, "motion data could not be read")
+
+
+def _read_motion_block(path: str, lines: list[str], first: int, frames: int, n_channels: int) -> np.ndarray:
+    data_lines = lines[first:]
+    while data_lines and not data_lines[-1].strip():
+        data_lines.pop()
+    if len(data_lines) != frames:
+        line = first + min(len(data_lines), frames) + (1 if len(data_lines) > frames else 0)
+        raise MotionFileError(path, max(line, 1),
+                              f"the header declares {frames} frames but {len(data_lines)} frame lines follow",
+                              "fix the 'Frames:' line or restore the missing frames")
+    if n_channels == 0:
+        return np.zeros((frames, 0))
+    try:
+        data = np.loadtxt(data_lines, dtype=np.float64, ndmin=2)
+    except ValueError:
+        raise _scan_for_bad_line(path, data_lines, first + 1, n_channels) from None
+    if data.shape != (frames, n_channels) or not np.all(np.isfinite(data)):
+        raise _scan_for_bad_line(path, data_lines, first + 1, n_channels)
+    return data
+
+
+def read_bvh(path: str, units: str | float = "auto") -> Motion:
+    """Parse a BVH file into a Motion (metres, unit quaternions). Raises MotionFileError."""
+    with open(path, "rb") as f:
+        raw = f.read()
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        text = raw.decode("latin-1")
+    lines = text.splitlines()
+    tokens = _Tokens(path, lines)
+    if not tokens.items:
+        raise MotionFileError(path, 1, "the file is empty", "expected a BVH file starting with HIERARCHY")
+    tokens.expect("HIERARCHY")
+    tokens.expect("ROOT")
+    root_name, root_line = tokens.next("the root joint's name")
+    raw_joints: list[_RawJoint] = []
+    _parse_joint(tokens, root_name, -1, root_line, raw_joints)
+    if tokens.pos != len(tokens.items):
+        raise tokens.error(f"unexpected {tokens.items[tokens.pos][0]!r} after the hierarchy", "expected MOTION")
+    if not tokens.motion_line:
+        raise MotionFileError(path, len(lines), "no MOTION section", "the file is truncated or holds only a skeleton")
+    names = [j.name for j in raw_joints]
+    duplicate = next((j for k, j in enumerate(raw_joints) if j.name in names[:k]), None)
+    if duplicate:
+        raise MotionFileError(path, duplicate.line, f"joint name {duplicate.name!r} is used twice")
+    for j in raw_joints:
+        order = "".join(c[0] for c in j.channels if c.endswith("rotation"))
+        if order and not quaternion.is_supported_order(order):
+            raise MotionFileError(path, j.line, f"rotation order {order} of {j.name} is not supported")
+
+    frames, frame_time, first_data = _parse_header(path, lines, tokens.motion_line)
+    n_channels = sum(len(j.channels) for j in raw_joints)
+    data = _read_motion_block(path, lines, first_data, frames, n_channels)
+
+    joint_map = guess_joint_map(names)
+    rest_points = _rest_points(raw_joints, names.index(joint_map.get("pelvis", root_name)))
+    try:
+        unit_m, rule = resolve_units(units, rest_points)
+    except UnitsError as e:
+        raise MotionFileError(path, None, str(e)) from None
+
+    joints: list[Joint] = []
+    rotations = np.empty((frames, len(raw_joints), 4))
+    translations = []
+    column = 0
+    for k, j in enumerate(raw_joints):
+        cols = {c: column + i for i, c in enumerate(j.channels)}
+        column += len(j.channels)
+        order = "".join(c[0] for c in j.channels if c.endswith("rotation"))
+        if order:
+            angles = np.radians(data[:, [cols[a + "rotation"] for a in order]])
+            rotations[:, k] = quaternion.from_euler(angles, order)
+        else:
+            rotations[:, k] = (1.0, 0.0, 0.0, 0.0)
+        if any(c.endswith("position") for c in j.channels):
+            local = np.tile(np.array(j.offset, dtype=np.float64), (frames, 1))
+            for axis, a in enumerate("XYZ"):
+                if a + "position" in cols:
+                    local[:, axis] = data[:, cols[a + "position"]]
+            translations.append(local * unit_m)
+        joints.append(Joint(
+            name=j.name, parent=j.parent,
+            offset=tuple(float(v) * unit_m for v in j.offset),
+            channels=tuple(j.channels), rotation_order=order,
+            end_site=None if j.end_site is None else tuple(float(v) * unit_m for v in j.end_site)))
+
+    skeleton = Skeleton(joints=joints, unit_m=unit_m, source_format="bvh",
+                        joint_map=joint_map, mirror_pairs=guess_mirror_pairs(names),
+                        name=os.path.splitext(os.path.basename(path))[0])
+    translations_array = np.stack(translations, axis=1) if translations else np.zeros((frames, 0, 3))
+    return Motion(
+        skeleton=skeleton, rotations=rotations, translations=translations_array,
+        fps=round(1.0 / frame_time, 3),  # '.0083333' s means 120 fps
+        name=os.path.splitext(os.path.basename(path))[0],
+        source=Source(path=os.path.abspath(path), sha256=hashlib.sha256(raw).hexdigest(), units_rule=rule),
+        meta={"frame_time": frame_time})
+
+
+def _rest_points(joints: list[_RawJoint], top: int) -> np.ndarray:
+    """Rest-pose positions (file units) of the joints and End Sites below `top`, with `top` at the origin.
+
+    The units rule measures the body from the pelvis down its subtree: a top
+    joint's offset to the pelvis can be a displacement (Bandai stores the first
+    frame's travel, up to metres, in the Hips offset), not a body dimension.
+    """
+    positions: dict[int, np.ndarray] = {top: np.zeros(3)}
+    points: list[np.ndarray] = [positions[top]]
+    for k, j in enumerate(joints):
+        if k != top and j.parent in positions:
+            positions[k] = positions[j.parent] + np.array(j.offset)
+            points.append(positions[k])
+        if k in positions and j.end_site is not None:
+            points.append(positions[k] + np.array(j.end_site))
+    return np.array(points)

@@ -1,0 +1,193 @@
+"""Loading motion files into the modb schema: one transaction per file, idempotent re-loads."""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import psycopg
+
+from modb.motion import Motion
+
+from .bvh import read_bvh
+from .errors import MotionFileError
+
+READERS: dict[str, Callable[..., Motion]] = {".bvh": read_bvh}
+
+
+@dataclass
+class FileJob:
+    path: Path
+    collection: str
+
+
+@dataclass
+class FileResult:
+    path: Path
+    status: str  # 'loaded' | 'unchanged' | 'failed'
+    clip_id: int | None = None
+    version: int | None = None
+    frames: int = 0
+    seconds_of_motion: float = 0.0
+    units_rule: str = ""
+    message: str = ""
+
+
+@dataclass
+class LoadSummary:
+    results: list[FileResult] = field(default_factory=list)
+    elapsed: float = 0.0
+
+    def count(self, status: str) -> int:
+        return sum(r.status == status for r in self.results)
+
+    @property
+    def frames(self) -> int:
+        return sum(r.frames for r in self.results if r.status == "loaded")
+
+    @property
+    def failed(self) -> list[FileResult]:
+        return [r for r in self.results if r.status == "failed"]
+
+    def describe(self) -> str:
+        loaded = self.count("loaded")
+        rate = self.frames / self.elapsed if self.elapsed > 0 else 0.0
+        motion = sum(r.seconds_of_motion for r in self.results if r.status == "loaded")
+        return (f"{len(self.results)} files: {loaded} clip versions loaded ({self.frames:,} frames, "
+                f"{motion:,.1f} s of motion), {self.count('unchanged')} unchanged, {len(self.failed)} failed; "
+                f"{self.elapsed:.1f} s, {rate:,.0f} frames/s")
+
+
+def find_files(paths: Iterable[str], collection: str | None) -> list[FileJob]:
+    """Motion files under the given files and directories (recursively, sorted).
+
+    Without --collection a directory loads into a collection named after it, its
+    subdirectories into child collections; a single file loads into a collection
+    named after its directory.
+    """
+    jobs: list[FileJob] = []
+    for given in paths:
+        p = Path(given)
+        if p.is_dir():
+            base = collection or p.resolve().name
+            for root, dirs, files in os.walk(p):
+                dirs.sort()
+                rel = Path(root).relative_to(p)
+                for name in sorted(files):
+                    if Path(name).suffix.lower() in READERS:
+                        sub = "/".join((base, *rel.parts)) if collection is None else base
+                        jobs.append(FileJob(Path(root) / name, sub))
+        elif p.is_file():
+            if p.suffix.lower() not in READERS:
+                raise MotionFileError(str(p), None, f"unsupported file type {p.suffix!r}",
+                                      "modb load reads " + ", ".join(sorted(READERS)))
+            jobs.append(FileJob(p, collection or p.resolve().parent.name))
+        else:
+            raise MotionFileError(str(p), None, "no such file or directory")
+    return jobs
+
+
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+_UNCHANGED_SQL = """
+SELECT v.clip_id, v.version
+  FROM modb.clips c
+  JOIN LATERAL (SELECT clip_id, version, source_sha256, load_params FROM modb.clip_versions
+                 WHERE clip_id = c.id ORDER BY version DESC LIMIT 1) v ON true
+ WHERE c.collection_id = modb.find_collection(%(collection)s) AND c.name = %(name)s
+   AND v.source_sha256 = %(sha)s AND v.load_params->>'units' = %(units)s
+"""
+
+
+def _unchanged(conn: psycopg.Connection, job: FileJob, name: str, sha256: str, units: str) -> tuple[int, int] | None:
+    """(clip, version) when the newest version of this clip came from the same bytes read the same way."""
+    row = conn.execute(_UNCHANGED_SQL, {"collection": job.collection, "name": name, "sha": sha256,
+                                        "units": units}).fetchone()
+    return (row[0], row[1]) if row else None
+
+
+def store_motion(conn: psycopg.Connection, motion: Motion, collection: str, units: str) -> tuple[int, int | None]:
+    """Store a parsed clip as a new version in one transaction; (clip_id, version or None if unchanged)."""
+    sk = motion.skeleton
+    hierarchy = json.dumps(sk.hierarchy_json())
+    src = motion.source
+    with conn.transaction():
+        (collection_id,) = conn.execute("SELECT modb.ensure_collection(%s)", [collection]).fetchone()
+        row = conn.execute(
+            "INSERT INTO modb.skeletons (name, hierarchy, joint_map, mirror_pairs) "
+            "VALUES (%s, %s::jsonb, %s::jsonb, %s::jsonb) ON CONFLICT (hierarchy_sha256) DO NOTHING RETURNING id",
+            [sk.name, hierarchy, json.dumps(sk.joint_map), json.dumps([list(p) for p in sk.mirror_pairs])],
+        ).fetchone()
+        if row is None:  # the same skeleton is stored already (its joint map may have been edited: keep it)
+            row = conn.execute(
+                "SELECT id FROM modb.skeletons WHERE hierarchy_sha256 = encode(sha256((%s::jsonb)::text::bytea), 'hex')",
+                [hierarchy]).fetchone()
+        skeleton_id = row[0]
+        conn.execute("INSERT INTO modb.clips (collection_id, name) VALUES (%s, %s) "
+                     "ON CONFLICT (collection_id, name) DO NOTHING", [collection_id, motion.name])
+        (clip_id,) = conn.execute("SELECT id FROM modb.clips WHERE collection_id = %s AND name = %s FOR UPDATE",
+                                  [collection_id, motion.name]).fetchone()
+        latest = conn.execute(
+            "SELECT version, source_sha256, load_params->>'units', skeleton_id FROM modb.clip_versions "
+            "WHERE clip_id = %s ORDER BY version DESC LIMIT 1", [clip_id]).fetchone()
+        if latest and src and latest[1:] == (src.sha256, units, skeleton_id):
+            return clip_id, None
+        load_params = {"units": units, "unit_m": sk.unit_m, "units_rule": src.units_rule if src else "",
+                       **motion.meta}
+        translations = motion.translations if motion.translations.shape[1] else None
+        (version,) = conn.execute(
+            "INSERT INTO modb.clip_versions (clip_id, skeleton_id, fps, n_frames, rotations, translations, "
+            "source_file, source_sha256, load_params) "
+            "VALUES (%s, %s, %s, %s, %b, %b, %s, %s, %s::jsonb) RETURNING version",
+            [clip_id, skeleton_id, motion.fps, motion.n_frames, motion.rotations, translations,
+             src.path if src else None, src.sha256 if src else None, json.dumps(load_params)],
+        ).fetchone()
+        return clip_id, version
+
+
+def load_files(conn: psycopg.Connection, jobs: list[FileJob], units: str | float, units_text: str,
+               keep_going: bool, progress: Callable[[FileResult], None] | None = None) -> LoadSummary:
+    """Load each file in its own transaction. Stops at the first bad file unless keep_going."""
+    summary = LoadSummary()
+    started = time.perf_counter()
+    for job in jobs:
+        result = _load_one(conn, job, units, units_text)
+        summary.results.append(result)
+        if progress:
+            progress(result)
+        if result.status == "failed" and not keep_going:
+            break
+    summary.elapsed = time.perf_counter() - started
+    return summary
+
+
+def _load_one(conn: psycopg.Connection, job: FileJob, units: str | float, units_text: str) -> FileResult:
+    name = job.path.stem
+    try:
+        sha = _sha256(job.path)
+        hit = _unchanged(conn, job, name, sha, units_text)
+        if hit:
+            return FileResult(job.path, "unchanged", clip_id=hit[0], version=hit[1])
+        motion = READERS[job.path.suffix.lower()](str(job.path), units)
+        clip_id, version = store_motion(conn, motion, job.collection, units_text)
+    except MotionFileError as e:
+        return FileResult(job.path, "failed", message=str(e))
+    except psycopg.Error as e:
+        diag = e.diag
+        detail = "; ".join(x for x in (diag.message_primary, diag.message_detail, diag.message_hint) if x)
+        return FileResult(job.path, "failed", message=f"{job.path}: the database refused the clip: {detail or e}")
+    if version is None:
+        return FileResult(job.path, "unchanged", clip_id=clip_id)
+    return FileResult(job.path, "loaded", clip_id=clip_id, version=version, frames=motion.n_frames,
+                      seconds_of_motion=motion.n_frames / motion.fps,
+                      units_rule=motion.source.units_rule if motion.source else "")
