@@ -81,26 +81,37 @@ def is_supported_order(order):
 def to_euler(q, order):
     """Euler angles (radians, (..., len(order))) for `order`, the inverse of from_euler.
 
-    Orders of one or two axes are completed with the missing axes, decomposed,
-    and the extra angles dropped: exact when the rotation has no component
-    about the missing axes, which holds for data read through those channels.
+    Three axes: the middle angle is in [-pi/2, pi/2]. One or two axes: the
+    rotation is assumed to have no component about the missing axes (true for
+    data read through those channels) and each angle keeps its full range.
     """
     if not is_supported_order(order):
         raise ValueError(f"unsupported Euler order {order!r}: need 1-3 distinct axes of X, Y, Z")
+    r = to_matrix(q)
+    if len(order) == 1:
+        i = _AXIS_INDEX[order]
+        j, k = (i + 1) % 3, (i + 2) % 3
+        return np.arctan2(r[..., k, j], r[..., j, j])[..., None]
     full = order + "".join(a for a in "XYZ" if a not in order)
     i, j, k = (_AXIS_INDEX[a] for a in full)
     # +1 when (i, j, k) is a cyclic permutation of (x, y, z).
     s = 1.0 if (j - i) % 3 == 1 else -1.0
-    r = to_matrix(q)
+    if len(order) == 2:
+        # R = Ri(a) Rj(b): column j is Ri(a) e_j, row i is e_i^T Rj(b).
+        a = np.arctan2(s * r[..., k, j], r[..., j, j])
+        b = np.arctan2(s * r[..., i, k], r[..., i, i])
+        return np.stack([a, b], axis=-1)
     b = np.arcsin(np.clip(s * r[..., i, k], -1.0, 1.0))
     a = np.arctan2(-s * r[..., j, k], r[..., k, k])
     c = np.arctan2(-s * r[..., i, j], r[..., i, i])
-    return np.stack([a, b, c], axis=-1)[..., : len(order)]
+    return np.stack([a, b, c], axis=-1)
 
 
 def angle_between(a, b):
     """Rotation angle (radians, 0..pi) taking a to b; q and -q count as the same rotation."""
-    d = np.abs(np.sum(np.asarray(a, dtype=np.float64) * np.asarray(b, dtype=np.float64), axis=-1))
-    # 2*atan2(|a - b|, |a + b|) is accurate near 0 and pi, where 2*acos(d) is not.
-    d = np.clip(d, 0.0, 1.0)
-    return 2.0 * np.arctan2(np.sqrt(np.maximum(1.0 - d * d, 0.0)), d)
+    a = np.asarray(a, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64)
+    b = np.where(np.sum(a * b, axis=-1, keepdims=True) < 0.0, -b, b)
+    # With t the angle between the 4-vectors, |a-b| = 2 sin(t/2) and |a+b| = 2 cos(t/2), and the
+    # rotation angle is 2t: 4*atan2(|a-b|, |a+b|) stays accurate near 0 and pi, where 2*acos(a.b) does not.
+    return 4.0 * np.arctan2(np.linalg.norm(a - b, axis=-1), np.linalg.norm(a + b, axis=-1))

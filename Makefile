@@ -1,0 +1,60 @@
+# MoDB for PostgreSQL. `make demo` and `make test` are all a new user needs;
+# both run `make setup`, which installs only what is missing.
+SHELL := /bin/bash
+PYTHON ?= python3
+VENV := .venv
+PG_CONFIG ?= pg_config
+DATA ?= $(abspath ../shared/mocap)
+SUDO := $(if $(filter 0,$(shell id -u)),,sudo)
+APT_PACKAGES := postgresql-15 postgresql-contrib postgresql-plpython3-15 postgresql-15-pgtap \
+	libtap-parser-sourcehandler-pgtap-perl postgresql-server-dev-15 python3-numpy python3-venv
+EXTVERSION := $(shell sed -n "s/^default_version *= *'\(.*\)'/\1/p" extension/modb.control)
+
+.PHONY: setup apt extension venv test demo clean
+
+setup: apt extension venv
+
+apt:
+	@missing=$$(for p in $(APT_PACKAGES); do \
+		dpkg-query -W -f='$${Status}\n' $$p 2>/dev/null | grep -q '^install ok installed' || echo $$p; done); \
+	if [ -n "$$missing" ]; then \
+		echo "setup: installing $$missing"; \
+		$(SUDO) apt-get update -qq && DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq $$missing; \
+	fi
+
+# Builds modb--$(EXTVERSION).sql and installs it into the local server only when it changed.
+extension: apt
+	@$(MAKE) -s -C extension PG_CONFIG=$(PG_CONFIG)
+	@installed=$$($(PG_CONFIG) --sharedir)/extension; \
+	if ! cmp -s extension/modb--$(EXTVERSION).sql $$installed/modb--$(EXTVERSION).sql \
+	   || ! cmp -s extension/modb.control $$installed/modb.control \
+	   || [ -n "$$(for f in extension/modb--*--*.sql; do [ -e "$$f" ] && ! cmp -s $$f $$installed/$$(basename $$f) && echo x; done)" ]; then \
+		echo "setup: installing the modb extension into $$installed"; \
+		$(SUDO) $(MAKE) -s -C extension install PG_CONFIG=$(PG_CONFIG); \
+	fi
+
+venv: $(VENV)/.installed
+
+$(VENV)/.installed: pyproject.toml
+	@echo "setup: installing the Python package into $(VENV)"
+	$(PYTHON) -m venv $(VENV)
+	$(VENV)/bin/pip install -q --upgrade pip
+	$(VENV)/bin/pip install -q -e '.[test]'
+	@touch $@
+
+test: setup
+	$(VENV)/bin/pytest
+
+demo: setup
+	@$(VENV)/bin/modb db start
+	@if [ -d "$(DATA)/bandai-1" ]; then \
+		$(VENV)/bin/modb load "$(DATA)/bandai-1" --collection demo/bandai-1 && \
+		$(VENV)/bin/modb load "$(DATA)/cmu/131/bvh" --collection demo/cmu-131 --units 0.0564444; \
+	else \
+		echo "demo: no motion data at $(DATA) (give DATA=/path/to/mocap)"; exit 1; \
+	fi
+	@$(VENV)/bin/modb list
+
+clean:
+	$(MAKE) -s -C extension clean
+	rm -rf $(VENV) .pytest_cache

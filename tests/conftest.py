@@ -1,0 +1,68 @@
+"""Shared fixtures: a throwaway PostgreSQL cluster per test session, fresh databases, the real data."""
+from __future__ import annotations
+
+import itertools
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import psycopg
+import pytest
+
+from modb.cluster import Cluster
+from modb.connection import connect
+
+REPO = Path(__file__).resolve().parents[1]
+MOCAP = Path(os.environ.get("MODB_MOCAP", REPO.parent / "shared" / "mocap"))
+CMU_UNITS = 0.0254 / 0.45  # metres per CMU ASF length unit (:units length 0.45)
+
+
+def mocap(*parts: str) -> Path:
+    """A path in the shared real data; the test is skipped, saying why, when it is absent."""
+    p = MOCAP.joinpath(*parts)
+    if not p.exists():
+        pytest.skip(f"real motion data not found at {p} (set MODB_MOCAP to the mocap folder)")
+    return p
+
+
+@pytest.fixture(scope="session")
+def cluster():
+    """A private cluster in a temporary MODB_HOME, stopped and removed at the end."""
+    home = Path(tempfile.mkdtemp(prefix="modb-test-"))
+    c = Cluster(home)
+    c.init()
+    c.start()
+    yield c
+    c.stop()
+    shutil.rmtree(home, ignore_errors=True)
+
+
+_counter = itertools.count()
+
+
+@pytest.fixture
+def fresh_db(cluster, request) -> str:
+    """Conninfo of a new database with the extension installed (dropped after the test)."""
+    name = f"t{os.getpid()}_{next(_counter)}"
+    with psycopg.connect(cluster.dsn("postgres"), autocommit=True) as conn:
+        conn.execute(f'CREATE DATABASE "{name}"')
+    with psycopg.connect(cluster.dsn(name), autocommit=True) as conn:
+        conn.execute("CREATE EXTENSION modb CASCADE")
+    yield cluster.dsn(name)
+    with psycopg.connect(cluster.dsn("postgres"), autocommit=True) as conn:
+        conn.execute(f'DROP DATABASE "{name}" WITH (FORCE)')
+
+
+@pytest.fixture
+def db(fresh_db):
+    with connect(fresh_db) as conn:
+        yield conn
+
+
+def run_modb(dsn: str, *args: str) -> subprocess.CompletedProcess:
+    """The real command line, as a user runs it."""
+    return subprocess.run([sys.executable, "-m", "modb.cli", "--dsn", dsn, *map(str, args)],
+                          capture_output=True, text=True)
