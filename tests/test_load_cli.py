@@ -1,0 +1,140 @@
+"""`modb load`: summaries, idempotent re-loads, versions, and bad files that leave nothing behind."""
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+import pytest
+
+from conftest import mocap, run_modb
+from modb.loader.bvh import read_bvh
+from oracle import bvhio_world_positions, in_order
+
+WALK = ("bandai-1", "data", "dataset-1_walk_active_001.bvh")
+
+
+def counts(db) -> tuple[int, ...]:
+    return tuple(db.execute(f"SELECT count(*) FROM modb.{t}").fetchone()[0]
+                 for t in ("collections", "skeletons", "clips", "clip_versions"))
+
+
+def test_directory_load_summary_and_idempotent_reload(fresh_db, db):
+    src = mocap("cmu", "131", "bvh")
+    r = run_modb(fresh_db, "load", src, "--units", "0.0564444")
+    assert r.returncode == 0, r.stderr
+    assert "3 files: 3 clip versions loaded (3,343 frames" in r.stdout
+    assert "--units 0.0564444: 0.0564444 m per unit" in r.stderr
+    assert "frames/s" in r.stdout
+    before = counts(db)
+    assert before == (1, 1, 3, 3)  # one collection named after the folder, one shared skeleton
+    assert db.execute("SELECT modb.collection_path(collection_id) FROM modb.clips LIMIT 1").fetchone()[0] == "bvh"
+    r = run_modb(fresh_db, "load", src, "--units", "0.0564444")
+    assert r.returncode == 0 and "0 clip versions loaded" in r.stdout and "3 unchanged" in r.stdout
+    assert counts(db) == before
+    # The same bytes read with other units are other motion: a new version.
+    r = run_modb(fresh_db, "load", src / "131_01.bvh", "--units", "in")
+    assert r.returncode == 0 and "1 clip versions loaded" in r.stdout
+    assert db.execute("SELECT max(version) FROM modb.clip_versions").fetchone()[0] == 2
+
+
+def test_units_auto_states_its_rule_and_refuses_to_guess(fresh_db, db):
+    r = run_modb(fresh_db, "load", mocap(*WALK))
+    assert r.returncode == 0
+    assert "units auto: rest pose spans" in r.stderr and "-> cm (0.01 m per unit)" in r.stderr
+    r = run_modb(fresh_db, "load", mocap("cmu", "131", "bvh", "131_01.bvh"))
+    assert r.returncode == 1
+    assert "131_01.bvh: cannot infer units" in r.stderr and "--units" in r.stderr
+    assert counts(db)[2] == 1
+
+
+def _corrupt(tmp_path, name: str, edit) -> str:
+    lines = mocap(*WALK).read_text().splitlines()
+    edit(lines)
+    p = tmp_path / name
+    p.write_text("\n".join(lines) + "\n")
+    return p
+
+
+@pytest.mark.parametrize("case,edit,expect", [
+    ("short_line", lambda L: L.__setitem__(L.index("MOTION") + 10, " ".join(L[L.index("MOTION") + 10].split()[:-1])),
+     ":"),
+    ("not_a_number", lambda L: L.__setitem__(L.index("MOTION") + 5, " ".join(
+        ["abc" if k == 4 else w for k, w in enumerate(L[L.index("MOTION") + 5].split())])), "'abc', not a number"),
+    ("frame_count", lambda L: L.__setitem__(L.index("MOTION") + 1, "Frames: 500"), "declares 500 frames"),
+    ("channel", lambda L: L.__setitem__(4, L[4].replace("Zrotation", "Qrotation")), "unknown channel 'Qrotation'"),
+    ("truncated_hierarchy", lambda L: L.__delitem__(slice(40, None)), "file ends inside the hierarchy"),
+])
+def test_bad_file_names_file_and_line_and_stores_nothing(fresh_db, db, tmp_path, case, edit, expect):
+    bad = _corrupt(tmp_path, f"{case}.bvh", edit)
+    r = run_modb(fresh_db, "load", bad)
+    assert r.returncode == 1
+    assert f"{bad}:" in r.stderr and expect in r.stderr, r.stderr
+    line = int(r.stderr.split(f"{bad}:")[1].split(":")[0])
+    assert line > 0
+    assert counts(db) == (0, 0, 0, 0)
+
+
+def test_keep_going_loads_the_good_and_lists_the_bad(fresh_db, db, tmp_path):
+    folder = tmp_path / "mixed"
+    folder.mkdir()
+    shutil.copy(mocap(*WALK), folder / "a_good.bvh")
+    shutil.copy(mocap("bandai-1", "data", "dataset-1_run_active_001.bvh"), folder / "c_good.bvh")
+    bad = _corrupt(folder, "b_bad.bvh", lambda L: L.__setitem__(L.index("MOTION") + 1, "Frames: 3"))
+    r = run_modb(fresh_db, "load", folder)
+    assert r.returncode == 1 and "stopped at the first bad file; 1 not tried" in r.stderr
+    assert counts(db)[3] == 1
+    r = run_modb(fresh_db, "load", folder, "--keep-going")
+    assert r.returncode == 1
+    assert "1 file(s) not loaded" in r.stderr and str(bad) in r.stderr
+    assert "1 clip versions loaded" in r.stdout and "1 unchanged" in r.stdout and "1 failed" in r.stdout
+    assert counts(db)[3] == 2
+
+
+def test_one_transaction_per_file(fresh_db, db):
+    """A refusal at the last step (the version row) leaves no collection, skeleton or clip behind."""
+    db.execute("""CREATE FUNCTION public.refuse() RETURNS trigger LANGUAGE plpgsql AS
+                  $$ BEGIN RAISE EXCEPTION 'refused by test'; END $$""")
+    db.execute("CREATE TRIGGER refuse BEFORE INSERT ON modb.clip_versions FOR EACH ROW EXECUTE FUNCTION public.refuse()")
+    r = run_modb(fresh_db, "load", mocap(*WALK))
+    assert r.returncode == 1 and "refused by test" in r.stderr
+    assert counts(db) == (0, 0, 0, 0)
+
+
+def test_real_world_bvh_quirks(tmp_path):
+    """CRLF, tabs, '.5'-style numbers, colons in names, mixed rotation orders, position channels anywhere."""
+    src = mocap(*WALK)
+    text = src.read_text()
+    names = [line.split()[1] for line in text.splitlines() if line.split()[:1] in (["ROOT"], ["JOINT"])]
+    quirky = text
+    for n in sorted(names, key=len, reverse=True):
+        quirky = quirky.replace(f"JOINT {n}\n", f"JOINT rig:{n}\n").replace(f"ROOT {n}\n", f"ROOT rig:{n}\n")
+    quirky = quirky.replace("  ", "\t").replace("0.0333333", ".0333333").replace("\n", "\r\n")
+    p = tmp_path / "quirky.bvh"
+    p.write_bytes(quirky.encode())
+    motion = read_bvh(str(p))
+    assert motion.fps == 30.0 and all(n.startswith("rig:") for n in motion.skeleton.names)
+    assert motion.skeleton.joint_map["pelvis"] == "rig:Hips"
+    ref_names, expected = bvhio_world_positions(str(src), 0.01)
+    ours = in_order([n[4:] for n in motion.skeleton.names], ref_names, motion.world_positions())
+    assert np.abs(ours - expected).max() < 0.001
+    # Every Bandai joint has position channels: all 22 carry a translation.
+    assert motion.translations.shape[1] == len(names) == 22
+
+
+def test_rotation_orders_and_partial_channels(tmp_path):
+    """A hand-written file with XYZ, YXZ and single-axis joints, checked against bvhio."""
+    p = tmp_path / "orders.bvh"
+    p.write_text(
+        "HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Yposition Zposition Xrotation Yrotation Zrotation\n"
+        " JOINT Spine\n {\n  OFFSET 0 10 0\n  CHANNELS 3 Yrotation Xrotation Zrotation\n"
+        "  JOINT Neck\n  {\n   OFFSET 0 12 1\n   CHANNELS 2 Yposition Zrotation\n"
+        "   End Site\n   {\n    OFFSET 0 8 0\n   }\n  }\n }\n"
+        " JOINT Leg\n {\n  OFFSET 9 -5 0\n  CHANNELS 1 Xrotation\n  End Site\n  {\n   OFFSET 0 -40 0\n  }\n }\n}\n"
+        "MOTION\nFrames: 3\nFrame Time: .5\n"
+        "1 90 2 10 20 30 5 -40 60 15 45 -30\n"
+        "2 91 3 -80 60 -170 120 5 -10 14 -90 100\n"
+        "-3 92 .5 0 0 0 0 0 0 12 0 175\n")
+    motion = read_bvh(str(p), "cm")
+    names, expected = bvhio_world_positions(str(p), 0.01)
+    assert np.abs(in_order(motion.skeleton.names, names, motion.world_positions()) - expected).max() < 1e-6  # bvhio computes in float32
+    assert [j.rotation_order for j in motion.skeleton.joints] == ["XYZ", "YXZ", "Z", "X"]
