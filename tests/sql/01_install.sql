@@ -1,0 +1,47 @@
+-- The extension installs, drops and re-installs cleanly; objects, comments and declarations as documented.
+BEGIN;
+CREATE EXTENSION IF NOT EXISTS pgtap;
+SELECT plan(22);
+
+SELECT has_extension('modb');
+SELECT has_schema('modb');
+SELECT tables_are('modb', ARRAY['collections', 'skeletons', 'clips', 'clip_versions', 'models', 'graphs']);
+SELECT views_are('modb', ARRAY['current_clips']);
+SELECT functions_are('modb', ARRAY[
+    '_kernel_load', 'unit_quaternions_ok', 'finite_ok', 'skeleton_joint_names', 'joint_map_ok', 'mirror_pairs_ok',
+    'annotations_ok', 'clip_versions_before_insert', 'clip_versions_before_update', 'collection_path',
+    'find_collection', 'ensure_collection', 'world_positions']);
+SELECT col_type_is('modb', 'clip_versions', 'rotations', 'real[]', 'rotations is real[]');
+SELECT col_type_is('modb', 'clip_versions', 'translations', 'real[]', 'translations is real[]');
+SELECT col_is_pk('modb', 'clip_versions', ARRAY['clip_id', 'version'], 'primary key (clip_id, version)');
+SELECT has_trigger('modb', 'clip_versions', 'clip_versions_before_update', 'immutability trigger');
+
+SELECT is((SELECT count(*) FROM pg_proc WHERE pronamespace = 'modb'::regnamespace
+            AND obj_description(oid, 'pg_proc') IS NULL), 0::bigint, 'every function has a COMMENT');
+SELECT is((SELECT count(*) FROM pg_class WHERE relnamespace = 'modb'::regnamespace AND relkind IN ('r', 'v')
+            AND obj_description(oid, 'pg_class') IS NULL), 0::bigint, 'every table and view has a COMMENT');
+SELECT is((SELECT count(*) FROM pg_proc WHERE pronamespace = 'modb'::regnamespace
+            AND provolatile IN ('i', 's') AND proparallel <> 's'), 0::bigint, 'every read-only function is PARALLEL SAFE');
+SELECT is((SELECT count(*) FROM pg_proc WHERE pronamespace = 'modb'::regnamespace AND prosecdef), 0::bigint,
+          'no SECURITY DEFINER function');
+SELECT volatility_is('modb', 'unit_quaternions_ok', ARRAY['real[]', 'double precision'], 'immutable');
+SELECT volatility_is('modb', 'world_positions', ARRAY['bigint', 'integer'], 'stable');
+SELECT is_strict('modb', 'unit_quaternions_ok', ARRAY['real[]', 'double precision']);
+
+SELECT set_eq(
+    $$SELECT c::regclass::text FROM pg_extension, unnest(extconfig) AS c WHERE extname = 'modb'$$,
+    ARRAY['modb.collections', 'modb.collections_id_seq', 'modb.skeletons', 'modb.skeletons_id_seq',
+          'modb.clips', 'modb.clips_id_seq', 'modb.clip_versions', 'modb.models', 'modb.models_id_seq',
+          'modb.graphs', 'modb.graphs_id_seq'],
+    'every data table and id sequence is registered for pg_dump');
+
+DROP EXTENSION modb;
+SELECT hasnt_schema('modb', 'DROP EXTENSION removes the schema');
+SELECT has_role('modb_reader', 'modb_reader outlives DROP EXTENSION');
+SELECT has_role('modb_loader', 'modb_loader outlives DROP EXTENSION');
+CREATE EXTENSION modb CASCADE;
+SELECT has_table('modb', 'clip_versions', 're-install after a drop works');
+SELECT is((SELECT extversion FROM pg_extension WHERE extname = 'modb'), '0.1.0', 're-installed version');
+
+SELECT * FROM finish();
+ROLLBACK;

@@ -1,0 +1,32 @@
+-- Least privilege: modb_reader reads, modb_loader writes (and reads); neither can rewrite motion.
+BEGIN;
+CREATE EXTENSION IF NOT EXISTS pgtap;
+SELECT plan(18);
+
+SELECT table_privs_are('modb', t, 'modb_reader', ARRAY['SELECT'], 'modb_reader may only SELECT modb.' || t)
+  FROM unnest(ARRAY['collections', 'skeletons', 'clips', 'clip_versions', 'models', 'graphs', 'current_clips']) AS t;
+SELECT table_privs_are('modb', 'clip_versions', 'modb_loader', ARRAY['INSERT', 'SELECT'],
+                       'modb_loader may INSERT clip versions (UPDATE only of meta, by column grant)');
+SELECT ok(has_column_privilege('modb_loader', 'modb.clip_versions', 'meta', 'UPDATE')
+          AND NOT has_column_privilege('modb_loader', 'modb.clip_versions', 'rotations', 'UPDATE'),
+          'modb_loader may edit meta but not the frames');
+SELECT ok(has_table_privilege('modb_loader', 'modb.clips', 'SELECT'), 'modb_loader reads through modb_reader');
+SELECT ok(NOT has_function_privilege('modb_reader', 'modb.ensure_collection(text)', 'EXECUTE'),
+          'modb_reader cannot create collections');
+SELECT ok(has_function_privilege('modb_reader', 'modb.world_positions(bigint, integer)', 'EXECUTE'),
+          'modb_reader may compute world positions');
+
+SET LOCAL ROLE modb_reader;
+SELECT lives_ok($$SELECT count(*) FROM modb.current_clips$$, 'reader reads');
+SELECT throws_ok($$INSERT INTO modb.collections (name) VALUES ('x')$$, '42501', NULL, 'reader cannot write');
+RESET ROLE;
+
+SET LOCAL ROLE modb_loader;
+SELECT lives_ok($$SELECT modb.ensure_collection('loaded/by/loader')$$, 'loader creates collections');
+SELECT is(modb.collection_path(modb.find_collection('loaded/by/loader')), 'loaded/by/loader', 'the path round-trips');
+SELECT throws_ok($$DELETE FROM modb.clips$$, '42501', NULL, 'loader cannot delete clips');
+SELECT throws_ok($$UPDATE modb.clip_versions SET rotations = rotations$$, '42501', NULL, 'loader cannot rewrite frames');
+RESET ROLE;
+
+SELECT * FROM finish();
+ROLLBACK;
