@@ -77,7 +77,7 @@ class Cluster:
             cmd = ["runuser", "-u", "postgres", "--", *cmd]
         result = subprocess.run(cmd, capture_output=True, text=True)
         if check and result.returncode != 0:
-            raise ClusterError(f"{' '.join(args[:2])} failed: {(result.stderr or result.stdout).strip()}"
+            raise ClusterError(f"{Path(cmd[-len(args)]).name} failed: {(result.stderr or result.stdout).strip()}"
                                f" (log: {self.logfile})")
         return result
 
@@ -95,6 +95,9 @@ class Cluster:
             os.chmod(d, 0o700)
             if os.geteuid() == 0:
                 shutil.chown(d, "postgres", "postgres")
+        if os.geteuid() == 0 and self._run("test", "-w", self.home, check=False).returncode != 0:
+            raise ClusterError(f"the postgres OS user, which runs the cluster, cannot reach {self.home}: a parent "
+                               f"directory is closed to it; choose a MODB_HOME it can reach (default /var/lib/modb)")
         self._run(_bindir() / "initdb", "-D", self.datadir, "-U", self.os_user, "--auth=trust",
                   "--encoding=UTF8", "--locale=C.UTF-8")
         with open(self.datadir / "postgresql.auto.conf", "a") as conf:
