@@ -3,9 +3,8 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -13,16 +12,9 @@ import psycopg
 
 from modb.motion import Motion
 
-from .bvh import read_bvh
 from .errors import MotionFileError
-
-READERS: dict[str, Callable[..., Motion]] = {".bvh": read_bvh}
-
-
-@dataclass
-class FileJob:
-    path: Path
-    collection: str
+from .jobs import FileJob
+from .reading import ReadOptions, read_job, read_key
 
 
 @dataclass
@@ -62,35 +54,6 @@ class LoadSummary:
                 f"{self.elapsed:.1f} s, {rate:,.0f} frames/s")
 
 
-def find_files(paths: Iterable[str], collection: str | None) -> list[FileJob]:
-    """Motion files under the given files and directories (recursively, sorted).
-
-    Without --collection a directory loads into a collection named after it, its
-    subdirectories into child collections; a single file loads into a collection
-    named after its directory.
-    """
-    jobs: list[FileJob] = []
-    for given in paths:
-        p = Path(given)
-        if p.is_dir():
-            base = collection or p.resolve().name
-            for root, dirs, files in os.walk(p):
-                dirs.sort()
-                rel = Path(root).relative_to(p)
-                for name in sorted(files):
-                    if Path(name).suffix.lower() in READERS:
-                        sub = "/".join((base, *rel.parts)) if collection is None else base
-                        jobs.append(FileJob(Path(root) / name, sub))
-        elif p.is_file():
-            if p.suffix.lower() not in READERS:
-                raise MotionFileError(str(p), None, f"unsupported file type {p.suffix!r}",
-                                      "modb load reads " + ", ".join(sorted(READERS)))
-            jobs.append(FileJob(p, collection or p.resolve().parent.name))
-        else:
-            raise MotionFileError(str(p), None, "no such file or directory")
-    return jobs
-
-
 def _sha256(path: Path) -> str:
     h = hashlib.sha256()
     with open(path, "rb") as f:
@@ -105,18 +68,18 @@ SELECT v.clip_id, v.version
   JOIN LATERAL (SELECT clip_id, version, source_sha256, load_params FROM modb.clip_versions
                  WHERE clip_id = c.id ORDER BY version DESC LIMIT 1) v ON true
  WHERE c.collection_id = modb.find_collection(%(collection)s) AND c.name = %(name)s
-   AND v.source_sha256 = %(sha)s AND v.load_params->>'units' = %(units)s
+   AND v.source_sha256 = %(sha)s AND v.load_params->>'read_key' = %(key)s
 """
 
 
-def _unchanged(conn: psycopg.Connection, job: FileJob, name: str, sha256: str, units: str) -> tuple[int, int] | None:
+def _unchanged(conn: psycopg.Connection, job: FileJob, name: str, sha256: str, key: str) -> tuple[int, int] | None:
     """(clip, version) when the newest version of this clip came from the same bytes read the same way."""
     row = conn.execute(_UNCHANGED_SQL, {"collection": job.collection, "name": name, "sha": sha256,
-                                        "units": units}).fetchone()
+                                        "key": key}).fetchone()
     return (row[0], row[1]) if row else None
 
 
-def store_motion(conn: psycopg.Connection, motion: Motion, collection: str, units: str) -> tuple[int, int | None]:
+def store_motion(conn: psycopg.Connection, motion: Motion, collection: str, key: str) -> tuple[int, int | None]:
     """Store a parsed clip as a new version in one transaction; (clip_id, version or None if unchanged)."""
     sk = motion.skeleton
     hierarchy = json.dumps(sk.hierarchy_json())
@@ -138,11 +101,11 @@ def store_motion(conn: psycopg.Connection, motion: Motion, collection: str, unit
         (clip_id,) = conn.execute("SELECT id FROM modb.clips WHERE collection_id = %s AND name = %s FOR UPDATE",
                                   [collection_id, motion.name]).fetchone()
         latest = conn.execute(
-            "SELECT version, source_sha256, load_params->>'units', skeleton_id FROM modb.clip_versions "
+            "SELECT version, source_sha256, load_params->>'read_key', skeleton_id FROM modb.clip_versions "
             "WHERE clip_id = %s ORDER BY version DESC LIMIT 1", [clip_id]).fetchone()
-        if latest and src and latest[1:] == (src.sha256, units, skeleton_id):
+        if latest and src and latest[1:] == (src.sha256, key, skeleton_id):
             return clip_id, None
-        load_params = {"units": units, "unit_m": sk.unit_m, "units_rule": src.units_rule if src else "",
+        load_params = {"read_key": key, "unit_m": sk.unit_m, "units_rule": src.units_rule if src else "",
                        **motion.meta}
         translations = motion.translations if motion.translations.shape[1] else None
         (version,) = conn.execute(
@@ -155,13 +118,13 @@ def store_motion(conn: psycopg.Connection, motion: Motion, collection: str, unit
         return clip_id, version
 
 
-def load_files(conn: psycopg.Connection, jobs: list[FileJob], units: str | float, units_text: str,
-               keep_going: bool, progress: Callable[[FileResult], None] | None = None) -> LoadSummary:
+def load_files(conn: psycopg.Connection, jobs: list[FileJob], options: ReadOptions, keep_going: bool,
+               progress: Callable[[FileResult], None] | None = None) -> LoadSummary:
     """Load each file in its own transaction. Stops at the first bad file unless keep_going."""
     summary = LoadSummary()
     started = time.perf_counter()
     for job in jobs:
-        result = _load_one(conn, job, units, units_text)
+        result = _load_one(conn, job, options)
         summary.results.append(result)
         if progress:
             progress(result)
@@ -171,17 +134,20 @@ def load_files(conn: psycopg.Connection, jobs: list[FileJob], units: str | float
     return summary
 
 
-def _load_one(conn: psycopg.Connection, job: FileJob, units: str | float, units_text: str) -> FileResult:
+def _load_one(conn: psycopg.Connection, job: FileJob, options: ReadOptions) -> FileResult:
     name = job.path.stem
     try:
         sha = _sha256(job.path)
-        hit = _unchanged(conn, job, name, sha, units_text)
+        key = read_key(job, options)
+        hit = _unchanged(conn, job, name, sha, key)
         if hit:
             return FileResult(job.path, "unchanged", clip_id=hit[0], version=hit[1])
-        motion = READERS[job.path.suffix.lower()](str(job.path), units)
-        clip_id, version = store_motion(conn, motion, job.collection, units_text)
+        motion = read_job(job, options)
+        clip_id, version = store_motion(conn, motion, job.collection, key)
     except MotionFileError as e:
         return FileResult(job.path, "failed", message=str(e))
+    except OSError as e:
+        return FileResult(job.path, "failed", message=f"{job.path}: cannot read: {e.strerror or e}")
     except psycopg.Error as e:
         diag = e.diag
         detail = "; ".join(x for x in (diag.message_primary, diag.message_detail, diag.message_hint) if x)

@@ -9,15 +9,16 @@ from modb_kernel import quaternion
 
 from .motion import Joint, Motion
 
-_DEFAULT_ROTATION_ORDER = "ZYX"  # for sources without BVH channels (ASF/AMC)
+# For sources without BVH channels (ASF/AMC). Their stored rotations C M C^-1 turn about any axis
+# even for a one-dof bone, so every rotating joint gets all three channels.
+_ROTATION_CHANNELS = ["Zrotation", "Yrotation", "Xrotation"]
 
 
 def _channels(joint: Joint, translated: bool, source_format: str) -> list[str]:
     if source_format == "bvh":
         return list(joint.channels)
     positions = ["Xposition", "Yposition", "Zposition"] if translated else []
-    rotations = [a + "rotation" for a in (joint.rotation_order or _DEFAULT_ROTATION_ORDER)]
-    return positions + rotations
+    return positions + (_ROTATION_CHANNELS if joint.rotation_order else [])
 
 
 def write_bvh(motion: Motion, out: io.TextIOBase, precision: int = 6) -> None:

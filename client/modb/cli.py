@@ -24,17 +24,22 @@ def cmd_load(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from .loader.errors import MotionFileError
-    from .loader.ingest import find_files, load_files
+    from .loader.ingest import load_files
+    from .loader.jobs import find_jobs
+    from .loader.reading import ReadOptions
     from .loader.units import UnitsError, parse_units
 
     try:
         units = parse_units(args.units)
-        jobs = find_files(args.paths, args.collection)
+        jobs = find_jobs(args.paths, args.collection, args.asf)
     except (UnitsError, MotionFileError) as e:
         print(f"modb load: {e}", file=sys.stderr)
         return 2
     if not jobs:
-        print("modb load: no motion files (.bvh) found in " + " ".join(args.paths), file=sys.stderr)
+        print("modb load: no motion files (.bvh, .amc) found in " + " ".join(args.paths), file=sys.stderr)
+        return 2
+    if args.fps is not None and not args.fps > 0:
+        print(f"modb load: --fps must be positive, got {args.fps:g}", file=sys.stderr)
         return 2
     with _connect(args) as conn, tqdm(total=len(jobs), unit="file", disable=args.quiet or len(jobs) < 2,
                                       file=sys.stderr) as bar:
@@ -43,7 +48,10 @@ def cmd_load(args: argparse.Namespace) -> int:
             if result.status == "failed":
                 bar.write(f"error: {result.message}", file=sys.stderr)
 
-        summary = load_files(conn, jobs, units, args.units, args.keep_going, progress)
+        options = ReadOptions(units=units, units_text=args.units, fps=args.fps,
+                              allow_truncated=args.allow_truncated,
+                              warn=lambda message: bar.write(f"warning: {message}", file=sys.stderr))
+        summary = load_files(conn, jobs, options, args.keep_going, progress)
     if not args.quiet:
         rules = list(dict.fromkeys(r.units_rule for r in summary.results if r.units_rule))
         for rule in rules[:3]:
@@ -132,11 +140,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-v", "--verbose", action="store_true", help="say which database is used")
     sub = p.add_subparsers(dest="command", required=True)
 
-    load = sub.add_parser("load", help="load BVH files and directories (recursively)")
+    load = sub.add_parser("load", help="load BVH and ASF/AMC files and directories (recursively)")
     load.add_argument("paths", nargs="+", metavar="PATH")
     load.add_argument("--collection", help="collection path a/b (default: named after the directory)")
     load.add_argument("--units", default="auto",
                       help="auto | m | cm | mm | in | metres per unit (default auto: judged from the figure's size)")
+    load.add_argument("--fps", type=float, help="AMC frame rate (AMC files carry none; default 120)")
+    load.add_argument("--allow-truncated", action="store_true",
+                      help="drop an AMC file's incomplete last frame with a warning instead of refusing the file")
+    load.add_argument("--asf", help="the ASF skeleton for every AMC file (default: paired by folder and name)")
     load.add_argument("--keep-going", action="store_true", help="load the good files, list the bad, exit non-zero")
     load.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     load.set_defaults(func=cmd_load)

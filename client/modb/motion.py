@@ -32,7 +32,8 @@ class Joint:
 
     @property
     def has_position(self) -> bool:
-        return any(c.lower().endswith("position") for c in self.channels)
+        """Position channels: BVH 'Xposition'..., ASF root 'TX'..."""
+        return any(c.lower().endswith("position") or c.lower() in ("tx", "ty", "tz") for c in self.channels)
 
 
 @dataclass

@@ -1,0 +1,336 @@
+"""Acclaim ASF (skeleton) and AMC (motion) reader into the shared `Motion` model.
+
+Conventions of the format, as CMU's files use it:
+- `:units length L`: one length unit is 0.0254 / L metres; `angle deg|rad` for every angle.
+- A bone has a rest `direction` and `length` in world axes, and `axis ax ay az ORDER`, the orientation C
+  of its local frame; AMC values are Euler angles M in that local frame, for the bone's `dof` in the
+  order listed, applied first-listed first (rx ry rz -> M = Rz Ry Rx). The bone's rotation relative to
+  its parent, in world-aligned rest axes, is C M C^-1: this is what we store, so forward kinematics is
+  the same code as for BVH.
+- A bone's FK position is its tip. Our joint for a bone sits at the bone's start (its parent's tip), so
+  the knee is `ltibia`; a joint's offset is the parent bone's vector, and a leaf's own vector is its
+  End Site.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from modb.motion import Joint, Motion, Skeleton, Source
+from modb_kernel import quaternion
+
+from .errors import MotionFileError
+from .skeleton_maps import guess_joint_map, guess_mirror_pairs
+
+DEFAULT_FPS = 120.0  # AMC files carry no rate; CMU captured at 120 fps
+_ROTATION_DOFS = ("rx", "ry", "rz")
+_TRANSLATION_DOFS = ("tx", "ty", "tz")
+
+
+@dataclass
+class AsfBone:
+    name: str
+    line: int
+    direction: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    length: float = 0.0
+    axis: np.ndarray = field(default_factory=lambda: np.zeros(3))  # radians
+    axis_order: str = "XYZ"
+    dofs: list[str] = field(default_factory=list)
+
+
+@dataclass
+class AsfSkeleton:
+    path: str
+    sha256: str
+    unit_m: float
+    units_rule: str
+    angle_scale: float  # radians per file angle unit
+    root_order: list[str]
+    root_axis_order: str
+    root_position: np.ndarray
+    root_orientation: np.ndarray  # radians
+    bones: dict[str, AsfBone]
+    children: dict[str, list[str]]
+
+    def joint_order(self) -> list[str]:
+        """'root' then the bones depth-first in :hierarchy order."""
+        order: list[str] = []
+
+        def visit(name: str) -> None:
+            order.append(name)
+            for child in self.children.get(name, []):
+                visit(child)
+
+        visit("root")
+        return order
+
+
+def _read_text(path: str) -> tuple[bytes, list[str]]:
+    with open(path, "rb") as f:
+        raw = f.read()
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        text = raw.decode("latin-1")
+    return raw, text.splitlines()
+
+
+def _numbers(path: str, line: int, words: list[str], count: int, what: str) -> np.ndarray:
+    if len(words) < count:
+        raise MotionFileError(path, line, f"{what} needs {count} numbers, found {len(words)}")
+    try:
+        values = np.array([float(w) for w in words[:count]])
+    except ValueError:
+        raise MotionFileError(path, line, f"{what} has a value that is not a number: {' '.join(words[:count])!r}")
+    if not np.all(np.isfinite(values)):
+        raise MotionFileError(path, line, f"{what} is not finite: {' '.join(words[:count])!r}")
+    return values
+
+
+def _axis_order(path: str, line: int, word: str) -> str:
+    order = word.upper()
+    if not quaternion.is_supported_order(order) or len(order) != 3:
+        raise MotionFileError(path, line, f"axis order {word!r} is not a permutation of XYZ")
+    return order
+
+
+def _sections(lines: list[str]) -> list[tuple[str, list[tuple[int, list[str]]]]]:
+    """(':keyword', [(line number, words), ...]) per section, comments and blank lines dropped."""
+    sections: list[tuple[str, list[tuple[int, list[str]]]]] = []
+    for number, text in enumerate(lines, start=1):
+        words = text.split()
+        if not words or words[0].startswith("#"):
+            continue
+        if words[0].startswith(":"):
+            sections.append((words[0].lower(), [(number, words[1:])] if len(words) > 1 else []))
+        elif sections:
+            sections[-1][1].append((number, words))
+    return sections
+
+
+def read_asf(path: str, units: str | float = "auto") -> AsfSkeleton:
+    raw, lines = _read_text(path)
+    sections = _sections(lines)
+    if not any(k == ":bonedata" for k, _ in sections):
+        raise MotionFileError(path, 1, "no :bonedata section", "not an ASF skeleton file")
+    length_scale, angle = 1.0, "deg"
+    root_order = ["TX", "TY", "TZ", "RX", "RY", "RZ"]
+    root_axis, root_position, root_orientation = "XYZ", np.zeros(3), np.zeros(3)
+    bones: dict[str, AsfBone] = {}
+    children: dict[str, list[str]] = {}
+    for keyword, body in sections:
+        if keyword == ":units":
+            for line, words in body:
+                if words[0] == "length":
+                    length_scale = float(_numbers(path, line, words[1:], 1, "units length")[0])
+                    if length_scale <= 0:
+                        raise MotionFileError(path, line, "units length must be positive")
+                elif words[0] == "angle":
+                    angle = words[1].lower() if len(words) > 1 else ""
+                    if angle not in ("deg", "rad"):
+                        raise MotionFileError(path, line, f"angle unit {angle!r} is neither deg nor rad")
+        elif keyword == ":root":
+            for line, words in body:
+                key = words[0].lower()
+                if key == "order":
+                    root_order = [w.upper() for w in words[1:]]
+                    unknown = [w for w in root_order if w.lower() not in _ROTATION_DOFS + _TRANSLATION_DOFS]
+                    if unknown:
+                        raise MotionFileError(path, line, f"unknown root channel {unknown[0]!r}",
+                                              "root order uses TX TY TZ RX RY RZ")
+                elif key == "axis":
+                    root_axis = _axis_order(path, line, words[1] if len(words) > 1 else "")
+                elif key == "position":
+                    root_position = _numbers(path, line, words[1:], 3, "root position")
+                elif key == "orientation":
+                    root_orientation = _numbers(path, line, words[1:], 3, "root orientation")
+        elif keyword == ":bonedata":
+            bone: AsfBone | None = None
+            for line, words in body:
+                key = words[0].lower()
+                if key == "begin":
+                    bone = AsfBone(name="", line=line)
+                elif key == "end":
+                    if bone is None or not bone.name:
+                        raise MotionFileError(path, line, "bone without a name")
+                    if bone.name in bones or bone.name == "root":
+                        raise MotionFileError(path, bone.line, f"bone name {bone.name!r} is used twice")
+                    bones[bone.name] = bone
+                    bone = None
+                elif bone is None:
+                    raise MotionFileError(path, line, f"{words[0]!r} outside a begin/end bone block")
+                elif key == "name":
+                    bone.name = words[1] if len(words) > 1 else ""
+                elif key == "direction":
+                    bone.direction = _numbers(path, line, words[1:], 3, f"{bone.name} direction")
+                elif key == "length":
+                    bone.length = float(_numbers(path, line, words[1:], 1, f"{bone.name} length")[0])
+                elif key == "axis":
+                    bone.axis = _numbers(path, line, words[1:], 3, f"{bone.name} axis")
+                    bone.axis_order = _axis_order(path, line, words[4] if len(words) > 4 else "XYZ")
+                elif key == "dof":
+                    bone.dofs = [w.lower() for w in words[1:]]
+                    bad = [d for d in bone.dofs if d not in _ROTATION_DOFS]
+                    if bad:
+                        hint = ("bone translation and stretch dofs are not supported" if bad[0] in
+                                _TRANSLATION_DOFS + ("l",) else "dofs are rx ry rz")
+                        raise MotionFileError(path, line, f"unsupported dof {bad[0]!r} on bone {bone.name}", hint)
+            if bone is not None:
+                raise MotionFileError(path, len(lines), f"bone {bone.name or '?'} has no 'end'", "the file is truncated")
+        elif keyword == ":hierarchy":
+            for line, words in body:
+                if words[0].lower() in ("begin", "end"):
+                    continue
+                parent, kids = words[0], words[1:]
+                for name in (parent, *kids):
+                    if name != "root" and name not in bones:
+                        raise MotionFileError(path, line, f"hierarchy names bone {name!r}, which :bonedata lacks")
+                children.setdefault(parent, []).extend(kids)
+    scale = np.pi / 180.0 if angle == "deg" else 1.0
+    for b in bones.values():
+        b.axis = b.axis * scale
+    if isinstance(units, float):
+        unit_m, rule = units, f"--units {units:g}: {units:g} m per unit (the ASF says length {length_scale:g})"
+    elif units != "auto":
+        from .units import NAMED_UNITS
+
+        unit_m, rule = NAMED_UNITS[units], f"--units {units}: {NAMED_UNITS[units]:g} m per unit"
+    else:
+        unit_m = 0.0254 / length_scale
+        rule = f"ASF :units length {length_scale:g}: one unit is 0.0254/{length_scale:g} = {unit_m:.7g} m"
+    skeleton = AsfSkeleton(
+        path=path, sha256=hashlib.sha256(raw).hexdigest(), unit_m=unit_m, units_rule=rule, angle_scale=scale,
+        root_order=root_order, root_axis_order=root_axis, root_position=root_position,
+        root_orientation=root_orientation * scale, bones=bones, children=children)
+    reachable = set(skeleton.joint_order())
+    orphan = next((b for b in bones.values() if b.name not in reachable), None)
+    if orphan:
+        raise MotionFileError(path, orphan.line, f"bone {orphan.name!r} is not in the :hierarchy")
+    return skeleton
+
+
+def _local_rotation(c_angles: np.ndarray, c_order: str, m_angles: np.ndarray, m_order: str) -> np.ndarray:
+    """C M C^-1 for rest axis C and motion M, both applied first-listed first (XYZ -> Rz Ry Rx)."""
+    c = quaternion.from_euler(c_angles[::-1], c_order[::-1])
+    if len(m_order):
+        m = quaternion.from_euler(m_angles[..., ::-1], m_order[::-1])
+    else:
+        m = np.tile([1.0, 0.0, 0.0, 0.0], m_angles.shape[:-1] + (1,))
+    c_inv = c * np.array([1.0, -1.0, -1.0, -1.0])
+    return quaternion.canonical(quaternion.multiply(quaternion.multiply(c, m), c_inv))
+
+
+def _skeleton(asf: AsfSkeleton, name: str) -> Skeleton:
+    order = asf.joint_order()
+    index = {n: k for k, n in enumerate(order)}
+    parent_of = {kid: parent for parent, kids in asf.children.items() for kid in kids}
+    joints = [Joint(name="root", parent=-1, offset=tuple(asf.root_position * asf.unit_m),
+                    channels=tuple(asf.root_order),
+                    rotation_order="".join(c[1] for c in asf.root_order if c.startswith("R")))]
+    for n in order[1:]:
+        bone = asf.bones[n]
+        parent = parent_of[n]
+        offset = (np.zeros(3) if parent == "root"
+                  else asf.bones[parent].direction * asf.bones[parent].length * asf.unit_m)
+        joints.append(Joint(
+            name=n, parent=index[parent], offset=tuple(float(v) for v in offset), channels=tuple(bone.dofs),
+            rotation_order="".join(d[1].upper() for d in bone.dofs),
+            end_site=None if asf.children.get(n) else tuple(float(v) for v in bone.direction * bone.length * asf.unit_m)))
+    names = [j.name for j in joints]
+    return Skeleton(joints=joints, unit_m=asf.unit_m, source_format="asf", joint_map=guess_joint_map(names),
+                    mirror_pairs=guess_mirror_pairs(names), name=os.path.splitext(os.path.basename(asf.path))[0])
+
+
+def read_amc(path: str, asf: AsfSkeleton, fps: float = DEFAULT_FPS, allow_truncated: bool = False,
+             warn=None) -> Motion:
+    """Parse an AMC file against its ASF skeleton. Raises MotionFileError naming file and line."""
+    raw, lines = _read_text(path)
+    angle_scale = asf.angle_scale
+    frames: list[dict[str, tuple[int, list[str]]]] = []
+    frame_lines: list[int] = []
+    for number, text in enumerate(lines, start=1):
+        words = text.split()
+        if not words or words[0].startswith("#"):
+            continue
+        if words[0].startswith(":"):
+            if words[0].upper() == ":RADIANS":
+                angle_scale = 1.0
+            elif words[0].upper() == ":DEGREES":
+                angle_scale = np.pi / 180.0
+            continue
+        if len(words) == 1 and words[0].isdigit():
+            frames.append({})
+            frame_lines.append(number)
+            continue
+        if not frames:
+            raise MotionFileError(path, number, f"expected a frame number, found {text.strip()[:40]!r}",
+                                  "an AMC file lists a frame number, then one line per bone")
+        bone = words[0]
+        if bone != "root" and bone not in asf.bones:
+            raise MotionFileError(path, number, f"bone {bone!r} is not in the skeleton {asf.path}",
+                                  "is this AMC paired with the right ASF? (--asf FILE)")
+        if bone in frames[-1]:
+            raise MotionFileError(path, number, f"bone {bone!r} appears twice in frame {len(frames)}")
+        frames[-1][bone] = (number, words[1:])
+    if not frames:
+        raise MotionFileError(path, 1, "no frames", "expected an AMC motion file")
+    expected = {"root": len(asf.root_order), **{n: len(b.dofs) for n, b in asf.bones.items() if b.dofs}}
+    for k, frame in enumerate(frames):
+        missing = [n for n in expected if n not in frame]
+        if missing:
+            last = k == len(frames) - 1
+            if last and allow_truncated and k > 0:
+                if warn:
+                    warn(f"{path}:{frame_lines[k]}: dropped the last frame, cut short "
+                         f"({len(frame)} of {len(expected)} bone lines)")
+                frames.pop()
+                break
+            raise MotionFileError(
+                path, frame_lines[k], f"frame {k + 1} lacks {len(missing)} of {len(expected)} bone lines "
+                f"({', '.join(missing[:4])}{'...' if len(missing) > 4 else ''})",
+                "the file is cut short: --allow-truncated drops an incomplete last frame" if last else
+                "every frame lists every bone with degrees of freedom")
+    n_frames = len(frames)
+    values: dict[str, np.ndarray] = {}
+    for bone, count in expected.items():
+        rows = [frame[bone] for frame in frames]
+        bad = next(((line, words) for line, words in rows if len(words) != count), None)
+        if bad:
+            raise MotionFileError(path, bad[0], f"bone {bone} has {len(bad[1])} values, its dof needs {count}")
+        try:
+            values[bone] = np.array([words for _, words in rows], dtype=np.float64)
+        except ValueError:
+            for line, words in rows:
+                for w in words:
+                    try:
+                        float(w)
+                    except ValueError:
+                        raise MotionFileError(path, line, f"value {w!r} of bone {bone} is not a number") from None
+        if not np.all(np.isfinite(values[bone])):
+            line = rows[int(np.argwhere(~np.isfinite(values[bone]))[0, 0])][0]
+            raise MotionFileError(path, line, f"bone {bone} has a value that is not finite")
+
+    skeleton = _skeleton(asf, os.path.splitext(os.path.basename(path))[0])
+    rotations = np.empty((n_frames, len(skeleton.joints), 4))
+    root = values["root"]
+    channel = {c: k for k, c in enumerate(asf.root_order)}
+    translation = asf.root_position[None, :].repeat(n_frames, axis=0)
+    for axis, c in enumerate(("TX", "TY", "TZ")):
+        if c in channel:
+            translation[:, axis] = root[:, channel[c]]
+    root_rot = [c for c in asf.root_order if c.startswith("R")]
+    rotations[:, 0] = _local_rotation(
+        asf.root_orientation, asf.root_axis_order,
+        root[:, [channel[c] for c in root_rot]] * angle_scale, "".join(c[1] for c in root_rot))
+    for k, joint in enumerate(skeleton.joints[1:], start=1):
+        bone = asf.bones[joint.name]
+        m = values[joint.name] * angle_scale if bone.dofs else np.zeros((n_frames, 0))
+        rotations[:, k] = _local_rotation(bone.axis, bone.axis_order, m, joint.rotation_order)
+    return Motion(
+        skeleton=skeleton, fps=fps, rotations=rotations, translations=(translation * asf.unit_m)[:, None, :],
+        name=os.path.splitext(os.path.basename(path))[0],
+        source=Source(path=os.path.abspath(path), sha256=hashlib.sha256(raw).hexdigest(), units_rule=asf.units_rule),
+        meta={"frame_time": 1.0 / fps, "skeleton_file": os.path.abspath(asf.path), "skeleton_sha256": asf.sha256})

@@ -1,0 +1,82 @@
+"""Which files a `modb load` call loads, into which collection, and which ASF each AMC file goes with."""
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+
+from .errors import MotionFileError
+
+MOTION_SUFFIXES = (".bvh", ".amc")
+SKELETON_SUFFIX = ".asf"
+
+
+@dataclass
+class FileJob:
+    path: Path
+    collection: str
+    asf: Path | None = None  # the skeleton of an AMC file
+
+
+def _walk(directory: Path) -> Iterable[Path]:
+    for root, dirs, files in os.walk(directory):
+        dirs.sort()
+        for name in sorted(files):
+            yield Path(root) / name
+
+
+def find_jobs(paths: Iterable[str], collection: str | None, asf: str | None = None) -> list[FileJob]:
+    """Motion files under the given files and directories (recursively, sorted), each AMC paired with an ASF.
+
+    Without --collection a directory loads into a collection named after it, its
+    subdirectories into child collections; a single file loads into a collection
+    named after its directory. ASF files are skeletons: they pair, they are not clips.
+    """
+    jobs: list[FileJob] = []
+    named_asf: list[Path] = []
+    for given in paths:
+        p = Path(given)
+        if p.is_dir():
+            base = collection or p.resolve().name
+            for f in _walk(p):
+                if f.suffix.lower() in MOTION_SUFFIXES:
+                    rel = f.parent.relative_to(p)
+                    jobs.append(FileJob(f, "/".join((base, *rel.parts)) if collection is None else base))
+        elif p.is_file():
+            suffix = p.suffix.lower()
+            if suffix == SKELETON_SUFFIX:
+                named_asf.append(p)
+            elif suffix in MOTION_SUFFIXES:
+                jobs.append(FileJob(p, collection or p.resolve().parent.name))
+            else:
+                raise MotionFileError(str(p), None, f"unsupported file type {p.suffix!r}",
+                                      "modb load reads .bvh, and .amc with its .asf")
+        else:
+            raise MotionFileError(str(p), None, "no such file or directory")
+    forced = Path(asf) if asf else None
+    if forced is not None and not forced.is_file():
+        raise MotionFileError(str(forced), None, "no such ASF file (--asf)")
+    for job in jobs:
+        if job.path.suffix.lower() == ".amc":
+            job.asf = forced or pair_asf(job.path, named_asf)
+    return jobs
+
+
+def pair_asf(amc: Path, named: list[Path]) -> Path:
+    """The single .asf beside the AMC, else S.asf for S_NN.amc, else the one .asf named in the call."""
+    beside = sorted(f for f in amc.parent.iterdir() if f.suffix.lower() == SKELETON_SUFFIX)
+    if len(beside) == 1:
+        return beside[0]
+    subject = re.match(r"^(.+?)_\d+$", amc.stem)
+    if subject:
+        match = [f for f in beside if f.stem == subject.group(1)]
+        if len(match) == 1:
+            return match[0]
+    if len(named) == 1:
+        return named[0]
+    found = ", ".join(f.name for f in beside) or "none"
+    raise MotionFileError(
+        str(amc), None, f"cannot tell which ASF skeleton goes with this AMC (.asf files beside it: {found}; "
+        f"named in the call: {len(named)})", "pass --asf FILE, or name exactly one .asf file with it")

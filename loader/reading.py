@@ -1,0 +1,45 @@
+"""Turning one file job into a Motion, with the options of the `modb load` call."""
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from modb.motion import Motion
+
+from .asf import DEFAULT_FPS, AsfSkeleton, read_amc, read_asf
+from .bvh import read_bvh
+from .jobs import FileJob
+
+
+@dataclass
+class ReadOptions:
+    units: str | float = "auto"  # parsed --units
+    units_text: str = "auto"  # --units as given, recorded to recognise re-loads
+    fps: float | None = None  # AMC only: frames per second (default 120)
+    allow_truncated: bool = False  # AMC only: drop an incomplete last frame
+    warn: Callable[[str], None] | None = None
+    _asf_cache: dict[Path, AsfSkeleton] = field(default_factory=dict)
+
+    def asf(self, path: Path) -> AsfSkeleton:
+        key = path.resolve()
+        if key not in self._asf_cache:
+            self._asf_cache[key] = read_asf(str(path), self.units)
+        return self._asf_cache[key]
+
+
+def read_key(job: FileJob, options: ReadOptions) -> str:
+    """What decides the stored motion besides the file's bytes: equal keys and bytes mean nothing new."""
+    if job.asf is None:
+        return f"units={options.units_text}"
+    asf_sha = hashlib.sha256(job.asf.read_bytes()).hexdigest()
+    return (f"units={options.units_text};fps={options.fps or DEFAULT_FPS:g};"
+            f"truncated={options.allow_truncated};asf={asf_sha}")
+
+
+def read_job(job: FileJob, options: ReadOptions) -> Motion:
+    if job.asf is not None:
+        return read_amc(str(job.path), options.asf(job.asf), options.fps or DEFAULT_FPS,
+                        options.allow_truncated, options.warn)
+    return read_bvh(str(job.path), options.units)
