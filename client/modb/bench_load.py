@@ -1,0 +1,97 @@
+"""`modb bench load`: BVH parse speed beside bvhio's readAsBvh, and durable load speed, on real files.
+
+Every figure is measured in the same run as its baseline (the machine is shared and noisy): parsers
+alternate file by file over several rounds, and the ratio is taken per round.
+"""
+from __future__ import annotations
+
+import statistics
+import time
+from pathlib import Path
+
+import numpy as np
+import psycopg
+
+from .connection import connect
+from .loader.ingest import load_files
+from .loader.jobs import find_jobs
+from .loader.reading import ReadOptions
+
+
+def _percentiles(values: list[float]) -> tuple[float, float]:
+    return float(np.median(values)), float(np.percentile(values, 99))
+
+
+def bench_parse(files: list[Path], rounds: int) -> dict:
+    import bvhio
+
+    from .loader.bvh import read_bvh
+
+    frames = {f: read_bvh(str(f)).n_frames for f in files}  # warm the page cache and imports
+    total = sum(frames.values())
+    per_file = {"modb": [], "bvhio": []}
+    rates = {"modb": [], "bvhio": []}
+    for _ in range(rounds):
+        spent = {"modb": 0.0, "bvhio": 0.0}
+        for f in files:
+            for name, parse in (("bvhio", lambda p: bvhio.readAsBvh(p)), ("modb", lambda p: read_bvh(p))):
+                t = time.perf_counter()
+                parse(str(f))
+                dt = time.perf_counter() - t
+                spent[name] += dt
+                per_file[name].append(dt * 1000)
+        for name in spent:
+            rates[name].append(total / spent[name])
+    ratios = [m / b for m, b in zip(rates["modb"], rates["bvhio"])]
+    return {"files": len(files), "frames": total, "rounds": rounds, "rates": rates, "ratios": ratios,
+            "per_file_ms": {k: _percentiles(v) for k, v in per_file.items()}}
+
+
+def bench_load(files: list[Path], rounds: int, admin_dsn: str, make_dsn) -> dict:
+    rates, per_file = [], []
+    sync = None
+    for r in range(rounds):
+        name = f"modb_bench_load_{r}"
+        with psycopg.connect(admin_dsn, autocommit=True) as admin:
+            admin.execute(f'DROP DATABASE IF EXISTS "{name}"')
+            admin.execute(f'CREATE DATABASE "{name}"')
+        try:
+            with psycopg.connect(make_dsn(name), autocommit=True) as c:
+                c.execute("CREATE EXTENSION modb CASCADE")
+            with connect(make_dsn(name)) as conn:
+                sync = conn.execute("SHOW synchronous_commit").fetchone()[0]
+                jobs = find_jobs([str(f) for f in files], "bench")
+                times: list[float] = []
+                last = [time.perf_counter()]
+
+                def tick(_result) -> None:
+                    now = time.perf_counter()
+                    times.append((now - last[0]) * 1000)
+                    last[0] = now
+
+                summary = load_files(conn, jobs, ReadOptions(), keep_going=False, progress=tick)
+                assert not summary.failed, summary.failed[0].message
+                rates.append(summary.frames / summary.elapsed)
+                per_file.extend(times)
+        finally:
+            with psycopg.connect(admin_dsn, autocommit=True) as admin:
+                admin.execute(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
+    return {"rates": rates, "per_file_ms": _percentiles(per_file), "synchronous_commit": sync}
+
+
+def report(folder: Path, parse: dict, load: dict) -> str:
+    m, b = parse["rates"]["modb"], parse["rates"]["bvhio"]
+    pm, pb = parse["per_file_ms"]["modb"], parse["per_file_ms"]["bvhio"]
+    lines = [
+        f"Data: {folder} ({parse['files']} files, {parse['frames']:,} frames), {parse['rounds']} rounds.",
+        "",
+        "| what | frames/s (median of rounds) | per file ms p50 / p99 | vs bvhio (median ratio) |",
+        "|---|---|---|---|",
+        f"| parse: bvhio readAsBvh (baseline) | {statistics.median(b):,.0f} | {pb[0]:.2f} / {pb[1]:.2f} | 1.00x |",
+        f"| parse: modb read_bvh | {statistics.median(m):,.0f} | {pm[0]:.2f} / {pm[1]:.2f} | "
+        f"{statistics.median(parse['ratios']):.2f}x |",
+        f"| load: parse + store, one committed transaction per file (synchronous_commit={load['synchronous_commit']}) "
+        f"| {statistics.median(load['rates']):,.0f} | {load['per_file_ms'][0]:.2f} / {load['per_file_ms'][1]:.2f} | "
+        f"{statistics.median(load['rates']) / statistics.median(b):.2f}x |",
+    ]
+    return "\n".join(lines)
