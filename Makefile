@@ -3,10 +3,12 @@
 SHELL := /bin/bash
 PYTHON ?= python3
 VENV := .venv
-PG_CONFIG ?= pg_config
+# PostgreSQL 15's own pg_config: Debian's /usr/bin/pg_config follows the newest installed server-dev package.
+PG_CONFIG ?= $(firstword $(wildcard /usr/lib/postgresql/15/bin/pg_config) pg_config)
 DATA ?= $(abspath ../shared/mocap)
 SUDO := $(if $(filter 0,$(shell id -u)),,sudo)
-APT_PACKAGES := postgresql-15 postgresql-contrib postgresql-plpython3-15 postgresql-15-pgtap \
+# cube ships in postgresql-15 itself.
+APT_PACKAGES := postgresql-15 postgresql-plpython3-15 postgresql-15-pgtap \
 	libtap-parser-sourcehandler-pgtap-perl postgresql-server-dev-15 python3-numpy python3-venv
 EXTVERSION := $(shell sed -n "s/^default_version *= *'\(.*\)'/\1/p" extension/modb.control)
 
@@ -19,7 +21,7 @@ apt:
 		dpkg-query -W -f='$${Status}\n' $$p 2>/dev/null | grep -q '^install ok installed' || echo $$p; done); \
 	if [ -n "$$missing" ]; then \
 		echo "setup: installing $$missing"; \
-		$(SUDO) apt-get update -qq && DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq $$missing; \
+		$(SUDO) apt-get update -qq && $(SUDO) env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing; \
 	fi
 
 # Builds modb--$(EXTVERSION).sql and installs it into the local server only when it changed.

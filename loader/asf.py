@@ -72,7 +72,7 @@ def _read_text(path: str) -> tuple[bytes, list[str]]:
     with open(path, "rb") as f:
         raw = f.read()
     try:
-        text = raw.decode("utf-8")
+        text = raw.decode("utf-8-sig")  # a byte-order mark is not part of the first keyword
     except UnicodeDecodeError:
         text = raw.decode("latin-1")
     return raw, text.splitlines()

@@ -123,8 +123,8 @@ def _parse_joint(tokens: _Tokens, name: str, parent: int, line: int, joints: lis
             raise tokens.error(f"unexpected {token!r} in joint {name}", "expected JOINT, End Site or '}'")
 
 
-def _parse_header(path: str, lines: list[str], start: int) -> tuple[int, float, int]:
-    """Frames and Frame Time after MOTION; returns (frames, frame_time, index of first data line)."""
+def _parse_header(path: str, lines: list[str], start: int) -> tuple[int, float, int, int]:
+    """Frames and Frame Time after MOTION: (frames, frame_time, index of the first data line, Frames: line)."""
     values: dict[str, tuple[str, int]] = {}
     i = start
     for key in ("Frames:", "Frame Time:"):
@@ -150,44 +150,43 @@ def _parse_header(path: str, lines: list[str], start: int) -> tuple[int, float, 
                               "a clip needs at least one frame")
     if not (np.isfinite(frame_time) and frame_time > 0):
         raise MotionFileError(path, time_line, f"frame time {time_text} must be a positive number of seconds")
-    return frames, frame_time, i
+    return frames, frame_time, i, frames_line
 
 
-def _scan_for_bad_line(path: str, data_lines: list[str], first_line: int, n_channels: int) -> MotionFileError:
+def _scan_for_bad_line(path: str, rows: list[tuple[int, str]], n_channels: int) -> MotionFileError:
     """Slow path, taken only when the fast parse failed: find the first offending line."""
-    for k, text in enumerate(data_lines):
+    for k, (line, text) in enumerate(rows):
         words = text.split()
         if len(words) != n_channels:
-            return MotionFileError(path, first_line + k,
+            return MotionFileError(path, line,
                                    f"frame {k + 1} has {len(words)} values, the hierarchy declares {n_channels} channels",
                                    "the line is cut short or has extra values")
         for column, word in enumerate(words, start=1):
             try:
                 value = float(word)
             except ValueError:
-                return MotionFileError(path, first_line + k, f"value {column} of frame {k + 1} is {word!r}, not a number")
+                return MotionFileError(path, line, f"value {column} of frame {k + 1} is {word!r}, not a number")
             if not np.isfinite(value):
-                return MotionFileError(path, first_line + k, f"value {column} of frame {k + 1} is {word}, not finite")
-    return MotionFileError(path, first_line, "motion data could not be read")
+                return MotionFileError(path, line, f"value {column} of frame {k + 1} is {word}, not finite")
+    return MotionFileError(path, rows[0][0] if rows else None, "motion data could not be read")
 
 
-def _read_motion_block(path: str, lines: list[str], first: int, frames: int, n_channels: int) -> np.ndarray:
-    data_lines = lines[first:]
-    while data_lines and not data_lines[-1].strip():
-        data_lines.pop()
-    if len(data_lines) != frames:
-        line = first + min(len(data_lines), frames) + (1 if len(data_lines) > frames else 0)
-        raise MotionFileError(path, max(line, 1),
-                              f"the header declares {frames} frames but {len(data_lines)} frame lines follow",
+def _read_motion_block(path: str, lines: list[str], first: int, frames: int, frames_line: int,
+                       n_channels: int) -> np.ndarray:
+    """The frame lines after the header (blank lines skipped) as a (frames, channels) array."""
+    rows = [(number, text) for number, text in enumerate(lines[first:], start=first + 1) if text.strip()]
+    if len(rows) != frames:
+        raise MotionFileError(path, frames_line,
+                              f"the header declares {frames} frames but {len(rows)} frame lines follow",
                               "fix the 'Frames:' line or restore the missing frames")
     if n_channels == 0:
         return np.zeros((frames, 0))
     try:
-        data = np.loadtxt(data_lines, dtype=np.float64, ndmin=2)
+        data = np.loadtxt([text for _, text in rows], dtype=np.float64, ndmin=2)
     except ValueError:
-        raise _scan_for_bad_line(path, data_lines, first + 1, n_channels) from None
+        raise _scan_for_bad_line(path, rows, n_channels) from None
     if data.shape != (frames, n_channels) or not np.all(np.isfinite(data)):
-        raise _scan_for_bad_line(path, data_lines, first + 1, n_channels)
+        raise _scan_for_bad_line(path, rows, n_channels)
     return data
 
 
@@ -196,7 +195,7 @@ def read_bvh(path: str, units: str | float = "auto") -> Motion:
     with open(path, "rb") as f:
         raw = f.read()
     try:
-        text = raw.decode("utf-8")
+        text = raw.decode("utf-8-sig")  # a byte-order mark is not part of the first keyword
     except UnicodeDecodeError:
         text = raw.decode("latin-1")
     lines = text.splitlines()
@@ -221,9 +220,9 @@ def read_bvh(path: str, units: str | float = "auto") -> Motion:
         if order and not quaternion.is_supported_order(order):
             raise MotionFileError(path, j.line, f"rotation order {order} of {j.name} is not supported")
 
-    frames, frame_time, first_data = _parse_header(path, lines, tokens.motion_line)
+    frames, frame_time, first_data, frames_line = _parse_header(path, lines, tokens.motion_line)
     n_channels = sum(len(j.channels) for j in raw_joints)
-    data = _read_motion_block(path, lines, first_data, frames, n_channels)
+    data = _read_motion_block(path, lines, first_data, frames, frames_line, n_channels)
 
     joint_map = guess_joint_map(names)
     rest_points = _rest_points(raw_joints, names.index(joint_map.get("pelvis", root_name)))
@@ -266,10 +265,17 @@ def read_bvh(path: str, units: str | float = "auto") -> Motion:
     translations_array = np.stack(translations, axis=1) if translations else np.zeros((frames, 0, 3))
     return Motion(
         skeleton=skeleton, rotations=rotations, translations=translations_array,
-        fps=round(1.0 / frame_time, 3),  # '.0083333' s means 120 fps
+        fps=_rate(frame_time),
         name=os.path.splitext(os.path.basename(path))[0],
         source=Source(path=os.path.abspath(path), sha256=hashlib.sha256(raw).hexdigest(), units_rule=rule),
         meta={"frame_time": frame_time})
+
+
+def _rate(frame_time: float) -> float:
+    """Frames per second: '.0083333' or '0.008333' s mean 120 fps, so snap within 0.1% to a whole rate."""
+    fps = 1.0 / frame_time
+    whole = round(fps)
+    return float(whole) if whole > 0 and abs(fps - whole) <= 1e-3 * whole else round(fps, 3)
 
 
 def _rest_points(joints: list[_RawJoint], top: int) -> np.ndarray:

@@ -79,6 +79,14 @@ def _unchanged(conn: psycopg.Connection, job: FileJob, name: str, sha256: str, k
     return (row[0], row[1]) if row else None
 
 
+def _content_key(motion: Motion) -> str:
+    """What the stored motion follows from once the file is read: its bytes, skeleton file and how they were read."""
+    src = motion.source
+    parts = (src.sha256 if src else "", str(motion.meta.get("skeleton_sha256", "")), repr(motion.skeleton.unit_m),
+             repr(motion.fps), str(motion.n_frames))
+    return hashlib.sha256("|".join(parts).encode()).hexdigest()
+
+
 def store_motion(conn: psycopg.Connection, motion: Motion, collection: str, key: str) -> tuple[int, int | None]:
     """Store a parsed clip as a new version in one transaction; (clip_id, version or None if unchanged)."""
     sk = motion.skeleton
@@ -100,13 +108,14 @@ def store_motion(conn: psycopg.Connection, motion: Motion, collection: str, key:
                      "ON CONFLICT (collection_id, name) DO NOTHING", [collection_id, motion.name])
         (clip_id,) = conn.execute("SELECT id FROM modb.clips WHERE collection_id = %s AND name = %s FOR UPDATE",
                                   [collection_id, motion.name]).fetchone()
+        content = _content_key(motion)
         latest = conn.execute(
-            "SELECT version, source_sha256, load_params->>'read_key', skeleton_id FROM modb.clip_versions "
+            "SELECT load_params->>'content_key', skeleton_id FROM modb.clip_versions "
             "WHERE clip_id = %s ORDER BY version DESC LIMIT 1", [clip_id]).fetchone()
-        if latest and src and latest[1:] == (src.sha256, key, skeleton_id):
+        if latest == (content, skeleton_id):  # e.g. --units auto, then cm: the same motion
             return clip_id, None
-        load_params = {"read_key": key, "unit_m": sk.unit_m, "units_rule": src.units_rule if src else "",
-                       **motion.meta}
+        load_params = {"read_key": key, "content_key": content, "unit_m": sk.unit_m,
+                       "units_rule": src.units_rule if src else "", **motion.meta}
         translations = motion.translations if motion.translations.shape[1] else None
         (version,) = conn.execute(
             "INSERT INTO modb.clip_versions (clip_id, skeleton_id, fps, n_frames, rotations, translations, "

@@ -30,9 +30,10 @@ def _walk(directory: Path) -> Iterable[Path]:
 def find_jobs(paths: Iterable[str], collection: str | None, asf: str | None = None) -> list[FileJob]:
     """Motion files under the given files and directories (recursively, sorted), each AMC paired with an ASF.
 
-    Without --collection a directory loads into a collection named after it, its
+    A directory loads into a collection named after it (or --collection), its
     subdirectories into child collections; a single file loads into a collection
-    named after its directory. ASF files are skeletons: they pair, they are not clips.
+    named after its directory (or --collection). ASF files are skeletons: they pair,
+    they are not clips. Two files that would become the same clip are refused.
     """
     jobs: list[FileJob] = []
     named_asf: list[Path] = []
@@ -43,7 +44,7 @@ def find_jobs(paths: Iterable[str], collection: str | None, asf: str | None = No
             for f in _walk(p):
                 if f.suffix.lower() in MOTION_SUFFIXES:
                     rel = f.parent.relative_to(p)
-                    jobs.append(FileJob(f, "/".join((base, *rel.parts)) if collection is None else base))
+                    jobs.append(FileJob(f, "/".join((base, *rel.parts))))
         elif p.is_file():
             suffix = p.suffix.lower()
             if suffix == SKELETON_SUFFIX:
@@ -55,6 +56,14 @@ def find_jobs(paths: Iterable[str], collection: str | None, asf: str | None = No
                                       "modb load reads .bvh, and .amc with its .asf")
         else:
             raise MotionFileError(str(p), None, "no such file or directory")
+    seen: dict[tuple[str, str], Path] = {}
+    for job in jobs:
+        key = (job.collection, job.path.stem)
+        if key in seen and seen[key].resolve() != job.path.resolve():
+            raise MotionFileError(str(job.path), None,
+                                  f"{seen[key]} and this file would both become clip {key[0]}/{key[1]}",
+                                  "load them into different collections (--collection)")
+        seen[key] = job.path
     forced = Path(asf) if asf else None
     if forced is not None and not forced.is_file():
         raise MotionFileError(str(forced), None, "no such ASF file (--asf)")

@@ -74,9 +74,10 @@ def guess_mirror_pairs(names: list[str]) -> list[tuple[str, str]]:
     for name in names:
         if name in paired:
             continue
+        prefix, _, base = name.rpartition(":")  # 'mixamorig:LeftArm': the side is in the base name
         for pattern, replacement in _SWAPS:
-            if pattern.match(name):
-                other = pattern.sub(replacement, name)
+            if pattern.match(base):
+                other = (prefix + ":" if prefix else "") + pattern.sub(replacement, base)
                 if other in present and other != name and other not in paired:
                     pairs.append((name, other))
                     paired.update((name, other))

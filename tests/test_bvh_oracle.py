@@ -6,7 +6,7 @@ import os
 import numpy as np
 import pytest
 
-from conftest import CMU_UNITS, MOCAP, run_modb
+from conftest import CMU_UNITS, MOCAP, mocap, run_modb
 from modb.loader.bvh import read_bvh
 from oracle import bvhio_world_positions, in_order
 
@@ -40,7 +40,7 @@ def test_parser_forward_kinematics_matches_bvhio(path, units, unit_m):
 def test_database_forward_kinematics_matches_bvhio(fresh_db, db):
     """Through the database: stored as real[], FK by the server's PL/Python (numpy 1.24)."""
     for folder, units, _ in SETS:
-        r = run_modb(fresh_db, "load", MOCAP / folder, "--units", units if isinstance(units, str) else repr(units))
+        r = run_modb(fresh_db, "load", mocap(folder), "--units", units if isinstance(units, str) else repr(units))
         assert r.returncode == 0, r.stderr
     clips = db.execute("SELECT clip_id, source_file FROM modb.current_clips ORDER BY clip_id").fetchall()
     assert len(clips) == len(FILES)

@@ -28,6 +28,8 @@ def test_precedence(monkeypatch):
 def _modb(home: Path, *args: str) -> subprocess.CompletedProcess:
     env = {k: v for k, v in os.environ.items() if k not in ("MODB_DSN", *dsn.LIBPQ_VARIABLES)}
     env["MODB_HOME"] = str(home)
+    # A user's Python environment must not reach the server's PL/Python (it runs apt's numpy).
+    env["PYTHONPATH"] = os.pathsep.join(p for p in sys.path if "site-packages" in p)
     return subprocess.run([sys.executable, "-m", "modb.cli", *args], capture_output=True, text=True, env=env)
 
 
@@ -53,6 +55,13 @@ def test_embedded_cluster_lifecycle():
         assert "listen_addresses = ''" in conf  # no TCP
         if os.geteuid() == 0:
             assert (home / "pgdata").owner() == "postgres"
+        import psycopg
+
+        with psycopg.connect(url, autocommit=True) as conn:
+            conn.execute("CREATE FUNCTION pg_temp.numpy_file() RETURNS text LANGUAGE plpython3u "
+                         "AS $$ import numpy; return numpy.__file__ $$")
+            numpy_file = conn.execute("SELECT pg_temp.numpy_file()").fetchone()[0]
+        assert numpy_file.startswith("/usr/lib/python3/dist-packages/"), numpy_file
         assert _modb(home, "db", "stop").returncode == 0
         r = _modb(home, "db", "status")
         assert r.returncode == 3 and r.stdout.startswith("stopped")

@@ -48,6 +48,11 @@ def test_load_export_load_roundtrip(fresh_db, db, tmp_path, folder, units):
         (clip2,) = db.execute("SELECT id FROM modb.clips WHERE collection_id = %s AND name = %s",
                               [reloaded_id, name]).fetchone()
         again = read_motion(db, clip2)
+        first = read_motion(db, clip_id)
+        for j1, j2 in zip(first.skeleton.joints, again.skeleton.joints):  # offsets and End Sites survive
+            assert j1.name == j2.name and np.allclose(j1.offset, j2.offset, atol=1e-6)
+            assert (j1.end_site is None) == (j2.end_site is None)
+            assert j1.end_site is None or np.allclose(j1.end_site, j2.end_site, atol=1e-6)
         worst["reloaded"] = max(worst["reloaded"], np.abs(
             in_order(again.skeleton.names, names, again.world_positions()) - original).max())
     assert max(worst.values()) < TOLERANCE_M, worst
@@ -77,3 +82,20 @@ def test_export_of_an_older_version_and_ambiguous_names(fresh_db, db, tmp_path):
         assert np.abs(got - expected).max() < TOLERANCE_M
     r = run_modb(fresh_db, "export", "a/dataset-1_walk_active_001", "--version", "7")
     assert r.returncode == 1 and "has no version 7" in r.stderr
+
+
+def test_a_numeric_name_is_not_taken_for_an_id(fresh_db, db, tmp_path):
+    walk = mocap("bandai-1", "data", "dataset-1_walk_active_001.bvh")
+    named = tmp_path / "1.bvh"
+    named.write_bytes(mocap("bandai-1", "data", "dataset-1_run_active_001.bvh").read_bytes())
+    assert run_modb(fresh_db, "load", walk, named, "--collection", "c").returncode == 0
+    (walk_id,) = db.execute("SELECT clip_id FROM modb.current_clips WHERE name = 'dataset-1_walk_active_001'").fetchone()
+    assert walk_id == 1
+    r = run_modb(fresh_db, "export", "1")
+    assert r.returncode == 1 and "both a clip id and a clip name" in r.stderr
+    by_id = run_modb(fresh_db, "export", "id:1")
+    by_name = run_modb(fresh_db, "export", "c/1")
+    assert by_id.returncode == by_name.returncode == 0
+    assert "Frames: 146" in by_id.stdout and by_name.stdout != by_id.stdout
+    r = run_modb(fresh_db, "export", "id:1", "--out", tmp_path / "missing" / "x.bvh")
+    assert r.returncode == 1 and "cannot write" in r.stderr

@@ -74,3 +74,13 @@ def test_validate_rejects_bad_quaternions():
     assert not validate.unit_quaternions_ok((-good).tolist(), 1e-6)  # w < 0 is not canonical
     assert not validate.unit_quaternions_ok([[[1.0, 0, 0, None]]], 1e-6)
     assert validate.finite_ok([[1.0, 2.0]]) and not validate.finite_ok([[1.0, float("nan")]])
+
+
+@pytest.mark.parametrize("order", ORDERS)
+@pytest.mark.parametrize("middle", [90.0, -90.0, 89.9999999, -89.99999999])
+def test_to_euler_at_gimbal_lock(order, middle):
+    rng = np.random.default_rng(9)
+    angles = np.radians(np.column_stack([rng.uniform(-180, 180, 50), np.full(50, middle), rng.uniform(-180, 180, 50)]))
+    q = quaternion.from_euler(angles, order)
+    back = quaternion.from_euler(quaternion.to_euler(q, order), order)
+    assert np.allclose(quaternion.angle_between(back, q), 0.0, atol=1e-6)

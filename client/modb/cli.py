@@ -84,12 +84,16 @@ def cmd_export(args: argparse.Namespace) -> int:
     if args.out in (None, "-"):
         write_bvh(motion, sys.stdout)
     else:
-        tmp = args.out + ".partial"
-        with open(tmp, "w") as f:
-            write_bvh(motion, f)
         import os
 
-        os.replace(tmp, args.out)  # never leave a half-written file under the real name
+        tmp = args.out + ".partial"
+        try:
+            with open(tmp, "w") as f:
+                write_bvh(motion, f)
+            os.replace(tmp, args.out)  # never leave a half-written file under the real name
+        except OSError as e:
+            print(f"modb export: cannot write {args.out}: {e.strerror or e}", file=sys.stderr)
+            return 1
         print(f"wrote {args.out}: clip {motion.name} version {motion.meta['version']}, "
               f"{motion.n_frames} frames at {motion.fps:g} fps", file=sys.stderr)
     return 0

@@ -12,11 +12,21 @@ class ClipNotFound(LookupError):
 
 
 def resolve_clip(conn: psycopg.Connection, spec: str) -> int:
-    """A clip id from an id, a name, or 'collection/path/name' that matches exactly one clip."""
+    """A clip id from 'id:N', an id, a name, or 'collection/path/name' that matches exactly one clip."""
+    if spec.startswith("id:") and spec[3:].isdigit():
+        if conn.execute("SELECT 1 FROM modb.clips WHERE id = %s", [int(spec[3:])]).fetchone():
+            return int(spec[3:])
+        raise ClipNotFound(f"no clip with id {spec[3:]}")
     if spec.isdigit():
-        if conn.execute("SELECT 1 FROM modb.clips WHERE id = %s", [int(spec)]).fetchone():
+        by_id = conn.execute("SELECT 1 FROM modb.clips WHERE id = %s", [int(spec)]).fetchone()
+        named = conn.execute("SELECT count(*) FROM modb.clips WHERE name = %s", [spec]).fetchone()[0]
+        if by_id and named:
+            raise ClipNotFound(f"{spec!r} is both a clip id and a clip name: write id:{spec} for the id, "
+                               f"or collection/{spec} for the name")
+        if by_id:
             return int(spec)
-        raise ClipNotFound(f"no clip with id {spec}")
+        if not named:
+            raise ClipNotFound(f"no clip with id or name {spec}")
     collection, _, name = spec.rpartition("/")
     rows = conn.execute(
         "SELECT c.id, modb.collection_path(c.collection_id) || '/' || c.name FROM modb.clips c "

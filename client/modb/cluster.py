@@ -23,16 +23,29 @@ class ClusterError(RuntimeError):
 
 
 def _bindir() -> Path:
+    """PostgreSQL 15's server binaries (Debian's layout first: `pg_config` may point at a newer major)."""
+    debian = Path("/usr/lib/postgresql/15/bin")
+    if (debian / "initdb").exists():
+        return debian
     try:
         out = subprocess.run(["pg_config", "--bindir"], capture_output=True, text=True, check=True).stdout.strip()
         if (Path(out) / "initdb").exists():
             return Path(out)
     except (OSError, subprocess.CalledProcessError):
         pass
-    fallback = Path("/usr/lib/postgresql/15/bin")
-    if (fallback / "initdb").exists():
-        return fallback
     raise ClusterError("PostgreSQL 15 server binaries not found (no initdb): run `make setup`")
+
+
+def _server_environment() -> dict[str, str]:
+    """Our environment minus what would make the server's PL/Python import the client's packages.
+
+    PL/Python must run Debian's python3 with apt's numpy and the extension's own code, never a
+    virtualenv's or the user's site-packages (DESIGN.md).
+    """
+    env = {k: v for k, v in os.environ.items()
+           if not k.startswith("PYTHON") and k not in ("VIRTUAL_ENV", "CONDA_PREFIX")}
+    env["PYTHONNOUSERSITE"] = "1"
+    return env
 
 
 def default_home() -> Path:
@@ -75,7 +88,7 @@ class Cluster:
         cmd = [str(a) for a in args]
         if os.geteuid() == 0:
             cmd = ["runuser", "-u", "postgres", "--", *cmd]
-        result = subprocess.run(cmd, capture_output=True, text=True)
+        result = subprocess.run(cmd, capture_output=True, text=True, env=_server_environment())
         if check and result.returncode != 0:
             raise ClusterError(f"{Path(cmd[-len(args)]).name} failed: {(result.stderr or result.stdout).strip()}"
                                f" (log: {self.logfile})")

@@ -3,7 +3,7 @@
 
 CREATE TABLE modb.collections (
     id         bigserial PRIMARY KEY,
-    parent_id  bigint REFERENCES modb.collections (id),
+    parent_id  bigint REFERENCES modb.collections (id) CHECK (parent_id <> id),
     name       text NOT NULL CHECK (name ~ '^[^/]+$'),
     meta       jsonb NOT NULL DEFAULT '{}' CHECK (jsonb_typeof(meta) = 'object'),
     created_at timestamptz NOT NULL DEFAULT now(),

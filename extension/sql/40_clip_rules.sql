@@ -55,3 +55,22 @@ COMMENT ON FUNCTION modb.clip_versions_before_update() IS 'Trigger: a clip versi
 
 CREATE TRIGGER clip_versions_before_update BEFORE UPDATE ON modb.clip_versions
     FOR EACH ROW EXECUTE FUNCTION modb.clip_versions_before_update();
+
+CREATE FUNCTION modb.skeletons_before_update()
+RETURNS trigger
+LANGUAGE plpgsql VOLATILE PARALLEL UNSAFE
+AS $$
+BEGIN
+    IF NEW.hierarchy IS DISTINCT FROM OLD.hierarchy THEN
+        RAISE EXCEPTION 'the hierarchy of skeleton % is immutable: clips are stored against it', OLD.id
+            USING ERRCODE = 'object_not_in_prerequisite_state',
+                  HINT = 'load the motion again with the changed skeleton; joint_map, mirror_pairs, name and meta may be edited';
+    END IF;
+    RETURN NEW;
+END
+$$;
+COMMENT ON FUNCTION modb.skeletons_before_update() IS
+    'Trigger: a skeleton''s hierarchy is immutable (its clips'' frames follow it); the joint map and pairs may change';
+
+CREATE TRIGGER skeletons_before_update BEFORE UPDATE ON modb.skeletons
+    FOR EACH ROW EXECUTE FUNCTION modb.skeletons_before_update();

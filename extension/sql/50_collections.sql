@@ -6,6 +6,7 @@ BEGIN ATOMIC
         SELECT id, parent_id, name, 0 FROM modb.collections WHERE id = collection
         UNION ALL
         SELECT c.id, c.parent_id, c.name, up.depth + 1 FROM modb.collections c JOIN up ON c.id = up.parent_id
+         WHERE up.depth < 1000  -- a parent_id cycle, which only the owner can create, must not recurse forever
     )
     SELECT string_agg(name, '/' ORDER BY depth DESC) FROM up;
 END;

@@ -1,7 +1,7 @@
 -- Constraints and triggers reject bad rows; known-value forward kinematics in the server.
 BEGIN;
 CREATE EXTENSION IF NOT EXISTS pgtap;
-SELECT plan(20);
+SELECT plan(22);
 
 -- A two-joint skeleton: root with position channels, child 1 m along +X.
 INSERT INTO modb.skeletons (id, name, hierarchy, joint_map, mirror_pairs) VALUES (
@@ -59,6 +59,10 @@ SELECT throws_ok($$UPDATE modb.skeletons SET joint_map = '{"pelvis": "NoSuchJoin
 SELECT throws_ok($$UPDATE modb.skeletons SET mirror_pairs = '[["Hips", "Arm"], ["Arm", "Hips"]]' WHERE id = 1000$$,
                  '23514', NULL, 'a joint in two mirror pairs rejected');
 SELECT throws_ok($$INSERT INTO modb.collections (name) VALUES ('a/b')$$, '23514', NULL, 'collection names have no "/"');
+SELECT throws_ok($$UPDATE modb.skeletons SET hierarchy = jsonb_set(hierarchy, '{unit_m}', '2') WHERE id = 1000$$,
+                 '55000', NULL, 'a skeleton''s hierarchy is immutable');
+SELECT lives_ok($$UPDATE modb.skeletons SET joint_map = '{"pelvis": "Hips", "left_shoulder": "Arm"}', name = 'renamed'
+                  WHERE id = 1000$$, 'the joint map and name may be edited');
 
 SELECT * FROM finish();
 ROLLBACK;

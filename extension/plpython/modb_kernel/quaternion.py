@@ -101,9 +101,16 @@ def to_euler(q, order):
         a = np.arctan2(s * r[..., k, j], r[..., j, j])
         b = np.arctan2(s * r[..., i, k], r[..., i, i])
         return np.stack([a, b], axis=-1)
-    b = np.arcsin(np.clip(s * r[..., i, k], -1.0, 1.0))
+    cos_b = np.hypot(r[..., i, i], r[..., i, j])
+    b = np.arctan2(s * r[..., i, k], cos_b)
     a = np.arctan2(-s * r[..., j, k], r[..., k, k])
     c = np.arctan2(-s * r[..., i, j], r[..., i, i])
+    # Gimbal lock (middle angle +-90 degrees): only a + c or a - c is defined. Put it all in a with
+    # c = 0, read from column j as for two axes: R e_j = Ri(a) e_j.
+    locked = cos_b < 1e-9
+    if np.any(locked):
+        a = np.where(locked, np.arctan2(s * r[..., k, j], r[..., j, j]), a)
+        c = np.where(locked, 0.0, c)
     return np.stack([a, b, c], axis=-1)
 
 
