@@ -68,16 +68,20 @@ class _Tokens:
             raise self.error(f"expected {word!r}, found {token!r}")
         return line
 
-    def number(self, what: str) -> float:
-        token, line = self.next(what)
+    def number(self, what: str, joint: str) -> float:
+        """The next token as a finite number; `what` and `joint` only go into an error (kept cheap)."""
+        if self.pos >= len(self.items):
+            self.next(f"{joint} {what}")
+        token = self.items[self.pos][0]
+        self.pos += 1
         try:
             value = float(token)
         except ValueError:
             self.pos -= 1
-            raise self.error(f"expected a number for {what}, found {token!r}")
-        if not np.isfinite(value):
+            raise self.error(f"expected a number for {joint} {what}, found {token!r}") from None
+        if value - value != 0.0:  # inf or nan
             self.pos -= 1
-            raise self.error(f"{what} is {token}, not a finite number")
+            raise self.error(f"{joint} {what} is {token}, not a finite number")
         return value
 
 
@@ -87,14 +91,14 @@ def _parse_joint(tokens: _Tokens, name: str, parent: int, line: int, joints: lis
     joints.append(joint)
     tokens.expect("{")
     tokens.expect("OFFSET")
-    joint.offset = [tokens.number(f"{name} OFFSET") for _ in range(3)]
+    joint.offset = [tokens.number("OFFSET", name) for _ in range(3)]
     token, _ = tokens.next("CHANNELS or a child joint")
     if token == "CHANNELS":
-        count = tokens.number(f"{name} CHANNELS count")
+        count = tokens.number("CHANNELS count", name)
         if count != int(count) or not 0 <= count <= 6:
             raise tokens.error(f"channel count of {name} must be a whole number 0-6, found {count:g}")
         for _ in range(int(count)):
-            channel, _ = tokens.next(f"a channel name of {name}")
+            channel, _ = tokens.next("a channel name")
             if channel not in _CHANNELS:
                 tokens.pos -= 1
                 raise tokens.error(f"unknown channel {channel!r} on joint {name}",
@@ -106,7 +110,7 @@ def _parse_joint(tokens: _Tokens, name: str, parent: int, line: int, joints: lis
     else:
         tokens.pos -= 1
     while True:
-        token, line = tokens.next(f"JOINT, End Site or '}}' closing {name}")
+        token, line = tokens.next("JOINT, End Site or '}' closing a joint")
         if token == "}":
             return
         if token == "JOINT":
@@ -116,7 +120,7 @@ def _parse_joint(tokens: _Tokens, name: str, parent: int, line: int, joints: lis
             tokens.expect("Site")
             tokens.expect("{")
             tokens.expect("OFFSET")
-            joint.end_site = [tokens.number(f"{name} End Site OFFSET") for _ in range(3)]
+            joint.end_site = [tokens.number("End Site OFFSET", name) for _ in range(3)]
             tokens.expect("}")
         else:
             tokens.pos -= 1
@@ -234,7 +238,8 @@ def read_bvh(path: str, units: str | float = "auto") -> Motion:
     joints: list[Joint] = []
     rotations = np.empty((frames, len(raw_joints), 4))
     rotations[:] = (1.0, 0.0, 0.0, 0.0)
-    translations = []
+    translated: list[int] = []
+    position_columns: list[list[int]] = []  # per translated joint: data column per axis, -1 keeps the offset
     by_order: dict[str, tuple[list[int], list[list[int]]]] = {}  # one vectorised conversion per order
     column = 0
     for k, j in enumerate(raw_joints):
@@ -246,11 +251,8 @@ def read_bvh(path: str, units: str | float = "auto") -> Motion:
             group[0].append(k)
             group[1].append([cols[a + "rotation"] for a in order])
         if any(c.endswith("position") for c in j.channels):
-            local = np.tile(np.array(j.offset, dtype=np.float64), (frames, 1))
-            for axis, a in enumerate("XYZ"):
-                if a + "position" in cols:
-                    local[:, axis] = data[:, cols[a + "position"]]
-            translations.append(local * unit_m)
+            translated.append(k)
+            position_columns.append([cols.get(a + "position", -1) for a in "XYZ"])
         joints.append(Joint(
             name=j.name, parent=j.parent,
             offset=tuple(float(v) * unit_m for v in j.offset),
@@ -262,7 +264,14 @@ def read_bvh(path: str, units: str | float = "auto") -> Motion:
     skeleton = Skeleton(joints=joints, unit_m=unit_m, source_format="bvh",
                         joint_map=joint_map, mirror_pairs=guess_mirror_pairs(names),
                         name=os.path.splitext(os.path.basename(path))[0])
-    translations_array = np.stack(translations, axis=1) if translations else np.zeros((frames, 0, 3))
+    translations_array = np.zeros((frames, len(translated), 3))
+    if translated:
+        columns = np.array(position_columns)
+        offsets = np.array([raw_joints[k].offset for k in translated])
+        translations_array[:] = offsets  # position channels a joint lacks keep its offset
+        present = columns >= 0
+        translations_array[:, present] = data[:, columns[present]]
+        translations_array *= unit_m
     return Motion(
         skeleton=skeleton, rotations=rotations, translations=translations_array,
         fps=_rate(frame_time),
