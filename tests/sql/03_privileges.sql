@@ -1,7 +1,7 @@
 -- Least privilege: modb_reader reads, modb_loader writes (and reads); neither can rewrite motion.
 BEGIN;
 CREATE EXTENSION IF NOT EXISTS pgtap;
-SELECT plan(18);
+SELECT plan(22);
 
 SELECT table_privs_are('modb', t, 'modb_reader', ARRAY['SELECT'], 'modb_reader may only SELECT modb.' || t)
   FROM unnest(ARRAY['collections', 'skeletons', 'clips', 'clip_versions', 'models', 'graphs', 'current_clips']) AS t;
@@ -11,6 +11,17 @@ SELECT ok(has_column_privilege('modb_loader', 'modb.clip_versions', 'meta', 'UPD
           AND NOT has_column_privilege('modb_loader', 'modb.clip_versions', 'rotations', 'UPDATE'),
           'modb_loader may edit meta but not the frames');
 SELECT ok(has_table_privilege('modb_loader', 'modb.clips', 'SELECT'), 'modb_loader reads through modb_reader');
+SELECT ok(has_column_privilege('modb_loader', 'modb.skeletons', 'joint_map', 'UPDATE')
+          AND has_column_privilege('modb_loader', 'modb.skeletons', 'mirror_pairs', 'UPDATE')
+          AND NOT has_column_privilege('modb_loader', 'modb.skeletons', 'hierarchy', 'UPDATE'),
+          'modb_loader may edit joint maps and pairs, not hierarchies');
+SELECT table_privs_are('modb', 'models', 'modb_loader', ARRAY['SELECT', 'INSERT', 'UPDATE', 'DELETE'],
+                       'modb_loader manages models');
+SELECT ok(has_sequence_privilege('modb_loader', 'modb.clips_id_seq', 'USAGE')
+          AND NOT has_sequence_privilege('modb_reader', 'modb.clips_id_seq', 'USAGE'),
+          'only modb_loader draws ids');
+SELECT ok(NOT has_table_privilege('modb_loader', 'modb.clip_versions', 'DELETE')
+          AND NOT has_table_privilege('modb_loader', 'modb.skeletons', 'DELETE'), 'modb_loader deletes no motion');
 SELECT ok(NOT has_function_privilege('modb_reader', 'modb.ensure_collection(text)', 'EXECUTE'),
           'modb_reader cannot create collections');
 SELECT ok(has_function_privilege('modb_reader', 'modb.world_positions(bigint, integer)', 'EXECUTE'),
