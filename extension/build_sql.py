@@ -21,8 +21,9 @@ CREATE FUNCTION modb._kernel_load()
 RETURNS void
 LANGUAGE plpython3u VOLATILE STRICT PARALLEL SAFE
 AS $py$
-# Registers the embedded kernel as package {package} (versioned, so an ALTER
-# EXTENSION UPDATE in a live session never mixes versions) and caches it in GD.
+# Registers the embedded kernel as package {package} (named by version, so an ALTER
+# EXTENSION UPDATE in a live session never mixes the modules of two versions) and
+# caches it in GD, where every PL/Python function of the extension finds it.
 import importlib, importlib.abc, importlib.util, sys
 SOURCES = {sources}
 PACKAGE = {package!r}
@@ -65,7 +66,7 @@ def kernel_sources() -> dict:
 
 
 def build(version: str) -> str:
-    key = f"modb_kernel {version}"
+    key = "modb_kernel"  # the installed version's kernel; an upgrade script ends by reloading it
     package = "modb_kernel_" + version.replace(".", "_")
     sources = kernel_sources()
     body = "{\n" + "".join(f"    {k!r}: {v!r},\n" for k, v in sources.items()) + "}"

@@ -96,12 +96,13 @@ def store_motion(conn: psycopg.Connection, motion: Motion, collection: str, key:
         (collection_id,) = conn.execute("SELECT modb.ensure_collection(%s)", [collection]).fetchone()
         row = conn.execute(
             "INSERT INTO modb.skeletons (name, hierarchy, joint_map, mirror_pairs) "
-            "VALUES (%s, %s::jsonb, %s::jsonb, %s::jsonb) ON CONFLICT (hierarchy_sha256) DO NOTHING RETURNING id",
+            "VALUES (%s, %s::jsonb, %s::jsonb, %s::jsonb) ON CONFLICT (identity_sha256) DO NOTHING RETURNING id",
             [sk.name, hierarchy, json.dumps(sk.joint_map), json.dumps([list(p) for p in sk.mirror_pairs])],
         ).fetchone()
-        if row is None:  # the same skeleton is stored already (its joint map may have been edited: keep it)
+        if row is None:  # the same skeleton is stored already (its joint map may have been edited: keep it;
+            # offsets that position channels replace are the first file's, which changes no pose)
             row = conn.execute(
-                "SELECT id FROM modb.skeletons WHERE hierarchy_sha256 = encode(sha256((%s::jsonb)::text::bytea), 'hex')",
+                "SELECT id FROM modb.skeletons WHERE identity_sha256 = modb.skeleton_identity(%s::jsonb)",
                 [hierarchy]).fetchone()
         skeleton_id = row[0]
         conn.execute("INSERT INTO modb.clips (collection_id, name) VALUES (%s, %s) "

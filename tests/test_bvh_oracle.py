@@ -42,6 +42,9 @@ def test_database_forward_kinematics_matches_bvhio(fresh_db, db):
     for folder, units, _ in SETS:
         r = run_modb(fresh_db, "load", mocap(folder), "--units", units if isinstance(units, str) else repr(units))
         assert r.returncode == 0, r.stderr
+    # Bandai keeps each file's start position in the Hips offset; its position channels replace it, so
+    # dataset 1 needs two skeletons (the 11 "normal" files have a 10 cm Head End Site), CMU 131 one.
+    assert db.execute("SELECT count(*) FROM modb.skeletons").fetchone()[0] == 3
     clips = db.execute("SELECT clip_id, source_file FROM modb.current_clips ORDER BY clip_id").fetchall()
     assert len(clips) == len(FILES)
     unit_of = {os.path.abspath(p.values[0]): p.values[2] for p in FILES}

@@ -77,3 +77,20 @@ BEGIN ATOMIC
 END;
 COMMENT ON FUNCTION modb.annotations_ok(jsonb, int) IS
     'True when meta is an object whose optional "annotations" list holds {name, start, end} segments with 0 <= start <= end < n_frames (frames, 0-based)';
+
+CREATE FUNCTION modb.skeleton_identity(hierarchy jsonb)
+RETURNS text
+LANGUAGE sql IMMUTABLE STRICT PARALLEL SAFE
+BEGIN ATOMIC
+    -- A joint whose three position channels replace its offset in every frame (Bandai stores the first
+    -- frame's travel in the Hips offset) has an offset that changes no pose: leave it out, so one
+    -- skeleton serves every file of a capture session.
+    SELECT encode(sha256(convert_to((
+        (hierarchy - 'rest_positions') || jsonb_build_object('joints', (
+            SELECT jsonb_agg(CASE WHEN j->'channels' @> '["Xposition", "Yposition", "Zposition"]'
+                                    OR j->'channels' @> '["TX", "TY", "TZ"]'
+                                  THEN j - 'offset' ELSE j END ORDER BY n)
+              FROM jsonb_array_elements(hierarchy->'joints') WITH ORDINALITY AS t(j, n))))::text, 'UTF8')), 'hex');
+END;
+COMMENT ON FUNCTION modb.skeleton_identity(jsonb) IS
+    'sha256 identifying a skeleton: its hierarchy without rest positions and without the offsets of joints whose position channels replace them';

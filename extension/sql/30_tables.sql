@@ -18,7 +18,7 @@ CREATE TABLE modb.skeletons (
     hierarchy        jsonb NOT NULL CHECK (jsonb_typeof(hierarchy->'joints') = 'array'
                                            AND jsonb_array_length(hierarchy->'joints') > 0
                                            AND jsonb_typeof(hierarchy->'unit_m') = 'number'),
-    hierarchy_sha256 text NOT NULL GENERATED ALWAYS AS (encode(sha256(hierarchy::text::bytea), 'hex')) STORED UNIQUE,
+    identity_sha256  text NOT NULL GENERATED ALWAYS AS (modb.skeleton_identity(hierarchy)) STORED UNIQUE,
     joint_map        jsonb NOT NULL DEFAULT '{}',
     mirror_pairs     jsonb NOT NULL DEFAULT '[]',
     meta             jsonb NOT NULL DEFAULT '{}' CHECK (jsonb_typeof(meta) = 'object'),
@@ -26,7 +26,8 @@ CREATE TABLE modb.skeletons (
     CONSTRAINT skeletons_joint_map_check CHECK (modb.joint_map_ok(hierarchy, joint_map)),
     CONSTRAINT skeletons_mirror_pairs_check CHECK (modb.mirror_pairs_ok(hierarchy, mirror_pairs))
 );
-COMMENT ON TABLE modb.skeletons IS 'Joint hierarchies as loaded; identical hierarchies are stored once (hierarchy_sha256)';
+COMMENT ON TABLE modb.skeletons IS
+    'Joint hierarchies as loaded; hierarchies equal up to offsets their position channels replace are stored once (identity_sha256)';
 COMMENT ON COLUMN modb.skeletons.hierarchy IS
     'Immutable: {"format", "unit_m" (metres per source unit), "joints": [{"name", "parent" (index, -1 for the root), "offset" (metres), "channels" (as loaded), "rotation_order", "end_site"}], "translated" (indices of joints with position channels), "rest_positions" (metres)}';
 COMMENT ON COLUMN modb.skeletons.joint_map IS

@@ -8,7 +8,7 @@ SELECT has_schema('modb');
 SELECT tables_are('modb', ARRAY['collections', 'skeletons', 'clips', 'clip_versions', 'models', 'graphs']);
 SELECT views_are('modb', ARRAY['current_clips']);
 SELECT functions_are('modb', ARRAY[
-    '_kernel_load', 'unit_quaternions_ok', 'finite_ok', 'skeleton_joint_names', 'joint_map_ok', 'mirror_pairs_ok',
+    '_kernel_load', 'skeleton_identity', 'unit_quaternions_ok', 'finite_ok', 'skeleton_joint_names', 'joint_map_ok', 'mirror_pairs_ok',
     'annotations_ok', 'clip_versions_before_insert', 'clip_versions_before_update', 'skeletons_before_update',
     'collection_path',
     'find_collection', 'ensure_collection', 'world_positions']);
