@@ -30,7 +30,7 @@ extension: apt
 	@installed=$$($(PG_CONFIG) --sharedir)/extension; \
 	if ! cmp -s extension/modb--$(EXTVERSION).sql $$installed/modb--$(EXTVERSION).sql \
 	   || ! cmp -s extension/modb.control $$installed/modb.control \
-	   || [ -n "$$(for f in extension/modb--*--*.sql; do [ -e "$$f" ] && ! cmp -s $$f $$installed/$$(basename $$f) && echo x; done)" ]; then \
+	   || [ -n "$$(for f in extension/modb--*.sql; do [ -e "$$f" ] && ! cmp -s $$f $$installed/$$(basename $$f) && echo x; done)" ]; then \
 		echo "setup: installing the modb extension into $$installed"; \
 		$(SUDO) $(MAKE) -s -C extension install PG_CONFIG=$(PG_CONFIG); \
 	fi

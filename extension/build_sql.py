@@ -1,88 +1,132 @@
 #!/usr/bin/env python3
-"""Assemble the install script modb--<version>.sql from sql/*.sql and the PL/Python kernel.
+"""Assemble the install script modb--<version>.sql, and upgrade scripts, from sql/*.sql and the kernel.
 
-The kernel package (plpython/modb_kernel/*.py) is embedded in the script as the
-body of modb._kernel_load(), so the server runs exactly the code of the installed
-extension version, never files from the repository or a virtualenv. A line
-'#@modb_kernel' in a PL/Python body becomes a prelude binding `kernel` to it.
+The kernel package (plpython/modb_kernel/*.py) is embedded in every PL/Python function: a line
+'#@modb_kernel' in a body becomes a prelude that, on the function's first call in a session, imports the
+embedded sources as package modb_kernel_<version> and keeps it in GD for the version's other functions.
+So the server runs exactly the code of the installed extension version, never files from the repository
+or a virtualenv, and needs no SPI call to get it (SPI would make the functions unusable in parallel
+queries). {{STANDARD_JOINTS}} and {{FEATURES}} become SQL arrays of the kernel's constants.
+
+Upgrade scripts come from sql/upgrades/OLD--NEW.sql: hand-written steps whose '--@include FILE' lines pull
+in files of sql/ (objects new in NEW), followed by every other PL/Python function re-created with NEW's
+kernel. When the version after NEW starts, freeze the generated script in git and delete its source, so
+later edits of sql/ cannot change an old upgrade.
 """
 import pathlib
+import re
 import sys
 
 HERE = pathlib.Path(__file__).resolve().parent
+KERNEL = HERE / "plpython" / "modb_kernel"
 
-PRELUDE = """kernel = GD.get({key!r})
+PRELUDE = '''kernel = GD.get({key!r})
 if kernel is None:
-    plpy.execute("SELECT modb._kernel_load()")
-    kernel = GD[{key!r}]"""
-
-LOADER = '''
-CREATE FUNCTION modb._kernel_load()
-RETURNS void
-LANGUAGE plpython3u VOLATILE STRICT PARALLEL SAFE
-AS $py$
-# Registers the embedded kernel as package {package} (named by version, so an ALTER
-# EXTENSION UPDATE in a live session never mixes the modules of two versions) and
-# caches it in GD, where every PL/Python function of the extension finds it.
-import importlib, importlib.abc, importlib.util, sys
-SOURCES = {sources}
-PACKAGE = {package!r}
-
-class EmbeddedKernel(importlib.abc.MetaPathFinder, importlib.abc.Loader):
-    def find_spec(self, name, path=None, target=None):
-        key = "modb_kernel" + name[len(PACKAGE):] if name.split(".")[0] == PACKAGE else None
-        if key not in SOURCES:
+    import importlib, importlib.abc, importlib.util, sys
+    class EmbeddedKernel(importlib.abc.MetaPathFinder, importlib.abc.Loader):
+        sources = {sources}
+        package = {package!r}
+        def find_spec(self, name, path=None, target=None):
+            key = "modb_kernel" + name[len(self.package):] if name.split(".")[0] == self.package else None
+            if key not in self.sources:
+                return None
+            return importlib.util.spec_from_loader(name, self, is_package=(key == "modb_kernel"))
+        def create_module(self, spec):
             return None
-        return importlib.util.spec_from_loader(name, self, is_package=(key == "modb_kernel"))
+        def exec_module(self, module):
+            key = "modb_kernel" + module.__name__[len(self.package):]
+            exec(compile(self.sources[key], "<modb {version}>/" + key.replace(".", "/") + ".py", "exec"),
+                 module.__dict__)
+    if not any(getattr(f, "package", None) == {package!r} for f in sys.meta_path):
+        sys.meta_path.insert(0, EmbeddedKernel())
+    kernel = importlib.import_module({package!r})
+    for module in EmbeddedKernel.sources:
+        if module != "modb_kernel":
+            importlib.import_module({package!r} + module[len("modb_kernel"):])
+    GD[{key!r}] = kernel'''
 
-    def create_module(self, spec):
-        return None
-
-    def exec_module(self, module):
-        key = "modb_kernel" + module.__name__[len(PACKAGE):]
-        filename = "<modb {version}>/" + key.replace(".", "/") + ".py"
-        exec(compile(SOURCES[key], filename, "exec"), module.__dict__)
-
-if not any(getattr(f, "modb_package", None) == PACKAGE for f in sys.meta_path):
-    finder = EmbeddedKernel()
-    finder.modb_package = PACKAGE
-    sys.meta_path.insert(0, finder)
-package = importlib.import_module(PACKAGE)
-for key in SOURCES:
-    if key != "modb_kernel":
-        importlib.import_module(PACKAGE + key[len("modb_kernel"):])
-GD[{key!r}] = package
-$py$;
-COMMENT ON FUNCTION modb._kernel_load() IS 'Internal: loads the PL/Python kernel embedded in this extension version into the session';
-'''
+PLPYTHON_FUNCTION = re.compile(r"^CREATE OR REPLACE FUNCTION .*?^\$py\$;\n", re.S | re.M)
 
 
 def kernel_sources() -> dict:
     sources = {}
-    for path in sorted((HERE / "plpython" / "modb_kernel").glob("*.py")):
+    for path in sorted(KERNEL.glob("*.py")):
         name = "modb_kernel" if path.stem == "__init__" else "modb_kernel." + path.stem
         sources[name] = path.read_text()
+    if any("$py$" in text for text in sources.values()):
+        sys.exit("build_sql.py: a kernel source contains '$py$', which would end a function body")
     return sources
 
 
+def _constants() -> dict:
+    namespace: dict = {}
+    exec((KERNEL / "joints.py").read_text(), namespace)  # plain constants, no imports
+    sql = lambda names: "ARRAY[" + ", ".join(f"'{n}'" for n in names) + "]"
+    return {"{{STANDARD_JOINTS}}": sql(namespace["STANDARD_JOINTS"]), "{{FEATURES}}": sql(namespace["FEATURES"]),
+            "{{CONTINUITY_RATIO}}": _continuity_ratio(len(namespace["STANDARD_JOINTS"]))}
+
+
+def _continuity_ratio(n_joints: int) -> str:
+    """greatest over joints of difference/threshold: position (the plan's norm), rotation angle and, with
+    velocity terms, velocity and angular velocity. Unrolled so that it stays one inlinable expression."""
+    def diff(col: str, j: int, k: int) -> str:
+        return f"(a.{col}[{3 * j + k}] - b.{col}[{3 * j + k}])"
+
+    def l2(col: str, j: int) -> str:
+        return "sqrt(" + " + ".join(f"{diff(col, j, k)} ^ 2" for k in (1, 2, 3)) + ")"
+
+    terms = []
+    for j in range(n_joints):
+        t = j + 1
+        l1 = " + ".join(f"abs{diff('positions', j, k)}" for k in (1, 2, 3))
+        rot = ", ".join([f"a.rotations[{4 * j + k}]" for k in (1, 2, 3, 4)] + [f"b.rotations[{4 * j + k}]" for k in (1, 2, 3, 4)])
+        terms.append(
+            f"CASE WHEN (plan).position_threshold[{t}] = 'Infinity' THEN 0 ELSE greatest(\n"
+            f"        CASE WHEN (plan).norm = 'l1' THEN {l1} ELSE {l2('positions', j)} END / (plan).position_threshold[{t}],\n"
+            f"        modb.quat_angle({rot}) / (plan).angle_threshold[{t}],\n"
+            f"        CASE WHEN (plan).velocity_terms THEN greatest({l2('velocities', j)} / (plan).velocity_threshold[{t}],\n"
+            f"             {l2('angular_velocities', j)} / (plan).angular_velocity_threshold[{t}]) ELSE 0 END) END")
+    return "greatest(\n    " + ",\n    ".join(terms) + ")"
+
+
+def _expand(text: str, version: str) -> str:
+    sources = "{" + "".join(f"\n            {k!r}: {v!r}," for k, v in kernel_sources().items()) + "}"
+    prelude = PRELUDE.format(key=f"modb_kernel {version}", sources=sources,
+                             package="modb_kernel_" + version.replace(".", "_"), version=version)
+    text = text.replace("#@modb_kernel", prelude)
+    for placeholder, value in _constants().items():
+        text = text.replace(placeholder, value)
+    return text
+
+
 def build(version: str) -> str:
-    key = "modb_kernel"  # the installed version's kernel; an upgrade script ends by reloading it
-    package = "modb_kernel_" + version.replace(".", "_")
-    sources = kernel_sources()
-    body = "{\n" + "".join(f"    {k!r}: {v!r},\n" for k, v in sources.items()) + "}"
-    parts = []
-    for i, path in enumerate(sorted((HERE / "sql").glob("*.sql"))):
-        text = path.read_text().replace("#@modb_kernel", PRELUDE.format(key=key))
-        parts.append(f"-- {path.name}\n{text}")
-        if i == 0:  # after the header: the kernel loader, which later files' functions call
-            parts.append(LOADER.format(sources=body, package=package, version=version, key=key))
-    script = "\n".join(parts)
-    if "$py$" in "".join(sources.values()):
-        sys.exit("build_sql.py: a kernel source contains '$py$', which would end the function body")
-    return script
+    files = sorted((HERE / "sql").glob("*.sql"))
+    return "\n".join(f"-- {path.name}\n{_expand(path.read_text(), version)}" for path in files)
+
+
+def build_upgrade(source: pathlib.Path) -> str:
+    version = source.stem.split("--")[1]
+    parts = [f"\\echo Use \"ALTER EXTENSION modb UPDATE TO '{version}'\" to load this file. \\quit\n"]
+    included = set()
+    for line in source.read_text().splitlines():
+        if line.startswith("--@include "):
+            name = line.split(maxsplit=1)[1]
+            included.add(name)
+            parts.append(f"-- {name}\n" + _expand((HERE / "sql" / name).read_text(), version))
+        else:
+            parts.append(line)
+    parts.append(f"-- PL/Python functions re-created with the {version} kernel")
+    for path in sorted((HERE / "sql").glob("*.sql")):
+        if path.name not in included:
+            parts.extend(_expand(m.group(0), version) for m in PLPYTHON_FUNCTION.finditer(path.read_text()))
+    return "\n".join(parts)
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 2:
-        sys.exit("usage: build_sql.py VERSION > modb--VERSION.sql")
-    sys.stdout.write(build(sys.argv[1]))
+    if len(sys.argv) == 2:
+        sys.stdout.write(build(sys.argv[1]))
+    elif len(sys.argv) == 3 and sys.argv[1] == "--upgrade":
+        sys.stdout.write(build_upgrade(pathlib.Path(sys.argv[2])))
+    else:
+        sys.exit("usage: build_sql.py VERSION > modb--VERSION.sql\n"
+                 "       build_sql.py --upgrade sql/upgrades/OLD--NEW.sql > modb--OLD--NEW.sql")

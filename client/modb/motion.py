@@ -13,12 +13,7 @@ from typing import Any
 import numpy as np
 
 from modb_kernel import kinematics
-
-STANDARD_JOINTS = (
-    "pelvis", "spine", "chest", "neck", "head",
-    "left_hip", "left_knee", "left_ankle", "left_toe", "left_shoulder", "left_elbow", "left_wrist",
-    "right_hip", "right_knee", "right_ankle", "right_toe", "right_shoulder", "right_elbow", "right_wrist",
-)
+from modb_kernel.joints import STANDARD_JOINTS  # noqa: F401  (part of the model's vocabulary)
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,6 @@
 -- Checks used by table constraints. The frame checks are numpy (one call per clip version).
 
-CREATE FUNCTION modb.unit_quaternions_ok(rotations real[], tolerance float8 DEFAULT 1e-5)
+CREATE OR REPLACE FUNCTION modb.unit_quaternions_ok(rotations real[], tolerance float8 DEFAULT 1e-5)
 RETURNS boolean
 LANGUAGE plpython3u IMMUTABLE STRICT PARALLEL SAFE
 AS $py$
@@ -10,7 +10,7 @@ $py$;
 COMMENT ON FUNCTION modb.unit_quaternions_ok(real[], float8) IS
     'True when every (w,x,y,z) quaternion in the array (last dimension 4) has unit length within tolerance and w >= 0';
 
-CREATE FUNCTION modb.finite_ok(elements real[])
+CREATE OR REPLACE FUNCTION modb.finite_ok(elements real[])
 RETURNS boolean
 LANGUAGE plpython3u IMMUTABLE STRICT PARALLEL SAFE
 AS $py$

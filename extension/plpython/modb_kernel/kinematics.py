@@ -5,7 +5,12 @@ from . import quaternion
 
 
 def world_positions(parents, offsets, rotations, translations=None, translated=()):
-    """World positions (frames, joints, 3) of every joint's origin.
+    """World positions (frames, joints, 3) of every joint's origin (see world_transforms)."""
+    return world_transforms(parents, offsets, rotations, translations, translated)[0]
+
+
+def world_transforms(parents, offsets, rotations, translations=None, translated=()):
+    """World positions (frames, joints, 3) and orientations (frames, joints, 4) of every joint.
 
     parents: parent index per joint (-1 for the root), parents listed before children.
     offsets: (joints, 3) rest offsets from the parent, metres.
@@ -27,7 +32,7 @@ def world_positions(parents, offsets, rotations, translations=None, translated=(
         else:
             positions[:, j] = positions[:, p] + quaternion.rotate(orientations[:, p], local[:, j])
             orientations[:, j] = quaternion.multiply(orientations[:, p], rotations[:, j])
-    return positions
+    return positions, orientations
 
 
 def rest_positions(parents, offsets):

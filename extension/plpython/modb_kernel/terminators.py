@@ -1,0 +1,128 @@
+"""MotionTerminators and snippet descriptors: what the selection query compares, computed once per clip.
+
+Definitions (README "Snippets and terminators" documents them; tests re-derive them independently):
+- Heading: the forward direction (-l_z, 0, l_x) of the hip axis l = left_hip - right_hip (a character's
+  +X is its left), averaged over a centred window of +-round(HEADING_HALF_WINDOW_S * fps) frames (cut at
+  the clip's ends) because the pelvis yaws with every step; theta = atan2(f_x, f_z).
+- Local heading frame of a frame: origin at the pelvis projected on the ground (y = 0), rotated by theta
+  about +Y. Positions and velocities of the standard joints are expressed in it.
+- Rotations: the pelvis's orientation in the heading frame (its tilt and residual yaw); every other
+  joint's rotation relative to its parent.
+- Velocities: central differences over the neighbouring frames (one-sided at the clip's ends), in the
+  frame's heading frame. Angular velocity: the pelvis's world angular velocity in the heading frame; other
+  joints' from their parent-relative rotations, in their own frame.
+- Features (the GiST-indexed cube, physical units): pelvis height; head, wrists and ankles positions;
+  pelvis and ankles velocities (FEATURES lists the 25 dimensions).
+"""
+import numpy as np
+
+from . import kinematics, quaternion
+from .joints import FEATURE_POSITIONS, FEATURE_VELOCITIES, STANDARD_JOINTS
+
+HEADING_HALF_WINDOW_S = 0.25
+
+
+class SkeletonMapError(ValueError):
+    pass
+
+
+def standard_indices(names, joint_map):
+    """Joint index of every standard joint; all must be mapped."""
+    missing = [s for s in STANDARD_JOINTS if joint_map.get(s) not in names]
+    if missing:
+        raise SkeletonMapError("the joint map lacks " + ", ".join(missing))
+    return [names.index(joint_map[s]) for s in STANDARD_JOINTS]
+
+
+def _about_y(theta):
+    return quaternion.about_axis("Y", theta)
+
+
+def _inverse(q):
+    return q * np.array([1.0, -1.0, -1.0, -1.0])
+
+
+def _rotvec(q):
+    """Rotation vectors (axis * angle) of quaternions."""
+    q = quaternion.canonical(q)
+    v = q[..., 1:]
+    s = np.linalg.norm(v, axis=-1, keepdims=True)
+    angle = 2.0 * np.arctan2(s, q[..., :1])
+    return np.where(s > 1e-12, v / np.maximum(s, 1e-300) * angle, 2.0 * v)
+
+
+def _neighbours(n):
+    """Indices (before, after) and their time span in frames, for central differences."""
+    before = np.clip(np.arange(n) - 1, 0, n - 1)
+    after = np.clip(np.arange(n) + 1, 0, n - 1)
+    return before, after, np.maximum(after - before, 1)
+
+
+def headings(positions, left_hip, right_hip, fps):
+    l = positions[:, left_hip] - positions[:, right_hip]
+    forward = np.stack([-l[:, 2], np.zeros(len(l)), l[:, 0]], axis=-1)
+    forward /= np.maximum(np.linalg.norm(forward, axis=-1, keepdims=True), 1e-12)
+    half = int(round(HEADING_HALF_WINDOW_S * fps))
+    cumulative = np.vstack([np.zeros((1, 3)), np.cumsum(forward, axis=0)])
+    lo = np.clip(np.arange(len(l)) - half, 0, len(l))
+    hi = np.clip(np.arange(len(l)) + half + 1, 0, len(l))
+    mean = cumulative[hi] - cumulative[lo]
+    return np.arctan2(mean[:, 0], mean[:, 2])
+
+
+def compute(parents, offsets, rotations, translations, translated, std, fps):
+    """Per-frame terminator data for a whole clip (arrays over frames)."""
+    rotations = np.asarray(rotations, dtype=np.float64)
+    positions, orientations = kinematics.world_transforms(parents, offsets, rotations, translations, translated)
+    n = len(rotations)
+    pelvis = std[STANDARD_JOINTS.index("pelvis")]
+    theta = headings(positions, std[STANDARD_JOINTS.index("left_hip")], std[STANDARD_JOINTS.index("right_hip")], fps)
+    h_inv = _inverse(_about_y(theta))[:, None, :]
+    ground = positions[:, pelvis] * np.array([1.0, 0.0, 1.0])
+    world = positions[:, std]
+    local_positions = quaternion.rotate(h_inv, world - ground[:, None, :])
+    before, after, span = _neighbours(n)
+    rate = (fps / span)[:, None, None]
+    local_velocities = quaternion.rotate(h_inv, (world[after] - world[before]) * rate)
+
+    local_rotations = quaternion.canonical(rotations[:, std])
+    pelvis_s = STANDARD_JOINTS.index("pelvis")
+    pelvis_local = quaternion.canonical(quaternion.multiply(h_inv[:, 0], orientations[:, pelvis]))
+    local_rotations[:, pelvis_s] = pelvis_local
+    angular = _rotvec(quaternion.multiply(_inverse(rotations[before][:, std]), rotations[after][:, std])) * rate
+    pelvis_world = _rotvec(quaternion.multiply(orientations[after, pelvis], _inverse(orientations[before, pelvis])))
+    angular[:, pelvis_s] = quaternion.rotate(h_inv[:, 0], pelvis_world * rate[:, 0])
+
+    configuration = quaternion.canonical(rotations.copy())
+    configuration[:, pelvis] = pelvis_local
+    ancestor = parents[pelvis]
+    while ancestor >= 0:  # joints above the pelvis carry no pose of their own in the heading frame
+        configuration[:, ancestor] = (1.0, 0.0, 0.0, 0.0)
+        ancestor = parents[ancestor]
+
+    idx = {s: k for k, s in enumerate(STANDARD_JOINTS)}
+    features = np.concatenate(
+        [local_positions[:, [pelvis_s], 1]]
+        + [local_positions[:, idx[j]] for j in FEATURE_POSITIONS]
+        + [local_velocities[:, idx[j]] for j in FEATURE_VELOCITIES], axis=1)
+    return {
+        "heading": theta, "pelvis": positions[:, pelvis], "pelvis_height": positions[:, pelvis, 1],
+        "positions": local_positions, "rotations": local_rotations, "velocities": local_velocities,
+        "angular_velocities": angular, "configuration": configuration, "features": features,
+    }
+
+
+def windows(n_frames, fps, window_s, stride_s):
+    """(first frames, frames per snippet): a snippet advances window_s seconds, starts every stride_s."""
+    length = int(round(window_s * fps)) + 1
+    stride = max(1, int(round(stride_s * fps)))
+    return np.arange(0, max(n_frames - length + 1, 0), stride), length
+
+
+def net_motion(terms, first, last):
+    """Net pelvis translation (in the first frame's heading frame) and heading change of frames first..last."""
+    theta = terms["heading"]
+    h_inv = _inverse(_about_y(theta[first]))
+    translation = quaternion.rotate(h_inv, terms["pelvis"][last] - terms["pelvis"][first])
+    turn = np.angle(np.exp(1j * (theta[last] - theta[first])))
+    return translation, turn, _about_y(turn)

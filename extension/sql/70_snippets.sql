@@ -1,0 +1,98 @@
+-- Snippets (~0.5 s windows of real capture), the terminators at their ends, and where they came from.
+-- The frames themselves stay in modb.clip_versions: a snippet is a window onto them, never a copy.
+
+CREATE FUNCTION modb.skeleton_pose_key(hierarchy jsonb)
+RETURNS text
+LANGUAGE sql IMMUTABLE STRICT PARALLEL SAFE
+BEGIN ATOMIC
+    -- End Sites move no joint: snippets of skeletons that differ only there may follow each other.
+    SELECT modb.skeleton_identity(jsonb_set(hierarchy, '{joints}', (
+        SELECT jsonb_agg(j - 'end_site' ORDER BY n)
+          FROM jsonb_array_elements(hierarchy->'joints') WITH ORDINALITY AS t(j, n))));
+END;
+COMMENT ON FUNCTION modb.skeleton_pose_key(jsonb) IS
+    'Identity of the poses a skeleton can take (skeleton_identity without End Sites): snippets chain only within one';
+
+CREATE TABLE modb.snippet_sources (
+    clip_id       bigint NOT NULL,
+    version       int NOT NULL,
+    mirrored      boolean NOT NULL,
+    window_frames int NOT NULL CHECK (window_frames > 1),
+    stride_frames int NOT NULL CHECK (stride_frames > 0),
+    built_at      timestamptz NOT NULL DEFAULT now(),
+    PRIMARY KEY (clip_id, version, mirrored),
+    FOREIGN KEY (clip_id, version) REFERENCES modb.clip_versions (clip_id, version) ON DELETE CASCADE
+);
+COMMENT ON TABLE modb.snippet_sources IS
+    'Clip versions (as captured or mirrored) cut into snippets, with the window and stride used (frames)';
+
+CREATE TABLE modb.terminators (
+    id                 bigserial PRIMARY KEY,
+    clip_id            bigint NOT NULL,
+    version            int NOT NULL,
+    mirrored           boolean NOT NULL,
+    frame              int NOT NULL CHECK (frame >= 0),
+    heading            float8 NOT NULL,
+    pelvis_height      real NOT NULL,
+    positions          real[] NOT NULL CHECK (array_length(positions, 1) = 57),
+    rotations          real[] NOT NULL CHECK (array_length(rotations, 1) = 76),
+    velocities         real[] NOT NULL CHECK (array_length(velocities, 1) = 57),
+    angular_velocities real[] NOT NULL CHECK (array_length(angular_velocities, 1) = 57),
+    configuration      real[] NOT NULL,
+    features           cube NOT NULL CHECK (cube_dim(features) = 25),
+    UNIQUE (clip_id, version, mirrored, frame),
+    FOREIGN KEY (clip_id, version, mirrored) REFERENCES modb.snippet_sources ON DELETE CASCADE
+);
+COMMENT ON TABLE modb.terminators IS
+    'MotionTerminator: the configuration at a frame that begins or ends a snippet, in that frame''s local heading frame';
+COMMENT ON COLUMN modb.terminators.heading IS 'World heading (radians about +Y, 0 = facing +Z) of the frame, smoothed over 0.5 s';
+COMMENT ON COLUMN modb.terminators.positions IS
+    'Standard joints (modb.standard_joints() order) x (x, y, z): metres, local heading frame, origin at the pelvis on the ground';
+COMMENT ON COLUMN modb.terminators.rotations IS
+    'Standard joints x (w, x, y, z): the pelvis in the heading frame, every other joint relative to its parent';
+COMMENT ON COLUMN modb.terminators.velocities IS 'Standard joints x (x, y, z) m/s, local heading frame';
+COMMENT ON COLUMN modb.terminators.angular_velocities IS
+    'Standard joints x (x, y, z) rad/s: the pelvis in the heading frame, other joints in their own frame';
+COMMENT ON COLUMN modb.terminators.configuration IS
+    'real[n_joints][4]: every joint''s unit quaternion (skeleton order); the pelvis in the heading frame';
+COMMENT ON COLUMN modb.terminators.features IS
+    'The indexed feature vector, physical units: modb.feature_names() lists its 25 dimensions';
+
+CREATE TABLE modb.snippets (
+    id               bigserial PRIMARY KEY,
+    clip_id          bigint NOT NULL,
+    version          int NOT NULL,
+    mirrored         boolean NOT NULL,
+    first_frame      int NOT NULL CHECK (first_frame >= 0),
+    n_frames         int NOT NULL CHECK (n_frames > 1),
+    collection_id    bigint NOT NULL,
+    pose_key         text NOT NULL,
+    fps              float8 NOT NULL,
+    begin_terminator bigint NOT NULL REFERENCES modb.terminators (id) ON DELETE CASCADE,
+    end_terminator   bigint NOT NULL REFERENCES modb.terminators (id) ON DELETE CASCADE,
+    begin_features   cube NOT NULL,
+    net_translation  float8[] NOT NULL CHECK (array_length(net_translation, 1) = 3),
+    net_heading      float8 NOT NULL,
+    net_rotation     float8[] NOT NULL CHECK (array_length(net_rotation, 1) = 4),
+    FOREIGN KEY (clip_id, version, mirrored) REFERENCES modb.snippet_sources ON DELETE CASCADE
+);
+COMMENT ON TABLE modb.snippets IS
+    'SnippetDescriptor: frames first_frame .. first_frame + n_frames - 1 of a clip version; played after another snippet, its first frame stands in for that one''s last';
+COMMENT ON COLUMN modb.snippets.begin_features IS 'Copy of the begin terminator''s features, so the GiST index serves the selection alone';
+COMMENT ON COLUMN modb.snippets.net_translation IS 'Pelvis travel (x left, y up, z forward; metres) in the heading frame of the first frame';
+COMMENT ON COLUMN modb.snippets.net_heading IS 'Heading change over the snippet (radians, counter-clockwise seen from above)';
+COMMENT ON COLUMN modb.snippets.net_rotation IS 'The heading change as a unit quaternion (w, x, y, z) about +Y';
+
+CREATE INDEX snippets_begin_features_idx ON modb.snippets USING gist (begin_features);
+CREATE INDEX snippets_clip_idx ON modb.snippets (clip_id, version, mirrored, first_frame);
+CREATE INDEX snippets_pose_key_idx ON modb.snippets (pose_key, fps);
+
+SELECT pg_catalog.pg_extension_config_dump('modb.snippet_sources', '');
+SELECT pg_catalog.pg_extension_config_dump('modb.terminators', '');
+SELECT pg_catalog.pg_extension_config_dump('modb.terminators_id_seq', '');
+SELECT pg_catalog.pg_extension_config_dump('modb.snippets', '');
+SELECT pg_catalog.pg_extension_config_dump('modb.snippets_id_seq', '');
+
+GRANT SELECT ON modb.snippet_sources, modb.terminators, modb.snippets TO modb_reader;
+GRANT INSERT, DELETE ON modb.snippet_sources, modb.terminators, modb.snippets TO modb_loader;
+GRANT USAGE ON modb.terminators_id_seq, modb.snippets_id_seq TO modb_loader;

@@ -1,0 +1,247 @@
+-- How two terminators are compared: the quaternion-angle operator, configuration-level distances,
+-- match profiles with per-session knobs, and the per-dimension search box.
+
+CREATE FUNCTION modb.standard_joints()
+RETURNS text[]
+LANGUAGE sql IMMUTABLE PARALLEL SAFE
+RETURN {{STANDARD_JOINTS}};  -- written by build_sql.py from modb_kernel/joints.py
+COMMENT ON FUNCTION modb.standard_joints() IS
+    'The standard joints in the order terminator arrays use (index 0 = pelvis); a joint map maps them onto a skeleton';
+
+CREATE FUNCTION modb.feature_names()
+RETURNS text[]
+LANGUAGE sql IMMUTABLE PARALLEL SAFE
+RETURN {{FEATURES}};  -- written by build_sql.py from modb_kernel/joints.py
+COMMENT ON FUNCTION modb.feature_names() IS 'The 25 dimensions of the indexed feature cube, in order (metres, m/s)';
+
+CREATE FUNCTION modb.quat_angle(aw float8, ax float8, ay float8, az float8, bw float8, bx float8, by float8, bz float8)
+RETURNS float8
+LANGUAGE sql IMMUTABLE CALLED ON NULL INPUT PARALLEL SAFE  -- not STRICT: least() is not, and a STRICT
+                                                           -- function with it in its body is never inlined
+-- For unit quaternions |a-b|^2 + |a+b|^2 = 4 and a.b >= 0 exactly when |a-b| <= |a+b|, so taking the
+-- smaller as the chord treats q and -q as one rotation; 4*atan2 of the chords is accurate near 0 and pi.
+RETURN 4 * atan2(least(sqrt((aw - bw) ^ 2 + (ax - bx) ^ 2 + (ay - by) ^ 2 + (az - bz) ^ 2),
+                       sqrt((aw + bw) ^ 2 + (ax + bx) ^ 2 + (ay + by) ^ 2 + (az + bz) ^ 2)),
+                 greatest(sqrt((aw - bw) ^ 2 + (ax - bx) ^ 2 + (ay - by) ^ 2 + (az - bz) ^ 2),
+                          sqrt((aw + bw) ^ 2 + (ax + bx) ^ 2 + (ay + by) ^ 2 + (az + bz) ^ 2)));
+COMMENT ON FUNCTION modb.quat_angle(float8, float8, float8, float8, float8, float8, float8, float8) IS
+    'Rotation angle (radians, 0..pi) between unit quaternions (aw, ax, ay, az) and (bw, bx, by, bz)';
+
+CREATE FUNCTION modb.quat_angle(a float8[], b float8[])
+RETURNS float8
+LANGUAGE sql IMMUTABLE CALLED ON NULL INPUT PARALLEL SAFE
+RETURN modb.quat_angle(a[1], a[2], a[3], a[4], b[1], b[2], b[3], b[4]);
+COMMENT ON FUNCTION modb.quat_angle(float8[], float8[]) IS
+    'Rotation angle (radians, 0..pi) between two unit quaternions (w, x, y, z); q and -q are the same rotation';
+
+CREATE OPERATOR modb.<%> (
+    LEFTARG = float8[], RIGHTARG = float8[], FUNCTION = modb.quat_angle, COMMUTATOR = OPERATOR(modb.<%>)
+);
+COMMENT ON OPERATOR modb.<%> (float8[], float8[]) IS 'Rotation angle (radians) between two unit quaternions';
+
+CREATE FUNCTION modb.max_joint_angle(a real[], b real[], joints int[])
+RETURNS float8
+LANGUAGE sql IMMUTABLE STRICT PARALLEL SAFE
+BEGIN ATOMIC
+    SELECT max(a[4 * j + 1:4 * j + 4]::float8[] OPERATOR(modb.<%>) b[4 * j + 1:4 * j + 4]::float8[]) FROM unnest(joints) AS j;
+END;
+COMMENT ON FUNCTION modb.max_joint_angle(real[], real[], int[]) IS
+    'Largest rotation angle between two configurations (flat arrays of (w,x,y,z) per joint) over the given joint indices (0-based)';
+
+CREATE FUNCTION modb.weighted_joint_angle(a real[], b real[], joints int[], weights float8[])
+RETURNS float8
+LANGUAGE sql IMMUTABLE STRICT PARALLEL SAFE
+BEGIN ATOMIC
+    SELECT sum(w * (a[4 * j + 1:4 * j + 4]::float8[] OPERATOR(modb.<%>) b[4 * j + 1:4 * j + 4]::float8[]))
+      FROM unnest(joints, weights) AS t(j, w);
+END;
+COMMENT ON FUNCTION modb.weighted_joint_angle(real[], real[], int[], float8[]) IS
+    'Weighted sum of rotation angles between two configurations over a joint subset (0-based indices, one weight each)';
+
+CREATE TABLE modb.match_profiles (
+    name     text PRIMARY KEY,
+    settings jsonb NOT NULL CHECK (jsonb_typeof(settings) = 'object'),
+    comment  text
+);
+COMMENT ON TABLE modb.match_profiles IS
+    'Continuity thresholds for select_next_snippet, by name; any setting can be overridden per session with SET modb.<knob>';
+
+INSERT INTO modb.match_profiles (name, settings, comment) VALUES
+('default', '{"joints": ["pelvis", "spine", "chest", "neck", "head", "left_hip", "left_knee", "left_ankle", "left_toe",
+              "right_hip", "right_knee", "right_ankle", "right_toe", "left_shoulder", "left_elbow", "left_wrist",
+              "right_shoulder", "right_elbow", "right_wrist"],
+              "norm": "l2", "position_threshold": {"default": 0.12, "left_wrist": 0.2, "right_wrist": 0.2,
+              "left_elbow": 0.16, "right_elbow": 0.16},
+              "angle_threshold": {"default": 0.5, "pelvis": 0.3}, "velocity_threshold": {"default": 0.6, "left_wrist": 1.0,
+              "right_wrist": 1.0, "left_elbow": 0.8, "right_elbow": 0.8},
+              "angular_velocity_threshold": {"default": 4.0}, "velocity_terms": true, "heading_weight": 0.0}',
+ 'Whole body: feet, hands and head within centimetres, joints within about 30 degrees, velocities matched'),
+('strict', '{"joints": ["pelvis", "spine", "chest", "neck", "head", "left_hip", "left_knee", "left_ankle", "left_toe",
+             "right_hip", "right_knee", "right_ankle", "right_toe", "left_shoulder", "left_elbow", "left_wrist",
+             "right_shoulder", "right_elbow", "right_wrist"],
+             "norm": "l2", "position_threshold": {"default": 0.06}, "angle_threshold": {"default": 0.25},
+             "velocity_threshold": {"default": 0.3}, "angular_velocity_threshold": {"default": 2.0},
+             "velocity_terms": true, "heading_weight": 0.0}',
+ 'Half the default thresholds: smoother seams, more relaxation'),
+('locomotion', '{"joints": ["pelvis", "left_hip", "left_knee", "left_ankle", "left_toe", "right_hip", "right_knee",
+                 "right_ankle", "right_toe"],
+                 "norm": "l1", "position_threshold": {"default": 0.15}, "angle_threshold": {"default": 0.5},
+                 "velocity_threshold": {"default": 0.7}, "angular_velocity_threshold": {"default": 5.0},
+                 "velocity_terms": true, "heading_weight": 0.3}',
+ 'Lower body only, L1 positions, and a heading term: for walking to goals');
+
+SELECT pg_catalog.pg_extension_config_dump('modb.match_profiles', '');
+
+CREATE TYPE modb.match_plan AS (
+    joints                     int[],
+    position_threshold         float8[],
+    angle_threshold            float8[],
+    velocity_threshold         float8[],
+    angular_velocity_threshold float8[],
+    norm                       text,
+    velocity_terms             boolean,
+    heading_weight             float8,
+    box_half_width             float8[]
+);
+COMMENT ON TYPE modb.match_plan IS
+    'A profile resolved for one query: included joints (0-based standard indices), thresholds per standard joint (Infinity when not included), and the half-widths of the search box per feature';
+
+CREATE FUNCTION modb.match_knobs()
+RETURNS text[]
+LANGUAGE sql IMMUTABLE STRICT PARALLEL SAFE
+RETURN ARRAY['joints', 'norm', 'position_threshold', 'angle_threshold', 'velocity_threshold',
+             'angular_velocity_threshold', 'velocity_terms', 'heading_weight'];
+COMMENT ON FUNCTION modb.match_knobs() IS 'Settings a session may override with SET modb.<knob> = ...';
+
+CREATE FUNCTION modb.match_plan(profile text)
+RETURNS modb.match_plan
+LANGUAGE plpgsql STABLE PARALLEL SAFE
+AS $$
+DECLARE
+    settings jsonb;
+    knob text;
+    value text;
+    unknown text;
+    plan modb.match_plan;
+    names text[] := modb.standard_joints();
+    features text[] := modb.feature_names();
+    joint_names text[];
+    position_by_joint float8[];
+    velocity_by_joint float8[];
+    included boolean[];
+    feature text;
+    joint text;
+    s int;
+BEGIN
+    SELECT p.settings INTO settings FROM modb.match_profiles p WHERE p.name = coalesce(profile, 'default');
+    IF NOT FOUND THEN
+        RAISE EXCEPTION 'unknown match profile "%"', profile
+            USING HINT = 'profiles: ' || (SELECT string_agg(name, ', ' ORDER BY name) FROM modb.match_profiles);
+    END IF;
+    SELECT string_agg(name, ', ') INTO unknown FROM pg_catalog.pg_settings
+     WHERE name LIKE 'modb.%' AND setting <> '' AND substr(name, 6) <> ALL (modb.match_knobs());
+    IF unknown IS NOT NULL THEN
+        RAISE EXCEPTION 'unknown modb setting: %', unknown
+            USING HINT = 'knobs are modb.' || array_to_string(modb.match_knobs(), ', modb.') || '; RESET the unknown one';
+    END IF;
+    FOREACH knob IN ARRAY modb.match_knobs() LOOP
+        value := nullif(current_setting('modb.' || knob, true), '');
+        CONTINUE WHEN value IS NULL;
+        settings := settings || jsonb_build_object(knob, CASE
+            WHEN knob = 'joints' THEN to_jsonb(string_to_array(replace(value, ' ', ''), ','))
+            WHEN knob = 'norm' THEN to_jsonb(lower(value))
+            WHEN knob = 'velocity_terms' THEN to_jsonb(value::boolean)
+            WHEN knob LIKE '%threshold' THEN jsonb_build_object('default', value::float8)  -- one value for every joint
+            ELSE to_jsonb(value::float8) END);
+    END LOOP;
+    joint_names := ARRAY(SELECT jsonb_array_elements_text(settings->'joints'));
+    IF joint_names = '{}' OR EXISTS (SELECT FROM unnest(joint_names) j WHERE j <> ALL (names)) THEN
+        RAISE EXCEPTION 'profile "%": joints % must be standard joints', profile, joint_names
+            USING HINT = 'standard joints: ' || array_to_string(names, ', ');
+    END IF;
+    plan.norm := coalesce(settings->>'norm', 'l2');
+    IF plan.norm NOT IN ('l1', 'l2') THEN
+        RAISE EXCEPTION 'norm must be l1 or l2, not "%"', plan.norm;
+    END IF;
+    plan.velocity_terms := coalesce((settings->>'velocity_terms')::boolean, true);
+    plan.heading_weight := coalesce((settings->>'heading_weight')::float8, 0);
+    plan.joints := ARRAY(SELECT array_position(names, j) - 1 FROM unnest(joint_names) WITH ORDINALITY t(j, n) ORDER BY n);
+    plan.position_threshold := modb._thresholds(settings->'position_threshold', names, joint_names);
+    plan.angle_threshold := modb._thresholds(settings->'angle_threshold', names, joint_names);
+    plan.velocity_threshold := modb._thresholds(settings->'velocity_threshold', names, joint_names);
+    plan.angular_velocity_threshold := modb._thresholds(settings->'angular_velocity_threshold', names, joint_names);
+    position_by_joint := plan.position_threshold;
+    velocity_by_joint := plan.velocity_threshold;
+    -- Box half-widths: a feature of an included joint gets that joint's threshold (an L1 or L2 ball
+    -- lies inside the box of its radius, so the box loses no candidate); the others are unbounded.
+    plan.box_half_width := '{}';
+    FOREACH feature IN ARRAY features LOOP
+        joint := split_part(feature, '.', 1);
+        s := array_position(names, joint);
+        plan.box_half_width := plan.box_half_width || CASE
+            WHEN joint <> ALL (joint_names) THEN 1e6::float8  -- unbounded, without infinities in the cube
+            WHEN split_part(feature, '.', 2) LIKE 'v_' THEN
+                CASE WHEN plan.velocity_terms THEN velocity_by_joint[s] ELSE 1e6::float8 END
+            ELSE position_by_joint[s] END;
+    END LOOP;
+    RETURN plan;
+END
+$$;
+COMMENT ON FUNCTION modb.match_plan(text) IS
+    'Resolves a match profile with this session''s SET modb.<knob> overrides; an unknown profile or knob is an error';
+
+CREATE FUNCTION modb._thresholds(spec jsonb, joints text[], included text[])
+RETURNS float8[]
+LANGUAGE sql IMMUTABLE PARALLEL SAFE
+BEGIN ATOMIC
+    SELECT array_agg(CASE WHEN j <> ALL (included) THEN 'Infinity'::float8
+                          WHEN jsonb_typeof(spec) = 'number' THEN spec::text::float8
+                          ELSE coalesce((spec->>j)::float8, (spec->>'default')::float8) END ORDER BY n)
+      FROM unnest(joints) WITH ORDINALITY AS t(j, n);
+END;
+COMMENT ON FUNCTION modb._thresholds(jsonb, text[], text[]) IS
+    'Internal: a threshold per joint from a number or {"default": x, "<joint>": y}; Infinity for joints not included';
+
+CREATE FUNCTION modb.continuity_ratio(a modb.terminators, b modb.terminators, plan modb.match_plan)
+RETURNS float8
+LANGUAGE sql IMMUTABLE CALLED ON NULL INPUT PARALLEL SAFE
+-- One expression over every standard joint, written out by build_sql.py so the planner can inline it
+-- (an aggregate over unnest() cost ~0.5 ms a row); a joint the profile leaves out has infinite thresholds.
+RETURN {{CONTINUITY_RATIO}};
+COMMENT ON FUNCTION modb.continuity_ratio(modb.terminators, modb.terminators, modb.match_plan) IS
+    'max over included joints of difference/threshold (position by the profile''s norm, quaternion angle, velocities): <= 1 within thresholds';
+
+CREATE FUNCTION modb.match_box(features cube, plan modb.match_plan, scale float8)
+RETURNS cube
+LANGUAGE sql IMMUTABLE STRICT PARALLEL SAFE
+BEGIN ATOMIC
+    SELECT cube(array_agg(cube_ll_coord(features, i) - scale * (plan).box_half_width[i] ORDER BY i),
+                array_agg(cube_ll_coord(features, i) + scale * (plan).box_half_width[i] ORDER BY i))
+      FROM generate_series(1, cube_dim(features)) AS i;
+END;
+COMMENT ON FUNCTION modb.match_box(cube, modb.match_plan, float8) IS
+    'The per-dimension search box around a feature point: each feature +- scale x its joint''s threshold';
+
+CREATE FUNCTION modb.target_cost(net_translation float8[], net_heading float8, target float8[], heading_weight float8)
+RETURNS float8
+LANGUAGE sql IMMUTABLE CALLED ON NULL INPUT PARALLEL SAFE
+RETURN CASE WHEN array_length(target, 1) = 3
+            THEN sqrt((net_translation[1] - target[1]) ^ 2 + (net_translation[2] - target[2]) ^ 2 + (net_translation[3] - target[3]) ^ 2)
+            ELSE sqrt((net_translation[1] - target[1]) ^ 2 + (net_translation[3] - target[2]) ^ 2) END
+       + heading_weight * abs(atan2(sin(net_heading - atan2(target[1], target[array_length(target, 1)])),
+                                    cos(net_heading - atan2(target[1], target[array_length(target, 1)]))));
+COMMENT ON FUNCTION modb.target_cost(float8[], float8, float8[], float8) IS
+    'Distance (m) from a snippet''s net translation to the target {x, z} or {x, y, z}, plus heading_weight x |heading change - direction of the target| (radians)';
+
+CREATE FUNCTION modb.collection_subtree(path text)
+RETURNS bigint[]
+LANGUAGE sql STABLE STRICT PARALLEL SAFE
+BEGIN ATOMIC
+    WITH RECURSIVE down(id, depth) AS (
+        SELECT id, 0 FROM modb.collections WHERE id = modb.find_collection(path)
+        UNION ALL
+        SELECT c.id, down.depth + 1 FROM modb.collections c JOIN down ON c.parent_id = down.id WHERE down.depth < 1000
+    )
+    SELECT coalesce(array_agg(id), '{}') FROM down;
+END;
+COMMENT ON FUNCTION modb.collection_subtree(text) IS 'Ids of the collection at path "a/b" and of every collection below it';

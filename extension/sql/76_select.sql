@@ -1,0 +1,137 @@
+-- select_next_snippet: continuity (WHERE) and objective (ORDER BY) as one query the planner sees whole.
+-- LANGUAGE sql, STABLE, not STRICT, one SELECT: inlined into the caller's plan, so EXPLAIN shows the
+-- GiST index scan on snippets.begin_features with the profile's box as its Index Cond.
+
+CREATE FUNCTION modb.select_next_snippets(prev_snippet bigint, target float8[], k int,
+                                          profile text DEFAULT 'default', collection text DEFAULT NULL,
+                                          exclude bigint[] DEFAULT NULL)
+RETURNS TABLE (snippet_id bigint, clip_id bigint, version int, mirrored boolean, first_frame int, n_frames int,
+               proximity float8, relax_level int, continuity float8, net_translation float8[],
+               net_rotation float8[], net_heading float8)
+LANGUAGE sql STABLE PARALLEL SAFE
+AS $$
+WITH cfg AS MATERIALIZED (
+    SELECT modb.match_plan(profile) AS plan,
+           CASE WHEN collection IS NULL THEN NULL ELSE modb.collection_subtree(collection) END AS collections
+), prev AS MATERIALIZED (
+    SELECT t AS term, t.features, s.pose_key, s.fps
+      FROM modb.snippets s JOIN modb.terminators t ON t.id = s.end_terminator
+     WHERE s.id = prev_snippet
+), candidates AS NOT MATERIALIZED (
+    -- The filters every level shares: same skeleton poses and rate, the collection, and no replay of a
+    -- frame a recent snippet covered (its seam frame aside).
+    SELECT s.*
+      FROM modb.snippets s
+     WHERE (collection IS NULL OR s.collection_id = ANY ((SELECT collections FROM cfg)::bigint[]))
+       AND NOT EXISTS (SELECT FROM modb.snippets x
+                        WHERE x.id = ANY (exclude) AND x.clip_id = s.clip_id AND x.version = s.version
+                          AND x.mirrored = s.mirrored
+                          AND x.first_frame + 1 <= s.first_frame + s.n_frames - 1
+                          AND s.first_frame + 1 <= x.first_frame + x.n_frames - 1)
+)
+(SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
+        modb.target_cost(c.net_translation, c.net_heading, target, (SELECT (plan).heading_weight FROM cfg)) AS proximity,
+        0, NULL::float8, c.net_translation, c.net_rotation, c.net_heading
+   FROM candidates c
+  WHERE prev_snippet IS NULL
+  ORDER BY 7, 1 LIMIT k)
+-- Relaxation levels 0-3: every threshold (and the box) scaled by 2^level; a row reports the lowest
+-- level it satisfies. Level 4, the last: the nearest start configuration (feature distance), any ratio.
+UNION ALL
+(SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
+        modb.target_cost(c.net_translation, c.net_heading, target, (SELECT (plan).heading_weight FROM cfg)), 0, r.ratio,
+        c.net_translation, c.net_rotation, c.net_heading
+   FROM candidates c JOIN modb.terminators b ON b.id = c.begin_terminator
+  CROSS JOIN prev CROSS JOIN cfg  -- as columns, not sub-selects, so continuity_ratio is inlined
+  CROSS JOIN LATERAL (SELECT modb.continuity_ratio(prev.term, b, cfg.plan) AS ratio) r
+  WHERE c.begin_features <@ (SELECT modb.match_box(prev.features, cfg.plan, 1.0) FROM prev, cfg)
+    AND c.pose_key = (SELECT pose_key FROM prev) AND c.fps = (SELECT fps FROM prev)
+    AND r.ratio <= 1.0
+  ORDER BY 7, 1 LIMIT k)
+UNION ALL
+(SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
+        modb.target_cost(c.net_translation, c.net_heading, target, (SELECT (plan).heading_weight FROM cfg)), 1, r.ratio,
+        c.net_translation, c.net_rotation, c.net_heading
+   FROM candidates c JOIN modb.terminators b ON b.id = c.begin_terminator
+  CROSS JOIN prev CROSS JOIN cfg  -- as columns, not sub-selects, so continuity_ratio is inlined
+  CROSS JOIN LATERAL (SELECT modb.continuity_ratio(prev.term, b, cfg.plan) AS ratio) r
+  WHERE c.begin_features <@ (SELECT modb.match_box(prev.features, cfg.plan, 2.0) FROM prev, cfg)
+    AND c.pose_key = (SELECT pose_key FROM prev) AND c.fps = (SELECT fps FROM prev)
+    AND r.ratio <= 2.0 AND r.ratio > 1.0
+  ORDER BY 7, 1 LIMIT k)
+UNION ALL
+(SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
+        modb.target_cost(c.net_translation, c.net_heading, target, (SELECT (plan).heading_weight FROM cfg)), 2, r.ratio,
+        c.net_translation, c.net_rotation, c.net_heading
+   FROM candidates c JOIN modb.terminators b ON b.id = c.begin_terminator
+  CROSS JOIN prev CROSS JOIN cfg  -- as columns, not sub-selects, so continuity_ratio is inlined
+  CROSS JOIN LATERAL (SELECT modb.continuity_ratio(prev.term, b, cfg.plan) AS ratio) r
+  WHERE c.begin_features <@ (SELECT modb.match_box(prev.features, cfg.plan, 4.0) FROM prev, cfg)
+    AND c.pose_key = (SELECT pose_key FROM prev) AND c.fps = (SELECT fps FROM prev)
+    AND r.ratio <= 4.0 AND r.ratio > 2.0
+  ORDER BY 7, 1 LIMIT k)
+UNION ALL
+(SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
+        modb.target_cost(c.net_translation, c.net_heading, target, (SELECT (plan).heading_weight FROM cfg)), 3, r.ratio,
+        c.net_translation, c.net_rotation, c.net_heading
+   FROM candidates c JOIN modb.terminators b ON b.id = c.begin_terminator
+  CROSS JOIN prev CROSS JOIN cfg  -- as columns, not sub-selects, so continuity_ratio is inlined
+  CROSS JOIN LATERAL (SELECT modb.continuity_ratio(prev.term, b, cfg.plan) AS ratio) r
+  WHERE c.begin_features <@ (SELECT modb.match_box(prev.features, cfg.plan, 8.0) FROM prev, cfg)
+    AND c.pose_key = (SELECT pose_key FROM prev) AND c.fps = (SELECT fps FROM prev)
+    AND r.ratio <= 8.0 AND r.ratio > 4.0
+  ORDER BY 7, 1 LIMIT k)
+UNION ALL
+(SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
+        modb.target_cost(c.net_translation, c.net_heading, target, (SELECT (plan).heading_weight FROM cfg)),
+        4, modb.continuity_ratio(prev.term, b, cfg.plan),
+        c.net_translation, c.net_rotation, c.net_heading
+   FROM candidates c JOIN modb.terminators b ON b.id = c.begin_terminator
+  CROSS JOIN prev CROSS JOIN cfg
+  WHERE prev_snippet IS NOT NULL
+    AND c.pose_key = (SELECT pose_key FROM prev) AND c.fps = (SELECT fps FROM prev)
+    AND modb.continuity_ratio(prev.term, b, cfg.plan) > 8
+  ORDER BY c.begin_features <-> (SELECT features FROM prev), c.id LIMIT k)
+LIMIT k
+$$;
+COMMENT ON FUNCTION modb.select_next_snippets(bigint, float8[], int, text, text, bigint[]) IS
+    'The k best continuations of prev_snippet toward target ({x, z} or {x, y, z}, metres, in the avatar''s heading frame at its end), ordered by relaxation level then proximity; prev_snippet NULL: the snippets that best serve the target';
+
+CREATE FUNCTION modb.select_next_snippet(prev_snippet bigint, target float8[], profile text DEFAULT 'default',
+                                         collection text DEFAULT NULL, exclude bigint[] DEFAULT NULL)
+RETURNS TABLE (snippet_id bigint, clip_id bigint, version int, mirrored boolean, first_frame int, n_frames int,
+               proximity float8, relax_level int, continuity float8, net_translation float8[],
+               net_rotation float8[], net_heading float8)
+LANGUAGE sql STABLE PARALLEL SAFE
+AS $$
+SELECT * FROM modb.select_next_snippets(prev_snippet, target, 1, profile, collection, exclude)
+$$;
+COMMENT ON FUNCTION modb.select_next_snippet(bigint, float8[], text, text, bigint[]) IS
+    'The snippet that continues prev_snippet smoothly (the profile''s thresholds, relaxed in steps when nothing passes) and brings the avatar nearest to target ({x, z} or {x, y, z} metres in its heading frame at the end of prev_snippet; x left, z forward). prev_snippet NULL: the snippet that best serves the target. exclude: recently played snippets, whose frames are not replayed';
+
+CREATE FUNCTION modb.world_to_local(origin float8[], heading float8, target_world float8[])
+RETURNS float8[]
+LANGUAGE sql IMMUTABLE STRICT PARALLEL SAFE
+-- Heading theta faces (sin theta, 0, cos theta); the character's left is (cos theta, 0, -sin theta).
+RETURN CASE WHEN array_length(target_world, 1) = 3
+    THEN ARRAY[(target_world[1] - origin[1]) * cos(heading) - (target_world[3] - origin[3]) * sin(heading),
+               target_world[2] - origin[2],
+               (target_world[1] - origin[1]) * sin(heading) + (target_world[3] - origin[3]) * cos(heading)]
+    ELSE ARRAY[(target_world[1] - origin[1]) * cos(heading) - (target_world[2] - origin[3]) * sin(heading),
+               (target_world[1] - origin[1]) * sin(heading) + (target_world[2] - origin[3]) * cos(heading)] END;
+COMMENT ON FUNCTION modb.world_to_local(float8[], float8, float8[]) IS
+    'A world target ({x, z} on the ground or {x, y, z}) in the heading frame of a character at origin {x, y, z} with heading theta';
+
+CREATE FUNCTION modb.select_next_snippet_world(prev_snippet bigint, "position" float8[], heading float8,
+                                               target_world float8[], profile text DEFAULT 'default',
+                                               collection text DEFAULT NULL, exclude bigint[] DEFAULT NULL)
+RETURNS TABLE (snippet_id bigint, clip_id bigint, version int, mirrored boolean, first_frame int, n_frames int,
+               proximity float8, relax_level int, continuity float8, net_translation float8[],
+               net_rotation float8[], net_heading float8)
+LANGUAGE sql STABLE PARALLEL SAFE
+AS $$
+SELECT * FROM modb.select_next_snippets(prev_snippet, modb.world_to_local(select_next_snippet_world."position", heading, target_world), 1,
+                                         profile, collection, exclude)
+$$;
+COMMENT ON FUNCTION modb.select_next_snippet_world(bigint, float8[], float8, float8[], text, text, bigint[]) IS
+    'select_next_snippet with the goal in world coordinates: the avatar at position {x, y, z} with heading theta (radians, 0 = facing +Z)';
