@@ -8,7 +8,7 @@ PG_CONFIG ?= $(firstword $(wildcard /usr/lib/postgresql/15/bin/pg_config) pg_con
 DATA ?= $(abspath ../shared/mocap)
 SUDO := $(if $(filter 0,$(shell id -u)),,sudo)
 # cube ships in postgresql-15 itself.
-APT_PACKAGES := postgresql-15 postgresql-plpython3-15 postgresql-15-pgtap \
+APT_PACKAGES := postgresql-15 postgresql-plpython3-15 postgresql-15-pgtap gcc make \
 	libtap-parser-sourcehandler-pgtap-perl postgresql-server-dev-15 python3-numpy python3-venv
 EXTVERSION := $(shell sed -n "s/^default_version *= *'\(.*\)'/\1/p" extension/modb.control)
 
@@ -29,6 +29,7 @@ extension: apt
 	@$(MAKE) -s -C extension PG_CONFIG=$(PG_CONFIG)
 	@installed=$$($(PG_CONFIG) --sharedir)/extension; \
 	if ! cmp -s extension/modb--$(EXTVERSION).sql $$installed/modb--$(EXTVERSION).sql \
+	   || ! cmp -s extension/modb.so $$($(PG_CONFIG) --pkglibdir)/modb.so \
 	   || ! cmp -s extension/modb.control $$installed/modb.control \
 	   || [ -n "$$(for f in extension/modb--*.sql; do [ -e "$$f" ] && ! cmp -s $$f $$installed/$$(basename $$f) && echo x; done)" ]; then \
 		echo "setup: installing the modb extension into $$installed"; \

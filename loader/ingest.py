@@ -26,6 +26,7 @@ class FileResult:
     frames: int = 0
     seconds_of_motion: float = 0.0
     units_rule: str = ""
+    snippets: int = 0
     message: str = ""
 
 
@@ -49,9 +50,10 @@ class LoadSummary:
         loaded = self.count("loaded")
         rate = self.frames / self.elapsed if self.elapsed > 0 else 0.0
         motion = sum(r.seconds_of_motion for r in self.results if r.status == "loaded")
+        snippets = sum(r.snippets for r in self.results)
         return (f"{len(self.results)} files: {loaded} clip versions loaded ({self.frames:,} frames, "
-                f"{motion:,.1f} s of motion), {self.count('unchanged')} unchanged, {len(self.failed)} failed; "
-                f"{self.elapsed:.1f} s, {rate:,.0f} frames/s")
+                f"{motion:,.1f} s of motion, {snippets:,} snippets), {self.count('unchanged')} unchanged, "
+                f"{len(self.failed)} failed; {self.elapsed:.1f} s, {rate:,.0f} frames/s")
 
 
 def _sha256(path: Path) -> str:
@@ -87,8 +89,23 @@ def _content_key(motion: Motion) -> str:
     return hashlib.sha256("|".join(parts).encode()).hexdigest()
 
 
-def store_motion(conn: psycopg.Connection, motion: Motion, collection: str, key: str) -> tuple[int, int | None]:
-    """Store a parsed clip as a new version in one transaction; (clip_id, version or None if unchanged)."""
+def build_snippets(conn: psycopg.Connection, clip_id: int, warn: Callable[[str], None] | None) -> int:
+    """Cut the clip's newest version into snippets, inside the caller's transaction; 0 with a warning
+    when the database cannot (e.g. the skeleton's joint map is incomplete): the clip itself stays loaded."""
+    try:
+        with conn.transaction():  # a savepoint
+            return conn.execute("SELECT modb.build_snippets(clip => %s)", [clip_id]).fetchone()[0]
+    except psycopg.Error as e:
+        if warn:
+            hint = f" ({e.diag.message_hint})" if e.diag.message_hint else ""
+            warn(f"clip {clip_id} loaded without snippets: {e.diag.message_primary or e}{hint}")
+        return 0
+
+
+def store_motion(conn: psycopg.Connection, motion: Motion, collection: str, key: str,
+                 snippets: bool = False, warn: Callable[[str], None] | None = None) -> tuple[int, int | None, int]:
+    """Store a parsed clip as a new version in one transaction, with its snippets when asked:
+    (clip_id, version or None if unchanged, snippets added)."""
     sk = motion.skeleton
     hierarchy = json.dumps(sk.hierarchy_json())
     src = motion.source
@@ -114,7 +131,7 @@ def store_motion(conn: psycopg.Connection, motion: Motion, collection: str, key:
             "SELECT load_params->>'content_key', skeleton_id FROM modb.clip_versions "
             "WHERE clip_id = %s ORDER BY version DESC LIMIT 1", [clip_id]).fetchone()
         if latest == (content, skeleton_id):  # e.g. --units auto, then cm: the same motion
-            return clip_id, None
+            return clip_id, None, 0
         load_params = {"read_key": key, "content_key": content, "unit_m": sk.unit_m,
                        "units_rule": src.units_rule if src else "", **motion.meta}
         translations = motion.translations if motion.translations.shape[1] else None
@@ -125,16 +142,17 @@ def store_motion(conn: psycopg.Connection, motion: Motion, collection: str, key:
             [clip_id, skeleton_id, motion.fps, motion.n_frames, motion.rotations, translations,
              src.path if src else None, src.sha256 if src else None, json.dumps(load_params)],
         ).fetchone()
-        return clip_id, version
+        added = build_snippets(conn, clip_id, warn) if snippets else 0
+        return clip_id, version, added
 
 
 def load_files(conn: psycopg.Connection, jobs: list[FileJob], options: ReadOptions, keep_going: bool,
-               progress: Callable[[FileResult], None] | None = None) -> LoadSummary:
+               progress: Callable[[FileResult], None] | None = None, snippets: bool = True) -> LoadSummary:
     """Load each file in its own transaction. Stops at the first bad file unless keep_going."""
     summary = LoadSummary()
     started = time.perf_counter()
     for job in jobs:
-        result = _load_one(conn, job, options)
+        result = _load_one(conn, job, options, snippets)
         summary.results.append(result)
         if progress:
             progress(result)
@@ -144,16 +162,17 @@ def load_files(conn: psycopg.Connection, jobs: list[FileJob], options: ReadOptio
     return summary
 
 
-def _load_one(conn: psycopg.Connection, job: FileJob, options: ReadOptions) -> FileResult:
+def _load_one(conn: psycopg.Connection, job: FileJob, options: ReadOptions, snippets: bool) -> FileResult:
     name = job.path.stem
     try:
         sha = _sha256(job.path)
         key = read_key(job, options)
         hit = _unchanged(conn, job, name, sha, key)
-        if hit:
-            return FileResult(job.path, "unchanged", clip_id=hit[0], version=hit[1])
+        if hit:  # cut it now if an earlier load skipped the snippets
+            added = build_snippets(conn, hit[0], options.warn) if snippets else 0
+            return FileResult(job.path, "unchanged", clip_id=hit[0], version=hit[1], snippets=added)
         motion = read_job(job, options)
-        clip_id, version = store_motion(conn, motion, job.collection, key)
+        clip_id, version, added = store_motion(conn, motion, job.collection, key, snippets, options.warn)
     except MotionFileError as e:
         return FileResult(job.path, "failed", message=str(e))
     except OSError as e:
@@ -166,4 +185,4 @@ def _load_one(conn: psycopg.Connection, job: FileJob, options: ReadOptions) -> F
         return FileResult(job.path, "unchanged", clip_id=clip_id)
     return FileResult(job.path, "loaded", clip_id=clip_id, version=version, frames=motion.n_frames,
                       seconds_of_motion=motion.n_frames / motion.fps,
-                      units_rule=motion.source.units_rule if motion.source else "")
+                      units_rule=motion.source.units_rule if motion.source else "", snippets=added)

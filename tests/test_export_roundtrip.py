@@ -16,7 +16,7 @@ TOLERANCE_M = 0.001
 @pytest.mark.parametrize("folder,units", [("bandai-1", "auto"), ("cmu/131/bvh", repr(CMU_UNITS))])
 def test_load_export_load_roundtrip(fresh_db, db, tmp_path, folder, units):
     source = mocap(folder)
-    r = run_modb(fresh_db, "load", source, "--collection", "original", "--units", units)
+    r = run_modb(fresh_db, "load", source, "--no-snippets", "--collection", "original", "--units", units)
     assert r.returncode == 0, r.stderr
     clips = db.execute("SELECT clip_id, name, source_file FROM modb.current_clips ORDER BY clip_id").fetchall()
     out_dir = tmp_path / "exported"
@@ -29,7 +29,7 @@ def test_load_export_load_roundtrip(fresh_db, db, tmp_path, folder, units):
         else:
             with open(out, "w") as f:
                 write_bvh(read_motion(db, clip_id), f)
-    r = run_modb(fresh_db, "load", out_dir, "--collection", "reloaded", "--units", units)
+    r = run_modb(fresh_db, "load", out_dir, "--no-snippets", "--collection", "reloaded", "--units", units)
     assert r.returncode == 0, r.stderr
     assert f"{len(clips)} clip versions loaded" in r.stdout
 

@@ -69,7 +69,7 @@ def bench_load(files: list[Path], rounds: int, admin_dsn: str, make_dsn) -> dict
                     times.append((now - last[0]) * 1000)
                     last[0] = now
 
-                summary = load_files(conn, jobs, ReadOptions(), keep_going=False, progress=tick)
+                summary = load_files(conn, jobs, ReadOptions(), keep_going=False, progress=tick, snippets=False)
                 assert not summary.failed, summary.failed[0].message
                 rates.append(summary.frames / summary.elapsed)
                 per_file.extend(times)

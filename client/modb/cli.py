@@ -51,7 +51,7 @@ def cmd_load(args: argparse.Namespace) -> int:
         options = ReadOptions(units=units, units_text=args.units, fps=args.fps,
                               allow_truncated=args.allow_truncated,
                               warn=lambda message: bar.write(f"warning: {message}", file=sys.stderr))
-        summary = load_files(conn, jobs, options, args.keep_going, progress)
+        summary = load_files(conn, jobs, options, args.keep_going, progress, snippets=not args.no_snippets)
     if not args.quiet:
         rules = list(dict.fromkeys(r.units_rule for r in summary.results if r.units_rule))
         for rule in rules[:3]:
@@ -223,6 +223,8 @@ def build_parser() -> argparse.ArgumentParser:
     load.add_argument("--allow-truncated", action="store_true",
                       help="drop an AMC file's incomplete last frame with a warning instead of refusing the file")
     load.add_argument("--asf", help="the ASF skeleton for every AMC file (default: paired by folder and name)")
+    load.add_argument("--no-snippets", action="store_true",
+                      help="store the clips only (modb.build_snippets() cuts them later)")
     load.add_argument("--keep-going", action="store_true", help="load the good files, list the bad, exit non-zero")
     load.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     load.set_defaults(func=cmd_load)

@@ -1,17 +1,20 @@
 -- The extension installs, drops and re-installs cleanly; objects, comments and declarations as documented.
 BEGIN;
 CREATE EXTENSION IF NOT EXISTS pgtap;
-SELECT plan(22);
+SELECT plan(23);
 
 SELECT has_extension('modb');
 SELECT has_schema('modb');
-SELECT tables_are('modb', ARRAY['collections', 'skeletons', 'clips', 'clip_versions', 'models', 'graphs']);
+SELECT tables_are('modb', ARRAY['collections', 'skeletons', 'clips', 'clip_versions', 'models', 'graphs',
+                               'snippet_sources', 'terminators', 'snippets', 'match_profiles']);
 SELECT views_are('modb', ARRAY['current_clips']);
 SELECT functions_are('modb', ARRAY[
-    '_kernel_load', 'skeleton_identity', 'unit_quaternions_ok', 'finite_ok', 'skeleton_joint_names', 'joint_map_ok', 'mirror_pairs_ok',
+    'skeleton_identity', 'unit_quaternions_ok', 'finite_ok', 'skeleton_joint_names', 'joint_map_ok', 'mirror_pairs_ok',
     'annotations_ok', 'clip_versions_before_insert', 'clip_versions_before_update', 'skeletons_before_update',
-    'collection_path',
-    'find_collection', 'ensure_collection', 'world_positions']);
+    'collection_path', 'find_collection', 'ensure_collection', 'forward_kinematics', 'world_positions',
+    'skeleton_pose_key', 'standard_joints', 'feature_names', 'quat_angle', 'max_joint_angle', 'weighted_joint_angle',
+    'match_knobs', 'unknown_settings', 'match_plan', '_thresholds', 'continuity_ratio', 'match_box', 'target_cost', 'collection_subtree',
+    'build_snippets', 'select_next_snippets', 'select_next_snippet', 'world_to_local', 'select_next_snippet_world']);
 SELECT col_type_is('modb', 'clip_versions', 'rotations', 'real[]', 'rotations is real[]');
 SELECT col_type_is('modb', 'clip_versions', 'translations', 'real[]', 'translations is real[]');
 SELECT col_is_pk('modb', 'clip_versions', ARRAY['clip_id', 'version'], 'primary key (clip_id, version)');
@@ -23,6 +26,10 @@ SELECT is((SELECT count(*) FROM pg_class WHERE relnamespace = 'modb'::regnamespa
             AND obj_description(oid, 'pg_class') IS NULL), 0::bigint, 'every table and view has a COMMENT');
 SELECT is((SELECT count(*) FROM pg_proc WHERE pronamespace = 'modb'::regnamespace
             AND provolatile IN ('i', 's') AND proparallel <> 's'), 0::bigint, 'every read-only function is PARALLEL SAFE');
+SET LOCAL force_parallel_mode = on;  -- PL/Python that used SPI would fail here ("cannot start subtransactions")
+SELECT ok(modb.unit_quaternions_ok('{{{1,0,0,0}}}') AND modb.finite_ok('{1,2}'),
+          'PL/Python functions run inside parallel queries');
+RESET force_parallel_mode;
 SELECT is((SELECT count(*) FROM pg_proc WHERE pronamespace = 'modb'::regnamespace AND prosecdef), 0::bigint,
           'no SECURITY DEFINER function');
 SELECT volatility_is('modb', 'unit_quaternions_ok', ARRAY['real[]', 'double precision'], 'immutable');
@@ -33,7 +40,8 @@ SELECT set_eq(
     $$SELECT c::regclass::text FROM pg_extension, unnest(extconfig) AS c WHERE extname = 'modb'$$,
     ARRAY['modb.collections', 'modb.collections_id_seq', 'modb.skeletons', 'modb.skeletons_id_seq',
           'modb.clips', 'modb.clips_id_seq', 'modb.clip_versions', 'modb.models', 'modb.models_id_seq',
-          'modb.graphs', 'modb.graphs_id_seq'],
+          'modb.graphs', 'modb.graphs_id_seq', 'modb.snippet_sources', 'modb.terminators', 'modb.terminators_id_seq',
+          'modb.snippets', 'modb.snippets_id_seq', 'modb.match_profiles'],
     'every data table and id sequence is registered for pg_dump');
 
 DROP EXTENSION modb;
@@ -42,7 +50,7 @@ SELECT has_role('modb_reader', 'modb_reader outlives DROP EXTENSION');
 SELECT has_role('modb_loader', 'modb_loader outlives DROP EXTENSION');
 CREATE EXTENSION modb CASCADE;
 SELECT has_table('modb', 'clip_versions', 're-install after a drop works');
-SELECT is((SELECT extversion FROM pg_extension WHERE extname = 'modb'), '0.1.0', 're-installed version');
+SELECT is((SELECT extversion FROM pg_extension WHERE extname = 'modb'), '0.2.0', 're-installed version');
 
 SELECT * FROM finish();
 ROLLBACK;

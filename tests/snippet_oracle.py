@@ -1,0 +1,218 @@
+"""A brute-force select_next_snippet, written independently of the extension and modb_kernel.
+
+It reads only the stored frames (clip_versions), the skeletons and the profile settings; recomputes every
+terminator with its own forward kinematics (scipy rotations), heading, velocities and features following
+the definitions in the README; and scores every snippet window against the previous snippet's end.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+STANDARD = ["pelvis", "spine", "chest", "neck", "head",
+            "left_hip", "left_knee", "left_ankle", "left_toe", "left_shoulder", "left_elbow", "left_wrist",
+            "right_hip", "right_knee", "right_ankle", "right_toe", "right_shoulder", "right_elbow", "right_wrist"]
+FEATURE_POS = ["head", "left_wrist", "right_wrist", "left_ankle", "right_ankle"]
+FEATURE_VEL = ["pelvis", "left_ankle", "right_ankle"]
+KNOBS = ("joints", "norm", "position_threshold", "angle_threshold", "velocity_threshold",
+         "angular_velocity_threshold", "velocity_terms", "heading_weight")
+
+
+def _rot(q: np.ndarray) -> Rotation:
+    q = np.asarray(q, dtype=np.float64)
+    return Rotation.from_quat(np.concatenate([q[..., 1:], q[..., :1]], axis=-1))  # scipy: scalar last
+
+
+def _wxyz(r: Rotation) -> np.ndarray:
+    x = r.as_quat()
+    q = np.concatenate([x[..., 3:], x[..., :3]], axis=-1)
+    return np.where(q[..., :1] < 0, -q, q)
+
+
+def _yaw(theta) -> Rotation:
+    return Rotation.from_rotvec(np.outer(theta, [0.0, 1.0, 0.0]))
+
+
+@dataclass
+class ClipTerms:
+    pos: np.ndarray  # (F, 19, 3) local
+    rot: np.ndarray  # (F, 19, 4)
+    vel: np.ndarray
+    angvel: np.ndarray
+    feat: np.ndarray  # (F, 25)
+    pelvis: np.ndarray  # (F, 3) world
+    heading: np.ndarray
+
+
+def clip_terms(hierarchy: dict, joint_map: dict, rotations: np.ndarray, translations, fps: float) -> ClipTerms:
+    joints = hierarchy["joints"]
+    names = [j["name"] for j in joints]
+    n, J = rotations.shape[:2]
+    local = np.tile(np.array([j["offset"] for j in joints], dtype=np.float64), (n, 1, 1))
+    if hierarchy["translated"]:
+        local[:, hierarchy["translated"]] = np.asarray(translations, dtype=np.float64)
+    world_p = np.zeros((n, J, 3))
+    world_r: list[Rotation] = [None] * J
+    for k, j in enumerate(joints):
+        r = _rot(rotations[:, k])
+        if j["parent"] < 0:
+            world_p[:, k], world_r[k] = local[:, k], r
+        else:
+            p = j["parent"]
+            world_p[:, k] = world_p[:, p] + world_r[p].apply(local[:, k])
+            world_r[k] = world_r[p] * r
+    idx = [names.index(joint_map[s]) for s in STANDARD]
+    pel = idx[0]
+    lhip, rhip = idx[STANDARD.index("left_hip")], idx[STANDARD.index("right_hip")]
+    axis = world_p[:, lhip] - world_p[:, rhip]
+    fwd = np.stack([-axis[:, 2], np.zeros(n), axis[:, 0]], axis=1)
+    fwd /= np.linalg.norm(fwd, axis=1, keepdims=True)
+    half = int(round(0.25 * fps))
+    mean = np.array([fwd[max(0, t - half):min(n, t + half + 1)].sum(axis=0) for t in range(n)])
+    theta = np.arctan2(mean[:, 0], mean[:, 2])
+    to_local = _yaw(theta).inv()
+    ground = world_p[:, pel] * [1, 0, 1]
+    pos = np.stack([to_local.apply(world_p[:, k] - ground) for k in idx], axis=1)
+    before = np.maximum(np.arange(n) - 1, 0)
+    after = np.minimum(np.arange(n) + 1, n - 1)
+    dt = np.maximum(after - before, 1) / fps
+    vel = np.stack([to_local.apply((world_p[after, k] - world_p[before, k]) / dt[:, None]) for k in idx], axis=1)
+    rot = np.stack([_wxyz(to_local * world_r[pel])] + [_wxyz(_rot(rotations[:, k])) for k in idx[1:]], axis=1)
+    pelvis_w = (world_r[pel][after] * world_r[pel][before].inv()).as_rotvec() / dt[:, None]
+    angvel = [to_local.apply(pelvis_w)]
+    for k in idx[1:]:
+        r = _rot(rotations[:, k])
+        angvel.append((r[before].inv() * r[after]).as_rotvec() / dt[:, None])
+    angvel = np.stack(angvel, axis=1)
+    s = {name: i for i, name in enumerate(STANDARD)}
+    feat = np.concatenate([pos[:, [0], 1]] + [pos[:, s[j]] for j in FEATURE_POS] + [vel[:, s[j]] for j in FEATURE_VEL],
+                          axis=1)
+    return ClipTerms(pos, rot, vel, angvel, feat, world_p[:, pel], theta)
+
+
+def resolve_profile(settings: dict, knobs: dict) -> dict:
+    settings = dict(settings)
+    for knob, value in knobs.items():
+        if knob == "joints":
+            settings[knob] = value.replace(" ", "").split(",")
+        elif knob == "norm":
+            settings[knob] = value.lower()
+        elif knob == "velocity_terms":
+            settings[knob] = value.lower() in ("on", "true", "1", "yes")
+        elif knob.endswith("threshold"):
+            settings[knob] = {"default": float(value)}
+        else:
+            settings[knob] = float(value)
+
+    def per_joint(spec, joint):
+        if isinstance(spec, (int, float)):
+            return float(spec)
+        return float(spec.get(joint, spec["default"]))
+
+    included = [STANDARD.index(j) for j in settings["joints"]]
+    return {
+        "joints": included, "norm": settings.get("norm", "l2"),
+        "velocity_terms": settings.get("velocity_terms", True), "heading_weight": float(settings.get("heading_weight", 0)),
+        **{k: np.array([per_joint(settings[k], STANDARD[j]) for j in included])
+           for k in ("position_threshold", "angle_threshold", "velocity_threshold", "angular_velocity_threshold")},
+    }
+
+
+def quat_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    d = np.abs(np.sum(a * b, axis=-1)) / (np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1))
+    return 2 * np.arccos(np.clip(d, -1, 1))
+
+
+def ratios(prev: dict, cand: dict, plan: dict) -> np.ndarray:
+    """prev: arrays of one terminator; cand: arrays over candidates. Largest difference/threshold."""
+    j = plan["joints"]
+    dp = cand["pos"][:, j] - prev["pos"][j]
+    dist = np.abs(dp).sum(axis=-1) if plan["norm"] == "l1" else np.linalg.norm(dp, axis=-1)
+    terms = [dist / plan["position_threshold"], quat_angle(cand["rot"][:, j], prev["rot"][j]) / plan["angle_threshold"]]
+    if plan["velocity_terms"]:
+        terms.append(np.linalg.norm(cand["vel"][:, j] - prev["vel"][j], axis=-1) / plan["velocity_threshold"])
+        terms.append(np.linalg.norm(cand["angvel"][:, j] - prev["angvel"][j], axis=-1) / plan["angular_velocity_threshold"])
+    return np.max(np.concatenate(terms, axis=1), axis=1)
+
+
+def target_cost(net: np.ndarray, turn: np.ndarray, target, heading_weight: float) -> np.ndarray:
+    t = np.asarray(target, dtype=np.float64)
+    if len(t) == 3:
+        d = np.linalg.norm(net - t, axis=1)
+    else:
+        d = np.hypot(net[:, 0] - t[0], net[:, 2] - t[1])
+    direction = np.arctan2(t[0], t[-1])
+    wrapped = np.angle(np.exp(1j * (turn - direction)))
+    return d + heading_weight * np.abs(wrapped)
+
+
+def levels(r: np.ndarray) -> np.ndarray:
+    return np.select([r <= 1, r <= 2, r <= 4, r <= 8], [0, 1, 2, 3], 4)
+
+
+def load_snippet_space(conn) -> dict:
+    """Every snippet's data as the oracle computes it, keyed by position in arrays."""
+    from modb.clips import read_motion  # reads frames only; terminators are recomputed here
+
+    rows = conn.execute(
+        "SELECT s.id, s.clip_id, s.version, s.first_frame, s.n_frames, s.collection_id, s.fps, "
+        "       v.skeleton_id FROM modb.snippets s JOIN modb.clip_versions v USING (clip_id, version) "
+        "WHERE NOT s.mirrored ORDER BY s.id").fetchall()
+    skeletons = {sid: (h, m) for sid, h, m in conn.execute("SELECT id, hierarchy, joint_map FROM modb.skeletons")}
+    cache: dict = {}
+    out = {k: [] for k in ("id", "clip", "version", "first", "n", "collection", "fps", "pose", "pos", "rot", "vel",
+                           "angvel", "feat", "net", "turn", "end")}
+    for sid, clip, version, first, n_frames, collection, fps, skeleton in rows:
+        if (clip, version) not in cache:
+            motion = read_motion(conn, clip, version)
+            h, jm = skeletons[skeleton]
+            cache[(clip, version)] = clip_terms(h, jm, motion.rotations.astype(np.float32).astype(np.float64),
+                                                motion.translations.astype(np.float32).astype(np.float64), fps)
+        t = cache[(clip, version)]
+        h = skeletons[skeleton][0]
+        pose = json.dumps([(j["name"], j["parent"], j["channels"],
+                            None if {"Xposition", "Yposition", "Zposition"} <= set(j["channels"])
+                            or {"TX", "TY", "TZ"} <= set(j["channels"]) else j["offset"]) for j in h["joints"]])
+        last = first + n_frames - 1
+        for key, value in (("id", sid), ("clip", clip), ("version", version), ("first", first), ("n", n_frames),
+                           ("collection", collection), ("fps", fps), ("pose", pose)):
+            out[key].append(value)
+        for key, arr in (("pos", t.pos), ("rot", t.rot), ("vel", t.vel), ("angvel", t.angvel), ("feat", t.feat)):
+            out[key].append(arr[first])
+        out["end"].append({"pos": t.pos[last], "rot": t.rot[last], "vel": t.vel[last], "angvel": t.angvel[last],
+                           "feat": t.feat[last]})
+        out["net"].append(_yaw([t.heading[first]]).inv().apply(t.pelvis[last] - t.pelvis[first])[0])
+        out["turn"].append(np.angle(np.exp(1j * (t.heading[last] - t.heading[first]))))
+    return {k: (np.array(v) if k not in ("end", "pose") else v) for k, v in out.items()}
+
+
+def select(space: dict, prev_id, target, plan: dict, collections=None, exclude=()) -> list[tuple[int, float, int, float]]:
+    """Every eligible snippet as (level, order key, id, continuity ratio), best first."""
+    ids = space["id"]
+    ok = np.ones(len(ids), dtype=bool)
+    if collections is not None:
+        ok &= np.isin(space["collection"], list(collections))
+    for x in exclude:
+        k = int(np.flatnonzero(ids == x)[0])
+        same = (space["clip"] == space["clip"][k]) & (space["version"] == space["version"][k])
+        cand_lo, cand_hi = space["first"] + 1, space["first"] + space["n"] - 1
+        ex_lo, ex_hi = space["first"][k] + 1, space["first"][k] + space["n"][k] - 1
+        ok &= ~(same & (ex_lo <= cand_hi) & (cand_lo <= ex_hi))
+    cost = target_cost(space["net"], space["turn"], target, plan["heading_weight"])
+    if prev_id is None:
+        level = np.zeros(len(ids), dtype=int)
+        order_key = cost
+        ratio = np.zeros(len(ids))
+    else:
+        p = int(np.flatnonzero(ids == prev_id)[0])
+        ok &= (np.array(space["pose"]) == space["pose"][p]) & (space["fps"] == space["fps"][p])
+        prev = space["end"][p]
+        cand = {k: space[k] for k in ("pos", "rot", "vel", "angvel")}
+        ratio = ratios(prev, cand, plan)
+        level = levels(ratio)
+        order_key = np.where(level == 4, np.linalg.norm(space["feat"] - prev["feat"], axis=1), cost)
+    rows = [(int(level[i]), float(order_key[i]), int(ids[i]), float(ratio[i])) for i in np.flatnonzero(ok)]
+    return sorted(rows)

@@ -1,0 +1,137 @@
+"""select_next_snippet equals a brute-force oracle on real data, for hundreds of random (prev, target)."""
+from __future__ import annotations
+
+import os
+import shutil
+
+import numpy as np
+import psycopg
+import pytest
+
+from conftest import mocap, run_modb
+from modb.connection import connect
+from snippet_oracle import KNOBS, load_snippet_space, resolve_profile, select
+
+BOUNDARIES = np.array([1.0, 2.0, 4.0, 8.0])
+
+
+@pytest.fixture(scope="module")
+def loaded(cluster, tmp_path_factory):
+    """Real locomotion (Bandai walks, runs, dashes at 30 fps) and CMU 131 (ASF/AMC, 120 fps), with snippets."""
+    folder = tmp_path_factory.mktemp("locomotion")
+    for f in sorted(mocap("bandai-1", "data").glob("*.bvh")):
+        if any(w in f.name for w in ("_walk_", "_run_", "_dash_", "_walk-back_")):
+            shutil.copy(f, folder / f.name)
+    name = f"oracle_{os.getpid()}"
+    with psycopg.connect(cluster.dsn("postgres"), autocommit=True) as admin:
+        admin.execute(f'DROP DATABASE IF EXISTS "{name}"')
+        admin.execute(f'CREATE DATABASE "{name}"')
+    dsn = cluster.dsn(name)
+    with psycopg.connect(dsn, autocommit=True) as conn:
+        conn.execute("CREATE EXTENSION modb CASCADE")
+    for args in ([folder, "--collection", "bandai/locomotion"],
+                 [*sorted(mocap("cmu", "131").glob("*.amc")), "--collection", "cmu/131"]):
+        r = run_modb(dsn, "load", *args)
+        assert r.returncode == 0, r.stderr
+    with connect(dsn) as conn:
+        yield dsn, load_snippet_space(conn)
+    with psycopg.connect(cluster.dsn("postgres"), autocommit=True) as admin:
+        admin.execute(f'DROP DATABASE "{name}" WITH (FORCE)')
+
+
+def _near_boundary(ratio: float) -> bool:
+    return bool(np.any(np.abs(ratio - BOUNDARIES) < 1e-4 * BOUNDARIES))
+
+
+def _assert_same_choice(got, rows, context):
+    if not rows:  # e.g. a Bandai prev restricted to the CMU collection: nothing may follow it
+        assert got is None, (got, context)
+        return
+    if got is None:
+        raise AssertionError(f"the function returned nothing, the oracle has {len(rows)} candidates: {context}")
+    snippet_id, level, continuity = got
+    best = rows[0]
+    mine = next((r for r in rows if r[2] == snippet_id), None)
+    assert mine is not None, f"snippet {snippet_id} is not eligible for the oracle: {context}"
+    if snippet_id == best[2]:
+        assert level == best[0] or _near_boundary(best[3]), (got, best, context)
+    else:  # only a tie (float32 storage against float64 here) may pick another snippet
+        same_level = mine[0] == best[0] or _near_boundary(mine[3]) or _near_boundary(best[3])
+        assert same_level and abs(mine[1] - best[1]) < 1e-6, (got, mine, best, context)
+    if continuity is not None and level < 4:
+        assert continuity <= 2.0 ** level * (1 + 1e-5), (got, context)  # satisfies its level
+        assert abs(continuity - mine[3]) < 1e-3 * max(1.0, mine[3]), (continuity, mine, context)
+
+
+PROFILES = [("default", {}), ("strict", {}), ("locomotion", {}),
+            ("default", {"norm": "l1", "velocity_terms": "off"}),
+            ("default", {"joints": "pelvis,left_ankle,right_ankle", "position_threshold": "0.05"}),
+            ("locomotion", {"angle_threshold": "0.2", "heading_weight": "1.5"})]
+
+
+@pytest.mark.parametrize("profile,knobs", PROFILES, ids=[f"{p}-{'-'.join(k) or 'plain'}" for p, k in PROFILES])
+def test_function_equals_brute_force(loaded, profile, knobs):
+    dsn, space = loaded
+    rng = np.random.default_rng(abs(hash((profile, tuple(knobs)))) % 2**32)
+    ids = space["id"]
+    with connect(dsn) as conn:
+        settings = conn.execute("SELECT settings FROM modb.match_profiles WHERE name = %s", [profile]).fetchone()[0]
+        for knob, value in knobs.items():
+            conn.execute(f"SET modb.{knob} = '{value}'")
+        plan = resolve_profile(settings, knobs)
+        levels_seen = set()
+        for q in range(40):
+            prev = None if q % 10 == 0 else int(rng.choice(ids))
+            target = list(np.round(rng.uniform(-6, 6, size=3 if q % 7 == 3 else 2), 3))
+            exclude: list[int] = []
+            if prev is not None and q % 3:
+                near = ids[np.abs(ids - prev) < 40]
+                exclude = [prev, *map(int, rng.choice(near, size=3))]
+            collection = "cmu" if q % 11 == 5 else None
+            row = conn.execute(
+                "SELECT snippet_id, relax_level, continuity FROM modb.select_next_snippet(%s, %s, %s, %s, %s)",
+                [prev, target, profile, collection, exclude or None]).fetchone()
+            collections = None
+            if collection:
+                (subtree,) = conn.execute("SELECT modb.collection_subtree(%s)", [collection]).fetchone()
+                collections = set(subtree)
+            rows = select(space, prev, target, plan, collections, exclude)
+            _assert_same_choice(row, rows, dict(prev=prev, target=target, exclude=exclude, collection=collection))
+            levels_seen.add(row[1] if row else None)
+    assert levels_seen, "no query ran"
+
+
+def test_k_best_are_the_oracles_order(loaded):
+    dsn, space = loaded
+    rng = np.random.default_rng(7)
+    with connect(dsn) as conn:
+        settings = conn.execute("SELECT settings FROM modb.match_profiles WHERE name = 'default'").fetchone()[0]
+        plan = resolve_profile(settings, {})
+        for _ in range(15):
+            prev = int(rng.choice(space["id"]))
+            target = list(rng.uniform(-4, 4, size=2))
+            got = conn.execute("SELECT snippet_id, relax_level FROM modb.select_next_snippets(%s, %s, 8)",
+                               [prev, target]).fetchall()
+            rows = select(space, prev, target, plan)
+            expected = [(r[2], r[0]) for r in rows[:8]]
+            # Same levels in the same order, and the same snippets up to ties.
+            assert [lvl for _, lvl in got] == [lvl for _, lvl in expected]
+            keys = {r[2]: r[1] for r in rows}
+            assert np.allclose([keys[s] for s, _ in got], [r[1] for r in rows[:8]], atol=1e-6)
+
+
+def test_unknown_knob_and_profile_are_errors(loaded):
+    dsn, _ = loaded
+    with connect(dsn) as conn:  # a new session: the knobs are not declared yet, a misspelling is stored
+        conn.execute("SET modb.postion_threshold = 0.1")
+        with pytest.raises(psycopg.errors.RaiseException, match="unknown modb setting: modb.postion_threshold"):
+            conn.execute("SELECT * FROM modb.select_next_snippet(NULL, '{0,1}')").fetchall()
+        assert conn.execute("SELECT count(*) FROM modb.select_next_snippet(NULL, '{0,1}')").fetchone()[0] == 1
+        # From now on the knobs are declared and the prefix reserved: a misspelling fails at SET.
+        with pytest.raises(psycopg.errors.InvalidName, match="modb.velocity_term"):
+            conn.execute("SET modb.velocity_term = off")
+        declared = {r[0] for r in conn.execute("SELECT name FROM pg_settings WHERE name LIKE 'modb.%'").fetchall()}
+        assert declared == {f"modb.{k}" for k in KNOBS}
+        assert set(KNOBS) == {r[0] for r in conn.execute("SELECT unnest(modb.match_knobs())").fetchall()}
+        with pytest.raises(psycopg.errors.RaiseException, match='unknown match profile "nope"'):
+            conn.execute("SELECT * FROM modb.select_next_snippet(NULL, '{0,1}', 'nope')").fetchall()
