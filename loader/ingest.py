@@ -89,12 +89,18 @@ def _content_key(motion: Motion) -> str:
     return hashlib.sha256("|".join(parts).encode()).hexdigest()
 
 
-def build_snippets(conn: psycopg.Connection, clip_id: int, warn: Callable[[str], None] | None) -> int:
-    """Cut the clip's newest version into snippets, inside the caller's transaction; 0 with a warning
-    when the database cannot (e.g. the skeleton's joint map is incomplete): the clip itself stays loaded."""
+def build_snippets(conn: psycopg.Connection, clip_id: int, warn: Callable[[str], None] | None,
+                   mirrored: bool = False) -> int:
+    """Cut the clip's newest version into snippets (and, when asked, its mirror image), inside the caller's
+    transaction; 0 with a warning when the database cannot (e.g. the skeleton's joint map is incomplete):
+    the clip itself stays loaded."""
     try:
         with conn.transaction():  # a savepoint
-            return conn.execute("SELECT modb.build_snippets(clip => %s)", [clip_id]).fetchone()[0]
+            added = conn.execute("SELECT modb.build_snippets(clip => %s)", [clip_id]).fetchone()[0]
+            if mirrored:
+                added += conn.execute("SELECT modb.build_snippets(clip => %s, mirrored => true)",
+                                      [clip_id]).fetchone()[0]
+            return added
     except psycopg.Error as e:
         if warn:
             hint = f" ({e.diag.message_hint})" if e.diag.message_hint else ""
@@ -103,7 +109,8 @@ def build_snippets(conn: psycopg.Connection, clip_id: int, warn: Callable[[str],
 
 
 def store_motion(conn: psycopg.Connection, motion: Motion, collection: str, key: str,
-                 snippets: bool = False, warn: Callable[[str], None] | None = None) -> tuple[int, int | None, int]:
+                 snippets: bool = False, warn: Callable[[str], None] | None = None,
+                 mirrored: bool = False) -> tuple[int, int | None, int]:
     """Store a parsed clip as a new version in one transaction, with its snippets when asked:
     (clip_id, version or None if unchanged, snippets added)."""
     sk = motion.skeleton
@@ -142,17 +149,18 @@ def store_motion(conn: psycopg.Connection, motion: Motion, collection: str, key:
             [clip_id, skeleton_id, motion.fps, motion.n_frames, motion.rotations, translations,
              src.path if src else None, src.sha256 if src else None, json.dumps(load_params)],
         ).fetchone()
-        added = build_snippets(conn, clip_id, warn) if snippets else 0
+        added = build_snippets(conn, clip_id, warn, mirrored) if snippets else 0
         return clip_id, version, added
 
 
 def load_files(conn: psycopg.Connection, jobs: list[FileJob], options: ReadOptions, keep_going: bool,
-               progress: Callable[[FileResult], None] | None = None, snippets: bool = True) -> LoadSummary:
+               progress: Callable[[FileResult], None] | None = None, snippets: bool = True,
+               mirrored: bool = False) -> LoadSummary:
     """Load each file in its own transaction. Stops at the first bad file unless keep_going."""
     summary = LoadSummary()
     started = time.perf_counter()
     for job in jobs:
-        result = _load_one(conn, job, options, snippets)
+        result = _load_one(conn, job, options, snippets, mirrored)
         summary.results.append(result)
         if progress:
             progress(result)
@@ -162,17 +170,18 @@ def load_files(conn: psycopg.Connection, jobs: list[FileJob], options: ReadOptio
     return summary
 
 
-def _load_one(conn: psycopg.Connection, job: FileJob, options: ReadOptions, snippets: bool) -> FileResult:
+def _load_one(conn: psycopg.Connection, job: FileJob, options: ReadOptions, snippets: bool,
+              mirrored: bool) -> FileResult:
     name = job.path.stem
     try:
         sha = _sha256(job.path)
         key = read_key(job, options)
         hit = _unchanged(conn, job, name, sha, key)
         if hit:  # cut it now if an earlier load skipped the snippets
-            added = build_snippets(conn, hit[0], options.warn) if snippets else 0
+            added = build_snippets(conn, hit[0], options.warn, mirrored) if snippets else 0
             return FileResult(job.path, "unchanged", clip_id=hit[0], version=hit[1], snippets=added)
         motion = read_job(job, options)
-        clip_id, version, added = store_motion(conn, motion, job.collection, key, snippets, options.warn)
+        clip_id, version, added = store_motion(conn, motion, job.collection, key, snippets, options.warn, mirrored)
     except MotionFileError as e:
         return FileResult(job.path, "failed", message=str(e))
     except OSError as e:

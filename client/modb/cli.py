@@ -51,7 +51,8 @@ def cmd_load(args: argparse.Namespace) -> int:
         options = ReadOptions(units=units, units_text=args.units, fps=args.fps,
                               allow_truncated=args.allow_truncated,
                               warn=lambda message: bar.write(f"warning: {message}", file=sys.stderr))
-        summary = load_files(conn, jobs, options, args.keep_going, progress, snippets=not args.no_snippets)
+        summary = load_files(conn, jobs, options, args.keep_going, progress, snippets=not args.no_snippets,
+                             mirrored=args.mirror)
     if not args.quiet:
         rules = list(dict.fromkeys(r.units_rule for r in summary.results if r.units_rule))
         for rule in rules[:3]:
@@ -225,6 +226,8 @@ def build_parser() -> argparse.ArgumentParser:
     load.add_argument("--asf", help="the ASF skeleton for every AMC file (default: paired by folder and name)")
     load.add_argument("--no-snippets", action="store_true",
                       help="store the clips only (modb.build_snippets() cuts them later)")
+    load.add_argument("--mirror", action="store_true",
+                      help="also add each clip's mirror image as snippets (through the skeleton's left/right pairs)")
     load.add_argument("--keep-going", action="store_true", help="load the good files, list the bad, exit non-zero")
     load.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     load.set_defaults(func=cmd_load)

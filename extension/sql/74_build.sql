@@ -1,5 +1,6 @@
 CREATE OR REPLACE FUNCTION modb.build_snippets(collection text DEFAULT NULL, clip bigint DEFAULT NULL,
-                                    window_seconds float8 DEFAULT 0.5, stride_seconds float8 DEFAULT 1.0 / 30)
+                                    window_seconds float8 DEFAULT 0.5, stride_seconds float8 DEFAULT 1.0 / 30,
+                                    mirrored boolean DEFAULT false)
 RETURNS bigint
 LANGUAGE plpython3u VOLATILE PARALLEL UNSAFE
 AS $py$
@@ -17,7 +18,7 @@ if collection is not None:
         plpy.error(f'no collection "{collection}"', hint="modb.collection_path(id) names the stored ones")
 todo = plpy.cursor(plpy.prepare(
     """SELECT v.clip_id, v.version, v.fps, v.rotations, v.translations, s.id AS skeleton_id, s.hierarchy,
-              s.joint_map, c.collection_id, c.name, modb.skeleton_pose_key(s.hierarchy) AS pose_key
+              s.joint_map, s.mirror_pairs, c.collection_id, c.name, modb.skeleton_pose_key(s.hierarchy) AS pose_key
          FROM modb.clip_versions v
          JOIN modb.clips c ON c.id = v.clip_id
          JOIN modb.skeletons s ON s.id = v.skeleton_id
@@ -25,31 +26,31 @@ todo = plpy.cursor(plpy.prepare(
           AND ($1::bigint[] IS NULL OR c.collection_id = ANY ($1))
           AND ($2::bigint IS NULL OR c.id = $2)
           AND NOT EXISTS (SELECT FROM modb.snippet_sources ss
-                           WHERE ss.clip_id = v.clip_id AND ss.version = v.version AND NOT ss.mirrored)
-        ORDER BY v.clip_id""", ["bigint[]", "bigint"]), [collections, clip])
+                           WHERE ss.clip_id = v.clip_id AND ss.version = v.version AND ss.mirrored = $3)
+        ORDER BY v.clip_id""", ["bigint[]", "bigint", "boolean"]), [collections, clip, bool(mirrored)])
 drop_old = plpy.prepare("DELETE FROM modb.snippet_sources WHERE clip_id = $1 AND version < $2", ["bigint", "int"])
 add_source = plpy.prepare(
     "INSERT INTO modb.snippet_sources (clip_id, version, mirrored, window_frames, stride_frames) "
-    "VALUES ($1, $2, false, $3, $4)", ["bigint", "int", "int", "int"])
+    "VALUES ($1, $2, $5, $3, $4)", ["bigint", "int", "int", "int", "boolean"])
 add_terminators = plpy.prepare(
     """INSERT INTO modb.terminators (clip_id, version, mirrored, frame, heading, pelvis_height, positions,
                                      rotations, velocities, angular_velocities, configuration, features)
-       SELECT $1, $2, false, r.frame, r.heading, r.pelvis_height, r.positions, r.rotations, r.velocities,
+       SELECT $1, $2, $4, r.frame, r.heading, r.pelvis_height, r.positions, r.rotations, r.velocities,
               r.angular_velocities, r.configuration, cube(r.features)
          FROM jsonb_to_recordset($3::jsonb) AS r(frame int, heading float8, pelvis_height real, positions real[],
               rotations real[], velocities real[], angular_velocities real[], configuration real[][], features float8[])
-       RETURNING frame, id""", ["bigint", "int", "text"])
+       RETURNING frame, id""", ["bigint", "int", "text", "boolean"])
 add_snippets = plpy.prepare(
     """INSERT INTO modb.snippets (clip_id, version, mirrored, first_frame, n_frames, collection_id, pose_key, fps,
                                   begin_terminator, end_terminator, begin_features, net_translation, net_heading,
                                   net_rotation)
-       SELECT $1, $2, false, r.first_frame, $3, $4, $5, $6, r.begin_terminator, r.end_terminator, t.features,
+       SELECT $1, $2, $8, r.first_frame, $3, $4, $5, $6, r.begin_terminator, r.end_terminator, t.features,
               r.net_translation, r.net_heading, r.net_rotation
          FROM jsonb_to_recordset($7::jsonb) AS r(first_frame int, begin_terminator bigint, end_terminator bigint,
               net_translation float8[], net_heading float8, net_rotation float8[])
          JOIN modb.terminators t ON t.id = r.begin_terminator
         ORDER BY r.first_frame""",
-    ["bigint", "int", "int", "bigint", "text", "float8", "text"])
+    ["bigint", "int", "int", "bigint", "text", "float8", "text", "boolean"])
 
 def flat(a):
     return np.asarray(a, dtype=np.float64).reshape(len(a), -1).tolist()
@@ -72,11 +73,21 @@ while True:
     firsts, length = T.windows(n, row["fps"], window_seconds, stride_seconds)
     stride = max(1, int(round(stride_seconds * row["fps"])))
     plpy.execute(drop_old, [row["clip_id"], row["version"]])
-    plpy.execute(add_source, [row["clip_id"], row["version"], length, stride])
+    plpy.execute(add_source, [row["clip_id"], row["version"], length, stride, bool(mirrored)])
     if len(firsts) == 0:
         continue  # shorter than one snippet: recorded as built, nothing to add
-    terms = T.compute([j["parent"] for j in h["joints"]], [j["offset"] for j in h["joints"]], rotations,
-                      row["translations"], h["translated"], std, row["fps"])
+    parents = [j["parent"] for j in h["joints"]]
+    offsets = [j["offset"] for j in h["joints"]]
+    translations = row["translations"]
+    if mirrored:
+        pairs = json.loads(row["mirror_pairs"])
+        if not pairs:
+            plpy.error(f'clip {row["clip_id"]} ({row["name"]}): skeleton {row["skeleton_id"]} has no mirror pairs',
+                       hint="fill modb.skeletons.mirror_pairs with its [left, right] joints")
+        rotations, translations = kernel.mirror.mirror(
+            parents, offsets, [j["end_site"] for j in h["joints"]], kernel.mirror.partner_index(names, pairs),
+            rotations, translations, h["translated"])
+    terms = T.compute(parents, offsets, rotations, translations, h["translated"], std, row["fps"])
     frames = sorted(set(firsts.tolist()) | set((firsts + length - 1).tolist()))
     pick = {k: flat(terms[k][frames]) for k in ("positions", "rotations", "velocities", "angular_velocities", "features")}
     configuration = terms["configuration"][frames].tolist()
@@ -85,7 +96,8 @@ while True:
                 "velocities": pick["velocities"][i], "angular_velocities": pick["angular_velocities"][i],
                 "configuration": configuration[i], "features": pick["features"][i]}
                for i, f in enumerate(frames)]
-    ids = {r["frame"]: r["id"] for r in plpy.execute(add_terminators, [row["clip_id"], row["version"], json.dumps(records)])}
+    ids = {r["frame"]: r["id"] for r in plpy.execute(add_terminators, [row["clip_id"], row["version"], json.dumps(records),
+                                                                      bool(mirrored)])}
     snippets = []
     for first in firsts.tolist():
         last = first + length - 1
@@ -94,7 +106,7 @@ while True:
                          "net_translation": translation.tolist(), "net_heading": float(turn),
                          "net_rotation": rotation.tolist()})
     plpy.execute(add_snippets, [row["clip_id"], row["version"], length, row["collection_id"], row["pose_key"],
-                                row["fps"], json.dumps(snippets)])
+                                row["fps"], json.dumps(snippets), bool(mirrored)])
     added += len(snippets)
 if added:
     # Fresh statistics, so the planner sees the new rows (only the owner's ANALYZE runs; others get a notice).
@@ -102,8 +114,8 @@ if added:
     plpy.execute("ANALYZE modb.terminators")
 return added
 $py$;
-COMMENT ON FUNCTION modb.build_snippets(text, bigint, float8, float8) IS
-    'Cuts the newest version of every clip in scope (a collection''s subtree, one clip, or all) that has no snippets yet into windows of window_seconds starting every stride_seconds, with their terminators; drops the snippets of older versions. Returns the number of snippets added';
+COMMENT ON FUNCTION modb.build_snippets(text, bigint, float8, float8, boolean) IS
+    'Cuts the newest version of every clip in scope (a collection''s subtree, one clip, or all) that has no snippets yet into windows of window_seconds starting every stride_seconds, with their terminators; drops the snippets of older versions. mirrored => true adds the clips'' mirror images (through the skeleton''s mirror_pairs) as further sources. Returns the number of snippets added';
 
-REVOKE EXECUTE ON FUNCTION modb.build_snippets(text, bigint, float8, float8) FROM PUBLIC;
-GRANT EXECUTE ON FUNCTION modb.build_snippets(text, bigint, float8, float8) TO modb_loader;
+REVOKE EXECUTE ON FUNCTION modb.build_snippets(text, bigint, float8, float8, boolean) FROM PUBLIC;
+GRANT EXECUTE ON FUNCTION modb.build_snippets(text, bigint, float8, float8, boolean) TO modb_loader;
