@@ -113,12 +113,12 @@ RETURN ARRAY['joints', 'norm', 'position_threshold', 'angle_threshold', 'velocit
              'angular_velocity_threshold', 'velocity_terms', 'heading_weight'];
 COMMENT ON FUNCTION modb.match_knobs() IS 'Settings a session may override with SET modb.<knob> = ...';
 
-CREATE FUNCTION modb.unknown_settings()
+CREATE FUNCTION modb.session_settings()
 RETURNS text[]
-LANGUAGE c VOLATILE STRICT PARALLEL RESTRICTED  -- volatile: it reports each name once
-AS 'MODULE_PATHNAME', 'modb_unknown_settings';
-COMMENT ON FUNCTION modb.unknown_settings() IS
-    'modb.* settings of this session that are not knobs (misspelt), each reported once; loading it reserves the modb. prefix';
+LANGUAGE c STABLE STRICT PARALLEL SAFE
+AS 'MODULE_PATHNAME', 'modb_session_settings';
+COMMENT ON FUNCTION modb.session_settings() IS
+    'Names of this session''s modb.* settings that have a value (pg_settings does not list them: they are placeholders)';
 
 CREATE FUNCTION modb.match_plan(profile text)
 RETURNS modb.match_plan
@@ -145,10 +145,11 @@ BEGIN
         RAISE EXCEPTION 'unknown match profile "%"', profile
             USING HINT = 'profiles: ' || (SELECT string_agg(name, ', ' ORDER BY name) FROM modb.match_profiles);
     END IF;
-    unknown := array_to_string(modb.unknown_settings(), ', ');
-    IF unknown <> '' THEN
+    SELECT string_agg(name, ', ') INTO unknown
+      FROM unnest(modb.session_settings()) AS name WHERE substr(name, 6) <> ALL (modb.match_knobs());
+    IF unknown IS NOT NULL THEN
         RAISE EXCEPTION 'unknown modb setting: %', unknown
-            USING HINT = 'knobs are modb.' || array_to_string(modb.match_knobs(), ', modb.');
+            USING HINT = 'knobs are modb.' || array_to_string(modb.match_knobs(), ', modb.') || '; RESET the unknown one';
     END IF;
     FOREACH knob IN ARRAY modb.match_knobs() LOOP
         value := nullif(current_setting('modb.' || knob, true), '');

@@ -1,0 +1,166 @@
+"""select_next_snippet as a user meets it: relaxation, exclusion, the plan, privileges, upgrades, mirroring."""
+from __future__ import annotations
+
+import json
+import os
+
+import numpy as np
+import psycopg
+import pytest
+
+from conftest import mocap, run_modb
+from modb.connection import connect
+
+
+@pytest.fixture(scope="module")
+def cmu(cluster):
+    """CMU 131 (14 ASF/AMC trials, 120 fps) with snippets and their mirror images."""
+    name = f"behaviour_{os.getpid()}"
+    with psycopg.connect(cluster.dsn("postgres"), autocommit=True) as admin:
+        admin.execute(f'DROP DATABASE IF EXISTS "{name}"')
+        admin.execute(f'CREATE DATABASE "{name}"')
+    dsn = cluster.dsn(name)
+    with psycopg.connect(dsn, autocommit=True) as conn:
+        conn.execute("CREATE EXTENSION modb CASCADE")
+    r = run_modb(dsn, "load", *sorted(mocap("cmu", "131").glob("*.amc")), "--collection", "cmu/131", "--mirror")
+    assert r.returncode == 0, r.stderr
+    yield dsn
+    with psycopg.connect(cluster.dsn("postgres"), autocommit=True) as admin:
+        admin.execute(f'DROP DATABASE "{name}" WITH (FORCE)')
+
+
+def test_snippet_windows_follow_the_frame_rate(cmu):
+    with connect(cmu) as conn:
+        rows = conn.execute("SELECT DISTINCT window_frames, stride_frames FROM modb.snippet_sources").fetchall()
+        assert rows == [(61, 4)]  # 0.5 s at 120 fps (+1: the seam frame), one start every 1/30 s
+        n_frames = dict(conn.execute("SELECT clip_id, n_frames FROM modb.current_clips").fetchall())
+        per_clip = conn.execute("SELECT clip_id, count(*), max(first_frame + n_frames) FROM modb.snippets "
+                                "WHERE NOT mirrored GROUP BY clip_id").fetchall()
+        for clip_id, count, end in per_clip:
+            assert count == len(range(0, n_frames[clip_id] - 61 + 1, 4)) and end <= n_frames[clip_id]
+        (mirrored,) = conn.execute("SELECT count(*) FROM modb.snippets WHERE mirrored").fetchone()
+        assert mirrored == sum(c for _, c, _ in per_clip)  # one call doubles the data
+
+
+def test_mirror_images_turn_the_other_way(cmu):
+    with connect(cmu) as conn:
+        rows = conn.execute(
+            "SELECT a.net_translation, b.net_translation, a.net_heading, b.net_heading FROM modb.snippets a "
+            "JOIN modb.snippets b USING (clip_id, version, first_frame) WHERE NOT a.mirrored AND b.mirrored").fetchall()
+    a = np.array([r[0] for r in rows]); b = np.array([r[1] for r in rows])
+    # CMU 131's captured skeleton is not exactly symmetric (arms differ by up to ~1.5 cm): mm-level agreement.
+    assert np.abs(b - a * [-1, 1, 1]).max() < 0.01
+    turn_error = np.abs(np.array([r[3] for r in rows]) + np.array([r[2] for r in rows]))
+    assert np.median(turn_error) < 0.002 and turn_error.max() < 0.1  # the hip axis feels the asymmetry most
+
+
+def test_relaxation_levels_and_the_last_resort(cmu):
+    with connect(cmu) as conn:
+        prev, clip, last = conn.execute("SELECT id, clip_id, first_frame + n_frames - 1 FROM modb.snippets "
+                                        "WHERE NOT mirrored ORDER BY id LIMIT 1 OFFSET 500").fetchone()
+        # Its natural successor starts on its last frame with the very same terminator (ratio 0): leave it out.
+        (successor,) = conn.execute("SELECT id FROM modb.snippets WHERE clip_id = %s AND first_frame = %s "
+                                    "AND NOT mirrored", [clip, last]).fetchone()
+        seen = {}
+        for threshold in ("10", "0.1", "0.05", "0.02", "0.01", "0.005", "1e-9"):
+            conn.execute(f"SET modb.position_threshold = '{threshold}'")
+            conn.execute(f"SET modb.angle_threshold = '{float(threshold) * 3}'")
+            conn.execute(f"SET modb.velocity_threshold = '{float(threshold) * 5}'")
+            conn.execute(f"SET modb.angular_velocity_threshold = '{float(threshold) * 30}'")
+            rows = conn.execute("SELECT snippet_id, relax_level, continuity FROM modb.select_next_snippets("
+                                "%s, '{0,2}', 50, 'default', NULL, %s)", [prev, [prev, successor]]).fetchall()
+            assert rows, f"nothing returned at threshold {threshold} although candidates exist"
+            for _, level, ratio in rows:
+                if level < 4:
+                    assert (2.0 ** (level - 1) if level else -1.0) < ratio <= 2.0 ** level * (1 + 1e-9)
+                else:
+                    assert ratio > 8.0
+            assert [r[1] for r in rows] == sorted(r[1] for r in rows)  # lower levels first
+            seen[threshold] = rows[0][1]
+        levels = list(seen.values())  # tighter thresholds, higher levels, down to the last resort
+        assert levels == sorted(levels) and levels[0] == 0 and levels[-1] == 4 and len(set(levels)) >= 4, seen
+
+
+def test_exclusion_removes_every_overlapping_window_but_not_the_successor(cmu):
+    with connect(cmu) as conn:
+        clip, first, n = conn.execute("SELECT clip_id, first_frame, n_frames FROM modb.snippets "
+                                      "WHERE NOT mirrored AND first_frame = 200 LIMIT 1").fetchone()
+        ids = dict(conn.execute("SELECT first_frame, id FROM modb.snippets WHERE clip_id = %s AND NOT mirrored",
+                                [clip]).fetchall())
+        played = ids[first]
+        conn.execute("SET modb.position_threshold = '100'")  # everything continues everything: only exclusion filters
+        conn.execute("SET modb.angle_threshold = '100'")
+        conn.execute("SET modb.velocity_terms = off")
+        got = conn.execute("SELECT snippet_id FROM modb.select_next_snippets(%s, '{0,0}', 100000, 'default', NULL, %s)",
+                           [played, [played]]).fetchall()
+        got = {r[0] for r in got}
+        for f, sid in ids.items():
+            overlaps = f + 1 <= first + n - 1 and first + 1 <= f + n - 1
+            assert (sid in got) != overlaps, (f, first)
+        successor = ids[first + n - 1]  # starts on the played snippet's last frame: the seam, not a replay
+        assert successor in got and ids[first + 4] not in got and ids[first - 4] not in got
+
+
+def test_explain_shows_the_inlined_function_and_the_gist_box(cmu):
+    with connect(cmu) as conn:
+        prev = conn.execute("SELECT id FROM modb.snippets ORDER BY id LIMIT 1 OFFSET 100").fetchone()[0]
+        plan = conn.execute("EXPLAIN (ANALYZE, FORMAT JSON) SELECT * FROM modb.select_next_snippet(%s, '{1,2}')",
+                            [prev]).fetchone()[0][0]["Plan"]
+        nodes = []
+
+        def walk(node):
+            nodes.append(node)
+            for child in node.get("Plans", []):
+                walk(child)
+        walk(plan)
+        assert not any(n["Node Type"] == "Function Scan" for n in nodes), "select_next_snippet was not inlined"
+        box_scans = [n for n in nodes if n.get("Index Name") == "snippets_begin_features_idx"
+                     and "begin_features <@" in n.get("Index Cond", "")]
+        assert box_scans and box_scans[0].get("Actual Loops", 0) >= 1, [n["Node Type"] for n in nodes]
+        text = "\n".join(r[0] for r in conn.execute(
+            "EXPLAIN SELECT * FROM modb.select_next_snippet(%s, '{1,2}')", [prev]).fetchall())
+        assert "Index Cond: (begin_features <@" in text
+
+
+def test_reader_selects_loader_builds(cmu):
+    with connect(cmu) as conn:
+        conn.execute("DROP ROLE IF EXISTS t_reader")
+        conn.execute("CREATE ROLE t_reader LOGIN IN ROLE modb_reader")
+    try:
+        with psycopg.connect(psycopg.conninfo.make_conninfo(cmu, user="t_reader")) as conn:
+            assert conn.execute("SELECT count(*) FROM modb.select_next_snippet(NULL, '{0,1}')").fetchone()[0] == 1
+            with pytest.raises(psycopg.errors.InsufficientPrivilege):
+                conn.execute("SELECT modb.build_snippets()")
+    finally:
+        with connect(cmu) as conn:
+            conn.execute("DROP ROLE t_reader")
+
+
+def test_update_from_0_1_0_keeps_the_data(cluster, fresh_db, db):
+    db.execute("DROP EXTENSION modb")
+    db.execute("CREATE EXTENSION modb VERSION '0.1.0'")
+    r = run_modb(fresh_db, "load", mocap("cmu", "131", "131_01.amc"), mocap("cmu", "131", "131_02.amc"), "--no-snippets")
+    assert r.returncode == 0, r.stderr
+    db.execute("UPDATE modb.clip_versions SET meta = '{\"tags\": [\"kept\"]}'")
+    before = db.execute("SELECT clip_id, version, n_frames, meta, md5(rotations::text) FROM modb.clip_versions "
+                        "ORDER BY 1").fetchall()
+    positions = db.execute("SELECT sum(x + 2 * y + 3 * z) FROM modb.world_positions(1)").fetchone()[0]
+    db.execute("ALTER EXTENSION modb UPDATE TO '0.2.0'")
+    assert db.execute("SELECT extversion FROM pg_extension WHERE extname = 'modb'").fetchone()[0] == "0.2.0"
+    assert db.execute("SELECT clip_id, version, n_frames, meta, md5(rotations::text) FROM modb.clip_versions "
+                      "ORDER BY 1").fetchall() == before
+    assert db.execute("SELECT sum(x + 2 * y + 3 * z) FROM modb.world_positions(1)").fetchone()[0] == positions
+    (added,) = db.execute("SELECT modb.build_snippets()").fetchone()
+    assert added > 0
+    assert db.execute("SELECT count(*) FROM modb.select_next_snippet(NULL, '{0,2}')").fetchone()[0] == 1
+    # What a fresh 0.2.0 install has, the updated one has: same objects, same definitions.
+    objects = "SELECT pg_describe_object(classid, objid, 0) FROM pg_depend WHERE refobjid = " \
+              "(SELECT oid FROM pg_extension WHERE extname = 'modb') AND deptype = 'e' ORDER BY 1"
+    updated = [r[0] for r in db.execute(objects).fetchall()]
+    functions = "SELECT p.oid::regprocedure::text, md5(pg_get_functiondef(p.oid)) FROM pg_proc p " \
+                "WHERE pronamespace = 'modb'::regnamespace AND prokind = 'f' ORDER BY 1"
+    updated_functions = db.execute(functions).fetchall()
+    db.execute("DROP EXTENSION modb CASCADE")
+    db.execute("CREATE EXTENSION modb")
+    assert [r[0] for r in db.execute(objects).fetchall()] == updated
+    assert db.execute(functions).fetchall() == updated_functions
