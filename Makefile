@@ -12,7 +12,7 @@ APT_PACKAGES := postgresql-15 postgresql-plpython3-15 postgresql-15-pgtap gcc ma
 	libtap-parser-sourcehandler-pgtap-perl postgresql-server-dev-15 python3-numpy python3-venv
 EXTVERSION := $(shell sed -n "s/^default_version *= *'\(.*\)'/\1/p" extension/modb.control)
 
-.PHONY: setup apt extension venv test demo bench-load clean
+.PHONY: setup apt extension venv test demo bench-load bench-select clean
 
 setup: apt extension venv
 
@@ -55,6 +55,13 @@ demo: setup
 # Parse and load speed on real files, beside bvhio in the same run (see BENCHMARKS.md).
 bench-load: setup
 	$(VENV)/bin/modb bench load --data "$(DATA)/bandai-1"
+
+# Selection latency on all real data in $(DATA), mirrored, beside a sequential scan (see BENCHMARKS.md).
+# Loads into the embedded database first (once: re-loads store nothing new).
+bench-select: setup
+	$(VENV)/bin/modb load "$(DATA)/bandai-1" "$(DATA)/bandai-2-dev" --mirror --quiet
+	$(VENV)/bin/modb load "$(DATA)"/cmu/131/*.amc "$(DATA)"/cmu/01/*.amc --collection cmu --mirror --quiet
+	$(VENV)/bin/modb bench select --queries 200
 
 clean:
 	$(MAKE) -s -C extension clean

@@ -24,6 +24,7 @@ from modb_kernel import quaternion
 
 from .errors import MotionFileError
 from .skeleton_maps import guess_joint_map, guess_mirror_pairs
+from .text import read_lines
 
 DEFAULT_FPS = 120.0  # AMC files carry no rate; CMU captured at 120 fps
 _ROTATION_DOFS = ("rx", "ry", "rz")
@@ -68,16 +69,6 @@ class AsfSkeleton:
         return order
 
 
-def _read_text(path: str) -> tuple[bytes, list[str]]:
-    with open(path, "rb") as f:
-        raw = f.read()
-    try:
-        text = raw.decode("utf-8-sig")  # a byte-order mark is not part of the first keyword
-    except UnicodeDecodeError:
-        text = raw.decode("latin-1")
-    return raw, text.splitlines()
-
-
 def _numbers(path: str, line: int, words: list[str], count: int, what: str) -> np.ndarray:
     if len(words) < count:
         raise MotionFileError(path, line, f"{what} needs {count} numbers, found {len(words)}")
@@ -112,7 +103,7 @@ def _sections(lines: list[str]) -> list[tuple[str, list[tuple[int, list[str]]]]]
 
 
 def read_asf(path: str, units: str | float = "auto") -> AsfSkeleton:
-    raw, lines = _read_text(path)
+    raw, lines = read_lines(path)
     sections = _sections(lines)
     if not any(k == ":bonedata" for k, _ in sections):
         raise MotionFileError(path, 1, "no :bonedata section", "not an ASF skeleton file")
@@ -247,7 +238,7 @@ def _skeleton(asf: AsfSkeleton, name: str) -> Skeleton:
 def read_amc(path: str, asf: AsfSkeleton, fps: float = DEFAULT_FPS, allow_truncated: bool = False,
              warn=None) -> Motion:
     """Parse an AMC file against its ASF skeleton. Raises MotionFileError naming file and line."""
-    raw, lines = _read_text(path)
+    raw, lines = read_lines(path)
     angle_scale = asf.angle_scale
     frames: list[dict[str, tuple[int, list[str]]]] = []
     frame_lines: list[int] = []

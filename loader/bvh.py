@@ -18,6 +18,7 @@ from modb_kernel import quaternion
 
 from .errors import MotionFileError
 from .skeleton_maps import guess_joint_map, guess_mirror_pairs
+from .text import read_lines
 from .units import UnitsError, resolve_units
 
 _CHANNELS = {"Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation"}
@@ -196,13 +197,7 @@ def _read_motion_block(path: str, lines: list[str], first: int, frames: int, fra
 
 def read_bvh(path: str, units: str | float = "auto") -> Motion:
     """Parse a BVH file into a Motion (metres, unit quaternions). Raises MotionFileError."""
-    with open(path, "rb") as f:
-        raw = f.read()
-    try:
-        text = raw.decode("utf-8-sig")  # a byte-order mark is not part of the first keyword
-    except UnicodeDecodeError:
-        text = raw.decode("latin-1")
-    lines = text.splitlines()
+    raw, lines = read_lines(path)
     tokens = _Tokens(path, lines)
     if not tokens.items:
         raise MotionFileError(path, 1, "the file is empty", "expected a BVH file starting with HIERARCHY")

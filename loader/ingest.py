@@ -166,6 +166,10 @@ def load_files(conn: psycopg.Connection, jobs: list[FileJob], options: ReadOptio
             progress(result)
         if result.status == "failed" and not keep_going:
             break
+    if any(r.snippets for r in summary.results):
+        # Fresh statistics once per load, so the planner sees the new snippets at once (autovacuum would
+        # get there later); a role that does not own the tables only gets a warning.
+        conn.execute("ANALYZE modb.snippets, modb.terminators")
     summary.elapsed = time.perf_counter() - started
     return summary
 

@@ -1,6 +1,7 @@
 """Shared fixtures: a throwaway PostgreSQL cluster per test session, fresh databases, the real data."""
 from __future__ import annotations
 
+import contextlib
 import itertools
 import os
 import shutil
@@ -60,6 +61,21 @@ def fresh_db(cluster, request) -> str:
 def db(fresh_db):
     with connect(fresh_db) as conn:
         yield conn
+
+
+@contextlib.contextmanager
+def scratch_database(cluster, name: str):
+    """A database with the extension for a whole test module (dropped at the end)."""
+    with psycopg.connect(cluster.dsn("postgres"), autocommit=True) as admin:
+        admin.execute(f'DROP DATABASE IF EXISTS "{name}"')
+        admin.execute(f'CREATE DATABASE "{name}"')
+    with psycopg.connect(cluster.dsn(name), autocommit=True) as conn:
+        conn.execute("CREATE EXTENSION modb CASCADE")
+    try:
+        yield cluster.dsn(name)
+    finally:
+        with psycopg.connect(cluster.dsn("postgres"), autocommit=True) as admin:
+            admin.execute(f'DROP DATABASE "{name}" WITH (FORCE)')
 
 
 def run_modb(dsn: str, *args: str) -> subprocess.CompletedProcess:

@@ -17,6 +17,8 @@ def test_dump_restore_keeps_clips_and_loading_continues(cluster, fresh_db, db, t
     assert r.returncode == 0, r.stderr
     db.execute("UPDATE modb.clip_versions SET meta = '{\"tags\": [\"kept\"]}' WHERE clip_id = 1")
     db.execute("INSERT INTO modb.models (name, kind, data) VALUES ('m', 'test', '{\"k\": 1}')")
+    db.execute("INSERT INTO modb.match_profiles (name, settings) SELECT 'mine', settings FROM modb.match_profiles "
+               "WHERE name = 'strict'")
     source_name = psycopg.conninfo.conninfo_to_dict(fresh_db)["dbname"]
     dump = tmp_path / "modb.dump"
     host = str(cluster.socket_dir)
@@ -34,6 +36,12 @@ def test_dump_restore_keeps_clips_and_loading_continues(cluster, fresh_db, db, t
                      "ORDER BY clip_id")
             assert restored.execute(query).fetchall() == db.execute(query).fetchall()
             assert restored.execute("SELECT data FROM modb.models").fetchone()[0] == {"k": 1}
+            profiles = "SELECT name, settings, shipped FROM modb.match_profiles ORDER BY name"
+            assert restored.execute(profiles).fetchall() == db.execute(profiles).fetchall()
+            snippets = "SELECT count(*), sum(first_frame), count(DISTINCT begin_terminator) FROM modb.snippets"
+            assert restored.execute(snippets).fetchone() == db.execute(snippets).fetchone()
+            assert db.execute(snippets).fetchone()[0] > 0
+            assert restored.execute("SELECT count(*) FROM modb.select_next_snippet(1, '{0,1}', 'mine')").fetchone()[0] == 1
             for (clip_id,) in db.execute("SELECT id FROM modb.clips").fetchall():
                 a, b = read_motion(db, clip_id), read_motion(restored, clip_id)
                 assert np.array_equal(a.rotations, b.rotations) and np.array_equal(a.translations, b.translations)

@@ -1,32 +1,23 @@
 """select_next_snippet as a user meets it: relaxation, exclusion, the plan, privileges, upgrades, mirroring."""
 from __future__ import annotations
 
-import json
 import os
 
 import numpy as np
 import psycopg
 import pytest
 
-from conftest import mocap, run_modb
+from conftest import mocap, run_modb, scratch_database
 from modb.connection import connect
 
 
 @pytest.fixture(scope="module")
 def cmu(cluster):
     """CMU 131 (14 ASF/AMC trials, 120 fps) with snippets and their mirror images."""
-    name = f"behaviour_{os.getpid()}"
-    with psycopg.connect(cluster.dsn("postgres"), autocommit=True) as admin:
-        admin.execute(f'DROP DATABASE IF EXISTS "{name}"')
-        admin.execute(f'CREATE DATABASE "{name}"')
-    dsn = cluster.dsn(name)
-    with psycopg.connect(dsn, autocommit=True) as conn:
-        conn.execute("CREATE EXTENSION modb CASCADE")
-    r = run_modb(dsn, "load", *sorted(mocap("cmu", "131").glob("*.amc")), "--collection", "cmu/131", "--mirror")
-    assert r.returncode == 0, r.stderr
-    yield dsn
-    with psycopg.connect(cluster.dsn("postgres"), autocommit=True) as admin:
-        admin.execute(f'DROP DATABASE "{name}" WITH (FORCE)')
+    with scratch_database(cluster, f"behaviour_{os.getpid()}") as dsn:
+        r = run_modb(dsn, "load", *sorted(mocap("cmu", "131").glob("*.amc")), "--collection", "cmu/131", "--mirror")
+        assert r.returncode == 0, r.stderr
+        yield dsn
 
 
 def test_snippet_windows_follow_the_frame_rate(cmu):
@@ -164,3 +155,26 @@ def test_update_from_0_1_0_keeps_the_data(cluster, fresh_db, db):
     db.execute("CREATE EXTENSION modb")
     assert [r[0] for r in db.execute(objects).fetchall()] == updated
     assert db.execute(functions).fetchall() == updated_functions
+
+
+def test_new_versions_replace_their_snippets_and_other_ids_stay(fresh_db, db, tmp_path):
+    walk = mocap("bandai-1", "data", "dataset-1_walk_active_001.bvh")
+    run = mocap("bandai-1", "data", "dataset-1_run_active_001.bvh")
+    assert run_modb(fresh_db, "load", walk, run, "--collection", "c").returncode == 0
+    snippets = "SELECT c.name, s.version, array_agg(s.id ORDER BY s.id) FROM modb.snippets s " \
+               "JOIN modb.clips c ON c.id = s.clip_id GROUP BY 1, 2 ORDER BY 1, 2"
+    before = {(n, v): ids for n, v, ids in db.execute(snippets).fetchall()}
+    assert run_modb(fresh_db, "load", walk, run, "--collection", "c").returncode == 0  # nothing new
+    assert db.execute("SELECT modb.build_snippets()").fetchone()[0] == 0
+    assert {(n, v): ids for n, v, ids in db.execute(snippets).fetchall()} == before
+    changed = tmp_path / walk.name
+    lines = walk.read_text().splitlines()
+    lines[lines.index("MOTION") + 3] = " ".join("0" for _ in lines[lines.index("MOTION") + 3].split())
+    changed.write_text("\n".join(lines) + "\n")
+    r = run_modb(fresh_db, "load", changed, "--collection", "c")
+    assert r.returncode == 0 and "1 clip versions loaded" in r.stdout
+    after = {(n, v): ids for n, v, ids in db.execute(snippets).fetchall()}
+    run_key = ("dataset-1_run_active_001", 1)
+    assert after[run_key] == before[run_key]  # other clips keep their snippet ids
+    assert ("dataset-1_walk_active_001", 1) not in after and ("dataset-1_walk_active_001", 2) in after
+    assert len(after[("dataset-1_walk_active_001", 2)]) == len(before[("dataset-1_walk_active_001", 1)])

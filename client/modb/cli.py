@@ -159,6 +159,13 @@ def cmd_demo(args: argparse.Namespace) -> int:
 def cmd_bench(args: argparse.Namespace) -> int:
     from pathlib import Path
 
+    if args.what == "select":
+        from .bench_select import bench_select, report as select_report
+
+        with _connect(args) as conn:
+            print(select_report(bench_select(conn, args.queries, args.seed, args.profile), args.profile))
+        return 0
+
     from .bench_load import bench_load, bench_parse, report
     from .cluster import Cluster
 
@@ -247,9 +254,12 @@ def build_parser() -> argparse.ArgumentParser:
     demo.set_defaults(func=cmd_demo)
 
     bench = sub.add_parser("bench", help="benchmarks (results go in BENCHMARKS.md)")
-    bench.add_argument("what", choices=["load"])
-    bench.add_argument("--data", default="../shared/mocap/bandai-1", help="folder of .bvh files")
-    bench.add_argument("--rounds", type=int, default=3)
+    bench.add_argument("what", choices=["load", "select"])
+    bench.add_argument("--queries", type=int, default=200, help="select: number of seeded queries")
+    bench.add_argument("--seed", type=int, default=1, help="select: random seed")
+    bench.add_argument("--profile", default="default", help="select: match profile")
+    bench.add_argument("--data", default="../shared/mocap/bandai-1", help="load: folder of .bvh files")
+    bench.add_argument("--rounds", type=int, default=3, help="load: rounds")
     bench.set_defaults(func=cmd_bench)
 
     db = sub.add_parser("db", help="the embedded database cluster")

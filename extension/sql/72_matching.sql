@@ -61,12 +61,13 @@ COMMENT ON FUNCTION modb.weighted_joint_angle(real[], real[], int[], float8[]) I
 CREATE TABLE modb.match_profiles (
     name     text PRIMARY KEY,
     settings jsonb NOT NULL CHECK (jsonb_typeof(settings) = 'object'),
-    comment  text
+    comment  text,
+    shipped  boolean NOT NULL DEFAULT false
 );
 COMMENT ON TABLE modb.match_profiles IS
     'Continuity thresholds for select_next_snippet, by name; any setting can be overridden per session with SET modb.<knob>';
 
-INSERT INTO modb.match_profiles (name, settings, comment) VALUES
+INSERT INTO modb.match_profiles (name, settings, comment, shipped) VALUES
 ('default', '{"joints": ["pelvis", "spine", "chest", "neck", "head", "left_hip", "left_knee", "left_ankle", "left_toe",
               "right_hip", "right_knee", "right_ankle", "right_toe", "left_shoulder", "left_elbow", "left_wrist",
               "right_shoulder", "right_elbow", "right_wrist"],
@@ -75,22 +76,25 @@ INSERT INTO modb.match_profiles (name, settings, comment) VALUES
               "angle_threshold": {"default": 0.5, "pelvis": 0.3}, "velocity_threshold": {"default": 0.6, "left_wrist": 1.0,
               "right_wrist": 1.0, "left_elbow": 0.8, "right_elbow": 0.8},
               "angular_velocity_threshold": {"default": 4.0}, "velocity_terms": true, "heading_weight": 0.0}',
- 'Whole body: feet, hands and head within centimetres, joints within about 30 degrees, velocities matched'),
+ 'Whole body: feet, hands and head within centimetres, joints within about 30 degrees, velocities matched', true),
 ('strict', '{"joints": ["pelvis", "spine", "chest", "neck", "head", "left_hip", "left_knee", "left_ankle", "left_toe",
              "right_hip", "right_knee", "right_ankle", "right_toe", "left_shoulder", "left_elbow", "left_wrist",
              "right_shoulder", "right_elbow", "right_wrist"],
              "norm": "l2", "position_threshold": {"default": 0.06}, "angle_threshold": {"default": 0.25},
              "velocity_threshold": {"default": 0.3}, "angular_velocity_threshold": {"default": 2.0},
              "velocity_terms": true, "heading_weight": 0.0}',
- 'Half the default thresholds: smoother seams, more relaxation'),
+ 'Half the default thresholds: smoother seams, more relaxation', true),
 ('locomotion', '{"joints": ["pelvis", "left_hip", "left_knee", "left_ankle", "left_toe", "right_hip", "right_knee",
                  "right_ankle", "right_toe"],
                  "norm": "l1", "position_threshold": {"default": 0.15}, "angle_threshold": {"default": 0.5},
                  "velocity_threshold": {"default": 0.7}, "angular_velocity_threshold": {"default": 5.0},
                  "velocity_terms": true, "heading_weight": 0.3}',
- 'Lower body only, L1 positions, and a heading term: for walking to goals');
+ 'Lower body only, L1 positions, and a heading term: for walking to goals', true);
 
-SELECT pg_catalog.pg_extension_config_dump('modb.match_profiles', '');
+-- The shipped profiles come with every install (and upgrade); pg_dump keeps the ones users add.
+SELECT pg_catalog.pg_extension_config_dump('modb.match_profiles', 'WHERE NOT shipped');
+COMMENT ON COLUMN modb.match_profiles.shipped IS
+    'Installed with the extension (and replaced by its upgrades): add your own profile rather than editing these';
 
 CREATE TYPE modb.match_plan AS (
     joints                     int[],

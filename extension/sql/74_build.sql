@@ -108,10 +108,6 @@ while True:
     plpy.execute(add_snippets, [row["clip_id"], row["version"], length, row["collection_id"], row["pose_key"],
                                 row["fps"], json.dumps(snippets), bool(mirrored)])
     added += len(snippets)
-if added:
-    # Fresh statistics, so the planner sees the new rows (only the owner's ANALYZE runs; others get a notice).
-    plpy.execute("ANALYZE modb.snippets")
-    plpy.execute("ANALYZE modb.terminators")
 return added
 $py$;
 COMMENT ON FUNCTION modb.build_snippets(text, bigint, float8, float8, boolean) IS
