@@ -61,7 +61,7 @@ bench-load: setup
 bench-select: setup
 	$(VENV)/bin/modb load "$(DATA)/bandai-1" "$(DATA)/bandai-2-dev" --mirror --quiet
 	$(VENV)/bin/modb load "$(DATA)"/cmu/131/*.amc "$(DATA)"/cmu/01/*.amc --collection cmu --mirror --quiet
-	$(VENV)/bin/modb bench select --queries 200
+	$(VENV)/bin/modb bench select --queries 100
 
 clean:
 	$(MAKE) -s -C extension clean
