@@ -195,7 +195,7 @@ def select(space: dict, prev_id, target, plan: dict, collections=None, exclude=(
     ok = np.ones(len(ids), dtype=bool)
     if collections is not None:
         ok &= np.isin(space["collection"], list(collections))
-    for x in exclude:
+    for x in set(exclude) | ({prev_id} if prev_id is not None else set()):  # prev's own frames: no replay
         k = int(np.flatnonzero(ids == x)[0])
         same = (space["clip"] == space["clip"][k]) & (space["version"] == space["version"][k])
         cand_lo, cand_hi = space["first"] + 1, space["first"] + space["n"] - 1

@@ -151,10 +151,22 @@ def test_update_from_0_1_0_keeps_the_data(cluster, fresh_db, db):
     functions = "SELECT p.oid::regprocedure::text, md5(pg_get_functiondef(p.oid)) FROM pg_proc p " \
                 "WHERE pronamespace = 'modb'::regnamespace AND prokind = 'f' ORDER BY 1"
     updated_functions = db.execute(functions).fetchall()
+    acls = "SELECT c.relname, c.relacl::text FROM pg_class c WHERE relnamespace = 'modb'::regnamespace ORDER BY 1"
+    grants = "SELECT p.oid::regprocedure::text, p.proacl::text FROM pg_proc p " \
+             "WHERE pronamespace = 'modb'::regnamespace ORDER BY 1"
+    updated_acls, updated_grants = db.execute(acls).fetchall(), db.execute(grants).fetchall()
+    db.execute("DROP ROLE IF EXISTS t_updated_reader")
+    db.execute("CREATE ROLE t_updated_reader LOGIN IN ROLE modb_reader")
+    try:
+        with psycopg.connect(psycopg.conninfo.make_conninfo(fresh_db, user="t_updated_reader")) as reader:
+            assert reader.execute("SELECT count(*) FROM modb.select_next_snippet(NULL, '{0,2}')").fetchone()[0] == 1
+    finally:
+        db.execute("DROP ROLE t_updated_reader")
     db.execute("DROP EXTENSION modb CASCADE")
     db.execute("CREATE EXTENSION modb")
     assert [r[0] for r in db.execute(objects).fetchall()] == updated
     assert db.execute(functions).fetchall() == updated_functions
+    assert db.execute(acls).fetchall() == updated_acls and db.execute(grants).fetchall() == updated_grants
 
 
 def test_new_versions_replace_their_snippets_and_other_ids_stay(fresh_db, db, tmp_path):
@@ -178,3 +190,44 @@ def test_new_versions_replace_their_snippets_and_other_ids_stay(fresh_db, db, tm
     assert after[run_key] == before[run_key]  # other clips keep their snippet ids
     assert ("dataset-1_walk_active_001", 1) not in after and ("dataset-1_walk_active_001", 2) in after
     assert len(after[("dataset-1_walk_active_001", 2)]) == len(before[("dataset-1_walk_active_001", 1)])
+
+
+@pytest.mark.parametrize("call,message", [
+    ("SELECT * FROM modb.select_next_snippet(NULL, '{1}')", "target must be {x, z} or {x, y, z}"),
+    ("SELECT * FROM modb.select_next_snippet(NULL, '{1,2,3,4}')", "target must be"),
+    ("SELECT * FROM modb.select_next_snippet(NULL, '{NaN,1}')", "target must be"),
+    ("SELECT * FROM modb.select_next_snippet(NULL, NULL)", "target must be"),
+    ("SELECT * FROM modb.select_next_snippet(999999999, '{0,1}')", "no snippet 999999999"),
+    ("SELECT * FROM modb.select_next_snippet(999999999, '{0,1}', 'nope')", 'unknown match profile "nope"'),
+    ("SELECT * FROM modb.select_next_snippet(NULL, '{0,1}', 'default', 'no/such')", 'no collection "no/such"'),
+    ("SELECT * FROM modb.select_next_snippets(NULL, '{0,1}', NULL)", "k must be at least 1"),
+    ("SET modb.position_threshold = '-1'; SELECT * FROM modb.select_next_snippet(NULL, '{0,1}')",
+     "thresholds must be positive"),
+    ("SET modb.heading_weight = '-5'; SELECT * FROM modb.select_next_snippet(NULL, '{0,1}')",
+     "heading_weight must not be negative"),
+])
+def test_requests_that_cannot_be_answered_are_errors(cmu, call, message):
+    with connect(cmu) as conn:
+        with pytest.raises(psycopg.errors.RaiseException if "profile" in message or "threshold" in message
+                           or "heading" in message else psycopg.errors.InvalidParameterValue, match=message):
+            for statement in call.split("; "):
+                conn.execute(statement).fetchall() if statement.startswith("SELECT") else conn.execute(statement)
+
+
+def test_the_previous_snippet_is_never_replayed(cmu):
+    with connect(cmu) as conn:
+        prev, clip, first, n = conn.execute("SELECT id, clip_id, first_frame, n_frames FROM modb.snippets "
+                                            "WHERE NOT mirrored ORDER BY id LIMIT 1 OFFSET 300").fetchone()
+        rows = conn.execute("SELECT s.clip_id, s.first_frame FROM modb.select_next_snippets(%s, '{0,0}', 500) x "
+                            "JOIN modb.snippets s ON s.id = x.snippet_id WHERE NOT s.mirrored", [prev]).fetchall()
+        assert rows
+        for c, f in rows:
+            assert c != clip or not (f + 1 <= first + n - 1 and first + 1 <= f + n - 1), (f, first)
+
+
+def test_a_new_version_keeps_its_mirror_images(fresh_db, db):
+    amc = mocap("cmu", "131", "131_01.amc")
+    assert run_modb(fresh_db, "load", amc, "--mirror").returncode == 0
+    assert run_modb(fresh_db, "load", amc, "--fps", "60").returncode == 0  # a new version, no --mirror
+    rows = db.execute("SELECT version, mirrored, count(*) FROM modb.snippets GROUP BY 1, 2 ORDER BY 1, 2").fetchall()
+    assert [(v, m) for v, m, _ in rows] == [(2, False), (2, True)] and rows[0][2] == rows[1][2]

@@ -1,4 +1,4 @@
-"""The `modb` command: load, export, list, db."""
+"""The `modb` command: load, export, list, demo, bench, db."""
 from __future__ import annotations
 
 import argparse

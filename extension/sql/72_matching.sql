@@ -91,6 +91,9 @@ INSERT INTO modb.match_profiles (name, settings, comment, shipped) VALUES
                  "velocity_terms": true, "heading_weight": 0.3}',
  'Lower body only, L1 positions, and a heading term: for walking to goals', true);
 
+GRANT SELECT ON modb.match_profiles TO modb_reader;
+GRANT INSERT, UPDATE, DELETE ON modb.match_profiles TO modb_loader;
+
 -- The shipped profiles come with every install (and upgrade); pg_dump keeps the ones users add.
 SELECT pg_catalog.pg_extension_config_dump('modb.match_profiles', 'WHERE NOT shipped');
 COMMENT ON COLUMN modb.match_profiles.shipped IS
@@ -170,6 +173,16 @@ BEGIN
         RAISE EXCEPTION 'profile "%": joints % must be standard joints', profile, joint_names
             USING HINT = 'standard joints: ' || array_to_string(names, ', ');
     END IF;
+    IF EXISTS (SELECT FROM jsonb_each(settings) AS e(k, v)
+                WHERE k LIKE '%threshold'
+                  AND EXISTS (SELECT FROM jsonb_path_query(v, 'strict $.** ? (@.type() == "number")') AS x(n)
+                              WHERE NOT (x.n::text::float8 > 0))) THEN
+        RAISE EXCEPTION 'profile "%": thresholds must be positive', profile
+            USING HINT = 'check SET modb.*_threshold and the profile''s settings';
+    END IF;
+    IF coalesce((settings->>'heading_weight')::float8, 0) < 0 THEN
+        RAISE EXCEPTION 'profile "%": heading_weight must not be negative', profile;
+    END IF;
     plan.norm := coalesce(settings->>'norm', 'l2');
     IF plan.norm NOT IN ('l1', 'l2') THEN
         RAISE EXCEPTION 'norm must be l1 or l2, not "%"', plan.norm;
@@ -226,8 +239,10 @@ CREATE FUNCTION modb.match_box(features cube, plan modb.match_plan, scale float8
 RETURNS cube
 LANGUAGE sql IMMUTABLE STRICT PARALLEL SAFE
 BEGIN ATOMIC
-    SELECT cube(array_agg(cube_ll_coord(features, i) - scale * (plan).box_half_width[i] ORDER BY i),
-                array_agg(cube_ll_coord(features, i) + scale * (plan).box_half_width[i] ORDER BY i))
+    -- + 1e-4: terminators store float4 and features float8; the margin keeps every candidate that passes
+    -- the exact check inside the box, so a row's level depends on its ratio alone.
+    SELECT cube(array_agg(cube_ll_coord(features, i) - scale * (plan).box_half_width[i] - 1e-4 ORDER BY i),
+                array_agg(cube_ll_coord(features, i) + scale * (plan).box_half_width[i] + 1e-4 ORDER BY i))
       FROM generate_series(1, cube_dim(features)) AS i;
 END;
 COMMENT ON FUNCTION modb.match_box(cube, modb.match_plan, float8) IS
@@ -256,3 +271,29 @@ BEGIN ATOMIC
     SELECT coalesce(array_agg(id), '{}') FROM down;
 END;
 COMMENT ON FUNCTION modb.collection_subtree(text) IS 'Ids of the collection at path "a/b" and of every collection below it';
+
+CREATE FUNCTION modb.check_request(prev_snippet bigint, target float8[], k int, collection text)
+RETURNS boolean
+LANGUAGE plpgsql STABLE PARALLEL SAFE
+AS $$
+BEGIN
+    IF target IS NULL OR array_length(target, 1) NOT IN (2, 3) OR array_ndims(target) <> 1
+       OR EXISTS (SELECT FROM unnest(target) v WHERE v IS NULL OR v = 'NaN' OR v IN ('Infinity', '-Infinity')) THEN
+        RAISE EXCEPTION 'target must be {x, z} or {x, y, z} in metres, got %', coalesce(target::text, 'NULL')
+            USING ERRCODE = 'invalid_parameter_value';
+    END IF;
+    IF k IS NULL OR k < 1 THEN
+        RAISE EXCEPTION 'k must be at least 1, got %', coalesce(k::text, 'NULL') USING ERRCODE = 'invalid_parameter_value';
+    END IF;
+    IF prev_snippet IS NOT NULL AND NOT EXISTS (SELECT FROM modb.snippets WHERE id = prev_snippet) THEN
+        RAISE EXCEPTION 'no snippet %', prev_snippet USING ERRCODE = 'invalid_parameter_value',
+            HINT = 'prev_snippet is a modb.snippets id, or NULL to start';
+    END IF;
+    IF collection IS NOT NULL AND modb.find_collection(collection) IS NULL THEN
+        RAISE EXCEPTION 'no collection "%"', collection USING ERRCODE = 'invalid_parameter_value';
+    END IF;
+    RETURN true;
+END
+$$;
+COMMENT ON FUNCTION modb.check_request(bigint, float8[], int, text) IS
+    'Raises a clear error for a select_next_snippet request that cannot be answered (bad target or k, unknown snippet or collection)';

@@ -28,7 +28,8 @@ todo = plpy.cursor(plpy.prepare(
           AND NOT EXISTS (SELECT FROM modb.snippet_sources ss
                            WHERE ss.clip_id = v.clip_id AND ss.version = v.version AND ss.mirrored = $3)
         ORDER BY v.clip_id""", ["bigint[]", "bigint", "boolean"]), [collections, clip, bool(mirrored)])
-drop_old = plpy.prepare("DELETE FROM modb.snippet_sources WHERE clip_id = $1 AND version < $2", ["bigint", "int"])
+drop_old = plpy.prepare(
+    "DELETE FROM modb.snippet_sources WHERE clip_id = $1 AND version < $2 RETURNING mirrored", ["bigint", "int"])
 add_source = plpy.prepare(
     "INSERT INTO modb.snippet_sources (clip_id, version, mirrored, window_frames, stride_frames) "
     "VALUES ($1, $2, $5, $3, $4)", ["bigint", "int", "int", "int", "boolean"])
@@ -68,46 +69,50 @@ while True:
     except T.SkeletonMapError as e:
         plpy.error(f'clip {row["clip_id"]} ({row["name"]}): skeleton {row["skeleton_id"]}: {e}',
                    hint="complete modb.skeletons.joint_map for it, then call modb.build_snippets again")
-    rotations = np.asarray(row["rotations"], dtype=np.float64)
-    n = len(rotations)
-    firsts, length = T.windows(n, row["fps"], window_seconds, stride_seconds)
+    captured = np.asarray(row["rotations"], dtype=np.float64)
+    firsts, length = T.windows(len(captured), row["fps"], window_seconds, stride_seconds)
     stride = max(1, int(round(stride_seconds * row["fps"])))
-    plpy.execute(drop_old, [row["clip_id"], row["version"]])
-    plpy.execute(add_source, [row["clip_id"], row["version"], length, stride, bool(mirrored)])
-    if len(firsts) == 0:
-        continue  # shorter than one snippet: recorded as built, nothing to add
+    # A new version replaces the old versions' snippets, and keeps their mirror images if they had them.
+    old_flags = {r["mirrored"] for r in plpy.execute(drop_old, [row["clip_id"], row["version"]])}
+    existing = {r["mirrored"] for r in plpy.execute(
+        plpy.prepare("SELECT mirrored FROM modb.snippet_sources WHERE clip_id = $1 AND version = $2",
+                     ["bigint", "int"]), [row["clip_id"], row["version"]])}
     parents = [j["parent"] for j in h["joints"]]
     offsets = [j["offset"] for j in h["joints"]]
-    translations = row["translations"]
-    if mirrored:
-        pairs = json.loads(row["mirror_pairs"])
-        if not pairs:
-            plpy.error(f'clip {row["clip_id"]} ({row["name"]}): skeleton {row["skeleton_id"]} has no mirror pairs',
-                       hint="fill modb.skeletons.mirror_pairs with its [left, right] joints")
-        rotations, translations = kernel.mirror.mirror(
-            parents, offsets, [j["end_site"] for j in h["joints"]], kernel.mirror.partner_index(names, pairs),
-            rotations, translations, h["translated"])
-    terms = T.compute(parents, offsets, rotations, translations, h["translated"], std, row["fps"])
-    frames = sorted(set(firsts.tolist()) | set((firsts + length - 1).tolist()))
-    pick = {k: flat(terms[k][frames]) for k in ("positions", "rotations", "velocities", "angular_velocities", "features")}
-    configuration = terms["configuration"][frames].tolist()
-    records = [{"frame": f, "heading": float(terms["heading"][f]), "pelvis_height": float(terms["pelvis_height"][f]),
-                "positions": pick["positions"][i], "rotations": pick["rotations"][i],
-                "velocities": pick["velocities"][i], "angular_velocities": pick["angular_velocities"][i],
-                "configuration": configuration[i], "features": pick["features"][i]}
-               for i, f in enumerate(frames)]
-    ids = {r["frame"]: r["id"] for r in plpy.execute(add_terminators, [row["clip_id"], row["version"], json.dumps(records),
-                                                                      bool(mirrored)])}
-    snippets = []
-    for first in firsts.tolist():
-        last = first + length - 1
-        translation, turn, rotation = T.net_motion(terms, first, last)
-        snippets.append({"first_frame": first, "begin_terminator": ids[first], "end_terminator": ids[last],
-                         "net_translation": translation.tolist(), "net_heading": float(turn),
-                         "net_rotation": rotation.tolist()})
-    plpy.execute(add_snippets, [row["clip_id"], row["version"], length, row["collection_id"], row["pose_key"],
-                                row["fps"], json.dumps(snippets), bool(mirrored)])
-    added += len(snippets)
+    for flag in sorted(({bool(mirrored)} | old_flags) - existing):
+        plpy.execute(add_source, [row["clip_id"], row["version"], length, stride, flag])
+        if len(firsts) == 0:
+            continue  # shorter than one snippet: recorded as built, nothing to add
+        rotations, translations = captured, row["translations"]
+        if flag:
+            pairs = json.loads(row["mirror_pairs"])
+            if not pairs:
+                plpy.error(f'clip {row["clip_id"]} ({row["name"]}): skeleton {row["skeleton_id"]} has no mirror pairs',
+                           hint="fill modb.skeletons.mirror_pairs with its [left, right] joints")
+            rotations, translations = kernel.mirror.mirror(
+                parents, offsets, [j["end_site"] for j in h["joints"]], kernel.mirror.partner_index(names, pairs),
+                rotations, translations, h["translated"])
+        terms = T.compute(parents, offsets, rotations, translations, h["translated"], std, row["fps"])
+        frames = sorted(set(firsts.tolist()) | set((firsts + length - 1).tolist()))
+        pick = {k: flat(terms[k][frames]) for k in ("positions", "rotations", "velocities", "angular_velocities", "features")}
+        configuration = terms["configuration"][frames].tolist()
+        records = [{"frame": f, "heading": float(terms["heading"][f]), "pelvis_height": float(terms["pelvis_height"][f]),
+                    "positions": pick["positions"][i], "rotations": pick["rotations"][i],
+                    "velocities": pick["velocities"][i], "angular_velocities": pick["angular_velocities"][i],
+                    "configuration": configuration[i], "features": pick["features"][i]}
+                   for i, f in enumerate(frames)]
+        ids = {r["frame"]: r["id"] for r in plpy.execute(add_terminators, [row["clip_id"], row["version"],
+                                                                          json.dumps(records), flag])}
+        snippets = []
+        for first in firsts.tolist():
+            last = first + length - 1
+            translation, turn, rotation = T.net_motion(terms, first, last)
+            snippets.append({"first_frame": first, "begin_terminator": ids[first], "end_terminator": ids[last],
+                             "net_translation": translation.tolist(), "net_heading": float(turn),
+                             "net_rotation": rotation.tolist()})
+        plpy.execute(add_snippets, [row["clip_id"], row["version"], length, row["collection_id"], row["pose_key"],
+                                    row["fps"], json.dumps(snippets), flag])
+        added += len(snippets)
 return added
 $py$;
 COMMENT ON FUNCTION modb.build_snippets(text, bigint, float8, float8, boolean) IS

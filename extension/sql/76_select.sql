@@ -11,20 +11,22 @@ RETURNS TABLE (snippet_id bigint, clip_id bigint, version int, mirrored boolean,
 LANGUAGE sql STABLE PARALLEL SAFE
 AS $$
 WITH cfg AS MATERIALIZED (
-    SELECT modb.match_plan(profile) AS plan,
+    SELECT modb.match_plan(profile) AS plan, modb.check_request(prev_snippet, target, k, collection) AS checked,
            CASE WHEN collection IS NULL THEN NULL ELSE modb.collection_subtree(collection) END AS collections
 ), prev AS MATERIALIZED (
     SELECT t AS term, t.features, s.pose_key, s.fps
       FROM modb.snippets s JOIN modb.terminators t ON t.id = s.end_terminator
      WHERE s.id = prev_snippet
+       AND (SELECT checked FROM cfg)  -- every path reads prev or cfg first: bad requests always raise
 ), candidates AS NOT MATERIALIZED (
     -- The filters every level shares: same skeleton poses and rate, the collection, and no replay of a
-    -- frame a recent snippet covered (its seam frame aside).
+    -- frame the previous snippet or a recent one covered (its first frame, the seam, aside).
     SELECT s.*
       FROM modb.snippets s
      WHERE (collection IS NULL OR s.collection_id = ANY ((SELECT collections FROM cfg)::bigint[]))
        AND NOT EXISTS (SELECT FROM modb.snippets x
-                        WHERE x.id = ANY (exclude) AND x.clip_id = s.clip_id AND x.version = s.version
+                        WHERE (x.id = ANY (exclude) OR x.id = prev_snippet)
+                          AND x.clip_id = s.clip_id AND x.version = s.version
                           AND x.mirrored = s.mirrored
                           AND x.first_frame + 1 <= s.first_frame + s.n_frames - 1
                           AND s.first_frame + 1 <= x.first_frame + x.n_frames - 1)
@@ -33,7 +35,7 @@ WITH cfg AS MATERIALIZED (
         modb.target_cost(c.net_translation, c.net_heading, target, (SELECT (plan).heading_weight FROM cfg)) AS proximity,
         0, NULL::float8, c.net_translation, c.net_rotation, c.net_heading
    FROM candidates c
-  WHERE prev_snippet IS NULL
+  WHERE prev_snippet IS NULL AND (SELECT checked FROM cfg)
   ORDER BY 7, 1 LIMIT k)
 -- Relaxation levels 0-3: every threshold (and the box) scaled by 2^level; a row reports the lowest
 -- level it satisfies. Level 4, the last: the nearest start configuration (feature distance), any ratio.
