@@ -13,6 +13,7 @@ in files of sql/ (objects new in NEW), followed by every other PL/Python functio
 kernel. When the version after NEW starts, freeze the generated script in git and delete its source, so
 later edits of sql/ cannot change an old upgrade.
 """
+import functools
 import pathlib
 import re
 import sys
@@ -48,6 +49,7 @@ if kernel is None:
 PLPYTHON_FUNCTION = re.compile(r"^CREATE OR REPLACE FUNCTION .*?^\$py\$;\n", re.S | re.M)
 
 
+@functools.cache
 def kernel_sources() -> dict:
     sources = {}
     for path in sorted(KERNEL.glob("*.py")):
@@ -58,6 +60,7 @@ def kernel_sources() -> dict:
     return sources
 
 
+@functools.cache
 def _constants() -> dict:
     namespace: dict = {}
     exec((KERNEL / "joints.py").read_text(), namespace)  # plain constants, no imports

@@ -1,7 +1,6 @@
 """Turning one file job into a Motion, with the options of the `modb load` call."""
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -33,9 +32,8 @@ def read_key(job: FileJob, options: ReadOptions) -> str:
     """What decides the stored motion besides the file's bytes: equal keys and bytes mean nothing new."""
     if job.asf is None:
         return f"units={options.units_text}"
-    asf_sha = hashlib.sha256(job.asf.read_bytes()).hexdigest()
     return (f"units={options.units_text};fps={options.fps or DEFAULT_FPS:g};"
-            f"truncated={options.allow_truncated};asf={asf_sha}")
+            f"truncated={options.allow_truncated};asf={options.asf(job.asf).sha256}")
 
 
 def read_job(job: FileJob, options: ReadOptions) -> Motion:

@@ -192,26 +192,30 @@ def test_new_versions_replace_their_snippets_and_other_ids_stay(fresh_db, db, tm
     assert len(after[("dataset-1_walk_active_001", 2)]) == len(before[("dataset-1_walk_active_001", 1)])
 
 
-@pytest.mark.parametrize("call,message", [
-    ("SELECT * FROM modb.select_next_snippet(NULL, '{1}')", "target must be {x, z} or {x, y, z}"),
-    ("SELECT * FROM modb.select_next_snippet(NULL, '{1,2,3,4}')", "target must be"),
-    ("SELECT * FROM modb.select_next_snippet(NULL, '{NaN,1}')", "target must be"),
-    ("SELECT * FROM modb.select_next_snippet(NULL, NULL)", "target must be"),
-    ("SELECT * FROM modb.select_next_snippet(999999999, '{0,1}')", "no snippet 999999999"),
-    ("SELECT * FROM modb.select_next_snippet(999999999, '{0,1}', 'nope')", 'unknown match profile "nope"'),
-    ("SELECT * FROM modb.select_next_snippet(NULL, '{0,1}', 'default', 'no/such')", 'no collection "no/such"'),
-    ("SELECT * FROM modb.select_next_snippets(NULL, '{0,1}', NULL)", "k must be at least 1"),
-    ("SET modb.position_threshold = '-1'; SELECT * FROM modb.select_next_snippet(NULL, '{0,1}')",
+BAD_PARAMETER, RAISED = psycopg.errors.InvalidParameterValue, psycopg.errors.RaiseException
+
+
+@pytest.mark.parametrize("setting,call,error,message", [
+    (None, "SELECT * FROM modb.select_next_snippet(NULL, '{1}')", BAD_PARAMETER, "target must be {x, z} or {x, y, z}"),
+    (None, "SELECT * FROM modb.select_next_snippet(NULL, '{1,2,3,4}')", BAD_PARAMETER, "target must be"),
+    (None, "SELECT * FROM modb.select_next_snippet(NULL, '{NaN,1}')", BAD_PARAMETER, "target must be"),
+    (None, "SELECT * FROM modb.select_next_snippet(NULL, NULL)", BAD_PARAMETER, "target must be"),
+    (None, "SELECT * FROM modb.select_next_snippet(999999999, '{0,1}')", BAD_PARAMETER, "no snippet 999999999"),
+    (None, "SELECT * FROM modb.select_next_snippet(999999999, '{0,1}', 'nope')", RAISED, 'unknown match profile "nope"'),
+    (None, "SELECT * FROM modb.select_next_snippet(NULL, '{0,1}', 'default', 'no/such')", BAD_PARAMETER,
+     'no collection "no/such"'),
+    (None, "SELECT * FROM modb.select_next_snippets(NULL, '{0,1}', NULL)", BAD_PARAMETER, "k must be at least 1"),
+    ("SET modb.position_threshold = '-1'", "SELECT * FROM modb.select_next_snippet(NULL, '{0,1}')", RAISED,
      "thresholds must be positive"),
-    ("SET modb.heading_weight = '-5'; SELECT * FROM modb.select_next_snippet(NULL, '{0,1}')",
+    ("SET modb.heading_weight = '-5'", "SELECT * FROM modb.select_next_snippet(NULL, '{0,1}')", RAISED,
      "heading_weight must not be negative"),
 ])
-def test_requests_that_cannot_be_answered_are_errors(cmu, call, message):
+def test_requests_that_cannot_be_answered_are_errors(cmu, setting, call, error, message):
     with connect(cmu) as conn:
-        with pytest.raises(psycopg.errors.RaiseException if "profile" in message or "threshold" in message
-                           or "heading" in message else psycopg.errors.InvalidParameterValue, match=message):
-            for statement in call.split("; "):
-                conn.execute(statement).fetchall() if statement.startswith("SELECT") else conn.execute(statement)
+        if setting:
+            conn.execute(setting)
+        with pytest.raises(error, match=message):
+            conn.execute(call).fetchall()
 
 
 def test_the_previous_snippet_is_never_replayed(cmu):

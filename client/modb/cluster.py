@@ -90,7 +90,7 @@ class Cluster:
             cmd = ["runuser", "-u", "postgres", "--", *cmd]
         result = subprocess.run(cmd, capture_output=True, text=True, env=_server_environment())
         if check and result.returncode != 0:
-            raise ClusterError(f"{Path(cmd[-len(args)]).name} failed: {(result.stderr or result.stdout).strip()}"
+            raise ClusterError(f"{Path(str(args[0])).name} failed: {(result.stderr or result.stdout).strip()}"
                                f" (log: {self.logfile})")
         return result
 

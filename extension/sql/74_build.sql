@@ -30,6 +30,8 @@ todo = plpy.cursor(plpy.prepare(
         ORDER BY v.clip_id""", ["bigint[]", "bigint", "boolean"]), [collections, clip, bool(mirrored)])
 drop_old = plpy.prepare(
     "DELETE FROM modb.snippet_sources WHERE clip_id = $1 AND version < $2 RETURNING mirrored", ["bigint", "int"])
+built = plpy.prepare("SELECT mirrored FROM modb.snippet_sources WHERE clip_id = $1 AND version = $2",
+                     ["bigint", "int"])
 add_source = plpy.prepare(
     "INSERT INTO modb.snippet_sources (clip_id, version, mirrored, window_frames, stride_frames) "
     "VALUES ($1, $2, $5, $3, $4)", ["bigint", "int", "int", "int", "boolean"])
@@ -70,13 +72,10 @@ while True:
         plpy.error(f'clip {row["clip_id"]} ({row["name"]}): skeleton {row["skeleton_id"]}: {e}',
                    hint="complete modb.skeletons.joint_map for it, then call modb.build_snippets again")
     captured = np.asarray(row["rotations"], dtype=np.float64)
-    firsts, length = T.windows(len(captured), row["fps"], window_seconds, stride_seconds)
-    stride = max(1, int(round(stride_seconds * row["fps"])))
+    firsts, length, stride = T.windows(len(captured), row["fps"], window_seconds, stride_seconds)
     # A new version replaces the old versions' snippets, and keeps their mirror images if they had them.
     old_flags = {r["mirrored"] for r in plpy.execute(drop_old, [row["clip_id"], row["version"]])}
-    existing = {r["mirrored"] for r in plpy.execute(
-        plpy.prepare("SELECT mirrored FROM modb.snippet_sources WHERE clip_id = $1 AND version = $2",
-                     ["bigint", "int"]), [row["clip_id"], row["version"]])}
+    existing = {r["mirrored"] for r in plpy.execute(built, [row["clip_id"], row["version"]])}
     parents = [j["parent"] for j in h["joints"]]
     offsets = [j["offset"] for j in h["joints"]]
     for flag in sorted(({bool(mirrored)} | old_flags) - existing):

@@ -19,23 +19,22 @@ def partner_index(names, pairs):
     return partner
 
 
-def _perpendicular(reference, vectors):
-    """The unit vector nearest `reference` perpendicular to every one of `vectors`."""
-    n = np.array(reference, dtype=np.float64)
+def _project_out(n, vectors):
+    """n minus its components along each of `vectors` (zero vectors ignored)."""
+    n = np.array(n, dtype=np.float64)
     for v in vectors:
         norm = np.linalg.norm(v)
         if norm > 1e-9:
-            u = v / norm
-            n = n - np.dot(n, u) * u
-    if np.linalg.norm(n) < 1e-9:  # reference was spanned: any perpendicular will do
-        for axis in np.eye(3):
-            n = axis.copy()
-            for v in vectors:
-                if np.linalg.norm(v) > 1e-9:
-                    u = v / np.linalg.norm(v)
-                    n = n - np.dot(n, u) * u
-            if np.linalg.norm(n) > 1e-9:
-                break
+            n = n - np.dot(n, v / norm) * (v / norm)
+    return n
+
+
+def _perpendicular(reference, vectors):
+    """The unit vector nearest `reference` perpendicular to every one of `vectors`."""
+    for start in (reference, *np.eye(3)):  # if reference is spanned by them, any perpendicular will do
+        n = _project_out(start, vectors)
+        if np.linalg.norm(n) > 1e-9:
+            break
     return n / np.linalg.norm(n)
 
 

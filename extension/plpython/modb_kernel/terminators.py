@@ -85,7 +85,8 @@ def compute(parents, offsets, rotations, translations, translated, std, fps):
     rate = (fps / span)[:, None, None]
     local_velocities = quaternion.rotate(h_inv, (world[after] - world[before]) * rate)
 
-    local_rotations = quaternion.canonical(rotations[:, std])
+    canonical = quaternion.canonical(rotations)
+    local_rotations = canonical[:, std]
     pelvis_s = STANDARD_JOINTS.index("pelvis")
     pelvis_local = quaternion.canonical(quaternion.multiply(h_inv[:, 0], orientations[:, pelvis]))
     local_rotations[:, pelvis_s] = pelvis_local
@@ -93,7 +94,7 @@ def compute(parents, offsets, rotations, translations, translated, std, fps):
     pelvis_world = _rotvec(quaternion.multiply(orientations[after, pelvis], _inverse(orientations[before, pelvis])))
     angular[:, pelvis_s] = quaternion.rotate(h_inv[:, 0], pelvis_world * rate[:, 0])
 
-    configuration = quaternion.canonical(rotations.copy())
+    configuration = canonical.copy()
     configuration[:, pelvis] = pelvis_local
     ancestor = parents[pelvis]
     while ancestor >= 0:  # joints above the pelvis carry no pose of their own in the heading frame
@@ -113,10 +114,10 @@ def compute(parents, offsets, rotations, translations, translated, std, fps):
 
 
 def windows(n_frames, fps, window_s, stride_s):
-    """(first frames, frames per snippet): a snippet advances window_s seconds, starts every stride_s."""
+    """(first frames, frames per snippet, stride): a snippet advances window_s seconds, starts every stride_s."""
     length = int(round(window_s * fps)) + 1
     stride = max(1, int(round(stride_s * fps)))
-    return np.arange(0, max(n_frames - length + 1, 0), stride), length
+    return np.arange(0, max(n_frames - length + 1, 0), stride), length, stride
 
 
 def net_motion(terms, first, last):
