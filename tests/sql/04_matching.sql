@@ -1,7 +1,7 @@
 -- The quaternion-angle operator and the configuration-level functions, on known values.
 BEGIN;
 CREATE EXTENSION IF NOT EXISTS pgtap;
-SELECT plan(17);
+SELECT plan(18);
 
 SELECT is(round(('{1,0,0,0}'::float8[] OPERATOR(modb.<%>) ARRAY[cos(pi() / 4), sin(pi() / 4), 0, 0])::numeric, 12),
           round((pi() / 2)::numeric, 12), '90 degrees about x');
@@ -37,6 +37,8 @@ SELECT is((SELECT array_agg(round(v::numeric, 9)) FROM unnest(modb.world_to_loca
           '{0,1}'::numeric[], 'facing +X (heading pi/2), a goal at +X is straight ahead');
 SELECT is((SELECT array_agg(round(v::numeric, 9)) FROM unnest(modb.world_to_local('{1,0,1}', 0, '{2,5,1}')) v),
           '{1,5,0}'::numeric[], 'facing +Z, a goal one metre to +X is one metre to the left');
+SELECT is((SELECT array_agg(round(v::numeric, 9)) FROM unnest(modb.world_to_local('{0,0,0}', pi() / 2, '{1,2,3}')) v),
+          '{-3,2,1}'::numeric[], 'facing +X, a {x, y, z} goal at (1, 2, 3) is 1 m ahead, 2 m up, 3 m to the right');
 SELECT throws_ok($$SELECT modb.match_plan('no such profile')$$, 'P0001', 'unknown match profile "no such profile"',
                  'an unknown profile is an error');
 
