@@ -44,6 +44,9 @@ def test_joint_map_is_complete_and_anatomical(case):
     for chain in CHAINS:  # each standard joint lies below the previous one in the hierarchy
         for upper, lower in zip(chain, chain[1:]):
             assert index[upper] in _ancestors(sk, index[lower]), (upper, lower)
+    for chain in CHAINS[1:]:  # along a limb the joints are consecutive bones (CMU's lhand is not the wrist)
+        for upper, lower in zip(chain, chain[1:]):
+            assert sk.joints[index[lower]].parent == index[upper], (upper, lower)
     p = motion.world_positions()
     height = {name: p[:, k, 1].mean() for name, k in index.items()}
     assert height["head"] == max(height.values())
