@@ -1,0 +1,258 @@
+"""The Avatar: a character that walks toward goals by chaining snippets chosen by select_next_snippet.
+
+It keeps its world placement (pelvis ground point and heading), asks the database for the next snippet
+with the goal in world coordinates, places that snippet where the previous one ended and yields its
+frames at the source rate. The next selection is issued `lead_time` seconds before the current snippet
+ends (the paper's latency hiding): the query runs while the last frames play, and input that arrives
+after it started is not seen by that choice. Rules (goals, arrival, exclusion) are those of
+modb.synthesize, so with lead time zero both give the same chain.
+"""
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Iterator, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+import psycopg
+
+from modb_kernel import quaternion
+
+from .placement import Placement, after, ground_distance, place_root
+from .source_frames import FrameLibrary
+
+Goal = tuple[float, ...]  # world {x, z} or {x, y, z}, metres
+
+_SELECT = """
+SELECT n.snippet_id, n.clip_id, n.version, n.mirrored, n.first_frame, n.n_frames, n.relax_level, n.continuity,
+       n.proximity, n.net_translation, n.net_heading, s.fps, b.heading
+  FROM modb.select_next_snippet_world(%(prev)s::bigint, %(position)s::float8[], %(heading)s::float8,
+                                      %(target)s::float8[], %(profile)s, %(collection)s, %(exclude)s::bigint[]) n
+  JOIN modb.snippets s ON s.id = n.snippet_id
+  JOIN modb.terminators b ON b.id = s.begin_terminator
+"""
+_START = """
+SELECT s.id, s.clip_id, s.version, s.mirrored, s.first_frame, s.n_frames, NULL::int, NULL::float8, NULL::float8,
+       s.net_translation, s.net_heading, s.fps, b.heading
+  FROM modb.snippets s JOIN modb.terminators b ON b.id = s.begin_terminator
+ WHERE s.id = %s
+"""
+
+
+class NoContinuation(RuntimeError):
+    """The database found no snippet to play next (every candidate excluded, or an empty collection)."""
+
+
+@dataclass
+class Settings:
+    """What the next selections use; changes apply from the next query on."""
+    profile: str = "default"
+    collection: str | None = None
+    arrival_radius: float = 0.5  # metres, pelvis to goal on the ground, checked at snippet ends
+    exclude_seconds: float = 2.0  # snippets played this recently are passed as `exclude`
+    lead_time: float = 0.0  # seconds before a snippet ends at which the next query is issued
+    blend_frames: int = 0  # seam blending over this many frames; 0 plays the snippets as captured
+
+
+@dataclass(frozen=True)
+class Choice:
+    """One snippet of the chain, where it was placed and why it was chosen."""
+    step: int
+    snippet_id: int
+    clip_id: int
+    version: int
+    mirrored: bool
+    first_frame: int
+    n_frames: int
+    fps: float
+    start_frame: int  # strip frame of its first frame (the seam frame it stands in for)
+    end_frame: int  # strip frame of its last frame
+    placement: Placement
+    end: Placement
+    goal: int  # 1-based position of the goal it served in the goal queue
+    target: Goal
+    reached: bool  # pelvis within arrival_radius of target at its end
+    relax_level: int | None  # None for a start snippet given by the caller
+    continuity: float | None
+    proximity: float | None
+    latency_ms: float | None  # the selection query, as seen by the client
+    waited_ms: float  # how long playback stalled waiting for it (0 when the lead time hid the query)
+    source_heading: float  # heading of its first frame in the source clip
+
+
+@dataclass(frozen=True)
+class Frame:
+    index: int  # frame number in the strip, at the source rate
+    step: int  # the chain step it belongs to
+    rotations: np.ndarray  # (joints, 4), parent-relative, the root placed in the world
+    translations: np.ndarray  # (translated joints, 3) metres
+
+
+@dataclass
+class _Pending:
+    future: Future
+    issued_at: float
+
+
+@dataclass
+class Avatar:
+    conn: psycopg.Connection
+    goals: Sequence[Goal] = ()
+    position: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    heading: float = 0.0
+    start_snippet: int | None = None
+    settings: Settings = field(default_factory=Settings)
+
+    def __post_init__(self) -> None:
+        self._lock = threading.Lock()
+        self._goals: list[Goal] = [tuple(float(v) for v in g) for g in self.goals]
+        self._goal_index = 0
+        self._recent: list[tuple[int, int]] = []  # (snippet id, strip frame where its play ended)
+        self.library = FrameLibrary(self.conn)
+        self.choices: list[Choice] = []
+
+    # Goals may change at any time (from another thread too): they apply to the next query issued.
+    def set_goal(self, goal: Goal) -> None:
+        with self._lock:
+            self._goals, self._goal_index = [tuple(float(v) for v in goal)], 0
+
+    def add_waypoint(self, goal: Goal) -> None:
+        with self._lock:
+            self._goals.append(tuple(float(v) for v in goal))
+
+    @property
+    def goal(self) -> Goal | None:
+        with self._lock:
+            return self._goals[self._goal_index] if self._goals else None
+
+    def frames(self) -> Iterator[Frame]:
+        """Frames of the growing strip, forever (stop consuming to stop). The first snippet plays whole;
+        every later one without its first frame, which stands in for the previous snippet's last."""
+        executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="modb-avatar")
+        try:
+            pending = _Pending(executor.submit(self._choose, None, self._request(None)), time.perf_counter())
+            previous_last: Frame | None = None
+            while True:
+                started = time.perf_counter()
+                choice, rotations, translations = pending.future.result()
+                waited = (time.perf_counter() - started) * 1000.0
+                choice = replace(choice, waited_ms=waited if self.choices else 0.0)
+                self.choices.append(choice)
+                rotations, translations = self._blend(previous_last, rotations, translations)
+                skip = 0 if choice.step == 0 else 1
+                lead_frames = int(round(self.settings.lead_time * choice.fps))
+                pending = None
+                for k in range(skip, choice.n_frames):
+                    frame = Frame(choice.start_frame + k, choice.step, rotations[k], translations[k])
+                    yield frame
+                    if pending is None and choice.n_frames - 1 - k <= lead_frames:
+                        pending = _Pending(executor.submit(self._choose, choice, self._request(choice)),
+                                           time.perf_counter())
+                previous_last = frame
+        finally:
+            executor.shutdown(wait=True, cancel_futures=True)
+
+    def run(self, seconds: float) -> tuple[list[Frame], list[Choice]]:
+        """Frames until the strip lasts at least `seconds` (whole snippets), and the chain that made them."""
+        frames: list[Frame] = []
+        for frame in self.frames():
+            frames.append(frame)
+            last = self.choices[-1]
+            if frame.index == last.end_frame and last.end_frame / last.fps >= seconds:
+                break
+        return frames, self.choices
+
+    def _request(self, previous: Choice | None) -> dict:
+        """The next query's arguments, fixed now: later input is not seen by this choice."""
+        with self._lock:
+            if not self._goals:
+                raise ValueError("the avatar has no goal: call set_goal((x, z)) first")
+            if (previous is not None and previous.reached and self._goal_index < len(self._goals) - 1
+                    and self._goals[self._goal_index] == previous.target):
+                self._goal_index += 1
+            goal_index, target = self._goal_index, self._goals[self._goal_index]
+        s = self.settings
+        if previous is None:
+            where = Placement(tuple(float(v) for v in self.position), float(self.heading))
+            exclude = None
+        else:
+            where = previous.end
+            window = s.exclude_seconds * previous.fps
+            self._recent = [(i, e) for i, e in self._recent + [(previous.snippet_id, previous.end_frame)]
+                            if previous.end_frame - e < window]
+            exclude = [i for i, _ in self._recent]
+        return {"prev": None if previous is None else previous.snippet_id, "position": list(where.position),
+                "heading": where.heading, "target": list(target), "profile": s.profile,
+                "collection": s.collection, "exclude": exclude, "goal": goal_index + 1, "where": where,
+                "start_frame": 0 if previous is None else previous.end_frame,
+                "step": 0 if previous is None else previous.step + 1,
+                "arrival_radius": s.arrival_radius, "fps": None if previous is None else previous.fps}
+
+    def _choose(self, previous: Choice | None, request: dict) -> tuple[Choice, np.ndarray, np.ndarray]:
+        """Runs in the worker thread: the selection query, then the chosen snippet's placed frames."""
+        t = time.perf_counter()
+        if previous is None and self.start_snippet is not None:
+            row, latency = self.conn.execute(_START, [self.start_snippet]).fetchone(), None
+            if row is None:
+                raise NoContinuation(f"no snippet {self.start_snippet} (start_snippet is a modb.snippets id)")
+        else:
+            query = {k: request[k] for k in ("prev", "position", "heading", "target", "profile", "collection",
+                                              "exclude")}
+            row = self.conn.execute(_SELECT, query).fetchone()
+            latency = (time.perf_counter() - t) * 1000.0
+            if row is None:
+                raise NoContinuation(f"no snippet can follow snippet {request['prev']}: every candidate was excluded "
+                                     "or the collection is empty; lower exclude_seconds or load more data")
+        (snippet_id, clip_id, version, mirrored, first_frame, n_frames, relax_level, continuity, proximity,
+         net_translation, net_heading, fps, source_heading) = row
+        if request["fps"] is not None and fps != request["fps"]:
+            raise RuntimeError(f"snippet {snippet_id} plays at {fps} fps after a {request['fps']} fps snippet")
+        where = request["where"]
+        end = after(where, tuple(net_translation), net_heading)
+        target = tuple(request["target"])
+        source = self.library.get(clip_id, version, mirrored)
+        window = slice(first_frame, first_frame + n_frames)
+        rotations = source.motion.rotations[window].copy()
+        translations = source.motion.translations[window].copy()
+        ground = source.pelvis[first_frame] * np.array([1.0, 0.0, 1.0])
+        rotations[:, 0], translations[:, source.root_track] = place_root(
+            rotations[:, 0], translations[:, source.root_track], ground, source_heading, where)
+        choice = Choice(
+            step=request["step"], snippet_id=snippet_id, clip_id=clip_id, version=version, mirrored=mirrored,
+            first_frame=first_frame, n_frames=n_frames, fps=fps, start_frame=request["start_frame"],
+            end_frame=request["start_frame"] + n_frames - 1, placement=where, end=end, goal=request["goal"],
+            target=target, reached=ground_distance(end.position, target) <= request["arrival_radius"],
+            relax_level=relax_level, continuity=continuity, proximity=proximity, latency_ms=latency,
+            waited_ms=0.0, source_heading=source_heading)
+        return choice, rotations, translations
+
+    def _blend(self, previous_last: Frame | None, rotations: np.ndarray,
+               translations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Optional seam blending: the jump between the previous snippet's last frame and this one's first
+        (which it replaces) is spread over the next blend_frames frames, fading linearly to nothing."""
+        n = self.settings.blend_frames
+        if previous_last is None or n <= 0:
+            return rotations, translations
+        jump = quaternion.multiply(previous_last.rotations, _conjugate(rotations[0]))
+        shift = previous_last.translations - translations[0]
+        rotations, translations = rotations.copy(), translations.copy()
+        for k in range(1, min(n, len(rotations) - 1) + 1):
+            weight = 1.0 - k / (n + 1)
+            rotations[k] = quaternion.canonical(quaternion.multiply(_power(jump, weight), rotations[k]))
+            translations[k] = translations[k] + weight * shift
+        return rotations, translations
+
+
+def _conjugate(q: np.ndarray) -> np.ndarray:
+    return q * np.array([1.0, -1.0, -1.0, -1.0])
+
+
+def _power(q: np.ndarray, t: float) -> np.ndarray:
+    """q^t: the same axis, t times the angle (slerp from the identity)."""
+    q = quaternion.canonical(q)
+    s = np.linalg.norm(q[..., 1:], axis=-1, keepdims=True)
+    half = np.arctan2(s, q[..., :1])
+    axis = np.where(s > 1e-12, q[..., 1:] / np.maximum(s, 1e-300), 0.0)
+    return np.concatenate([np.cos(t * half), axis * np.sin(t * half)], axis=-1)

@@ -1,0 +1,150 @@
+-- synthesize: a whole chain of snippets toward a queue of world goals, in one recursive query, so any SQL
+-- client can synthesize. The Python Avatar (client/modb/avatar.py) follows the same rules step for step;
+-- with lead time zero both give the same chain (tested).
+--
+-- Rules: the avatar stands at a ground point with a heading. A snippet is placed with its first frame on
+-- that point and heading; at its end the avatar has moved by net_translation (x, z; in the heading frame)
+-- and turned by net_heading. A goal is reached when the pelvis is within arrival_radius of it (on the
+-- ground) at a snippet's end; the next choice then serves the next goal, and after the last goal the
+-- avatar keeps serving the last one. Snippets whose play ended less than exclude_seconds before the end of
+-- the current one are passed as exclude. Time is counted in frames (the chain has one rate), so both
+-- paths compare the same integers.
+
+CREATE FUNCTION modb.local_to_world(origin float8[], heading float8, local_point float8[])
+RETURNS float8[]
+LANGUAGE sql IMMUTABLE STRICT PARALLEL SAFE
+-- The inverse of world_to_local: x left and z forward of a character at origin facing heading.
+RETURN CASE WHEN array_length(local_point, 1) = 3
+    THEN ARRAY[origin[1] + (local_point[1] * cos(heading) + local_point[3] * sin(heading)),
+               origin[2] + local_point[2],
+               origin[3] + (local_point[3] * cos(heading) - local_point[1] * sin(heading))]
+    ELSE ARRAY[origin[1] + (local_point[1] * cos(heading) + local_point[2] * sin(heading)),
+               origin[3] + (local_point[2] * cos(heading) - local_point[1] * sin(heading))] END;
+COMMENT ON FUNCTION modb.local_to_world(float8[], float8, float8[]) IS
+    'A point given in the heading frame of a character at origin {x, y, z} with heading theta ({x, z} or {x, y, z}; x left, z forward) in world coordinates';
+
+CREATE FUNCTION modb.synthesis_goal(targets float8[], goal int)
+RETURNS float8[]
+LANGUAGE sql IMMUTABLE STRICT PARALLEL SAFE
+RETURN CASE array_length(targets, 2) WHEN 2 THEN ARRAY[targets[goal][1], targets[goal][2]]
+            ELSE ARRAY[targets[goal][1], targets[goal][2], targets[goal][3]] END;
+COMMENT ON FUNCTION modb.synthesis_goal(float8[], int) IS
+    'Row goal (1-based) of a synthesize targets array, as a {x, z} or {x, y, z} world point';
+
+CREATE FUNCTION modb.synthesis_step_end(origin float8[], heading float8, net_translation float8[], net_heading float8,
+                                        target float8[], arrival_radius float8)
+RETURNS TABLE (end_position float8[], end_heading float8, reached boolean)
+LANGUAGE sql IMMUTABLE PARALLEL SAFE
+AS $$
+SELECT w.p, atan2(sin(heading + net_heading), cos(heading + net_heading)),
+       sqrt((w.p[1] - target[1]) * (w.p[1] - target[1])
+            + (w.p[3] - target[array_length(target, 1)]) * (w.p[3] - target[array_length(target, 1)])) <= arrival_radius
+  FROM (SELECT modb.local_to_world(origin, heading, ARRAY[net_translation[1], 0, net_translation[3]]) AS p) w
+$$;
+COMMENT ON FUNCTION modb.synthesis_step_end(float8[], float8, float8[], float8, float8[], float8) IS
+    'Where a snippet placed at origin/heading leaves the avatar (its ground travel and turn), and whether the pelvis is then within arrival_radius of target on the ground';
+
+CREATE FUNCTION modb.check_synthesis(targets float8[], max_snippets int, start_snippet bigint,
+                                     start_position float8[], start_heading float8, profile text,
+                                     arrival_radius float8, exclude_seconds float8)
+RETURNS boolean
+LANGUAGE plpgsql STABLE PARALLEL SAFE
+AS $$
+BEGIN
+    IF targets IS NULL OR array_ndims(targets) IS DISTINCT FROM 2 OR array_length(targets, 2) NOT IN (2, 3)
+       OR EXISTS (SELECT FROM unnest(targets) v WHERE v IS NULL OR v = 'NaN' OR v IN ('Infinity', '-Infinity')) THEN
+        RAISE EXCEPTION 'targets must be a list of world goals {{x, z}, ...} or {{x, y, z}, ...} in metres, got %',
+            coalesce(targets::text, 'NULL') USING ERRCODE = 'invalid_parameter_value';
+    END IF;
+    IF max_snippets IS NULL OR max_snippets < 1 THEN
+        RAISE EXCEPTION 'max_snippets must be at least 1, got %', coalesce(max_snippets::text, 'NULL')
+            USING ERRCODE = 'invalid_parameter_value';
+    END IF;
+    IF start_position IS NULL OR array_ndims(start_position) IS DISTINCT FROM 1 OR array_length(start_position, 1) <> 3
+       OR EXISTS (SELECT FROM unnest(start_position) v WHERE v IS NULL OR v = 'NaN' OR v IN ('Infinity', '-Infinity')) THEN
+        RAISE EXCEPTION 'start_position must be {x, y, z} in metres, got %', coalesce(start_position::text, 'NULL')
+            USING ERRCODE = 'invalid_parameter_value';
+    END IF;
+    IF start_heading IS NULL OR start_heading = 'NaN' OR start_heading IN ('Infinity', '-Infinity') THEN
+        RAISE EXCEPTION 'start_heading must be a finite angle in radians (0 faces +Z), got %',
+            coalesce(start_heading::text, 'NULL') USING ERRCODE = 'invalid_parameter_value';
+    END IF;
+    IF arrival_radius IS NULL OR NOT arrival_radius > 0 OR arrival_radius = 'Infinity' THEN
+        RAISE EXCEPTION 'arrival_radius must be a positive number of metres, got %', coalesce(arrival_radius::text, 'NULL')
+            USING ERRCODE = 'invalid_parameter_value';
+    END IF;
+    IF exclude_seconds IS NULL OR NOT exclude_seconds >= 0 OR exclude_seconds = 'Infinity' THEN
+        RAISE EXCEPTION 'exclude_seconds must be zero or more, got %', coalesce(exclude_seconds::text, 'NULL')
+            USING ERRCODE = 'invalid_parameter_value';
+    END IF;
+    IF start_snippet IS NOT NULL AND NOT EXISTS (SELECT FROM modb.snippets WHERE id = start_snippet) THEN
+        RAISE EXCEPTION 'no snippet %', start_snippet USING ERRCODE = 'invalid_parameter_value',
+            HINT = 'start_snippet is a modb.snippets id, or NULL for the snippet that best serves the first goal';
+    END IF;
+    PERFORM modb.match_plan(profile);  -- an unknown profile fails here even when no selection runs
+    RETURN true;
+END
+$$;
+COMMENT ON FUNCTION modb.check_synthesis(float8[], int, bigint, float8[], float8, text, float8, float8) IS
+    'Raises a clear error for a synthesize request that cannot be run (bad targets, sizes, start or profile)';
+
+CREATE FUNCTION modb.synthesize(targets float8[], max_snippets int, start_snippet bigint DEFAULT NULL,
+                                start_position float8[] DEFAULT '{0,0,0}', start_heading float8 DEFAULT 0,
+                                profile text DEFAULT 'default', collection text DEFAULT NULL,
+                                arrival_radius float8 DEFAULT 0.5, exclude_seconds float8 DEFAULT 2)
+RETURNS TABLE (step int, snippet_id bigint, clip_id bigint, version int, mirrored boolean, first_frame int,
+               n_frames int, fps float8, start_time float8, "position" float8[], heading float8,
+               end_position float8[], end_heading float8, goal int, target float8[], reached boolean,
+               relax_level int, continuity float8, proximity float8)
+LANGUAGE sql STABLE PARALLEL SAFE
+AS $$
+WITH RECURSIVE cfg AS MATERIALIZED (
+    SELECT modb.check_synthesis(targets, max_snippets, start_snippet, start_position, start_heading, profile,
+                                arrival_radius, exclude_seconds) AS ok,
+           array_length(targets, 1) AS n_goals
+), opening AS (
+    -- The given start snippet, or the one that best serves the first goal.
+    SELECT s.id AS snippet_id, NULL::int AS relax_level, NULL::float8 AS continuity, NULL::float8 AS proximity
+      FROM modb.snippets s
+     WHERE s.id = start_snippet AND (SELECT ok FROM cfg)
+    UNION ALL
+    SELECT n.snippet_id, n.relax_level, n.continuity, n.proximity
+      FROM modb.select_next_snippet_world(NULL, start_position, start_heading, modb.synthesis_goal(targets, 1),
+                                          profile, collection) n
+     WHERE start_snippet IS NULL AND (SELECT ok FROM cfg)
+), chain AS (
+    SELECT 0 AS step, s.id AS snippet_id, s.clip_id, s.version, s.mirrored, s.first_frame, s.n_frames, s.fps,
+           0 AS start_frame, s.n_frames - 1 AS end_frame, start_position AS "position", start_heading AS heading,
+           e.end_position, e.end_heading, 1 AS goal, g.target, e.reached, o.relax_level, o.continuity, o.proximity,
+           ARRAY(SELECT s.id WHERE 0 < exclude_seconds * s.fps) AS recent_ids,
+           ARRAY(SELECT s.n_frames - 1 WHERE 0 < exclude_seconds * s.fps) AS recent_ends
+      FROM opening o
+      JOIN modb.snippets s ON s.id = o.snippet_id
+     CROSS JOIN LATERAL (SELECT modb.synthesis_goal(targets, 1) AS target) g
+     CROSS JOIN LATERAL modb.synthesis_step_end(start_position, start_heading, s.net_translation, s.net_heading,
+                                                g.target, arrival_radius) e
+    UNION ALL
+    SELECT c.step + 1, s.id, s.clip_id, s.version, s.mirrored, s.first_frame, s.n_frames, s.fps,
+           c.end_frame, c.end_frame + s.n_frames - 1, c.end_position, c.end_heading,
+           e.end_position, e.end_heading, g.goal, g.target, e.reached, n.relax_level, n.continuity, n.proximity,
+           ARRAY(SELECT r.id FROM unnest(c.recent_ids || s.id, c.recent_ends || (c.end_frame + s.n_frames - 1)) r(id, e)
+                  WHERE (c.end_frame + s.n_frames - 1) - r.e < exclude_seconds * s.fps),
+           ARRAY(SELECT r.e FROM unnest(c.recent_ends || (c.end_frame + s.n_frames - 1)) r(e)
+                  WHERE (c.end_frame + s.n_frames - 1) - r.e < exclude_seconds * s.fps)
+      FROM chain c
+     CROSS JOIN LATERAL (SELECT CASE WHEN c.reached AND c.goal < (SELECT n_goals FROM cfg) THEN c.goal + 1
+                                     ELSE c.goal END AS goal) gi
+     CROSS JOIN LATERAL (SELECT gi.goal, modb.synthesis_goal(targets, gi.goal) AS target) g
+     CROSS JOIN LATERAL modb.select_next_snippet_world(c.snippet_id, c.end_position, c.end_heading, g.target,
+                                                       profile, collection, c.recent_ids) n
+      JOIN modb.snippets s ON s.id = n.snippet_id
+     CROSS JOIN LATERAL modb.synthesis_step_end(c.end_position, c.end_heading, s.net_translation, s.net_heading,
+                                                g.target, arrival_radius) e
+     WHERE c.step + 1 < max_snippets
+)
+SELECT step, snippet_id, clip_id, version, mirrored, first_frame, n_frames, fps, start_frame / fps,
+       "position", heading, end_position, end_heading, goal, target, reached, relax_level, continuity, proximity
+  FROM chain
+$$;
+COMMENT ON FUNCTION modb.synthesize(float8[], int, bigint, float8[], float8, text, text, float8, float8) IS
+    'A chain of up to max_snippets snippets from start_position/start_heading (world metres, radians; 0 faces +Z) through the world goals in targets ({{x, z}, ...} or {{x, y, z}, ...}), in order: one row per snippet with where it is placed, where it ends, the goal it served and whether it reached it (pelvis within arrival_radius on the ground), and its selection (relaxation level, continuity, proximity). Its first frame stands in for the previous snippet''s last; start_time is the time of that frame';

@@ -1,5 +1,0 @@
--- 0.1.0 -> 0.2.0: snippets, terminators, matching and select_next_snippet.
---@include 70_snippets.sql
---@include 72_matching.sql
---@include 74_build.sql
---@include 76_select.sql

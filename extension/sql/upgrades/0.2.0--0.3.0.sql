@@ -1,0 +1,2 @@
+-- 0.3.0: synthesis in the database (modb.synthesize and its helpers).
+--@include 78_synthesize.sql
