@@ -1,4 +1,4 @@
-"""The `modb` command: load, export, list, demo, bench, db."""
+"""The `modb` command: load, export, list, synth, demo, bench, db."""
 from __future__ import annotations
 
 import argparse
@@ -72,6 +72,64 @@ def cmd_load(args: argparse.Namespace) -> int:
     return 0
 
 
+def _write_bvh_file(command: str, motion, path: str) -> bool:
+    """Write through a .partial file, so a half-written file never has the real name."""
+    import os
+
+    from .bvh_export import write_bvh
+
+    tmp = path + ".partial"
+    try:
+        with open(tmp, "w") as f:
+            write_bvh(motion, f)
+        os.replace(tmp, path)
+    except OSError as e:
+        print(f"modb {command}: cannot write {path}: {e.strerror or e}", file=sys.stderr)
+        return False
+    return True
+
+
+def cmd_synth(args: argparse.Namespace) -> int:
+    from .avatar import NoContinuation, Settings
+    from .source_frames import UnplaceableSkeleton
+    from .synth import format_report, parse_goal, print_progress, report, synthesize, write_report_json
+
+    try:
+        goals = [parse_goal(text) for text in args.to]
+    except ValueError as e:
+        print(f"modb synth: {e}", file=sys.stderr)
+        return 2
+    for name in ("seconds", "arrival_radius"):
+        if not getattr(args, name) > 0:
+            print(f"modb synth: --{name.replace('_', '-')} must be positive", file=sys.stderr)
+            return 2
+    if args.lead_time < 0 or args.exclude_seconds < 0 or args.blend < 0:
+        print("modb synth: --lead-time, --exclude-seconds and --blend cannot be negative", file=sys.stderr)
+        return 2
+    settings = Settings(profile=args.profile, collection=args.collection, arrival_radius=args.arrival_radius,
+                        exclude_seconds=args.exclude_seconds, lead_time=args.lead_time, blend_frames=args.blend)
+    with _connect(args) as conn:
+        try:
+            result = synthesize(conn, goals, args.seconds, settings, args.start,
+                                progress=None if args.quiet else print_progress(args.seconds))
+        except (NoContinuation, UnplaceableSkeleton, ValueError) as e:
+            print(f"modb synth: {e}", file=sys.stderr)
+            return 1
+        if not _write_bvh_file("synth", result.strip, args.out):
+            return 1
+        print(f"wrote {args.out}: {result.strip.n_frames} frames at {result.strip.fps:g} fps "
+              f"({(result.strip.n_frames - 1) / result.strip.fps:.1f} s), {len(result.chain)} snippets", file=sys.stderr)
+        if args.report or args.report_json:
+            rep = report(conn, result, args.collection)
+            if args.report:
+                names = dict(conn.execute("SELECT id, name FROM modb.clips WHERE id = ANY (%s)",
+                                          [sorted({c.clip_id for c in result.chain})]).fetchall())
+                print(format_report(result, rep, names))
+            if args.report_json:
+                write_report_json(args.report_json, result, rep)
+    return 0
+
+
 def cmd_export(args: argparse.Namespace) -> int:
     from .bvh_export import write_bvh
     from .clips import ClipNotFound, read_motion, resolve_clip
@@ -85,15 +143,7 @@ def cmd_export(args: argparse.Namespace) -> int:
     if args.out in (None, "-"):
         write_bvh(motion, sys.stdout)
     else:
-        import os
-
-        tmp = args.out + ".partial"
-        try:
-            with open(tmp, "w") as f:
-                write_bvh(motion, f)
-            os.replace(tmp, args.out)  # never leave a half-written file under the real name
-        except OSError as e:
-            print(f"modb export: cannot write {args.out}: {e.strerror or e}", file=sys.stderr)
+        if not _write_bvh_file("export", motion, args.out):
             return 1
         print(f"wrote {args.out}: clip {motion.name} version {motion.meta['version']}, "
               f"{motion.n_frames} frames at {motion.fps:g} fps", file=sys.stderr)
@@ -244,6 +294,27 @@ def build_parser() -> argparse.ArgumentParser:
     export.add_argument("--version", type=int, dest="version", help="clip version (default: newest)")
     export.add_argument("--out", help="output file (default: standard output)")
     export.set_defaults(func=cmd_export)
+
+    synth = sub.add_parser("synth", help="synthesize a long strip toward goals and write it as BVH")
+    synth.add_argument("--to", action="append", required=True, metavar="X,Z",
+                       help="a goal in world metres (X, Z on the ground; the avatar starts at the origin facing +Z); "
+                            "repeat for waypoints, followed in order")
+    synth.add_argument("--seconds", type=float, required=True, help="length of the strip")
+    synth.add_argument("--out", required=True, help="the BVH file to write")
+    synth.add_argument("--collection", help="draw snippets from this collection (and those below it)")
+    synth.add_argument("--start", type=int, help="the first snippet (default: the best one for the first goal)")
+    synth.add_argument("--profile", default="default", help="match profile (modb.match_profiles)")
+    synth.add_argument("--arrival-radius", type=float, default=0.5, help="metres (default 0.5)")
+    synth.add_argument("--exclude-seconds", type=float, default=2.0,
+                       help="do not replay frames played this recently (default 2)")
+    synth.add_argument("--lead-time", type=float, default=0.0,
+                       help="issue each query this many seconds before the current snippet ends (default 0)")
+    synth.add_argument("--blend", type=int, default=0, metavar="FRAMES",
+                       help="blend each seam over this many frames (default 0: snippets as captured)")
+    synth.add_argument("--report", action="store_true", help="print the choices and the quality figures")
+    synth.add_argument("--report-json", metavar="FILE", help="write the choices and figures as JSON")
+    synth.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    synth.set_defaults(func=cmd_synth)
 
     lst = sub.add_parser("list", help="list stored clips (newest versions)")
     lst.set_defaults(func=cmd_list)

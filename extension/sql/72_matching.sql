@@ -67,29 +67,7 @@ CREATE TABLE modb.match_profiles (
 COMMENT ON TABLE modb.match_profiles IS
     'Continuity thresholds for select_next_snippet, by name; any setting can be overridden per session with SET modb.<knob>';
 
-INSERT INTO modb.match_profiles (name, settings, comment, shipped) VALUES
-('default', '{"joints": ["pelvis", "spine", "chest", "neck", "head", "left_hip", "left_knee", "left_ankle", "left_toe",
-              "right_hip", "right_knee", "right_ankle", "right_toe", "left_shoulder", "left_elbow", "left_wrist",
-              "right_shoulder", "right_elbow", "right_wrist"],
-              "norm": "l2", "position_threshold": {"default": 0.12, "left_wrist": 0.2, "right_wrist": 0.2,
-              "left_elbow": 0.16, "right_elbow": 0.16},
-              "angle_threshold": {"default": 0.5, "pelvis": 0.3}, "velocity_threshold": {"default": 0.6, "left_wrist": 1.0,
-              "right_wrist": 1.0, "left_elbow": 0.8, "right_elbow": 0.8},
-              "angular_velocity_threshold": {"default": 4.0}, "velocity_terms": true, "heading_weight": 0.0}',
- 'Whole body: feet, hands and head within centimetres, joints within about 30 degrees, velocities matched', true),
-('strict', '{"joints": ["pelvis", "spine", "chest", "neck", "head", "left_hip", "left_knee", "left_ankle", "left_toe",
-             "right_hip", "right_knee", "right_ankle", "right_toe", "left_shoulder", "left_elbow", "left_wrist",
-             "right_shoulder", "right_elbow", "right_wrist"],
-             "norm": "l2", "position_threshold": {"default": 0.06}, "angle_threshold": {"default": 0.25},
-             "velocity_threshold": {"default": 0.3}, "angular_velocity_threshold": {"default": 2.0},
-             "velocity_terms": true, "heading_weight": 0.0}',
- 'Half the default thresholds: smoother seams, more relaxation', true),
-('locomotion', '{"joints": ["pelvis", "left_hip", "left_knee", "left_ankle", "left_toe", "right_hip", "right_knee",
-                 "right_ankle", "right_toe"],
-                 "norm": "l1", "position_threshold": {"default": 0.15}, "angle_threshold": {"default": 0.5},
-                 "velocity_threshold": {"default": 0.7}, "angular_velocity_threshold": {"default": 5.0},
-                 "velocity_terms": true, "heading_weight": 0.3}',
- 'Lower body only, L1 positions, and a heading term: for walking to goals', true);
+-- The shipped profiles: 73_profiles.sql (also run by upgrades, so they follow the release).
 
 GRANT SELECT ON modb.match_profiles TO modb_reader;
 GRANT INSERT, UPDATE, DELETE ON modb.match_profiles TO modb_loader;

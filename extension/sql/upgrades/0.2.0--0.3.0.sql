@@ -1,2 +1,4 @@
--- 0.3.0: synthesis in the database (modb.synthesize and its helpers).
+-- 0.3.0: synthesis in the database (modb.synthesize and its helpers), and the default and strict
+-- profiles retuned for seams that look like natural steps.
+--@include 73_profiles.sql
 --@include 78_synthesize.sql
