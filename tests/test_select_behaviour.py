@@ -127,24 +127,42 @@ def test_reader_selects_loader_builds(cmu):
             conn.execute("DROP ROLE t_reader")
 
 
-def test_update_from_0_1_0_keeps_the_data(cluster, fresh_db, db):
+SNIPPET_ROWS = "SELECT id, clip_id, first_frame, begin_terminator, net_heading FROM modb.snippets ORDER BY id"
+
+
+@pytest.mark.parametrize("old", ["0.1.0", "0.2.0"])
+def test_update_keeps_the_data(cluster, fresh_db, db, old):
+    current = db.execute("SELECT default_version FROM pg_available_extensions WHERE name = 'modb'").fetchone()[0]
     db.execute("DROP EXTENSION modb")
-    db.execute("CREATE EXTENSION modb VERSION '0.1.0'")
-    r = run_modb(fresh_db, "load", mocap("cmu", "131", "131_01.amc"), mocap("cmu", "131", "131_02.amc"), "--no-snippets")
+    db.execute(f"CREATE EXTENSION modb VERSION '{old}'")
+    with_snippets = old != "0.1.0"  # snippets came with 0.2.0
+    r = run_modb(fresh_db, "load", mocap("cmu", "131", "131_01.amc"), mocap("cmu", "131", "131_02.amc"),
+                 *([] if with_snippets else ["--no-snippets"]))
     assert r.returncode == 0, r.stderr
     db.execute("UPDATE modb.clip_versions SET meta = '{\"tags\": [\"kept\"]}'")
     before = db.execute("SELECT clip_id, version, n_frames, meta, md5(rotations::text) FROM modb.clip_versions "
                         "ORDER BY 1").fetchall()
     positions = db.execute("SELECT sum(x + 2 * y + 3 * z) FROM modb.world_positions(1)").fetchone()[0]
-    db.execute("ALTER EXTENSION modb UPDATE TO '0.2.0'")
-    assert db.execute("SELECT extversion FROM pg_extension WHERE extname = 'modb'").fetchone()[0] == "0.2.0"
+    snippets = db.execute(SNIPPET_ROWS).fetchall() if with_snippets else []
+    if with_snippets:
+        db.execute("INSERT INTO modb.match_profiles (name, settings) "
+                   "SELECT 'mine', settings FROM modb.match_profiles WHERE name = 'default'")
+        mine = db.execute("SELECT settings FROM modb.match_profiles WHERE name = 'mine'").fetchone()[0]
+    db.execute("ALTER EXTENSION modb UPDATE")
+    assert db.execute("SELECT extversion FROM pg_extension WHERE extname = 'modb'").fetchone()[0] == current
     assert db.execute("SELECT clip_id, version, n_frames, meta, md5(rotations::text) FROM modb.clip_versions "
                       "ORDER BY 1").fetchall() == before
     assert db.execute("SELECT sum(x + 2 * y + 3 * z) FROM modb.world_positions(1)").fetchone()[0] == positions
-    (added,) = db.execute("SELECT modb.build_snippets()").fetchone()
-    assert added > 0
+    if with_snippets:
+        assert db.execute(SNIPPET_ROWS).fetchall() == snippets
+        assert db.execute("SELECT settings FROM modb.match_profiles WHERE name = 'mine'").fetchone()[0] == mine
+        assert mine != db.execute("SELECT settings FROM modb.match_profiles WHERE name = 'default'").fetchone()[0]
+    else:
+        (added,) = db.execute("SELECT modb.build_snippets()").fetchone()
+        assert added > 0
     assert db.execute("SELECT count(*) FROM modb.select_next_snippet(NULL, '{0,2}')").fetchone()[0] == 1
-    # What a fresh 0.2.0 install has, the updated one has: same objects, same definitions.
+    assert db.execute("SELECT count(*) FROM modb.synthesize('{{0,3}}', 4)").fetchone()[0] == 4
+    # What a fresh install of the current version has, the updated one has: same objects, same definitions.
     objects = "SELECT pg_describe_object(classid, objid, 0) FROM pg_depend WHERE refobjid = " \
               "(SELECT oid FROM pg_extension WHERE extname = 'modb') AND deptype = 'e' ORDER BY 1"
     updated = [r[0] for r in db.execute(objects).fetchall()]

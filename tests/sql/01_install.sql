@@ -14,7 +14,8 @@ SELECT functions_are('modb', ARRAY[
     'collection_path', 'find_collection', 'ensure_collection', 'forward_kinematics', 'world_positions',
     'skeleton_pose_key', 'standard_joints', 'feature_names', 'quat_angle', 'max_joint_angle', 'weighted_joint_angle',
     'match_knobs', 'session_settings', 'match_plan', '_thresholds', 'continuity_ratio', 'match_box', 'target_cost', 'collection_subtree',
-    'check_request', 'build_snippets', 'select_next_snippets', 'select_next_snippet', 'world_to_local', 'select_next_snippet_world']);
+    'check_request', 'build_snippets', 'select_next_snippets', 'select_next_snippet', 'world_to_local', 'select_next_snippet_world',
+    'local_to_world', 'synthesis_goal', 'synthesis_step_end', 'check_synthesis', 'synthesize']);
 SELECT col_type_is('modb', 'clip_versions', 'rotations', 'real[]', 'rotations is real[]');
 SELECT col_type_is('modb', 'clip_versions', 'translations', 'real[]', 'translations is real[]');
 SELECT col_is_pk('modb', 'clip_versions', ARRAY['clip_id', 'version'], 'primary key (clip_id, version)');
@@ -50,7 +51,7 @@ SELECT has_role('modb_reader', 'modb_reader outlives DROP EXTENSION');
 SELECT has_role('modb_loader', 'modb_loader outlives DROP EXTENSION');
 CREATE EXTENSION modb CASCADE;
 SELECT has_table('modb', 'clip_versions', 're-install after a drop works');
-SELECT is((SELECT extversion FROM pg_extension WHERE extname = 'modb'), '0.2.0', 're-installed version');
+SELECT is((SELECT extversion FROM pg_extension WHERE extname = 'modb'), '0.3.0', 're-installed version');
 
 SELECT * FROM finish();
 ROLLBACK;
