@@ -16,7 +16,7 @@ from modb.avatar import Avatar, Choice, Settings
 from modb.connection import connect
 from modb.placement import Placement
 from modb.quality import NaturalSteps, recombined, seam_steps, step_changes
-from modb.synth import source_motions, synthesize
+from modb.synth import report, source_motions, synthesize
 from oracle import bvhio_world_positions, in_order
 
 LOCOMOTION = ("walk", "walk-turn-left", "walk-turn-right", "run")
@@ -206,9 +206,9 @@ def test_roughness_matches_an_independent_computation(locomotion):
     assert natural.r_p999 > 1.0
 
 
-def _choice(step: int, clip: int, first: int, n: int = 16) -> Choice:
+def _choice(step: int, clip: int, first: int, n: int = 16, mirrored: bool = False) -> Choice:
     here = Placement((0.0, 0.0, 0.0), 0.0)
-    return Choice(step=step, snippet_id=100 + step, clip_id=clip, version=1, mirrored=False, first_frame=first,
+    return Choice(step=step, snippet_id=100 + step, clip_id=clip, version=1, mirrored=mirrored, first_frame=first,
                   n_frames=n, fps=30.0, start_frame=15 * step, end_frame=15 * step + 15, placement=here, end=here,
                   goal=1, target=(0.0, 1.0), reached=False, relax_level=0, continuity=0.0, proximity=0.0,
                   latency_ms=1.0, waited_ms=0.0, source_heading=0.0)
@@ -218,8 +218,9 @@ def test_recombination_counts_only_real_jumps():
     chain = [_choice(0, 1, 0), _choice(1, 1, 15),  # plays on: not recombination
              _choice(2, 2, 40),  # another clip
              _choice(3, 2, 100),  # same clip, far ahead, frames not played recently
-             _choice(4, 2, 45)]  # same clip, back onto frames 40-55 played within 2 s
-    assert recombined(chain) == [False, True, True, False]
+             _choice(4, 2, 45),  # same clip, back onto frames 40-55 played within 2 s
+             _choice(5, 2, 100, mirrored=True)]  # the mirror image of frames just played is a replay too
+    assert recombined(chain) == [False, True, True, False, False]
 
 
 @pytest.mark.parametrize("call,message", [
@@ -269,3 +270,44 @@ def test_the_avatar_can_be_driven_from_another_thread(locomotion):
         stop.set()
         clicker.join()
     assert [c.step for c in avatar.choices] == list(range(6))
+
+
+def test_a_waypoint_added_after_the_last_goal_was_reached_is_served_next(locomotion):
+    with connect(locomotion) as conn:
+        avatar = Avatar(conn, goals=[(0.0, 6.0)])
+        added_at = None
+        for frame in avatar.frames():
+            last = avatar.choices[-1]
+            if added_at is None and last.reached and frame.index == last.end_frame and last.step >= 1:
+                added_at = last.step + 2  # wander a little past the goal first
+            if added_at is not None and last.step == added_at and frame.index == last.end_frame:
+                avatar.add_waypoint((6.0, 6.0))
+            if added_at is not None and len(avatar.choices) == added_at + 2:
+                break
+            assert len(avatar.choices) < 80, "the first goal was never reached"
+    assert avatar.choices[added_at + 1].target == (6.0, 6.0) and avatar.choices[added_at + 1].goal == 2
+    assert all(c.goal == 1 for c in avatar.choices[:added_at + 1])
+
+
+def test_seam_blending_spreads_the_jump_and_keeps_the_placement(locomotion):
+    with connect(locomotion) as conn:
+        plain = synthesize(conn, COURSE, 6.0, Settings())
+        blended = synthesize(conn, COURSE, 6.0, Settings(blend_frames=4))
+    assert [c.snippet_id for c in plain.chain] == [c.snippet_id for c in blended.chain]
+    touched = {c.start_frame + k for c in plain.chain[1:] for k in range(1, 5)}
+    untouched = [f for f in range(plain.strip.n_frames) if f not in touched]
+    assert np.array_equal(plain.strip.rotations[untouched], blended.strip.rotations[untouched])
+    assert not np.allclose(plain.strip.rotations[sorted(touched)], blended.strip.rotations[sorted(touched)])
+    seams = seam_steps(plain.chain)
+    plain_jump = step_changes(plain.strip)[0][seams].max(axis=1)
+    blended_jump = step_changes(blended.strip)[0][seams].max(axis=1)
+    assert np.median(blended_jump) < np.median(plain_jump)
+
+
+def test_the_report_lists_goals_never_served(locomotion):
+    with connect(locomotion) as conn:
+        result = synthesize(conn, [(0.0, 40.0), (40.0, 40.0)], 3.0, Settings())
+        rep = report(conn, result, None)
+    assert [g.goal for g in rep.goals] == [1, 2]
+    assert not rep.goals[1].reached and rep.goals[1].seconds is None
+    assert not rep.aims["goals >= 5 m reached within 2x straight line"]

@@ -55,6 +55,12 @@ class Settings:
     lead_time: float = 0.0  # seconds before a snippet ends at which the next query is issued
     blend_frames: int = 0  # seam blending over this many frames; 0 plays the snippets as captured
 
+    def __post_init__(self) -> None:
+        if not (self.arrival_radius > 0 and self.exclude_seconds >= 0 and self.lead_time >= 0
+                and self.blend_frames >= 0):
+            raise ValueError("arrival_radius must be positive; exclude_seconds, lead_time and blend_frames "
+                             f"cannot be negative (got {self})")
+
 
 @dataclass(frozen=True)
 class Choice:
@@ -107,29 +113,42 @@ class Avatar:
 
     def __post_init__(self) -> None:
         self._lock = threading.Lock()
-        self._goals: list[Goal] = [tuple(float(v) for v in g) for g in self.goals]
+        self._goals: list[Goal] = [_checked_goal(g) for g in self.goals]
         self._goal_index = 0
+        self._goal_reached = False  # the current goal was reached (the queue moves on when one is added)
         self._recent: list[tuple[int, int]] = []  # (snippet id, strip frame where its play ended)
+        self._started = False
         self.library = FrameLibrary(self.conn)
         self.choices: list[Choice] = []
 
     # Goals may change at any time (from another thread too): they apply to the next query issued.
     def set_goal(self, goal: Goal) -> None:
         with self._lock:
-            self._goals, self._goal_index = [tuple(float(v) for v in goal)], 0
+            self._goals, self._goal_index, self._goal_reached = [_checked_goal(goal)], 0, False
 
     def add_waypoint(self, goal: Goal) -> None:
         with self._lock:
-            self._goals.append(tuple(float(v) for v in goal))
+            self._goals.append(_checked_goal(goal))
 
     @property
     def goal(self) -> Goal | None:
         with self._lock:
             return self._goals[self._goal_index] if self._goals else None
 
+    @property
+    def placement(self) -> Placement:
+        """Where the avatar stands (pelvis on the ground) and faces at the end of the last chosen snippet."""
+        if self.choices:
+            return self.choices[-1].end
+        return Placement(tuple(float(v) for v in self.position), float(self.heading))
+
     def frames(self) -> Iterator[Frame]:
         """Frames of the growing strip, forever (stop consuming to stop). The first snippet plays whole;
-        every later one without its first frame, which stands in for the previous snippet's last."""
+        every later one without its first frame, which stands in for the previous snippet's last.
+        Raises NoContinuation when the database has nothing to play next. An Avatar plays one strip."""
+        if self._started:
+            raise RuntimeError("an Avatar plays one strip: make a new Avatar (at avatar.placement) to start again")
+        self._started = True
         executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="modb-avatar")
         try:
             pending = _Pending(executor.submit(self._choose, None, self._request(None)), time.perf_counter())
@@ -154,28 +173,19 @@ class Avatar:
         finally:
             executor.shutdown(wait=True, cancel_futures=True)
 
-    def run(self, seconds: float) -> tuple[list[Frame], list[Choice]]:
-        """Frames until the strip lasts at least `seconds` (whole snippets), and the chain that made them."""
-        frames: list[Frame] = []
-        for frame in self.frames():
-            frames.append(frame)
-            last = self.choices[-1]
-            if frame.index == last.end_frame and last.end_frame / last.fps >= seconds:
-                break
-        return frames, self.choices
-
     def _request(self, previous: Choice | None) -> dict:
         """The next query's arguments, fixed now: later input is not seen by this choice."""
         with self._lock:
             if not self._goals:
                 raise ValueError("the avatar has no goal: call set_goal((x, z)) first")
-            if (previous is not None and previous.reached and self._goal_index < len(self._goals) - 1
-                    and self._goals[self._goal_index] == previous.target):
-                self._goal_index += 1
+            if previous is not None and previous.reached and self._goals[self._goal_index] == previous.target:
+                self._goal_reached = True
+            if self._goal_reached and self._goal_index < len(self._goals) - 1:
+                self._goal_index, self._goal_reached = self._goal_index + 1, False
             goal_index, target = self._goal_index, self._goals[self._goal_index]
         s = self.settings
         if previous is None:
-            where = Placement(tuple(float(v) for v in self.position), float(self.heading))
+            where = self.placement
             exclude = None
         else:
             where = previous.end
@@ -202,9 +212,12 @@ class Avatar:
                                               "exclude")}
             row = self.conn.execute(_SELECT, query).fetchone()
             latency = (time.perf_counter() - t) * 1000.0
+            if row is None and previous is None:
+                raise NoContinuation("no snippet to start from: the collection (or the database) has no snippets; "
+                                     "`modb load` builds them")
             if row is None:
-                raise NoContinuation(f"no snippet can follow snippet {request['prev']}: every candidate was excluded "
-                                     "or the collection is empty; lower exclude_seconds or load more data")
+                raise NoContinuation(f"no snippet can follow snippet {request['prev']}: every candidate was excluded; "
+                                     "lower exclude_seconds or load more data")
         (snippet_id, clip_id, version, mirrored, first_frame, n_frames, relax_level, continuity, proximity,
          net_translation, net_heading, fps, source_heading) = row
         if request["fps"] is not None and fps != request["fps"]:
@@ -232,17 +245,24 @@ class Avatar:
                translations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Optional seam blending: the jump between the previous snippet's last frame and this one's first
         (which it replaces) is spread over the next blend_frames frames, fading linearly to nothing."""
-        n = self.settings.blend_frames
+        n = min(self.settings.blend_frames, len(rotations) - 2)  # the last frame stays as placed: the next seam
         if previous_last is None or n <= 0:
             return rotations, translations
         jump = quaternion.multiply(previous_last.rotations, _conjugate(rotations[0]))
         shift = previous_last.translations - translations[0]
         rotations, translations = rotations.copy(), translations.copy()
-        for k in range(1, min(n, len(rotations) - 1) + 1):
+        for k in range(1, n + 1):
             weight = 1.0 - k / (n + 1)
             rotations[k] = quaternion.canonical(quaternion.multiply(_power(jump, weight), rotations[k]))
             translations[k] = translations[k] + weight * shift
         return rotations, translations
+
+
+def _checked_goal(goal: Goal) -> Goal:
+    values = tuple(float(v) for v in goal)
+    if len(values) not in (2, 3) or not all(np.isfinite(values)):
+        raise ValueError(f"a goal is (x, z) or (x, y, z) in world metres, got {goal!r}")
+    return values
 
 
 def _conjugate(q: np.ndarray) -> np.ndarray:

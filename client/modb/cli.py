@@ -113,15 +113,24 @@ def cmd_synth(args: argparse.Namespace) -> int:
             return 1
         print(f"wrote {args.out}: {result.strip.n_frames} frames at {result.strip.fps:g} fps "
               f"({(result.strip.n_frames - 1) / result.strip.fps:.1f} s), {len(result.chain)} snippets", file=sys.stderr)
+        if result.stopped:
+            print(f"modb synth: the strip ended early: {result.stopped}", file=sys.stderr)
         if args.report or args.report_json:
-            rep = report(conn, result, args.collection)
-            if args.report:
-                names = dict(conn.execute("SELECT id, name FROM modb.clips WHERE id = ANY (%s)",
-                                          [sorted({c.clip_id for c in result.chain})]).fetchall())
-                print(format_report(result, rep, names))
-            if args.report_json:
-                write_report_json(args.report_json, result, rep)
-    return 0
+            try:
+                rep = report(conn, result, args.collection)
+                if args.report:
+                    names = dict(conn.execute("SELECT id, name FROM modb.clips WHERE id = ANY (%s)",
+                                              [sorted({c.clip_id for c in result.chain})]).fetchall())
+                    print(format_report(result, rep, names))
+                if args.report_json:
+                    write_report_json(args.report_json, result, rep)
+            except ValueError as e:
+                print(f"modb synth: no quality report: {e}", file=sys.stderr)
+                return 1
+            except OSError as e:
+                print(f"modb synth: cannot write {args.report_json}: {e.strerror or e}", file=sys.stderr)
+                return 1
+    return 1 if result.stopped else 0
 
 
 def cmd_export(args: argparse.Namespace) -> int:

@@ -9,9 +9,10 @@ from pathlib import Path
 
 import psycopg
 
-from .avatar import Settings
+from .avatar import NoContinuation, Settings
 from .bvh_export import write_bvh_file
 from .demo_data import DemoDataError, cmu_01_01
+from .source_frames import UnplaceableSkeleton
 from .synth import format_report, report, synthesize
 
 # From the origin facing +Z: ahead, a right turn of 90 degrees, another, a third, then goals behind
@@ -68,12 +69,16 @@ def run_demo(args: argparse.Namespace, load: Callable[[Sequence[str]], int],
         goals = ", ".join(f"({x:g}, {z:g})" for x, z in COURSE)
         print(f"\nSynthesizing {SECONDS:g} s from {collection} through the goals {goals} (metres; the avatar "
               f"starts at the origin facing +Z)...")
-        result = synthesize(conn, COURSE, SECONDS, Settings(collection=collection))
-        out.parent.mkdir(parents=True, exist_ok=True)
-        write_bvh_file(result.strip, out)
-        names = dict(conn.execute("SELECT id, name FROM modb.clips WHERE id = ANY (%s)",
-                                  [sorted({c.clip_id for c in result.chain})]).fetchall())
-        print(format_report(result, report(conn, result, collection), names))
+        try:
+            result = synthesize(conn, COURSE, SECONDS, Settings(collection=collection))
+            out.parent.mkdir(parents=True, exist_ok=True)
+            write_bvh_file(result.strip, out)
+            names = dict(conn.execute("SELECT id, name FROM modb.clips WHERE id = ANY (%s)",
+                                      [sorted({c.clip_id for c in result.chain})]).fetchall())
+            print(format_report(result, report(conn, result, collection), names))
+        except (NoContinuation, UnplaceableSkeleton, ValueError, OSError) as e:
+            print(f"modb demo: synthesis failed: {e}", file=sys.stderr)
+            return 1
     print(f"\nwrote {out}: {result.strip.n_frames} frames at {result.strip.fps:g} fps. Next: `modb synth --to X,Z "
           f"... --seconds N --out walk.bvh --report`, `modb list`, `modb export CLIP --out clip.bvh`.")
     return 0

@@ -59,6 +59,8 @@ class NaturalSteps:
     @classmethod
     def of(cls, motions: Sequence[Motion]) -> NaturalSteps:
         changes = [step_changes(m) for m in motions if m.n_frames > 2]
+        if not changes:
+            raise ValueError("no source clip of three frames or more to measure natural steps against")
         angles = np.concatenate([a for a, _ in changes])
         velocity = np.concatenate([v[1:] for _, v in changes])  # a clip's first step has no predecessor
         joint_p99 = np.maximum(np.percentile(angles, 99, axis=0), 1e-9)
@@ -78,17 +80,17 @@ def seam_steps(chain: Sequence[Choice]) -> list[int]:
 
 
 def recombined(chain: Sequence[Choice], window_seconds: float = 2.0) -> list[bool]:
-    """Per seam: does it go to another source (clip version, or its mirror image), or jump at least one
-    snippet within the same source without replaying frames played in the last window_seconds? Playing
-    on from where the previous snippet ended is not recombination."""
+    """Per seam: does it go to another clip, or jump at least one snippet within the same clip without
+    replaying frames played in the last window_seconds? A clip's mirror image is the same clip here: its
+    frames are the same capture. Playing on from where the previous snippet ended is not recombination."""
     out = []
     for k in range(1, len(chain)):
         a, b = chain[k - 1], chain[k]
-        if (a.clip_id, a.version, a.mirrored) != (b.clip_id, b.version, b.mirrored):
+        if (a.clip_id, a.version) != (b.clip_id, b.version):
             out.append(True)
             continue
         jump = abs(b.first_frame - (a.first_frame + a.n_frames - 1))
-        recent = [c for c in chain[:k] if (c.clip_id, c.version, c.mirrored) == (b.clip_id, b.version, b.mirrored)
+        recent = [c for c in chain[:k] if (c.clip_id, c.version) == (b.clip_id, b.version)
                   and (a.end_frame - c.end_frame) < window_seconds * a.fps]
         overlaps = any(c.first_frame + 1 <= b.first_frame + b.n_frames - 1 and b.first_frame + 1 <= c.first_frame
                        + c.n_frames - 1 for c in recent)
@@ -112,10 +114,17 @@ class GoalReach:
         return self.distance_m >= REACH_MIN_DISTANCE
 
 
-def goal_reach(chain: Sequence[Choice], walking_speed: float) -> list[GoalReach]:
+def goal_reach(chain: Sequence[Choice], goals: Sequence[tuple[float, ...]], walking_speed: float) -> list[GoalReach]:
+    """Every goal of the course; one that never became current is reported as not reached, measured from
+    where the strip ended."""
     out = []
-    for goal in sorted({c.goal for c in chain}):
+    for goal, target in enumerate(goals, start=1):
         served = [c for c in chain if c.goal == goal]
+        if not served:
+            end = chain[-1].end
+            distance = ground_distance(end.position, target)
+            out.append(GoalReach(goal, tuple(target), distance, False, False, None, distance / walking_speed, None))
+            continue
         first = served[0]
         done = next((c for c in served if c.reached), None)
         distance = ground_distance(first.placement.position, first.target)
@@ -165,10 +174,13 @@ class Report:
         return out
 
 
-def measure(strip: Motion, chain: Sequence[Choice], natural: NaturalSteps, walking_speed: float) -> Report:
+def measure(strip: Motion, chain: Sequence[Choice], goals: Sequence[tuple[float, ...]], natural: NaturalSteps,
+            walking_speed: float) -> Report:
     angles, velocity_change = step_changes(strip)
     r = roughness(angles, velocity_change, natural.joint_p99, natural.velocity_change_p99)
-    seams = r[seam_steps(chain)] if len(chain) > 1 else np.zeros(0)
+    at = np.array(seam_steps(chain), dtype=int)
+    after = np.minimum(at + 1, len(r) - 1)
+    seams = np.maximum(r[at], velocity_change[after] / natural.velocity_change_p99) if len(at) else np.zeros(0)
     levels: dict[int, int] = {}
     for c in chain:
         if c.relax_level is not None:
@@ -184,4 +196,4 @@ def measure(strip: Motion, chain: Sequence[Choice], natural: NaturalSteps, walki
         last_level_share=levels.get(LAST_LEVEL, 0) / max(sum(levels.values()), 1),
         latency_ms_p50=float(np.median(latencies)) if latencies else None,
         latency_ms_p99=float(np.percentile(latencies, 99)) if latencies else None,
-        walking_speed=walking_speed, goals=goal_reach(chain, walking_speed))
+        walking_speed=walking_speed, goals=goal_reach(chain, goals, walking_speed))

@@ -1,6 +1,7 @@
 """`modb synth`: a long strip toward goals, written as one BVH, with a quality report."""
 from __future__ import annotations
 
+import contextlib
 import json
 import sys
 from collections.abc import Callable, Sequence
@@ -9,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 import psycopg
 
-from .avatar import Avatar, Choice, Frame, Goal, Settings
+from .avatar import Avatar, Choice, Frame, Goal, NoContinuation, Settings
 from .clips import read_motion
 from .motion import Motion
 from .quality import NaturalSteps, Report, measure
@@ -21,6 +22,8 @@ WALKING_SPEEDS = (0.3, 2.5)  # m/s: snippets slower are standing, faster are run
 class Synthesis:
     strip: Motion
     chain: list[Choice]
+    goals: list[Goal]
+    stopped: str | None = None  # why the strip ended before `seconds`, if it did
 
 
 def strip_motion(frames: Sequence[Frame], template: Motion, name: str) -> Motion:
@@ -33,19 +36,28 @@ def strip_motion(frames: Sequence[Frame], template: Motion, name: str) -> Motion
 
 def synthesize(conn: psycopg.Connection, goals: Sequence[Goal], seconds: float, settings: Settings,
                start_snippet: int | None = None, progress: Callable[[float], None] | None = None) -> Synthesis:
+    """Frames until the strip lasts at least `seconds` (whole snippets). The strip ends early, saying why,
+    when the database has nothing to play next (modb.synthesize's chain ends there too)."""
     avatar = Avatar(conn, goals=goals, start_snippet=start_snippet, settings=settings)
     frames: list[Frame] = []
-    for frame in avatar.frames():
-        frames.append(frame)
-        last = avatar.choices[-1]
-        if frame.index == last.end_frame:
-            if progress:
-                progress(last.end_frame / last.fps)
-            if last.end_frame / last.fps >= seconds:
-                break
+    stopped = None
+    with contextlib.closing(avatar.frames()) as playing:
+        try:
+            for frame in playing:
+                frames.append(frame)
+                last = avatar.choices[-1]
+                if frame.index == last.end_frame:
+                    if progress:
+                        progress(last.end_frame / last.fps)
+                    if last.end_frame / last.fps >= seconds:
+                        break
+        except NoContinuation as e:
+            if not avatar.choices:
+                raise
+            stopped = str(e)
     first = avatar.choices[0]
     template = avatar.library.get(first.clip_id, first.version, first.mirrored).motion
-    return Synthesis(strip_motion(frames, template, "synthesized"), avatar.choices)
+    return Synthesis(strip_motion(frames, template, "synthesized"), avatar.choices, list(goals), stopped)
 
 
 def _scope(collection: str | None) -> tuple[str, list]:
@@ -78,7 +90,7 @@ def median_walking_speed(conn: psycopg.Connection, first_snippet: int, collectio
 def report(conn: psycopg.Connection, result: Synthesis, collection: str | None) -> Report:
     first = result.chain[0].snippet_id
     natural = NaturalSteps.of(source_motions(conn, first, collection))
-    return measure(result.strip, result.chain, natural, median_walking_speed(conn, first, collection))
+    return measure(result.strip, result.chain, result.goals, natural, median_walking_speed(conn, first, collection))
 
 
 def _ms(value: float | None) -> str:
@@ -96,7 +108,8 @@ def format_report(result: Synthesis, rep: Report, names: dict[int, str]) -> str:
                      f"{continuity:>10s}  {_ms(c.latency_ms):>8s}  {c.goal}{' reached' if c.reached else ''}")
     lines += [
         "",
-        f"strip: {rep.seconds:.1f} s, {rep.snippets} snippets, {rep.seams} seams",
+        f"strip: {rep.seconds:.1f} s, {rep.snippets} snippets, {rep.seams} seams"
+        + (f" (ended early: {result.stopped})" if result.stopped else ""),
         f"query latency: p50 {_ms(rep.latency_ms_p50)} ms, p99 {_ms(rep.latency_ms_p99)} ms",
         f"relaxation levels: " + ", ".join(f"{k}: {v}" for k, v in rep.levels.items())
         + f" (last level {rep.last_level_share:.1%})",

@@ -8,7 +8,8 @@
 -- ground) at a snippet's end; the next choice then serves the next goal, and after the last goal the
 -- avatar keeps serving the last one. Snippets whose play ended less than exclude_seconds before the end of
 -- the current one are passed as exclude. Time is counted in frames (the chain has one rate), so both
--- paths compare the same integers.
+-- paths compare the same integers. When nothing can follow, the chain ends (the Avatar raises NoContinuation
+-- there, and modb synth stops the strip and says so).
 
 CREATE FUNCTION modb.local_to_world(origin float8[], heading float8, local_point float8[])
 RETURNS float8[]
@@ -147,4 +148,4 @@ SELECT step, snippet_id, clip_id, version, mirrored, first_frame, n_frames, fps,
   FROM chain
 $$;
 COMMENT ON FUNCTION modb.synthesize(float8[], int, bigint, float8[], float8, text, text, float8, float8) IS
-    'A chain of up to max_snippets snippets from start_position/start_heading (world metres, radians; 0 faces +Z) through the world goals in targets ({{x, z}, ...} or {{x, y, z}, ...}), in order: one row per snippet with where it is placed, where it ends, the goal it served and whether it reached it (pelvis within arrival_radius on the ground), and its selection (relaxation level, continuity, proximity). Its first frame stands in for the previous snippet''s last; start_time is the time of that frame';
+    'A chain of up to max_snippets snippets from start_position/start_heading (world metres, radians; 0 faces +Z) through the world goals in targets ({{x, z}, ...} or {{x, y, z}, ...}), in order: one row per snippet with where it is placed, where it ends, the goal it served and whether it reached it (pelvis within arrival_radius on the ground), and its selection (relaxation level, continuity, proximity). Its first frame stands in for the previous snippet''s last; start_time is the time of that frame. The chain ends early when nothing can follow (every candidate excluded)';
