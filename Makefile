@@ -12,7 +12,7 @@ APT_PACKAGES := postgresql-15 postgresql-plpython3-15 postgresql-15-pgtap gcc ma
 	libtap-parser-sourcehandler-pgtap-perl postgresql-server-dev-15 python3-numpy python3-venv
 EXTVERSION := $(shell sed -n "s/^default_version *= *'\(.*\)'/\1/p" extension/modb.control)
 
-.PHONY: setup apt extension venv test demo bench-load bench-select clean
+.PHONY: setup apt extension venv test demo bench-load bench-select bench-synth clean
 
 setup: apt extension venv
 
@@ -62,6 +62,10 @@ bench-select: setup
 	$(VENV)/bin/modb load "$(DATA)/bandai-1" "$(DATA)/bandai-2-dev" --mirror --quiet
 	$(VENV)/bin/modb load "$(DATA)"/cmu/131/*.amc "$(DATA)"/cmu/01/*.amc --collection cmu --mirror --quiet
 	$(VENV)/bin/modb bench select --queries 100
+
+# A seeded 10-minute course on Bandai dataset 2 locomotion, in a database of its own (see BENCHMARKS.md).
+bench-synth: setup
+	$(VENV)/bin/modb bench synth --seconds 600 --data "$(DATA)/bandai-2-dev/data"
 
 clean:
 	$(MAKE) -s -C extension clean

@@ -179,6 +179,22 @@ def cmd_demo(args: argparse.Namespace) -> int:
 def cmd_bench(args: argparse.Namespace) -> int:
     from pathlib import Path
 
+    if args.what == "synth":
+        from .avatar import Settings
+        from .bench_synth import locomotion_database, seeded_course
+        from .synth import format_report, report, synthesize
+
+        goals = seeded_course(args.seed, n_goals=int(args.seconds // 5) + 1)
+        if args.data:  # a fresh database of the locomotion files in the embedded cluster
+            args.dsn, args.collection = locomotion_database(Path(args.data), main), "locomotion"
+        with _connect(args) as conn:
+            result = synthesize(conn, goals, args.seconds, Settings(profile=args.profile, collection=args.collection))
+            names = dict(conn.execute("SELECT id, name FROM modb.clips WHERE id = ANY (%s)",
+                                      [sorted({c.clip_id for c in result.chain})]).fetchall())
+            text = format_report(result, report(conn, result, args.collection), names)
+        print(f"seeded course (seed {args.seed}, goals 1-20 m apart), {args.seconds:g} s, profile {args.profile}:")
+        print(text[text.index("\nstrip:") + 1:])  # the summary; `modb synth --report` lists every choice
+        return 0
     if args.what == "select":
         from .bench_select import bench_select, report as select_report
 
@@ -189,7 +205,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     from .bench_load import bench_load, bench_parse, report
     from .cluster import Cluster
 
-    folder = Path(args.data)
+    folder = Path(args.data or "../shared/mocap/bandai-1")
     files = sorted(folder.rglob("*.bvh"))
     if not files:
         print(f"modb bench load: no .bvh files under {folder}", file=sys.stderr)
@@ -296,11 +312,14 @@ def build_parser() -> argparse.ArgumentParser:
     demo.set_defaults(func=cmd_demo)
 
     bench = sub.add_parser("bench", help="benchmarks (results go in BENCHMARKS.md)")
-    bench.add_argument("what", choices=["load", "select"])
+    bench.add_argument("what", choices=["load", "select", "synth"])
     bench.add_argument("--queries", type=int, default=200, help="select: number of seeded queries")
-    bench.add_argument("--seed", type=int, default=1, help="select: random seed")
-    bench.add_argument("--profile", default="default", help="select: match profile")
-    bench.add_argument("--data", default="../shared/mocap/bandai-1", help="load: folder of .bvh files")
+    bench.add_argument("--seed", type=int, default=1, help="select, synth: random seed")
+    bench.add_argument("--profile", default="default", help="select, synth: match profile")
+    bench.add_argument("--seconds", type=float, default=600.0, help="synth: length of the course")
+    bench.add_argument("--collection", help="synth: draw snippets from this collection")
+    bench.add_argument("--data", help="load: folder of .bvh files (default ../shared/mocap/bandai-1); synth: "
+                                      "bandai-2-dev/data, whose walks, turns and runs go into a fresh database")
     bench.add_argument("--rounds", type=int, default=3, help="load: rounds")
     bench.set_defaults(func=cmd_bench)
 

@@ -119,12 +119,15 @@ def format_report(result: Synthesis, rep: Report, names: dict[int, str]) -> str:
         f"recombination: {rep.recombination:.1%} of seams",
         f"goal reach (straight line at the median walking speed, {rep.walking_speed:.2f} m/s):",
     ]
-    for g in rep.goals:
+    served = [g for g in rep.goals if g.goal <= max(c.goal for c in result.chain)]
+    for g in served:
         where = ", ".join(f"{v:g}" for v in g.target)
         took = "not reached" if g.seconds is None else f"{g.seconds:.1f} s = {g.ratio:.2f}x"
         note = "" if g.counts_for_aim else " (nearer than 5 m: reported only)"
         lines.append(f"  goal {g.goal} ({where}): {g.distance_m:.1f} m{' behind' if g.behind else ''}, "
                      f"straight {g.straight_seconds:.1f} s, took {took}{note}")
+    if len(served) < len(rep.goals):
+        lines.append(f"  goals {len(served) + 1}-{len(rep.goals)}: never became current (not reached)")
     lines.append("aims: " + "; ".join(f"{k}: {'met' if v else 'NOT met'}" for k, v in rep.aims.items()))
     return "\n".join(lines)
 

@@ -86,6 +86,9 @@ COMMENT ON COLUMN modb.snippets.net_rotation IS 'The heading change as a unit qu
 CREATE INDEX snippets_begin_features_idx ON modb.snippets USING gist (begin_features);
 CREATE INDEX snippets_clip_idx ON modb.snippets (clip_id, version, mirrored, first_frame);
 CREATE INDEX snippets_pose_key_idx ON modb.snippets (pose_key, fps);
+-- For the foreign keys: deleting a clip version's terminators must not scan every snippet per row.
+CREATE INDEX snippets_begin_terminator_idx ON modb.snippets (begin_terminator);
+CREATE INDEX snippets_end_terminator_idx ON modb.snippets (end_terminator);
 
 SELECT pg_catalog.pg_extension_config_dump('modb.snippet_sources', '');
 SELECT pg_catalog.pg_extension_config_dump('modb.terminators', '');
