@@ -253,3 +253,21 @@ def test_a_new_version_keeps_its_mirror_images(fresh_db, db):
     assert run_modb(fresh_db, "load", amc, "--fps", "60").returncode == 0  # a new version, no --mirror
     rows = db.execute("SELECT version, mirrored, count(*) FROM modb.snippets GROUP BY 1, 2 ORDER BY 1, 2").fetchall()
     assert [(v, m) for v, m, _ in rows] == [(2, False), (2, True)] and rows[0][2] == rows[1][2]
+
+
+def test_mirrored_snippets_are_placed_where_the_database_says(cmu):
+    """The client mirrors a clip's frames itself (source_frames.py); the database measured the mirrored
+    snippets' travel and turn when it built them. A strip that starts on a mirrored snippet (CMU 131, 120 fps)
+    must end each snippet where the chain's arithmetic on those stored figures puts it."""
+    from modb.avatar import Settings
+    from modb.synth import synthesize
+
+    with connect(cmu) as conn:
+        start = conn.execute("SELECT min(id) FROM modb.snippets WHERE mirrored AND first_frame = 120").fetchone()[0]
+        result = synthesize(conn, [(0.0, 4.0), (3.0, 0.0)], 4.0, Settings(), start_snippet=start)
+    assert result.chain[0].mirrored and sum(c.mirrored for c in result.chain) >= 2
+    sk = result.strip.skeleton
+    pelvis = result.strip.world_positions()[:, sk.index(sk.joint_map["pelvis"])]
+    for c in result.chain:
+        assert abs(pelvis[c.end_frame, 0] - c.end.position[0]) < 1e-3
+        assert abs(pelvis[c.end_frame, 2] - c.end.position[2]) < 1e-3
