@@ -18,7 +18,7 @@ STANDARD = ["pelvis", "spine", "chest", "neck", "head",
 FEATURE_POS = ["head", "left_wrist", "right_wrist", "left_ankle", "right_ankle"]
 FEATURE_VEL = ["pelvis", "left_ankle", "right_ankle"]
 KNOBS = ("joints", "norm", "position_threshold", "angle_threshold", "velocity_threshold",
-         "angular_velocity_threshold", "velocity_terms", "heading_weight")
+         "angular_velocity_threshold", "velocity_terms", "heading_weight", "continuity_weight")
 
 
 def _rot(q: np.ndarray) -> Rotation:
@@ -116,6 +116,7 @@ def resolve_profile(settings: dict, knobs: dict) -> dict:
     return {
         "joints": included, "norm": settings.get("norm", "l2"),
         "velocity_terms": settings.get("velocity_terms", True), "heading_weight": float(settings.get("heading_weight", 0)),
+        "continuity_weight": float(settings.get("continuity_weight", 0)),
         **{k: np.array([per_joint(settings[k], STANDARD[j]) for j in included])
            for k in ("position_threshold", "angle_threshold", "velocity_threshold", "angular_velocity_threshold")},
     }
@@ -164,7 +165,8 @@ def load_snippet_space(conn) -> dict:
     skeletons = {sid: (h, m) for sid, h, m in conn.execute("SELECT id, hierarchy, joint_map FROM modb.skeletons")}
     cache: dict = {}
     out = {k: [] for k in ("id", "clip", "version", "first", "n", "collection", "fps", "pose", "pos", "rot", "vel",
-                           "angvel", "feat", "net", "turn", "end")}
+                           "angvel", "feat", "future", "future_turn", "end")}
+    starts = {(clip, version, first) for _, clip, version, first, *_ in rows}
     for sid, clip, version, first, n_frames, collection, fps, skeleton in rows:
         if (clip, version) not in cache:
             motion = read_motion(conn, clip, version)
@@ -184,8 +186,14 @@ def load_snippet_space(conn) -> dict:
             out[key].append(arr[first])
         out["end"].append({"pos": t.pos[last], "rot": t.rot[last], "vel": t.vel[last], "angvel": t.angvel[last],
                            "feat": t.feat[last]})
-        out["net"].append(_yaw([t.heading[first]]).inv().apply(t.pelvis[last] - t.pelvis[first])[0])
-        out["turn"].append(np.angle(np.exp(1j * (t.heading[last] - t.heading[first]))))
+        # Where playing on leads: this window and up to two more, each starting on the last one's end.
+        end = last
+        for _ in range(2):
+            if (clip, version, end) not in starts:
+                break
+            end += n_frames - 1
+        out["future"].append(_yaw([t.heading[first]]).inv().apply(t.pelvis[end] - t.pelvis[first])[0])
+        out["future_turn"].append(np.angle(np.exp(1j * (t.heading[end] - t.heading[first]))))
     return {k: (np.array(v) if k not in ("end", "pose") else v) for k, v in out.items()}
 
 
@@ -201,7 +209,7 @@ def select(space: dict, prev_id, target, plan: dict, collections=None, exclude=(
         cand_lo, cand_hi = space["first"] + 1, space["first"] + space["n"] - 1
         ex_lo, ex_hi = space["first"][k] + 1, space["first"][k] + space["n"][k] - 1
         ok &= ~(same & (ex_lo <= cand_hi) & (cand_lo <= ex_hi))
-    cost = target_cost(space["net"], space["turn"], target, plan["heading_weight"])
+    cost = target_cost(space["future"], space["future_turn"], target, plan["heading_weight"])
     if prev_id is None:
         level = np.zeros(len(ids), dtype=int)
         order_key = cost
@@ -213,6 +221,7 @@ def select(space: dict, prev_id, target, plan: dict, collections=None, exclude=(
         cand = {k: space[k] for k in ("pos", "rot", "vel", "angvel")}
         ratio = ratios(prev, cand, plan)
         level = levels(ratio)
-        order_key = np.where(level == 4, np.linalg.norm(space["feat"] - prev["feat"], axis=1), cost)
+        order_key = np.where(level == 4, np.linalg.norm(space["feat"] - prev["feat"], axis=1),
+                             cost + plan["continuity_weight"] * ratio)
     rows = [(int(level[i]), float(order_key[i]), int(ids[i]), float(ratio[i])) for i in np.flatnonzero(ok)]
     return sorted(rows)

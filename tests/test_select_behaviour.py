@@ -155,6 +155,7 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
     assert db.execute("SELECT sum(x + 2 * y + 3 * z) FROM modb.world_positions(1)").fetchone()[0] == positions
     if with_snippets:
         assert db.execute(SNIPPET_ROWS).fetchall() == snippets
+        assert db.execute("SELECT count(*) FROM modb.snippets WHERE future_translation IS NULL").fetchone()[0] == 0
         assert db.execute("SELECT settings FROM modb.match_profiles WHERE name = 'mine'").fetchone()[0] == mine
         assert mine != db.execute("SELECT settings FROM modb.match_profiles WHERE name = 'default'").fetchone()[0]
     else:
@@ -227,6 +228,8 @@ BAD_PARAMETER, RAISED = psycopg.errors.InvalidParameterValue, psycopg.errors.Rai
      "thresholds must be positive"),
     ("SET modb.heading_weight = '-5'", "SELECT * FROM modb.select_next_snippet(NULL, '{0,1}')", RAISED,
      "heading_weight must not be negative"),
+    ("SET modb.continuity_weight = '-1'", "SELECT * FROM modb.select_next_snippet(NULL, '{0,1}')", RAISED,
+     "continuity_weight must not be negative"),
 ])
 def test_requests_that_cannot_be_answered_are_errors(cmu, setting, call, error, message):
     with connect(cmu) as conn:

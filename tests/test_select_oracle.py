@@ -49,7 +49,8 @@ def _assert_same_choice(got, rows, context):
         assert level == best[0] or _near_boundary(best[3]), (got, best, context)
     else:  # only a tie (float32 storage against float64 here) may pick another snippet
         same_level = mine[0] == best[0] or _near_boundary(mine[3]) or _near_boundary(best[3])
-        assert same_level and abs(mine[1] - best[1]) < 1e-6, (got, mine, best, context)
+        # order keys: metres, plus continuity_weight x a ratio that float32 terminators shift by ~1e-5
+        assert same_level and abs(mine[1] - best[1]) < 1e-4, (got, mine, best, context)
     if continuity is not None and level < 4:
         assert continuity <= 2.0 ** level * (1 + 1e-5), (got, context)  # satisfies its level
         assert abs(continuity - mine[3]) < 1e-3 * max(1.0, mine[3]), (continuity, mine, context)
@@ -59,6 +60,7 @@ PROFILES = [("default", {}), ("strict", {}), ("locomotion", {}),
             ("default", {"norm": "l1", "velocity_terms": "off"}),
             ("default", {"joints": "pelvis,left_ankle,right_ankle", "position_threshold": "0.05"}),
             ("locomotion", {"angle_threshold": "0.2", "heading_weight": "1.5"}),
+            ("locomotion", {"continuity_weight": "2"}),
             # tight enough that most answers come from relaxation levels 1-4
             ("strict", {"position_threshold": "0.01", "angle_threshold": "0.05", "velocity_threshold": "0.05",
                         "angular_velocity_threshold": "0.5"})]

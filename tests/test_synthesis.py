@@ -311,3 +311,4 @@ def test_the_report_lists_goals_never_served(locomotion):
     assert [g.goal for g in rep.goals] == [1, 2]
     assert not rep.goals[1].reached and rep.goals[1].seconds is None
     assert not rep.aims["goals >= 5 m reached within 2x straight line"]
+

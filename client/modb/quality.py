@@ -111,7 +111,8 @@ class GoalReach:
 
     @property
     def counts_for_aim(self) -> bool:
-        return self.distance_m >= REACH_MIN_DISTANCE
+        """The issue's reach aim covers goals at least 5 m away and not behind; the others are reported."""
+        return self.distance_m >= REACH_MIN_DISTANCE and not self.behind
 
 
 def goal_reach(chain: Sequence[Choice], goals: Sequence[tuple[float, ...]], walking_speed: float) -> list[GoalReach]:

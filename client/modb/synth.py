@@ -123,7 +123,8 @@ def format_report(result: Synthesis, rep: Report, names: dict[int, str]) -> str:
     for g in served:
         where = ", ".join(f"{v:g}" for v in g.target)
         took = "not reached" if g.seconds is None else f"{g.seconds:.1f} s = {g.ratio:.2f}x"
-        note = "" if g.counts_for_aim else " (nearer than 5 m: reported only)"
+        note = ("" if g.counts_for_aim else " (nearer than 5 m: reported only)" if not g.behind
+                else " (behind: reported only)")
         lines.append(f"  goal {g.goal} ({where}): {g.distance_m:.1f} m{' behind' if g.behind else ''}, "
                      f"straight {g.straight_seconds:.1f} s, took {took}{note}")
     if len(served) < len(rep.goals):

@@ -74,7 +74,9 @@ CREATE TABLE modb.snippets (
     net_translation  float8[] NOT NULL CHECK (array_length(net_translation, 1) = 3),
     net_heading      float8 NOT NULL,
     net_rotation     float8[] NOT NULL CHECK (array_length(net_rotation, 1) = 4),
-    FOREIGN KEY (clip_id, version, mirrored) REFERENCES modb.snippet_sources ON DELETE CASCADE
+    FOREIGN KEY (clip_id, version, mirrored) REFERENCES modb.snippet_sources ON DELETE CASCADE,
+    future_translation float8[] CHECK (array_length(future_translation, 1) = 3),
+    future_heading     float8
 );
 COMMENT ON TABLE modb.snippets IS
     'SnippetDescriptor: frames first_frame .. first_frame + n_frames - 1 of a clip version; played after another snippet, its first frame stands in for that one''s last';
@@ -82,6 +84,9 @@ COMMENT ON COLUMN modb.snippets.begin_features IS 'Copy of the begin terminator'
 COMMENT ON COLUMN modb.snippets.net_translation IS 'Pelvis travel (x left, y up, z forward; metres) in the heading frame of the first frame';
 COMMENT ON COLUMN modb.snippets.net_heading IS 'Heading change over the snippet (radians, counter-clockwise seen from above)';
 COMMENT ON COLUMN modb.snippets.net_rotation IS 'The heading change as a unit quaternion (w, x, y, z) about +Y';
+COMMENT ON COLUMN modb.snippets.future_translation IS
+    'Where playing on leads: pelvis travel over this snippet and up to two play-on snippets of its clip (1.5 s for 0.5 s windows), in the heading frame of its first frame; the objective of select_next_snippet';
+COMMENT ON COLUMN modb.snippets.future_heading IS 'The heading change over the same frames as future_translation (radians)';
 
 CREATE INDEX snippets_begin_features_idx ON modb.snippets USING gist (begin_features);
 CREATE INDEX snippets_clip_idx ON modb.snippets (clip_id, version, mirrored, first_frame);

@@ -112,6 +112,7 @@ while True:
         plpy.execute(add_snippets, [row["clip_id"], row["version"], length, row["collection_id"], row["pose_key"],
                                     row["fps"], json.dumps(snippets), flag])
         added += len(snippets)
+plpy.execute("SELECT modb.fill_futures()")  # after every clip's snippets exist: futures chain through them
 return added
 $py$;
 COMMENT ON FUNCTION modb.build_snippets(text, bigint, float8, float8, boolean) IS

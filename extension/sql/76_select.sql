@@ -1,8 +1,11 @@
 -- select_next_snippet: continuity (WHERE) and objective (ORDER BY) as one query the planner sees whole.
+-- The objective: where the candidate leads (future_translation: itself and up to two play-on snippets),
+-- plus the profile's continuity_weight x its continuity ratio, so a smoother candidate wins unless
+-- another serves the goal clearly better. CREATE OR REPLACE: upgrades include this file.
 -- LANGUAGE sql, STABLE, not STRICT, one SELECT: inlined into the caller's plan, so EXPLAIN shows the
 -- GiST index scan on snippets.begin_features with the profile's box as its Index Cond.
 
-CREATE FUNCTION modb.select_next_snippets(prev_snippet bigint, target float8[], k int,
+CREATE OR REPLACE FUNCTION modb.select_next_snippets(prev_snippet bigint, target float8[], k int,
                                           profile text DEFAULT 'default', collection text DEFAULT NULL,
                                           exclude bigint[] DEFAULT NULL)
 RETURNS TABLE (snippet_id bigint, clip_id bigint, version int, mirrored boolean, first_frame int, n_frames int,
@@ -32,7 +35,7 @@ WITH cfg AS MATERIALIZED (
                           AND s.first_frame + 1 <= x.first_frame + x.n_frames - 1)
 )
 (SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
-        modb.target_cost(c.net_translation, c.net_heading, target, (SELECT (plan).heading_weight FROM cfg)) AS proximity,
+        modb.target_cost(c.future_translation, c.future_heading, target, (SELECT (plan).heading_weight FROM cfg)) AS proximity,
         0, NULL::float8, c.net_translation, c.net_rotation, c.net_heading
    FROM candidates c
   WHERE prev_snippet IS NULL AND (SELECT checked FROM cfg)
@@ -41,7 +44,7 @@ WITH cfg AS MATERIALIZED (
 -- level it satisfies. Level 4, the last: the nearest start configuration (feature distance), any ratio.
 UNION ALL
 (SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
-        modb.target_cost(c.net_translation, c.net_heading, target, (SELECT (plan).heading_weight FROM cfg)), 0, r.ratio,
+        modb.target_cost(c.future_translation, c.future_heading, target, (SELECT (plan).heading_weight FROM cfg)), 0, r.ratio,
         c.net_translation, c.net_rotation, c.net_heading
    FROM candidates c JOIN modb.terminators b ON b.id = c.begin_terminator
   CROSS JOIN prev CROSS JOIN cfg  -- as columns, not sub-selects, so continuity_ratio is inlined
@@ -49,10 +52,11 @@ UNION ALL
   WHERE c.begin_features <@ (SELECT modb.match_box(prev.features, cfg.plan, 1.0) FROM prev, cfg)
     AND c.pose_key = (SELECT pose_key FROM prev) AND c.fps = (SELECT fps FROM prev)
     AND r.ratio <= 1.0
-  ORDER BY 7, 1 LIMIT k)
+  ORDER BY modb.target_cost(c.future_translation, c.future_heading, target, (SELECT (plan).heading_weight FROM cfg))
+           + (SELECT (plan).continuity_weight FROM cfg) * r.ratio, 1 LIMIT k)
 UNION ALL
 (SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
-        modb.target_cost(c.net_translation, c.net_heading, target, (SELECT (plan).heading_weight FROM cfg)), 1, r.ratio,
+        modb.target_cost(c.future_translation, c.future_heading, target, (SELECT (plan).heading_weight FROM cfg)), 1, r.ratio,
         c.net_translation, c.net_rotation, c.net_heading
    FROM candidates c JOIN modb.terminators b ON b.id = c.begin_terminator
   CROSS JOIN prev CROSS JOIN cfg  -- as columns, not sub-selects, so continuity_ratio is inlined
@@ -60,10 +64,11 @@ UNION ALL
   WHERE c.begin_features <@ (SELECT modb.match_box(prev.features, cfg.plan, 2.0) FROM prev, cfg)
     AND c.pose_key = (SELECT pose_key FROM prev) AND c.fps = (SELECT fps FROM prev)
     AND r.ratio <= 2.0 AND r.ratio > 1.0
-  ORDER BY 7, 1 LIMIT k)
+  ORDER BY modb.target_cost(c.future_translation, c.future_heading, target, (SELECT (plan).heading_weight FROM cfg))
+           + (SELECT (plan).continuity_weight FROM cfg) * r.ratio, 1 LIMIT k)
 UNION ALL
 (SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
-        modb.target_cost(c.net_translation, c.net_heading, target, (SELECT (plan).heading_weight FROM cfg)), 2, r.ratio,
+        modb.target_cost(c.future_translation, c.future_heading, target, (SELECT (plan).heading_weight FROM cfg)), 2, r.ratio,
         c.net_translation, c.net_rotation, c.net_heading
    FROM candidates c JOIN modb.terminators b ON b.id = c.begin_terminator
   CROSS JOIN prev CROSS JOIN cfg  -- as columns, not sub-selects, so continuity_ratio is inlined
@@ -71,10 +76,11 @@ UNION ALL
   WHERE c.begin_features <@ (SELECT modb.match_box(prev.features, cfg.plan, 4.0) FROM prev, cfg)
     AND c.pose_key = (SELECT pose_key FROM prev) AND c.fps = (SELECT fps FROM prev)
     AND r.ratio <= 4.0 AND r.ratio > 2.0
-  ORDER BY 7, 1 LIMIT k)
+  ORDER BY modb.target_cost(c.future_translation, c.future_heading, target, (SELECT (plan).heading_weight FROM cfg))
+           + (SELECT (plan).continuity_weight FROM cfg) * r.ratio, 1 LIMIT k)
 UNION ALL
 (SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
-        modb.target_cost(c.net_translation, c.net_heading, target, (SELECT (plan).heading_weight FROM cfg)), 3, r.ratio,
+        modb.target_cost(c.future_translation, c.future_heading, target, (SELECT (plan).heading_weight FROM cfg)), 3, r.ratio,
         c.net_translation, c.net_rotation, c.net_heading
    FROM candidates c JOIN modb.terminators b ON b.id = c.begin_terminator
   CROSS JOIN prev CROSS JOIN cfg  -- as columns, not sub-selects, so continuity_ratio is inlined
@@ -82,10 +88,11 @@ UNION ALL
   WHERE c.begin_features <@ (SELECT modb.match_box(prev.features, cfg.plan, 8.0) FROM prev, cfg)
     AND c.pose_key = (SELECT pose_key FROM prev) AND c.fps = (SELECT fps FROM prev)
     AND r.ratio <= 8.0 AND r.ratio > 4.0
-  ORDER BY 7, 1 LIMIT k)
+  ORDER BY modb.target_cost(c.future_translation, c.future_heading, target, (SELECT (plan).heading_weight FROM cfg))
+           + (SELECT (plan).continuity_weight FROM cfg) * r.ratio, 1 LIMIT k)
 UNION ALL
 (SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
-        modb.target_cost(c.net_translation, c.net_heading, target, (SELECT (plan).heading_weight FROM cfg)),
+        modb.target_cost(c.future_translation, c.future_heading, target, (SELECT (plan).heading_weight FROM cfg)),
         4, modb.continuity_ratio(prev.term, b, cfg.plan),
         c.net_translation, c.net_rotation, c.net_heading
    FROM candidates c JOIN modb.terminators b ON b.id = c.begin_terminator
@@ -97,9 +104,9 @@ UNION ALL
 LIMIT k
 $$;
 COMMENT ON FUNCTION modb.select_next_snippets(bigint, float8[], int, text, text, bigint[]) IS
-    'The k best continuations of prev_snippet toward target ({x, z} or {x, y, z}, metres, in the avatar''s heading frame at its end), ordered by relaxation level then proximity; prev_snippet NULL: the snippets that best serve the target';
+    'The k best continuations of prev_snippet toward target ({x, z} or {x, y, z}, metres, in the avatar''s heading frame at its end), ordered by relaxation level, then proximity (from where the snippet leads to the target) + continuity_weight x continuity; prev_snippet NULL: the snippets that best serve the target';
 
-CREATE FUNCTION modb.select_next_snippet(prev_snippet bigint, target float8[], profile text DEFAULT 'default',
+CREATE OR REPLACE FUNCTION modb.select_next_snippet(prev_snippet bigint, target float8[], profile text DEFAULT 'default',
                                          collection text DEFAULT NULL, exclude bigint[] DEFAULT NULL)
 RETURNS TABLE (snippet_id bigint, clip_id bigint, version int, mirrored boolean, first_frame int, n_frames int,
                proximity float8, relax_level int, continuity float8, net_translation float8[],
@@ -111,7 +118,7 @@ $$;
 COMMENT ON FUNCTION modb.select_next_snippet(bigint, float8[], text, text, bigint[]) IS
     'The snippet that continues prev_snippet smoothly (the profile''s thresholds, relaxed in steps when nothing passes) and brings the avatar nearest to target ({x, z} or {x, y, z} metres in its heading frame at the end of prev_snippet; x left, z forward). prev_snippet NULL: the snippet that best serves the target. exclude: recently played snippets, whose frames are not replayed';
 
-CREATE FUNCTION modb.world_to_local(origin float8[], heading float8, target_world float8[])
+CREATE OR REPLACE FUNCTION modb.world_to_local(origin float8[], heading float8, target_world float8[])
 RETURNS float8[]
 LANGUAGE sql IMMUTABLE STRICT PARALLEL SAFE
 -- Heading theta faces (sin theta, 0, cos theta); the character's left is (cos theta, 0, -sin theta).
@@ -124,7 +131,7 @@ RETURN CASE WHEN array_length(target_world, 1) = 3
 COMMENT ON FUNCTION modb.world_to_local(float8[], float8, float8[]) IS
     'A world target ({x, z} on the ground or {x, y, z}) in the heading frame of a character at origin {x, y, z} with heading theta';
 
-CREATE FUNCTION modb.select_next_snippet_world(prev_snippet bigint, "position" float8[], heading float8,
+CREATE OR REPLACE FUNCTION modb.select_next_snippet_world(prev_snippet bigint, "position" float8[], heading float8,
                                                target_world float8[], profile text DEFAULT 'default',
                                                collection text DEFAULT NULL, exclude bigint[] DEFAULT NULL)
 RETURNS TABLE (snippet_id bigint, clip_id bigint, version int, mirrored boolean, first_frame int, n_frames int,

@@ -1,8 +1,25 @@
--- 0.3.0: synthesis in the database (modb.synthesize and its helpers), and the default and strict
--- profiles retuned for seams that look like natural steps.
+-- 0.3.0: synthesis in the database (modb.synthesize and its helpers); the objective measures where a
+-- snippet leads (snippets.future_translation / future_heading) plus a continuity weight; the default
+-- and strict profiles retuned for seams that look like natural steps.
+
 -- Indexes for the snippets -> terminators foreign keys: without them, replacing or deleting snippets of
 -- many clips scanned every snippet once per terminator (minutes for 115k snippets; 1.5 s with them).
 CREATE INDEX snippets_begin_terminator_idx ON modb.snippets (begin_terminator);
 CREATE INDEX snippets_end_terminator_idx ON modb.snippets (end_terminator);
+
+ALTER TABLE modb.snippets
+    ADD COLUMN future_translation float8[] CHECK (array_length(future_translation, 1) = 3),
+    ADD COLUMN future_heading float8;
+COMMENT ON COLUMN modb.snippets.future_translation IS
+    'Where playing on leads: pelvis travel over this snippet and up to two play-on snippets of its clip (1.5 s for 0.5 s windows), in the heading frame of its first frame; the objective of select_next_snippet';
+COMMENT ON COLUMN modb.snippets.future_heading IS 'The heading change over the same frames as future_translation (radians)';
+--@include 71_futures.sql
+SELECT modb.fill_futures();
+
+ALTER TYPE modb.match_plan ADD ATTRIBUTE continuity_weight float8;
+COMMENT ON TYPE modb.match_plan IS
+    'A profile resolved for one query: included joints (0-based standard indices), thresholds per standard joint (Infinity when not included), the half-widths of the search box per feature, and the objective''s weights';
+--@include 72_plan.sql
 --@include 73_profiles.sql
+--@include 76_select.sql
 --@include 78_synthesize.sql
