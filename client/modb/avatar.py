@@ -97,12 +97,6 @@ class Frame:
 
 
 @dataclass
-class _Pending:
-    future: Future
-    issued_at: float
-
-
-@dataclass
 class Avatar:
     conn: psycopg.Connection
     goals: Sequence[Goal] = ()
@@ -151,11 +145,11 @@ class Avatar:
         self._started = True
         executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="modb-avatar")
         try:
-            pending = _Pending(executor.submit(self._choose, None, self._request(None)), time.perf_counter())
+            pending: Future | None = executor.submit(self._choose, None, self._request(None))
             previous_last: Frame | None = None
             while True:
                 started = time.perf_counter()
-                choice, rotations, translations = pending.future.result()
+                choice, rotations, translations = pending.result()
                 waited = (time.perf_counter() - started) * 1000.0
                 choice = replace(choice, waited_ms=waited if self.choices else 0.0)
                 self.choices.append(choice)
@@ -167,8 +161,7 @@ class Avatar:
                     frame = Frame(choice.start_frame + k, choice.step, rotations[k], translations[k])
                     yield frame
                     if pending is None and choice.n_frames - 1 - k <= lead_frames:
-                        pending = _Pending(executor.submit(self._choose, choice, self._request(choice)),
-                                           time.perf_counter())
+                        pending = executor.submit(self._choose, choice, self._request(choice))
                 previous_last = frame
         finally:
             executor.shutdown(wait=True, cancel_futures=True)
