@@ -210,8 +210,7 @@ def _local_rotation(c_angles: np.ndarray, c_order: str, m_angles: np.ndarray, m_
         m = quaternion.from_euler(m_angles[..., ::-1], m_order[::-1])
     else:
         m = np.tile([1.0, 0.0, 0.0, 0.0], m_angles.shape[:-1] + (1,))
-    c_inv = c * np.array([1.0, -1.0, -1.0, -1.0])
-    return quaternion.canonical(quaternion.multiply(quaternion.multiply(c, m), c_inv))
+    return quaternion.canonical(quaternion.multiply(quaternion.multiply(c, m), quaternion.conjugate(c)))
 
 
 def _skeleton(asf: AsfSkeleton, name: str) -> Skeleton:

@@ -47,23 +47,30 @@ class ClipTerms:
     heading: np.ndarray
 
 
+def world_transforms(parents, offsets, translated, rotations, translations) -> tuple[np.ndarray, list[Rotation]]:
+    """Forward kinematics with scipy: world positions (F, J, 3) and orientations (one Rotation per joint)."""
+    n, J = rotations.shape[:2]
+    local = np.tile(np.asarray(offsets, dtype=np.float64), (n, 1, 1))
+    if len(translated):
+        local[:, list(translated)] = np.asarray(translations, dtype=np.float64)
+    world_p = np.zeros((n, J, 3))
+    world_r: list[Rotation] = [None] * J
+    for k, p in enumerate(parents):
+        r = _rot(rotations[:, k])
+        if p < 0:
+            world_p[:, k], world_r[k] = local[:, k], r
+        else:
+            world_p[:, k] = world_p[:, p] + world_r[p].apply(local[:, k])
+            world_r[k] = world_r[p] * r
+    return world_p, world_r
+
+
 def clip_terms(hierarchy: dict, joint_map: dict, rotations: np.ndarray, translations, fps: float) -> ClipTerms:
     joints = hierarchy["joints"]
     names = [j["name"] for j in joints]
-    n, J = rotations.shape[:2]
-    local = np.tile(np.array([j["offset"] for j in joints], dtype=np.float64), (n, 1, 1))
-    if hierarchy["translated"]:
-        local[:, hierarchy["translated"]] = np.asarray(translations, dtype=np.float64)
-    world_p = np.zeros((n, J, 3))
-    world_r: list[Rotation] = [None] * J
-    for k, j in enumerate(joints):
-        r = _rot(rotations[:, k])
-        if j["parent"] < 0:
-            world_p[:, k], world_r[k] = local[:, k], r
-        else:
-            p = j["parent"]
-            world_p[:, k] = world_p[:, p] + world_r[p].apply(local[:, k])
-            world_r[k] = world_r[p] * r
+    n = rotations.shape[0]
+    world_p, world_r = world_transforms([j["parent"] for j in joints], [j["offset"] for j in joints],
+                                        hierarchy["translated"], rotations, translations)
     idx = [names.index(joint_map[s]) for s in STANDARD]
     pel = idx[0]
     lhip, rhip = idx[STANDARD.index("left_hip")], idx[STANDARD.index("right_hip")]

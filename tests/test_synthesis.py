@@ -14,12 +14,13 @@ from scipy.spatial.transform import Rotation
 from conftest import mocap, run_modb, scratch_database
 from modb.avatar import Avatar, Choice, Settings
 from modb.connection import connect
+from modb.demo_data import locomotion_files
 from modb.placement import Placement
 from modb.quality import NaturalSteps, recombined, seam_steps, step_changes
 from modb.synth import report, source_motions, synthesize
 from oracle import bvhio_world_positions, in_order
+from snippet_oracle import world_transforms
 
-LOCOMOTION = ("walk", "walk-turn-left", "walk-turn-right", "run")
 # From the origin facing +Z: ahead, then a right turn of 90 degrees, then another, then one behind.
 COURSE = [(0.0, 6.0), (6.0, 6.0), (6.0, 0.0), (0.0, 0.0)]
 
@@ -29,9 +30,8 @@ def locomotion(cluster, tmp_path_factory):
     """Every locomotion clip of ../shared/mocap/bandai-2-dev (419 files), with snippets."""
     data = mocap("bandai-2-dev", "data")
     folder = tmp_path_factory.mktemp("locomotion")
-    for f in sorted(data.glob("*.bvh")):
-        if f.name.split("_")[1] in LOCOMOTION:
-            os.symlink(f, folder / f.name)
+    for f in locomotion_files(data):
+        os.symlink(f, folder / f.name)
     with scratch_database(cluster, f"synthesis_{os.getpid()}") as dsn:
         r = run_modb(dsn, "load", folder, "--collection", "bandai-2/locomotion", "-q")
         assert r.returncode == 0, r.stderr
@@ -161,23 +161,10 @@ def test_synth_writes_a_bvh_that_reads_back_into_the_same_world_positions(locomo
 
 
 def independent_world(motion) -> tuple[np.ndarray, list[Rotation]]:
-    """World positions and orientations with scipy, from the Motion's arrays alone."""
+    """World positions and orientations with scipy (snippet_oracle's kinematics), from the Motion's arrays."""
     sk = motion.skeleton
-    n = motion.n_frames
-    rot = lambda q: Rotation.from_quat(np.concatenate([q[..., 1:], q[..., :1]], axis=-1))
-    local = np.tile(np.array([j.offset for j in sk.joints]), (n, 1, 1))
-    local[:, sk.translated] = motion.translations
-    positions = np.zeros((n, len(sk.joints), 3))
-    world: list[Rotation] = []
-    for k, j in enumerate(sk.joints):
-        r = rot(motion.rotations[:, k])
-        if j.parent < 0:
-            positions[:, k] = local[:, k]
-            world.append(r)
-        else:
-            positions[:, k] = positions[:, j.parent] + world[j.parent].apply(local[:, k])
-            world.append(world[j.parent] * r)
-    return positions, world
+    return world_transforms(sk.parents, [j.offset for j in sk.joints], sk.translated, motion.rotations,
+                            motion.translations)
 
 
 def test_roughness_matches_an_independent_computation(locomotion):
@@ -211,7 +198,7 @@ def _choice(step: int, clip: int, first: int, n: int = 16, mirrored: bool = Fals
     return Choice(step=step, snippet_id=100 + step, clip_id=clip, version=1, mirrored=mirrored, first_frame=first,
                   n_frames=n, fps=30.0, start_frame=15 * step, end_frame=15 * step + 15, placement=here, end=here,
                   goal=1, target=(0.0, 1.0), reached=False, relax_level=0, continuity=0.0, proximity=0.0,
-                  latency_ms=1.0, waited_ms=0.0, source_heading=0.0)
+                  latency_ms=1.0, waited_ms=0.0)
 
 
 def test_recombination_counts_only_real_jumps():

@@ -56,10 +56,11 @@ class Settings:
     blend_frames: int = 0  # seam blending over this many frames; 0 plays the snippets as captured
 
     def __post_init__(self) -> None:
-        if not (self.arrival_radius > 0 and self.exclude_seconds >= 0 and self.lead_time >= 0
-                and self.blend_frames >= 0):
-            raise ValueError("arrival_radius must be positive; exclude_seconds, lead_time and blend_frames "
-                             f"cannot be negative (got {self})")
+        if not self.arrival_radius > 0:
+            raise ValueError(f"arrival_radius must be positive, got {self.arrival_radius}")
+        for name in ("exclude_seconds", "lead_time", "blend_frames"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"{name} cannot be negative, got {getattr(self, name)}")
 
 
 @dataclass(frozen=True)
@@ -85,7 +86,6 @@ class Choice:
     proximity: float | None
     latency_ms: float | None  # the selection query, as seen by the client
     waited_ms: float  # how long playback stalled waiting for it (0 when the lead time hid the query)
-    source_heading: float  # heading of its first frame in the source clip
 
 
 @dataclass(frozen=True)
@@ -107,7 +107,7 @@ class Avatar:
 
     def __post_init__(self) -> None:
         self._lock = threading.Lock()
-        self._goals: list[Goal] = [_checked_goal(g) for g in self.goals]
+        self._goals: list[Goal] = [checked_goal(g) for g in self.goals]
         self._goal_index = 0
         self._goal_reached = False  # the current goal was reached (the queue moves on when one is added)
         self._recent: list[tuple[int, int]] = []  # (snippet id, strip frame where its play ended)
@@ -118,11 +118,11 @@ class Avatar:
     # Goals may change at any time (from another thread too): they apply to the next query issued.
     def set_goal(self, goal: Goal) -> None:
         with self._lock:
-            self._goals, self._goal_index, self._goal_reached = [_checked_goal(goal)], 0, False
+            self._goals, self._goal_index, self._goal_reached = [checked_goal(goal)], 0, False
 
     def add_waypoint(self, goal: Goal) -> None:
         with self._lock:
-            self._goals.append(_checked_goal(goal))
+            self._goals.append(checked_goal(goal))
 
     @property
     def goal(self) -> Goal | None:
@@ -231,7 +231,7 @@ class Avatar:
             end_frame=request["start_frame"] + n_frames - 1, placement=where, end=end, goal=request["goal"],
             target=target, reached=ground_distance(end.position, target) <= request["arrival_radius"],
             relax_level=relax_level, continuity=continuity, proximity=proximity, latency_ms=latency,
-            waited_ms=0.0, source_heading=source_heading)
+            waited_ms=0.0)
         return choice, rotations, translations
 
     def _blend(self, previous_last: Frame | None, rotations: np.ndarray,
@@ -241,9 +241,8 @@ class Avatar:
         n = min(self.settings.blend_frames, len(rotations) - 2)  # the last frame stays as placed: the next seam
         if previous_last is None or n <= 0:
             return rotations, translations
-        jump = quaternion.multiply(previous_last.rotations, _conjugate(rotations[0]))
-        shift = previous_last.translations - translations[0]
-        rotations, translations = rotations.copy(), translations.copy()
+        jump = quaternion.multiply(previous_last.rotations, quaternion.conjugate(rotations[0]))
+        shift = previous_last.translations - translations[0]  # the arrays are _choose's own copies
         for k in range(1, n + 1):
             weight = 1.0 - k / (n + 1)
             rotations[k] = quaternion.canonical(quaternion.multiply(_power(jump, weight), rotations[k]))
@@ -251,15 +250,11 @@ class Avatar:
         return rotations, translations
 
 
-def _checked_goal(goal: Goal) -> Goal:
+def checked_goal(goal: Goal) -> Goal:
     values = tuple(float(v) for v in goal)
     if len(values) not in (2, 3) or not all(np.isfinite(values)):
         raise ValueError(f"a goal is (x, z) or (x, y, z) in world metres, got {goal!r}")
     return values
-
-
-def _conjugate(q: np.ndarray) -> np.ndarray:
-    return q * np.array([1.0, -1.0, -1.0, -1.0])
 
 
 def _power(q: np.ndarray, t: float) -> np.ndarray:

@@ -13,8 +13,8 @@ import numpy as np
 import psycopg
 
 from .cluster import Cluster
+from .demo_data import locomotion_files
 
-LOCOMOTION = ("walk", "walk-turn-left", "walk-turn-right", "run")
 DATABASE = "modb_bench_synth"
 
 Goal = tuple[float, float]
@@ -34,7 +34,7 @@ def seeded_course(seed: int, n_goals: int, near: float = 1.0, far: float = 20.0)
 
 def locomotion_database(folder: Path, modb: Callable[[Sequence[str]], int]) -> str:
     """A fresh database on the embedded cluster holding the locomotion clips of a Bandai dataset 2 folder."""
-    files = sorted(str(f) for f in folder.glob("*.bvh") if f.name.split("_")[1] in LOCOMOTION)
+    files = [str(f) for f in locomotion_files(folder)]
     if not files:
         raise RuntimeError(f"no Bandai dataset 2 locomotion files (dataset-2_walk_*.bvh, ...) in {folder}")
     cluster = Cluster.default()

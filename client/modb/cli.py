@@ -86,22 +86,22 @@ def _write_bvh_file(command: str, motion, path: str) -> bool:
 def cmd_synth(args: argparse.Namespace) -> int:
     from .avatar import NoContinuation, Settings
     from .source_frames import UnplaceableSkeleton
-    from .synth import format_report, parse_goal, print_progress, report, synthesize, write_report_json
+    from .synth import clip_names, format_report, parse_goal, print_progress, report, synthesize, write_report_json
 
     try:
         goals = [parse_goal(text) for text in args.to]
     except ValueError as e:
         print(f"modb synth: {e}", file=sys.stderr)
         return 2
-    for name in ("seconds", "arrival_radius"):
-        if not getattr(args, name) > 0:
-            print(f"modb synth: --{name.replace('_', '-')} must be positive", file=sys.stderr)
-            return 2
-    if args.lead_time < 0 or args.exclude_seconds < 0 or args.blend < 0:
-        print("modb synth: --lead-time, --exclude-seconds and --blend cannot be negative", file=sys.stderr)
+    if not args.seconds > 0:
+        print("modb synth: --seconds must be positive", file=sys.stderr)
         return 2
-    settings = Settings(profile=args.profile, collection=args.collection, arrival_radius=args.arrival_radius,
-                        exclude_seconds=args.exclude_seconds, lead_time=args.lead_time, blend_frames=args.blend)
+    try:
+        settings = Settings(profile=args.profile, collection=args.collection, arrival_radius=args.arrival_radius,
+                            exclude_seconds=args.exclude_seconds, lead_time=args.lead_time, blend_frames=args.blend)
+    except ValueError as e:  # named by the setting: --lead-time is lead_time
+        print(f"modb synth: {e}", file=sys.stderr)
+        return 2
     with _connect(args) as conn:
         try:
             result = synthesize(conn, goals, args.seconds, settings, args.start,
@@ -119,9 +119,7 @@ def cmd_synth(args: argparse.Namespace) -> int:
             try:
                 rep = report(conn, result, args.collection)
                 if args.report:
-                    names = dict(conn.execute("SELECT id, name FROM modb.clips WHERE id = ANY (%s)",
-                                              [sorted({c.clip_id for c in result.chain})]).fetchall())
-                    print(format_report(result, rep, names))
+                    print(format_report(result, rep, clip_names(conn, result.chain)))
                 if args.report_json:
                     write_report_json(args.report_json, result, rep)
             except ValueError as e:
@@ -182,18 +180,16 @@ def cmd_bench(args: argparse.Namespace) -> int:
     if args.what == "synth":
         from .avatar import Settings
         from .bench_synth import locomotion_database, seeded_course
-        from .synth import format_report, report, synthesize
+        from .synth import format_summary, report, synthesize
 
         goals = seeded_course(args.seed, n_goals=int(args.seconds // 5) + 1)
         if args.data:  # a fresh database of the locomotion files in the embedded cluster
             args.dsn, args.collection = locomotion_database(Path(args.data), main), "locomotion"
         with _connect(args) as conn:
             result = synthesize(conn, goals, args.seconds, Settings(profile=args.profile, collection=args.collection))
-            names = dict(conn.execute("SELECT id, name FROM modb.clips WHERE id = ANY (%s)",
-                                      [sorted({c.clip_id for c in result.chain})]).fetchall())
-            text = format_report(result, report(conn, result, args.collection), names)
+            summary = format_summary(result, report(conn, result, args.collection))
         print(f"seeded course (seed {args.seed}, goals 1-20 m apart), {args.seconds:g} s, profile {args.profile}:")
-        print(text[text.index("\nstrip:") + 1:])  # the summary; `modb synth --report` lists every choice
+        print(summary)  # `modb synth --report` also lists every choice
         return 0
     if args.what == "select":
         from .bench_select import bench_select, report as select_report

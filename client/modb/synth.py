@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 import psycopg
 
-from .avatar import Avatar, Choice, Frame, Goal, NoContinuation, Settings
+from .avatar import Avatar, Choice, Frame, Goal, NoContinuation, Settings, checked_goal
 from .clips import read_motion
 from .motion import Motion
 from .quality import NaturalSteps, Report, measure
@@ -97,7 +97,13 @@ def _ms(value: float | None) -> str:
     return "-" if value is None else f"{value:.1f}"
 
 
+def clip_names(conn: psycopg.Connection, chain: Sequence[Choice]) -> dict[int, str]:
+    return dict(conn.execute("SELECT id, name FROM modb.clips WHERE id = ANY (%s)",
+                             [sorted({c.clip_id for c in chain})]).fetchall())
+
+
 def format_report(result: Synthesis, rep: Report, names: dict[int, str]) -> str:
+    """Every choice, then the summary."""
     lines = ["step  time s  snippet  clip (frames)                                   level  continuity  query ms  goal",
              "----  ------  -------  ----------------------------------------------  -----  ----------  --------  ----"]
     for c in result.chain:
@@ -106,8 +112,12 @@ def format_report(result: Synthesis, rep: Report, names: dict[int, str]) -> str:
         continuity = "-" if c.continuity is None else f"{c.continuity:.2f}"
         lines.append(f"{c.step:4d}  {c.start_frame / c.fps:6.1f}  {c.snippet_id:7d}  {clip[:46]:46s}  {level:>5s}  "
                      f"{continuity:>10s}  {_ms(c.latency_ms):>8s}  {c.goal}{' reached' if c.reached else ''}")
-    lines += [
-        "",
+    return "\n".join(lines) + "\n\n" + format_summary(result, rep)
+
+
+def format_summary(result: Synthesis, rep: Report) -> str:
+    """The quality figures, goal by goal reach, and which aims are met."""
+    lines = [
         f"strip: {rep.seconds:.1f} s, {rep.snippets} snippets, {rep.seams} seams"
         + (f" (ended early: {result.stopped})" if result.stopped else ""),
         f"query latency: p50 {_ms(rep.latency_ms_p50)} ms, p99 {_ms(rep.latency_ms_p99)} ms",
@@ -148,12 +158,9 @@ def write_report_json(path: str, result: Synthesis, rep: Report) -> None:
 def parse_goal(text: str) -> Goal:
     """'X,Z' (or 'X,Y,Z') world metres."""
     try:
-        values = tuple(float(v) for v in text.split(","))
+        return checked_goal(text.split(","))
     except ValueError:
-        values = ()
-    if len(values) not in (2, 3) or not all(np.isfinite(values)):
-        raise ValueError(f"--to {text!r}: expected X,Z in metres, e.g. --to 3,-4")
-    return values
+        raise ValueError(f"--to {text!r}: expected X,Z in metres, e.g. --to 3,-4") from None
 
 
 def print_progress(total: float) -> Callable[[float], None]:

@@ -126,12 +126,9 @@ WITH RECURSIVE cfg AS MATERIALIZED (
                                                 g.target, arrival_radius) e
     UNION ALL
     SELECT c.step + 1, s.id, s.clip_id, s.version, s.mirrored, s.first_frame, s.n_frames, s.fps,
-           c.end_frame, c.end_frame + s.n_frames - 1, c.end_position, c.end_heading,
+           c.end_frame, f.end_frame, c.end_position, c.end_heading,
            e.end_position, e.end_heading, g.goal, g.target, e.reached, n.relax_level, n.continuity, n.proximity,
-           ARRAY(SELECT r.id FROM unnest(c.recent_ids || s.id, c.recent_ends || (c.end_frame + s.n_frames - 1)) r(id, e)
-                  WHERE (c.end_frame + s.n_frames - 1) - r.e < exclude_seconds * s.fps),
-           ARRAY(SELECT r.e FROM unnest(c.recent_ends || (c.end_frame + s.n_frames - 1)) r(e)
-                  WHERE (c.end_frame + s.n_frames - 1) - r.e < exclude_seconds * s.fps)
+           k.ids, k.ends
       FROM chain c
      CROSS JOIN LATERAL (SELECT CASE WHEN c.reached AND c.goal < (SELECT n_goals FROM cfg) THEN c.goal + 1
                                      ELSE c.goal END AS goal) gi
@@ -141,6 +138,11 @@ WITH RECURSIVE cfg AS MATERIALIZED (
       JOIN modb.snippets s ON s.id = n.snippet_id
      CROSS JOIN LATERAL modb.synthesis_step_end(c.end_position, c.end_heading, s.net_translation, s.net_heading,
                                                 g.target, arrival_radius) e
+     CROSS JOIN LATERAL (SELECT c.end_frame + s.n_frames - 1 AS end_frame) f
+     CROSS JOIN LATERAL (  -- the snippets played within exclude_seconds of this one's end (itself included)
+         SELECT coalesce(array_agg(r.id), '{}') AS ids, coalesce(array_agg(r.e), '{}') AS ends
+           FROM unnest(c.recent_ids || s.id, c.recent_ends || f.end_frame) AS r(id, e)
+          WHERE f.end_frame - r.e < exclude_seconds * s.fps) k
      WHERE c.step + 1 < max_snippets
 )
 SELECT step, snippet_id, clip_id, version, mirrored, first_frame, n_frames, fps, start_frame / fps,

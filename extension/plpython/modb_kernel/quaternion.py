@@ -11,6 +11,11 @@ def canonical(q):
     return np.where(q[..., :1] < 0.0, -q, q)
 
 
+def conjugate(q):
+    """The inverse of unit quaternions: the same axis, the opposite angle."""
+    return np.asarray(q, dtype=np.float64) * np.array([1.0, -1.0, -1.0, -1.0])
+
+
 def multiply(a, b):
     """Hamilton product a * b (apply b first, then a)."""
     aw, ax, ay, az = np.moveaxis(np.asarray(a, dtype=np.float64), -1, 0)

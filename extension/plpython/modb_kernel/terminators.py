@@ -38,10 +38,6 @@ def _about_y(theta):
     return quaternion.about_axis("Y", theta)
 
 
-def _inverse(q):
-    return q * np.array([1.0, -1.0, -1.0, -1.0])
-
-
 def _rotvec(q):
     """Rotation vectors (axis * angle) of quaternions."""
     q = quaternion.canonical(q)
@@ -77,7 +73,7 @@ def compute(parents, offsets, rotations, translations, translated, std, fps):
     n = len(rotations)
     pelvis = std[STANDARD_JOINTS.index("pelvis")]
     theta = headings(positions, std[STANDARD_JOINTS.index("left_hip")], std[STANDARD_JOINTS.index("right_hip")], fps)
-    h_inv = _inverse(_about_y(theta))[:, None, :]
+    h_inv = quaternion.conjugate(_about_y(theta))[:, None, :]
     ground = positions[:, pelvis] * np.array([1.0, 0.0, 1.0])
     world = positions[:, std]
     local_positions = quaternion.rotate(h_inv, world - ground[:, None, :])
@@ -90,8 +86,8 @@ def compute(parents, offsets, rotations, translations, translated, std, fps):
     pelvis_s = STANDARD_JOINTS.index("pelvis")
     pelvis_local = quaternion.canonical(quaternion.multiply(h_inv[:, 0], orientations[:, pelvis]))
     local_rotations[:, pelvis_s] = pelvis_local
-    angular = _rotvec(quaternion.multiply(_inverse(rotations[before][:, std]), rotations[after][:, std])) * rate
-    pelvis_world = _rotvec(quaternion.multiply(orientations[after, pelvis], _inverse(orientations[before, pelvis])))
+    angular = _rotvec(quaternion.multiply(quaternion.conjugate(rotations[before][:, std]), rotations[after][:, std])) * rate
+    pelvis_world = _rotvec(quaternion.multiply(orientations[after, pelvis], quaternion.conjugate(orientations[before, pelvis])))
     angular[:, pelvis_s] = quaternion.rotate(h_inv[:, 0], pelvis_world * rate[:, 0])
 
     configuration = canonical.copy()
@@ -123,7 +119,7 @@ def windows(n_frames, fps, window_s, stride_s):
 def net_motion(terms, first, last):
     """Net pelvis translation (in the first frame's heading frame) and heading change of frames first..last."""
     theta = terms["heading"]
-    h_inv = _inverse(_about_y(theta[first]))
+    h_inv = quaternion.conjugate(_about_y(theta[first]))
     translation = quaternion.rotate(h_inv, terms["pelvis"][last] - terms["pelvis"][first])
     turn = np.angle(np.exp(1j * (theta[last] - theta[first])))
     return translation, turn, _about_y(turn)
