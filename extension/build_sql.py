@@ -9,8 +9,8 @@ or a virtualenv, and needs no SPI call to get it (SPI would make the functions u
 queries). {{STANDARD_JOINTS}} and {{FEATURES}} become SQL arrays of the kernel's constants.
 
 Upgrade scripts come from sql/upgrades/OLD--NEW.sql: hand-written steps whose '--@include FILE' lines pull
-in files of sql/ (objects new in NEW), followed by every other PL/Python function re-created with NEW's
-kernel. When the version after NEW starts, freeze the generated script in git and delete its source, so
+in files of sql/ (objects new in NEW), and every other PL/Python function re-created with NEW's kernel: at
+a '--@functions' line, so that the steps after it run NEW's code (a data migration), else at the end. When the version after NEW starts, freeze the generated script in git and delete its source, so
 later edits of sql/ cannot change an old upgrade.
 """
 import functools
@@ -111,17 +111,21 @@ def build_upgrade(source: pathlib.Path) -> str:
     version = source.stem.split("--")[1]
     parts = [f"\\echo Use \"ALTER EXTENSION modb UPDATE TO '{version}'\" to load this file. \\quit\n"]
     included = set()
-    for line in source.read_text().splitlines():
+    steps = source.read_text().splitlines()
+    if "--@functions" not in steps:
+        steps.append("--@functions")
+    for line in steps:
         if line.startswith("--@include "):
             name = line.split(maxsplit=1)[1]
             included.add(name)
             parts.append(f"-- {name}\n" + _expand((HERE / "sql" / name).read_text(), version))
+        elif line == "--@functions":
+            parts.append(f"-- PL/Python functions re-created with the {version} kernel")
+            for path in sorted((HERE / "sql").glob("*.sql")):
+                if path.name not in included:
+                    parts.extend(_expand(m.group(0), version) for m in PLPYTHON_FUNCTION.finditer(path.read_text()))
         else:
             parts.append(line)
-    parts.append(f"-- PL/Python functions re-created with the {version} kernel")
-    for path in sorted((HERE / "sql").glob("*.sql")):
-        if path.name not in included:
-            parts.extend(_expand(m.group(0), version) for m in PLPYTHON_FUNCTION.finditer(path.read_text()))
     return "\n".join(parts)
 
 

