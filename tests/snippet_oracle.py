@@ -18,7 +18,8 @@ STANDARD = ["pelvis", "spine", "chest", "neck", "head",
 FEATURE_POS = ["head", "left_wrist", "right_wrist", "left_ankle", "right_ankle"]
 FEATURE_VEL = ["pelvis", "left_ankle", "right_ankle"]
 KNOBS = ("joints", "norm", "position_threshold", "angle_threshold", "velocity_threshold",
-         "angular_velocity_threshold", "velocity_terms", "heading_weight", "continuity_weight")
+         "angular_velocity_threshold", "velocity_terms", "heading_weight", "continuity_weight",
+         "lookahead_distance")
 
 
 def _rot(q: np.ndarray) -> Rotation:
@@ -124,6 +125,7 @@ def resolve_profile(settings: dict, knobs: dict) -> dict:
         "joints": included, "norm": settings.get("norm", "l2"),
         "velocity_terms": settings.get("velocity_terms", True), "heading_weight": float(settings.get("heading_weight", 0)),
         "continuity_weight": float(settings.get("continuity_weight", 0)),
+        "lookahead_distance": None if settings.get("lookahead_distance") is None else float(settings["lookahead_distance"]),
         **{k: np.array([per_joint(settings[k], STANDARD[j]) for j in included])
            for k in ("position_threshold", "angle_threshold", "velocity_threshold", "angular_velocity_threshold")},
     }
@@ -146,8 +148,13 @@ def ratios(prev: dict, cand: dict, plan: dict) -> np.ndarray:
     return np.max(np.concatenate(terms, axis=1), axis=1)
 
 
-def target_cost(net: np.ndarray, turn: np.ndarray, target, heading_weight: float) -> np.ndarray:
+def target_cost(net: np.ndarray, turn: np.ndarray, target, heading_weight: float,
+                lookahead: float | None = None) -> np.ndarray:
     t = np.asarray(target, dtype=np.float64)
+    ground = np.array([0, -1]) if len(t) == 2 else np.array([0, 2])
+    reach = np.hypot(*t[ground])
+    if lookahead is not None and reach > lookahead:  # score against the point that far toward the target
+        t[ground] *= lookahead / reach
     if len(t) == 3:
         d = np.linalg.norm(net - t, axis=1)
     else:
@@ -216,7 +223,8 @@ def select(space: dict, prev_id, target, plan: dict, collections=None, exclude=(
         cand_lo, cand_hi = space["first"] + 1, space["first"] + space["n"] - 1
         ex_lo, ex_hi = space["first"][k] + 1, space["first"][k] + space["n"][k] - 1
         ok &= ~(same & (ex_lo <= cand_hi) & (cand_lo <= ex_hi))
-    cost = target_cost(space["future"], space["future_turn"], target, plan["heading_weight"])
+    cost = target_cost(space["future"], space["future_turn"], target, plan["heading_weight"],
+                       plan["lookahead_distance"])
     if prev_id is None:
         level = np.zeros(len(ids), dtype=int)
         order_key = cost

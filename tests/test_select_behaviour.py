@@ -242,6 +242,8 @@ BAD_PARAMETER, RAISED = psycopg.errors.InvalidParameterValue, psycopg.errors.Rai
      "heading_weight must not be negative"),
     ("SET modb.continuity_weight = '-1'", "SELECT * FROM modb.select_next_snippet(NULL, '{0,1}')", RAISED,
      "continuity_weight must not be negative"),
+    ("SET modb.lookahead_distance = '0'", "SELECT * FROM modb.select_next_snippet(NULL, '{0,1}')", RAISED,
+     "lookahead_distance must be positive"),
 ])
 def test_requests_that_cannot_be_answered_are_errors(cmu, setting, call, error, message):
     with connect(cmu) as conn:

@@ -61,6 +61,7 @@ PROFILES = [("default", {}), ("strict", {}), ("locomotion", {}),
             ("default", {"joints": "pelvis,left_ankle,right_ankle", "position_threshold": "0.05"}),
             ("locomotion", {"angle_threshold": "0.2", "heading_weight": "1.5"}),
             ("locomotion", {"continuity_weight": "2"}),
+            ("default", {"lookahead_distance": "0.8"}),
             # tight enough that most answers come from relaxation levels 1-4
             ("strict", {"position_threshold": "0.01", "angle_threshold": "0.05", "velocity_threshold": "0.05",
                         "angular_velocity_threshold": "0.5"})]

@@ -87,7 +87,8 @@ CREATE TYPE modb.match_plan AS (
     velocity_terms             boolean,
     heading_weight             float8,
     box_half_width             float8[],
-    continuity_weight          float8
+    continuity_weight          float8,
+    lookahead_distance         float8
 );
 COMMENT ON TYPE modb.match_plan IS
     'A profile resolved for one query: included joints (0-based standard indices), thresholds per standard joint (Infinity when not included), the half-widths of the search box per feature, and the objective''s weights';

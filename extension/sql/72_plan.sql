@@ -5,7 +5,7 @@ CREATE OR REPLACE FUNCTION modb.match_knobs()
 RETURNS text[]
 LANGUAGE sql IMMUTABLE STRICT PARALLEL SAFE
 RETURN ARRAY['joints', 'norm', 'position_threshold', 'angle_threshold', 'velocity_threshold',
-             'angular_velocity_threshold', 'velocity_terms', 'heading_weight', 'continuity_weight'];
+             'angular_velocity_threshold', 'velocity_terms', 'heading_weight', 'continuity_weight', 'lookahead_distance'];
 COMMENT ON FUNCTION modb.match_knobs() IS 'Settings a session may override with SET modb.<knob> = ...';
 
 CREATE OR REPLACE FUNCTION modb.match_plan(profile text)
@@ -67,6 +67,9 @@ BEGIN
     IF coalesce((settings->>'continuity_weight')::float8, 0) < 0 THEN
         RAISE EXCEPTION 'profile "%": continuity_weight must not be negative', profile;
     END IF;
+    IF NOT coalesce((settings->>'lookahead_distance')::float8, 1) > 0 THEN
+        RAISE EXCEPTION 'profile "%": lookahead_distance must be positive (or absent: score against the goal itself)', profile;
+    END IF;
     plan.norm := coalesce(settings->>'norm', 'l2');
     IF plan.norm NOT IN ('l1', 'l2') THEN
         RAISE EXCEPTION 'norm must be l1 or l2, not "%"', plan.norm;
@@ -74,6 +77,7 @@ BEGIN
     plan.velocity_terms := coalesce((settings->>'velocity_terms')::boolean, true);
     plan.heading_weight := coalesce((settings->>'heading_weight')::float8, 0);
     plan.continuity_weight := coalesce((settings->>'continuity_weight')::float8, 0);
+    plan.lookahead_distance := (settings->>'lookahead_distance')::float8;
     plan.joints := ARRAY(SELECT array_position(names, j) - 1 FROM unnest(joint_names) WITH ORDINALITY t(j, n) ORDER BY n);
     plan.position_threshold := modb._thresholds(settings->'position_threshold', names, joint_names);
     plan.angle_threshold := modb._thresholds(settings->'angle_threshold', names, joint_names);
@@ -99,3 +103,16 @@ $$;
 COMMENT ON FUNCTION modb.match_plan(text) IS
     'Resolves a match profile with this session''s SET modb.<knob> overrides; an unknown profile or knob is an error';
 
+CREATE OR REPLACE FUNCTION modb.aim_point(target float8[], lookahead_distance float8)
+RETURNS float8[]
+LANGUAGE sql IMMUTABLE CALLED ON NULL INPUT PARALLEL SAFE
+-- Scales the ground part ({x, z}, or x and z of {x, y, z}) down to lookahead_distance; NULL: the target.
+RETURN CASE WHEN lookahead_distance IS NULL OR lookahead_distance >= sqrt(target[1] ^ 2 + target[array_length(target, 1)] ^ 2)
+            THEN target
+            WHEN array_length(target, 1) = 3
+            THEN ARRAY[target[1] * lookahead_distance / sqrt(target[1] ^ 2 + target[3] ^ 2), target[2],
+                       target[3] * lookahead_distance / sqrt(target[1] ^ 2 + target[3] ^ 2)]
+            ELSE ARRAY[target[1] * lookahead_distance / sqrt(target[1] ^ 2 + target[2] ^ 2),
+                       target[2] * lookahead_distance / sqrt(target[1] ^ 2 + target[2] ^ 2)] END;
+COMMENT ON FUNCTION modb.aim_point(float8[], float8) IS
+    'The point the objective scores against: the target, or the point lookahead_distance metres (on the ground) along the way to it when it is farther';

@@ -5,8 +5,10 @@
 -- frames of real walking and running (Bandai dataset 2 locomotion, 30 fps: neck 2.1, spine 2.7, knees 21
 -- degrees per frame), so that a seam looks like a natural step (README "Synthesis quality"); a heading
 -- term of 1 m per radian turns the avatar toward its goal, and continuity_weight 0.3 m per unit of
--- continuity ratio keeps the smoother candidate unless another leads clearly better. strict: half the
--- thresholds.
+-- continuity ratio keeps the smoother candidate unless another leads clearly better; lookahead_distance
+-- 2.5 m (about where a walk leads in the 1.5 s the objective sees) scores a far goal as a point that far
+-- along the way, so that it does not favour runs, which in this data never turn (README "Synthesis
+-- quality"). strict: half the thresholds.
 
 INSERT INTO modb.match_profiles AS p (name, settings, comment, shipped) VALUES
 ('default', '{"joints": ["pelvis", "spine", "chest", "neck", "head", "left_hip", "left_knee", "left_ankle", "left_toe",
@@ -21,7 +23,7 @@ INSERT INTO modb.match_profiles AS p (name, settings, comment, shipped) VALUES
               "velocity_threshold": {"default": 0.6, "left_wrist": 1.0, "right_wrist": 1.0, "left_elbow": 0.8,
               "right_elbow": 0.8},
               "angular_velocity_threshold": {"default": 4.0}, "velocity_terms": true, "heading_weight": 1.0,
-              "continuity_weight": 0.3}',
+              "continuity_weight": 0.3, "lookahead_distance": 2.5}',
  'Whole body: feet, hands and head within centimetres, each joint within its natural frame-to-frame change at 30 fps, velocities matched; the smoother candidate wins unless another leads clearly better toward the goal', true),
 ('strict', '{"joints": ["pelvis", "spine", "chest", "neck", "head", "left_hip", "left_knee", "left_ankle", "left_toe",
              "right_hip", "right_knee", "right_ankle", "right_toe", "left_shoulder", "left_elbow", "left_wrist",
@@ -32,13 +34,14 @@ INSERT INTO modb.match_profiles AS p (name, settings, comment, shipped) VALUES
              "left_ankle": 0.17, "right_ankle": 0.17, "left_toe": 0.18, "right_toe": 0.18, "left_shoulder": 0.145,
              "right_shoulder": 0.145, "left_elbow": 0.17, "right_elbow": 0.17, "left_wrist": 0.0465, "right_wrist": 0.0465},
              "velocity_threshold": {"default": 0.3}, "angular_velocity_threshold": {"default": 2.0},
-             "velocity_terms": true, "heading_weight": 1.0, "continuity_weight": 0.3}',
+             "velocity_terms": true, "heading_weight": 1.0, "continuity_weight": 0.3,
+             "lookahead_distance": 2.5}',
  'Half the default thresholds: smoother seams, more relaxation', true),
 ('locomotion', '{"joints": ["pelvis", "left_hip", "left_knee", "left_ankle", "left_toe", "right_hip", "right_knee",
                  "right_ankle", "right_toe"],
                  "norm": "l1", "position_threshold": {"default": 0.15}, "angle_threshold": {"default": 0.5},
                  "velocity_threshold": {"default": 0.7}, "angular_velocity_threshold": {"default": 5.0},
-                 "velocity_terms": true, "heading_weight": 0.3}',
+                 "velocity_terms": true, "heading_weight": 0.3, "lookahead_distance": 2.5}',
  'Lower body only, L1 positions, and a heading term: for walking to goals', true)
 ON CONFLICT (name) DO UPDATE SET settings = excluded.settings, comment = excluded.comment
  WHERE p.shipped;

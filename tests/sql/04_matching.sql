@@ -1,7 +1,7 @@
 -- The quaternion-angle operator and the configuration-level functions, on known values.
 BEGIN;
 CREATE EXTENSION IF NOT EXISTS pgtap;
-SELECT plan(18);
+SELECT plan(22);
 
 SELECT is(round(('{1,0,0,0}'::float8[] OPERATOR(modb.<%>) ARRAY[cos(pi() / 4), sin(pi() / 4), 0, 0])::numeric, 12),
           round((pi() / 2)::numeric, 12), '90 degrees about x');
@@ -39,6 +39,10 @@ SELECT is((SELECT array_agg(round(v::numeric, 9)) FROM unnest(modb.world_to_loca
           '{1,5,0}'::numeric[], 'facing +Z, a goal one metre to +X is one metre to the left');
 SELECT is((SELECT array_agg(round(v::numeric, 9)) FROM unnest(modb.world_to_local('{0,0,0}', pi() / 2, '{1,2,3}')) v),
           '{-3,2,1}'::numeric[], 'facing +X, a {x, y, z} goal at (1, 2, 3) is 1 m ahead, 2 m up, 3 m to the right');
+SELECT is(modb.aim_point('{3,4}', 2.5), '{1.5,2}'::float8[], 'a far target: the point 2.5 m toward it');
+SELECT is(modb.aim_point('{3,7,4}', 1), '{0.6,7,0.8}'::float8[], '{x, y, z}: the ground part scaled, y kept');
+SELECT is(modb.aim_point('{1,1}', 2.5), '{1,1}'::float8[], 'a target nearer than the lookahead: itself');
+SELECT is(modb.aim_point('{30,40}', NULL), '{30,40}'::float8[], 'no lookahead: the target itself');
 SELECT throws_ok($$SELECT modb.match_plan('no such profile')$$, 'P0001', 'unknown match profile "no such profile"',
                  'an unknown profile is an error');
 

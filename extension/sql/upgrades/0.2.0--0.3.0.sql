@@ -16,7 +16,7 @@ COMMENT ON COLUMN modb.snippets.future_heading IS 'The heading change over the s
 --@include 71_futures.sql
 SELECT modb.fill_futures();
 
-ALTER TYPE modb.match_plan ADD ATTRIBUTE continuity_weight float8;
+ALTER TYPE modb.match_plan ADD ATTRIBUTE continuity_weight float8, ADD ATTRIBUTE lookahead_distance float8;
 COMMENT ON TYPE modb.match_plan IS
     'A profile resolved for one query: included joints (0-based standard indices), thresholds per standard joint (Infinity when not included), the half-widths of the search box per feature, and the objective''s weights';
 --@include 72_plan.sql
