@@ -10,8 +10,9 @@ queries). {{STANDARD_JOINTS}} and {{FEATURES}} become SQL arrays of the kernel's
 
 Upgrade scripts come from sql/upgrades/OLD--NEW.sql: hand-written steps whose '--@include FILE' lines pull
 in files of sql/ (objects new in NEW), and every other PL/Python function re-created with NEW's kernel: at
-a '--@functions' line, so that the steps after it run NEW's code (a data migration), else at the end. When the version after NEW starts, freeze the generated script in git and delete its source, so
-later edits of sql/ cannot change an old upgrade.
+a '--@functions' line, so that the steps after it run NEW's code (a data migration), else at the end.
+When the version after NEW starts, freeze the generated script in git and delete its source, so later
+edits of sql/ cannot change an old upgrade.
 """
 import functools
 import pathlib

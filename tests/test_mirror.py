@@ -25,7 +25,9 @@ def _args(motion: Motion):
         motion.translations, sk.translated
 
 
-def _cmu(name: str) -> Motion:
+def _clip(name: str) -> Motion:
+    if name == "bandai-walk":
+        return read_bvh(str(mocap("bandai-1", "data", "dataset-1_walk_active_001.bvh")))
     return read_amc(str(mocap("cmu", "131", f"{name}.amc")), read_asf(str(mocap("cmu", "131", "131.asf"))))
 
 
@@ -42,10 +44,9 @@ def test_one_convention_for_every_locomotion_clip_of_a_skeleton():
     assert len(conventions) == 1, {k[:8]: v[:3] for k, v in conventions.items()}
 
 
-@pytest.mark.parametrize("clip", ["bandai-walk", "cmu-131_01"])
+@pytest.mark.parametrize("clip", ["bandai-walk", "131_01"])
 def test_mirroring_twice_gives_the_clip_back(clip):
-    motion = read_bvh(str(mocap("bandai-1", "data", "dataset-1_walk_active_001.bvh"))) if clip == "bandai-walk" \
-        else _cmu("131_01")
+    motion = _clip(clip)
     parents, offsets, ends, partner, rotations, translations, translated = _args(motion)
     once = mirror.mirror(parents, offsets, ends, partner, rotations, translations, translated)
     twice = mirror.mirror(parents, offsets, ends, partner, *once, translated)
@@ -53,12 +54,11 @@ def test_mirroring_twice_gives_the_clip_back(clip):
     assert np.abs(np.asarray(twice[1]) - translations).max() < 1e-12
 
 
-@pytest.mark.parametrize("clip, tolerance", [("bandai-walk", 1e-9), ("cmu-131_01", 0.04)])
+@pytest.mark.parametrize("clip, tolerance", [("bandai-walk", 1e-9), ("131_01", 0.04)])
 def test_mirrored_positions_are_the_captured_ones_reflected(clip, tolerance):
     """Exact for Bandai's symmetric skeleton; CMU 131's captured skeleton differs by up to a few cm between
     sides (its arms; the neck leans 7 degrees), which mirroring keeps."""
-    motion = read_bvh(str(mocap("bandai-1", "data", "dataset-1_walk_active_001.bvh"))) if clip == "bandai-walk" \
-        else _cmu("131_01")
+    motion = _clip(clip)
     parents, offsets, ends, partner, rotations, translations, translated = _args(motion)
     mirrored = mirror.mirror(parents, offsets, ends, partner, rotations, translations, translated)
     captured_p, _ = kinematics.world_transforms(parents, offsets, rotations, translations, translated)

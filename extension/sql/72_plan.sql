@@ -107,12 +107,10 @@ CREATE OR REPLACE FUNCTION modb.aim_point(target float8[], lookahead_distance fl
 RETURNS float8[]
 LANGUAGE sql IMMUTABLE CALLED ON NULL INPUT PARALLEL SAFE
 -- Scales the ground part ({x, z}, or x and z of {x, y, z}) down to lookahead_distance; NULL: the target.
-RETURN CASE WHEN lookahead_distance IS NULL OR lookahead_distance >= sqrt(target[1] ^ 2 + target[array_length(target, 1)] ^ 2)
-            THEN target
-            WHEN array_length(target, 1) = 3
-            THEN ARRAY[target[1] * lookahead_distance / sqrt(target[1] ^ 2 + target[3] ^ 2), target[2],
-                       target[3] * lookahead_distance / sqrt(target[1] ^ 2 + target[3] ^ 2)]
-            ELSE ARRAY[target[1] * lookahead_distance / sqrt(target[1] ^ 2 + target[2] ^ 2),
-                       target[2] * lookahead_distance / sqrt(target[1] ^ 2 + target[2] ^ 2)] END;
+RETURN (SELECT CASE WHEN lookahead_distance IS NULL OR lookahead_distance >= ground THEN target
+                    WHEN array_length(target, 1) = 3
+                    THEN ARRAY[target[1] * lookahead_distance / ground, target[2], target[3] * lookahead_distance / ground]
+                    ELSE ARRAY[target[1] * lookahead_distance / ground, target[2] * lookahead_distance / ground] END
+          FROM (SELECT sqrt(target[1] ^ 2 + target[array_length(target, 1)] ^ 2) AS ground) g);
 COMMENT ON FUNCTION modb.aim_point(float8[], float8) IS
     'The point the objective scores against: the target, or the point lookahead_distance metres (on the ground) along the way to it when it is farther';

@@ -159,8 +159,8 @@ def frame_reflections(parents, offsets, end_sites, partner, lateral_axes, mean_r
             candidates = [_turning(m @ pairs[0][0], pairs[0][1]) @ m for m in CANDIDATES]
         if len(candidates) == 1:
             out[j] = candidates[0]
-        elif partner[j] == j and _nearest_flip(candidates, lateral_axes[j]) is not None:
-            out[j] = _nearest_flip(candidates, lateral_axes[j])
+        elif partner[j] == j and (flip := _nearest_flip(candidates, lateral_axes[j])) is not None:
+            out[j] = flip
         elif any(np.allclose(m, above) for m in candidates):
             out[j] = above
         elif partner[j] != j and any(np.allclose(m, -np.eye(3)) for m in candidates):
