@@ -9,7 +9,7 @@ DATA ?= $(abspath ../shared/mocap)
 SUDO := $(if $(filter 0,$(shell id -u)),,sudo)
 # cube ships in postgresql-15 itself.
 APT_PACKAGES := postgresql-15 postgresql-plpython3-15 postgresql-15-pgtap gcc make \
-	libtap-parser-sourcehandler-pgtap-perl postgresql-server-dev-15 python3-numpy python3-venv
+	libtap-parser-sourcehandler-pgtap-perl postgresql-server-dev-15 python3-numpy python3-scipy python3-venv
 EXTVERSION := $(shell sed -n "s/^default_version *= *'\(.*\)'/\1/p" extension/modb.control)
 
 .PHONY: setup apt extension venv test demo bench-load bench-select bench-synth clean

@@ -50,6 +50,7 @@ class Settings:
     """What the next selections use; changes apply from the next query on."""
     profile: str = "default"
     collection: str | None = None
+    graph: str | None = None  # a transition graph (modb.build_transition_graph): choose among its snippets only
     arrival_radius: float = 0.5  # metres, pelvis to goal on the ground, checked at snippet ends
     exclude_seconds: float = 2.0  # snippets played this recently are passed as `exclude`
     lead_time: float = 0.0  # seconds before a snippet ends at which the next query is issued
@@ -114,6 +115,7 @@ class Avatar:
         self._started = False
         self.library = FrameLibrary(self.conn)
         self.choices: list[Choice] = []
+        self._graph_set: str | None = None  # what this avatar last SET modb.graph to on its connection
 
     # Goals may change at any time (from another thread too): they apply to the next query issued.
     def set_goal(self, goal: Goal) -> None:
@@ -188,7 +190,7 @@ class Avatar:
             exclude = [i for i, _ in self._recent]
         return {"prev": None if previous is None else previous.snippet_id, "position": list(where.position),
                 "heading": where.heading, "target": list(target), "profile": s.profile,
-                "collection": s.collection, "exclude": exclude, "goal": goal_index + 1, "where": where,
+                "collection": s.collection, "graph": s.graph, "exclude": exclude, "goal": goal_index + 1, "where": where,
                 "start_frame": 0 if previous is None else previous.end_frame,
                 "step": 0 if previous is None else previous.step + 1,
                 "arrival_radius": s.arrival_radius, "fps": None if previous is None else previous.fps}
@@ -201,6 +203,9 @@ class Avatar:
             if row is None:
                 raise NoContinuation(f"no snippet {self.start_snippet} (start_snippet is a modb.snippets id)")
         else:
+            if request["graph"] != self._graph_set:  # a knob of the session, like SET modb.graph in psql
+                self.conn.execute("SELECT set_config('modb.graph', %s, false)", [request["graph"] or ""])
+                self._graph_set = request["graph"]
             query = {k: request[k] for k in ("prev", "position", "heading", "target", "profile", "collection",
                                               "exclude")}
             row = self.conn.execute(_SELECT, query).fetchone()

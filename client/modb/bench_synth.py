@@ -32,8 +32,12 @@ def seeded_course(seed: int, n_goals: int, near: float = 1.0, far: float = 20.0)
     return goals
 
 
+GRAPH = "locomotion"  # the transition graph locomotion_database builds
+
+
 def locomotion_database(folder: Path, modb: Callable[[Sequence[str]], int]) -> str:
-    """A fresh database on the embedded cluster holding the locomotion clips of a Bandai dataset 2 folder."""
+    """A fresh database on the embedded cluster holding the locomotion clips of a Bandai dataset 2 folder,
+    and their transition graph GRAPH (default profile)."""
     files = [str(f) for f in locomotion_files(folder)]
     if not files:
         raise RuntimeError(f"no Bandai dataset 2 locomotion files (dataset-2_walk_*.bvh, ...) in {folder}")
@@ -46,4 +50,6 @@ def locomotion_database(folder: Path, modb: Callable[[Sequence[str]], int]) -> s
         conn.execute("CREATE EXTENSION modb CASCADE")
     if modb(["--dsn", cluster.dsn(DATABASE), "load", *files, "--collection", "locomotion", "--quiet"]) != 0:
         raise RuntimeError(f"loading {folder} failed")
+    if modb(["--dsn", cluster.dsn(DATABASE), "graph", "build", GRAPH, "--collection", "locomotion", "--quiet"]) != 0:
+        raise RuntimeError(f"building the transition graph of {folder} failed")
     return cluster.dsn(DATABASE)

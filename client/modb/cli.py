@@ -1,4 +1,4 @@
-"""The `modb` command: load, export, list, synth, demo, bench, db."""
+"""The `modb` command: load, export, list, synth, graph, demo, bench, db."""
 from __future__ import annotations
 
 import argparse
@@ -97,7 +97,8 @@ def cmd_synth(args: argparse.Namespace) -> int:
         print("modb synth: --seconds must be positive", file=sys.stderr)
         return 2
     try:
-        settings = Settings(profile=args.profile, collection=args.collection, arrival_radius=args.arrival_radius,
+        settings = Settings(profile=args.profile, collection=args.collection, graph=args.graph,
+                            arrival_radius=args.arrival_radius,
                             exclude_seconds=args.exclude_seconds, lead_time=args.lead_time, blend_frames=args.blend)
     except ValueError as e:  # named by the setting: --lead-time is lead_time
         print(f"modb synth: {e}", file=sys.stderr)
@@ -183,12 +184,14 @@ def cmd_bench(args: argparse.Namespace) -> int:
         from .synth import format_summary, report, synthesize
 
         goals = seeded_course(args.seed, n_goals=int(args.seconds // 5) + 1)
-        if args.data:  # a fresh database of the locomotion files in the embedded cluster
+        if args.data:  # a fresh database of the locomotion files in the embedded cluster, graph "locomotion" built
             args.dsn, args.collection = locomotion_database(Path(args.data), main), "locomotion"
         with _connect(args) as conn:
-            result = synthesize(conn, goals, args.seconds, Settings(profile=args.profile, collection=args.collection))
+            settings = Settings(profile=args.profile, collection=args.collection, graph=args.graph)
+            result = synthesize(conn, goals, args.seconds, settings)
             summary = format_summary(result, report(conn, result, args.collection))
-        print(f"seeded course (seed {args.seed}, goals 1-20 m apart), {args.seconds:g} s, profile {args.profile}:")
+        graph = f", graph {args.graph}" if args.graph else ""
+        print(f"seeded course (seed {args.seed}, goals 1-20 m apart), {args.seconds:g} s, profile {args.profile}{graph}:")
         print(summary)  # `modb synth --report` also lists every choice
         return 0
     if args.what == "select":
@@ -221,6 +224,29 @@ def cmd_bench(args: argparse.Namespace) -> int:
     parse = bench_parse(files, args.rounds)
     load = bench_load(files, args.rounds, admin, make_dsn)
     print(report(folder, parse, load))
+    return 0
+
+
+def cmd_graph(args: argparse.Namespace) -> int:
+    from .graphs import build_graph, describe, list_graphs
+
+    with _connect(args) as conn:
+        if args.action == "list":
+            for g in list_graphs(conn):
+                print(describe(g))
+            return 0
+        if not args.name:
+            print("modb graph build: name the graph (e.g. modb graph build locomotion --collection locomotion)",
+                  file=sys.stderr)
+            return 2
+        try:
+            g = build_graph(conn, args.name, args.profile, args.collection,
+                            progress=None if args.quiet else lambda text: print(text, file=sys.stderr))
+        except psycopg.Error as e:
+            print(f"modb graph build: {e.diag.message_primary or e}"
+                  + (f" ({e.diag.message_hint})" if e.diag.message_hint else ""), file=sys.stderr)
+            return 1
+        print(describe(g))
     return 0
 
 
@@ -286,6 +312,7 @@ def build_parser() -> argparse.ArgumentParser:
     synth.add_argument("--collection", help="draw snippets from this collection (and those below it)")
     synth.add_argument("--start", type=int, help="the first snippet (default: the best one for the first goal)")
     synth.add_argument("--profile", default="default", help="match profile (modb.match_profiles)")
+    synth.add_argument("--graph", help="choose among this transition graph's snippets only (`modb graph build`)")
     synth.add_argument("--arrival-radius", type=float, default=0.5, help="metres (default 0.5)")
     synth.add_argument("--exclude-seconds", type=float, default=2.0,
                        help="do not replay frames played this recently (default 2)")
@@ -314,10 +341,19 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--profile", default="default", help="select, synth: match profile")
     bench.add_argument("--seconds", type=float, default=600.0, help="synth: length of the course")
     bench.add_argument("--collection", help="synth: draw snippets from this collection")
+    bench.add_argument("--graph", help="synth: choose among this transition graph's snippets only")
     bench.add_argument("--data", help="load: folder of .bvh files (default ../shared/mocap/bandai-1); synth: "
                                       "bandai-2-dev/data, whose walks, turns and runs go into a fresh database")
     bench.add_argument("--rounds", type=int, default=3, help="load: rounds")
     bench.set_defaults(func=cmd_bench)
+
+    graph = sub.add_parser("graph", help="transition graphs: the snippets a chain can keep moving among")
+    graph.add_argument("action", choices=["build", "list"])
+    graph.add_argument("name", nargs="?", help="build: the graph's name (rebuilt when it exists)")
+    graph.add_argument("--profile", default="default", help="build: the match profile whose level 0 is an edge")
+    graph.add_argument("--collection", help="build: snippets of this collection (and those below it) only")
+    graph.add_argument("-q", "--quiet", action="store_true", help="no progress")
+    graph.set_defaults(func=cmd_graph)
 
     db = sub.add_parser("db", help="the embedded database cluster")
     db.add_argument("action", choices=["start", "stop", "status", "url"])

@@ -5,7 +5,8 @@ CREATE OR REPLACE FUNCTION modb.match_knobs()
 RETURNS text[]
 LANGUAGE sql IMMUTABLE STRICT PARALLEL SAFE
 RETURN ARRAY['joints', 'norm', 'position_threshold', 'angle_threshold', 'velocity_threshold',
-             'angular_velocity_threshold', 'velocity_terms', 'heading_weight', 'continuity_weight', 'lookahead_distance'];
+             'angular_velocity_threshold', 'velocity_terms', 'heading_weight', 'continuity_weight', 'lookahead_distance',
+             'graph'];
 COMMENT ON FUNCTION modb.match_knobs() IS 'Settings a session may override with SET modb.<knob> = ...';
 
 CREATE OR REPLACE FUNCTION modb.match_plan(profile text)
@@ -45,6 +46,7 @@ BEGIN
         settings := settings || jsonb_build_object(knob, CASE
             WHEN knob = 'joints' THEN to_jsonb(string_to_array(replace(value, ' ', ''), ','))
             WHEN knob = 'norm' THEN to_jsonb(lower(value))
+            WHEN knob = 'graph' THEN to_jsonb(value)
             WHEN knob = 'velocity_terms' THEN to_jsonb(value::boolean)
             WHEN knob LIKE '%threshold' THEN jsonb_build_object('default', value::float8)  -- one value for every joint
             ELSE to_jsonb(value::float8) END);
@@ -78,6 +80,13 @@ BEGIN
     plan.heading_weight := coalesce((settings->>'heading_weight')::float8, 0);
     plan.continuity_weight := coalesce((settings->>'continuity_weight')::float8, 0);
     plan.lookahead_distance := (settings->>'lookahead_distance')::float8;
+    IF settings ? 'graph' THEN
+        SELECT g.id INTO plan.graph_id FROM modb.graphs g WHERE g.name = settings->>'graph' AND g.kind = 'transitions';
+        IF NOT FOUND THEN
+            RAISE EXCEPTION 'no transition graph "%"', settings->>'graph'
+                USING HINT = 'build it with modb.build_transition_graph(''' || (settings->>'graph') || ''') or `modb graph build`';
+        END IF;
+    END IF;
     plan.joints := ARRAY(SELECT array_position(names, j) - 1 FROM unnest(joint_names) WITH ORDINALITY t(j, n) ORDER BY n);
     plan.position_threshold := modb._thresholds(settings->'position_threshold', names, joint_names);
     plan.angle_threshold := modb._thresholds(settings->'angle_threshold', names, joint_names);

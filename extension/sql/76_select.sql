@@ -25,11 +25,15 @@ WITH cfg AS MATERIALIZED (
      WHERE s.id = prev_snippet
        AND (SELECT checked FROM cfg)  -- every path reads prev or cfg first: bad requests always raise
 ), candidates AS NOT MATERIALIZED (
-    -- The filters every level shares: same skeleton poses and rate, the collection, and no replay of a
+    -- The filters every level shares: same skeleton poses and rate, the collection, the transition graph
+    -- (when the plan names one: its snippets never lead into a dead end), and no replay of a
     -- frame the previous snippet or a recent one covered (its first frame, the seam, aside).
     SELECT s.*
       FROM modb.snippets s
      WHERE (collection IS NULL OR s.collection_id = ANY ((SELECT collections FROM cfg)::bigint[]))
+       AND ((SELECT (plan).graph_id FROM cfg) IS NULL
+            OR EXISTS (SELECT FROM modb.graph_snippets g
+                        WHERE g.graph_id = (SELECT (plan).graph_id FROM cfg) AND g.snippet_id = s.id))
        AND NOT EXISTS (SELECT FROM modb.snippets x
                         WHERE (x.id = ANY (exclude) OR x.id = prev_snippet)
                           AND x.clip_id = s.clip_id AND x.version = s.version

@@ -1,0 +1,104 @@
+"""The transition graph of a snippet set: which snippet can follow which at relaxation level 0, and the
+part of it a chain can keep moving in (the largest strongly connected component, as in motion graphs).
+
+A snippet outside that component is a dead end: a chain that takes it can never come back to the rest
+of the data without relaxing continuity (in Bandai dataset 2, every run: from a run's end only runs
+pass the thresholds). Restricting the choice to the component keeps every chain where it can turn.
+
+The edge test is select_next_snippets' level 0, computed for all pairs at once: the same search box
+around the end's features, the same per-joint ratio (position by the norm, rotation angle, velocities)
+with the same float4 arithmetic, and the same rule against replaying the previous snippet's frames.
+Needs scipy (the server: Debian's python3-scipy) for the box search and the components.
+"""
+import numpy as np
+
+from . import quaternion
+
+BOX_MARGIN = 1e-4  # match_box's margin: terminators store float4, features float8
+
+
+class Terminators:
+    """Per terminator row i: positions, velocities, angular velocities (n, 19, 3), rotations (n, 19, 4)
+    as stored (float4), and features (n, 25)."""
+
+    def __init__(self, positions, rotations, velocities, angular_velocities, features):
+        n = len(features)
+        self.positions = np.asarray(positions, dtype=np.float32).reshape(n, -1, 3)
+        self.rotations = np.asarray(rotations, dtype=np.float32).reshape(n, -1, 4)
+        self.velocities = np.asarray(velocities, dtype=np.float32).reshape(n, -1, 3)
+        self.angular_velocities = np.asarray(angular_velocities, dtype=np.float32).reshape(n, -1, 3)
+        self.features = np.asarray(features, dtype=np.float64).reshape(n, -1)
+
+
+def _norm(a, b, norm):
+    d = (a - b).astype(np.float64)  # the SQL subtracts float4 values, then widens
+    return np.abs(d).sum(axis=-1) if norm == "l1" else np.sqrt((d * d).sum(axis=-1))
+
+
+def _within(term, src, dst, plan):
+    """Of the pairs (end terminator src[k], begin terminator dst[k]), those whose continuity ratio is at
+    most 1. Joint by joint, the tightest first, so most pairs are dropped after one or two joints."""
+    keep = np.ones(len(src), dtype=bool)
+    order = sorted(plan["joints"], key=lambda j: plan["angle_threshold"][j])
+    for j in order:
+        s, d = src[keep], dst[keep]
+        ok = quaternion.angle_between(term.rotations[s, j], term.rotations[d, j]) <= plan["angle_threshold"][j]
+        ok &= _norm(term.positions[s, j], term.positions[d, j], plan["norm"]) <= plan["position_threshold"][j]
+        if plan["velocity_terms"]:
+            ok &= _norm(term.velocities[s, j], term.velocities[d, j], "l2") <= plan["velocity_threshold"][j]
+            ok &= (_norm(term.angular_velocities[s, j], term.angular_velocities[d, j], "l2")
+                   <= plan["angular_velocity_threshold"][j])
+        keep[np.flatnonzero(keep)[~ok]] = False
+    return keep
+
+
+def edges(term, begin, end, group, clip, first_frame, n_frames, plan, chunk=2000, progress=None):
+    """Level-0 transitions (from snippet index, to snippet index) among snippets given by their begin and
+    end terminator rows in `term`, their pose/rate group, clip (and version, mirror: one key) and window.
+    progress(done) is called after each chunk of sources."""
+    from scipy.spatial import cKDTree
+
+    half = np.asarray(plan["box_half_width"], dtype=np.float64) + BOX_MARGIN
+    out_src, out_dst = [], []
+    done = 0
+    for g in np.unique(group):
+        members = np.flatnonzero(group == g)
+        tree = cKDTree(term.features[begin[members]] / half)
+        for lo in range(0, len(members), chunk):
+            sources = members[lo:lo + chunk]
+            done += len(sources)
+            near = tree.query_ball_point(term.features[end[sources]] / half, r=1.0, p=np.inf)
+            counts = np.fromiter((len(c) for c in near), dtype=np.int64, count=len(near))
+            if not counts.sum():
+                continue  # (progress is reported with the next chunk that has candidates)
+            s = np.repeat(sources, counts)
+            d = members[np.concatenate([np.asarray(c, dtype=np.int64) for c in near if len(c)])]
+            # No replay of the previous snippet's frames (its last frame, the seam, aside).
+            overlap = ((clip[s] == clip[d]) & (first_frame[s] + 1 <= first_frame[d] + n_frames[d] - 1)
+                       & (first_frame[d] + 1 <= first_frame[s] + n_frames[s] - 1))
+            s, d = s[~overlap], d[~overlap]
+            keep = _within(term, end[s], begin[d], plan)
+            out_src.append(s[keep])
+            out_dst.append(d[keep])
+            if progress:
+                progress(done)
+    if not out_src:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    return np.concatenate(out_src), np.concatenate(out_dst)
+
+
+def core(n, src, dst, group):
+    """Per snippet: True when it lies in the largest strongly connected component of its pose/rate group
+    (and that component has more than one snippet, so a chain in it can always move on)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    graph = coo_matrix((np.ones(len(src), dtype=np.int8), (src, dst)), shape=(n, n)).tocsr()
+    _, label = connected_components(graph, directed=True, connection="strong")
+    keep = np.zeros(n, dtype=bool)
+    for g in np.unique(group):
+        members = np.flatnonzero(group == g)
+        labels, sizes = np.unique(label[members], return_counts=True)
+        if sizes.max() > 1:
+            keep[members[label[members] == labels[sizes.argmax()]]] = True
+    return keep

@@ -1,0 +1,84 @@
+-- Transition graphs: which snippets a chain can keep moving among (modb_kernel/transitions.py says why).
+-- A graph is a modb.graphs row (kind 'transitions': how it was built and what it holds, in jsonb) and
+-- its snippets in modb.graph_snippets, which select_next_snippet reads when the `graph` knob names it.
+
+CREATE TABLE modb.graph_snippets (
+    graph_id   bigint NOT NULL REFERENCES modb.graphs (id) ON DELETE CASCADE,
+    snippet_id bigint NOT NULL REFERENCES modb.snippets (id) ON DELETE CASCADE,
+    PRIMARY KEY (graph_id, snippet_id)
+);
+COMMENT ON TABLE modb.graph_snippets IS
+    'The snippets of a transition graph''s largest strongly connected component: with SET modb.graph = ''<name>'' (or "graph" in a profile) select_next_snippet chooses among these only';
+CREATE INDEX graph_snippets_snippet_idx ON modb.graph_snippets (snippet_id);  -- for ON DELETE CASCADE
+SELECT pg_catalog.pg_extension_config_dump('modb.graph_snippets', '');
+
+CREATE OR REPLACE FUNCTION modb.build_transition_graph(name text, profile text DEFAULT 'default',
+                                                       collection text DEFAULT NULL)
+RETURNS bigint
+LANGUAGE plpython3u VOLATILE PARALLEL UNSAFE
+AS $py$
+#@modb_kernel
+import json
+import numpy as np
+
+T = kernel.transitions
+if not name:
+    plpy.error("a transition graph needs a name")
+plan = plpy.execute(plpy.prepare(
+    """SELECT to_jsonb(p) - 'box_half_width' AS shown, p.* FROM modb.match_plan($1) p""", ["text"]), [profile])[0]
+collections = None
+if collection is not None:
+    collections = plpy.execute(plpy.prepare("SELECT modb.collection_subtree($1) AS ids", ["text"]), [collection])[0]["ids"]
+    if not collections:
+        plpy.error(f'no collection "{collection}"', hint="modb.collection_path(id) names the stored ones")
+snippets = plpy.execute(plpy.prepare(
+    """SELECT s.id, s.begin_terminator, s.end_terminator, s.pose_key || '@' || s.fps AS grp,
+              s.clip_id || '/' || s.version || '/' || s.mirrored AS clip, s.first_frame, s.n_frames
+         FROM modb.snippets s WHERE $1::bigint[] IS NULL OR s.collection_id = ANY ($1) ORDER BY s.id""",
+    ["bigint[]"]), [collections])
+n = len(snippets)
+if n == 0:
+    plpy.error("no snippets to build a graph from" + (f' in collection "{collection}"' if collection else ""),
+               hint="`modb load` builds snippets")
+plpy.notice(f"modb: transition graph \"{name}\": reading the terminators of {n} snippets")
+terminators = plpy.execute(plpy.prepare(
+    """SELECT t.id, t.positions, t.rotations, t.velocities, t.angular_velocities,
+              (SELECT array_agg(cube_ll_coord(t.features, i) ORDER BY i) FROM generate_series(1, cube_dim(t.features)) i) AS features
+         FROM modb.terminators t
+        WHERE t.id IN (SELECT unnest(array[s.begin_terminator, s.end_terminator]) FROM modb.snippets s
+                        WHERE $1::bigint[] IS NULL OR s.collection_id = ANY ($1))""", ["bigint[]"]), [collections])
+row_of = {r["id"]: i for i, r in enumerate(terminators)}
+term = T.Terminators(*([r[c] for r in terminators] for c in
+                       ("positions", "rotations", "velocities", "angular_velocities", "features")))
+column = lambda key: [r[key] for r in snippets]
+keys = lambda values: np.unique(values, return_inverse=True)[1]
+begin = np.array([row_of[t] for t in column("begin_terminator")])
+end = np.array([row_of[t] for t in column("end_terminator")])
+group, clip = keys(column("grp")), keys(column("clip"))
+first_frame, n_frames = np.array(column("first_frame")), np.array(column("n_frames"))
+thresholds = {k: np.array(plan[k], dtype=np.float64) for k in
+              ("position_threshold", "angle_threshold", "velocity_threshold", "angular_velocity_threshold")}
+spec = dict(thresholds, joints=list(plan["joints"]), norm=plan["norm"], velocity_terms=plan["velocity_terms"],
+            box_half_width=plan["box_half_width"])
+src, dst = T.edges(term, begin, end, group, clip, first_frame, n_frames, spec,
+                   progress=lambda done: plpy.notice(f"modb: transition graph \"{name}\": {done}/{n} snippets"))
+keep = T.core(n, src, dst, group)
+ids = np.array(column("id"), dtype=np.int64)
+out_degree = np.bincount(src, minlength=n)
+data = {"profile": profile, "collection": collection, "plan": json.loads(plan["shown"]),
+        "snippets": n, "edges": int(len(src)), "kept": int(keep.sum()),
+        "dead_ends": int((out_degree == 0).sum()),
+        "edges_within_kept": int((keep[src] & keep[dst]).sum())}
+plpy.execute(plpy.prepare("DELETE FROM modb.graphs WHERE name = $1 AND kind = 'transitions'", ["text"]), [name])
+graph_id = plpy.execute(plpy.prepare(
+    "INSERT INTO modb.graphs (name, kind, data) VALUES ($1, 'transitions', $2::jsonb) RETURNING id",
+    ["text", "text"]), [name, json.dumps(data)])[0]["id"]
+plpy.execute(plpy.prepare(
+    "INSERT INTO modb.graph_snippets (graph_id, snippet_id) SELECT $1, unnest($2::bigint[])", ["bigint", "bigint[]"]),
+    [graph_id, ids[keep].tolist()])
+plpy.notice(f"modb: transition graph \"{name}\": kept {data['kept']} of {n} snippets "
+            f"({data['edges']} transitions, {data['dead_ends']} snippets with none)")
+return graph_id
+$py$;
+COMMENT ON FUNCTION modb.build_transition_graph(text, text, text) IS
+    'Builds (or rebuilds) the transition graph "name": every snippet (of the collection) that can follow another at relaxation level 0 of the profile, kept when it lies in the largest strongly connected component of its skeleton and rate, so a chain restricted to it (SET modb.graph) never runs into a dead end; returns the modb.graphs id. Rebuild after loading';

@@ -1,0 +1,14 @@
+-- 0.4.0: transition graphs. modb.build_transition_graph keeps the snippets a chain can keep moving among
+-- (the largest strongly connected component of level-0 transitions); the `graph` knob restricts
+-- select_next_snippet (and modb.synthesize) to them, so chains no longer run into dead ends.
+
+ALTER TYPE modb.match_plan ADD ATTRIBUTE graph_id bigint;
+COMMENT ON TYPE modb.match_plan IS
+    'A profile resolved for one query: included joints (0-based standard indices), thresholds per standard joint (Infinity when not included), the half-widths of the search box per feature, the objective''s weights, and the transition graph (modb.graphs id) candidates must belong to, if any';
+--@include 75_graphs.sql
+--@include 72_plan.sql
+--@include 76_select.sql
+GRANT SELECT ON modb.graph_snippets TO modb_reader;
+GRANT INSERT, DELETE ON modb.graph_snippets TO modb_loader;
+REVOKE EXECUTE ON FUNCTION modb.build_transition_graph(text, text, text) FROM PUBLIC;
+GRANT EXECUTE ON FUNCTION modb.build_transition_graph(text, text, text) TO modb_loader;
