@@ -19,7 +19,7 @@ FEATURE_POS = ["head", "left_wrist", "right_wrist", "left_ankle", "right_ankle"]
 FEATURE_VEL = ["pelvis", "left_ankle", "right_ankle"]
 KNOBS = ("joints", "norm", "position_threshold", "angle_threshold", "velocity_threshold",
          "angular_velocity_threshold", "velocity_terms", "heading_weight", "continuity_weight",
-         "lookahead_distance")
+         "lookahead_distance", "graph")
 
 
 def _rot(q: np.ndarray) -> Rotation:
@@ -164,6 +164,48 @@ def target_cost(net: np.ndarray, turn: np.ndarray, target, heading_weight: float
     return d + heading_weight * np.abs(wrapped)
 
 
+def level0_ratios(space: dict, members: np.ndarray, plan: dict) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """For each snippet index p of `members`: (indices of the members that may follow it, their ratios),
+    before the ratio test: same poses and rate, no replay of p's frames (the seam aside)."""
+    out = {}
+    cand = {k: space[k][members] for k in ("pos", "rot", "vel", "angvel")}
+    pose = np.array(space["pose"])[members]
+    for p in members:
+        ok = (pose == space["pose"][p]) & (space["fps"][members] == space["fps"][p])
+        same = (space["clip"][members] == space["clip"][p]) & (space["version"][members] == space["version"][p])
+        lo, hi = space["first"][members] + 1, space["first"][members] + space["n"][members] - 1
+        ok &= ~(same & (space["first"][p] + 1 <= hi) & (lo <= space["first"][p] + space["n"][p] - 1))
+        out[int(p)] = (members[ok], ratios(space["end"][p], {k: v[ok] for k, v in cand.items()}, plan))
+    return out
+
+
+def largest_strong_component(nodes, successors: dict) -> set:
+    """The largest set of nodes that all reach each other: for each node not yet placed, the nodes it
+    reaches that also reach it (two breadth-first searches)."""
+    predecessors: dict = {n: [] for n in nodes}
+    for n in nodes:
+        for m in successors[n]:
+            predecessors[m].append(n)
+
+    def reach(start, links):
+        seen, todo = {start}, [start]
+        while todo:
+            for m in links[todo.pop()]:
+                if m not in seen:
+                    seen.add(m)
+                    todo.append(m)
+        return seen
+
+    placed: set = set()
+    best: set = set()
+    for n in nodes:
+        if n not in placed:
+            component = reach(n, successors) & reach(n, predecessors)
+            placed |= component
+            best = max(best, component, key=len)
+    return best
+
+
 def levels(r: np.ndarray) -> np.ndarray:
     return np.select([r <= 1, r <= 2, r <= 4, r <= 8], [0, 1, 2, 3], 4)
 
@@ -179,7 +221,7 @@ def load_snippet_space(conn) -> dict:
     skeletons = {sid: (h, m) for sid, h, m in conn.execute("SELECT id, hierarchy, joint_map FROM modb.skeletons")}
     cache: dict = {}
     out = {k: [] for k in ("id", "clip", "version", "first", "n", "collection", "fps", "pose", "pos", "rot", "vel",
-                           "angvel", "feat", "future", "future_turn", "end")}
+                           "angvel", "feat", "net", "future", "future_turn", "end")}
     starts = {(clip, version, first) for _, clip, version, first, *_ in rows}
     for sid, clip, version, first, n_frames, collection, fps, skeleton in rows:
         if (clip, version) not in cache:
@@ -200,21 +242,27 @@ def load_snippet_space(conn) -> dict:
             out[key].append(arr[first])
         out["end"].append({"pos": t.pos[last], "rot": t.rot[last], "vel": t.vel[last], "angvel": t.angvel[last],
                            "feat": t.feat[last]})
+        to_local = _yaw([t.heading[first]]).inv()
+        out["net"].append(to_local.apply(t.pelvis[last] - t.pelvis[first])[0])
         # Where playing on leads: this window and up to two more, each starting on the last one's end.
         end = last
         for _ in range(2):
             if (clip, version, end) not in starts:
                 break
             end += n_frames - 1
-        out["future"].append(_yaw([t.heading[first]]).inv().apply(t.pelvis[end] - t.pelvis[first])[0])
+        out["future"].append(to_local.apply(t.pelvis[end] - t.pelvis[first])[0])
         out["future_turn"].append(np.angle(np.exp(1j * (t.heading[end] - t.heading[first]))))
     return {k: (np.array(v) if k not in ("end", "pose") else v) for k, v in out.items()}
 
 
-def select(space: dict, prev_id, target, plan: dict, collections=None, exclude=()) -> list[tuple[int, float, int, float]]:
-    """Every eligible snippet as (level, order key, id, continuity ratio), best first."""
+def select(space: dict, prev_id, target, plan: dict, collections=None, exclude=(),
+           graph=None) -> list[tuple[int, float, int, float]]:
+    """Every eligible snippet as (level, order key, id, continuity ratio), best first. graph: the snippet ids
+    of a transition graph, the only ones eligible."""
     ids = space["id"]
     ok = np.ones(len(ids), dtype=bool)
+    if graph is not None:
+        ok &= np.isin(ids, list(graph))
     if collections is not None:
         ok &= np.isin(space["collection"], list(collections))
     for x in set(exclude) | ({prev_id} if prev_id is not None else set()):  # prev's own frames: no replay
@@ -223,8 +271,9 @@ def select(space: dict, prev_id, target, plan: dict, collections=None, exclude=(
         cand_lo, cand_hi = space["first"] + 1, space["first"] + space["n"] - 1
         ex_lo, ex_hi = space["first"][k] + 1, space["first"][k] + space["n"][k] - 1
         ok &= ~(same & (ex_lo <= cand_hi) & (cand_lo <= ex_hi))
-    cost = target_cost(space["future"], space["future_turn"], target, plan["heading_weight"],
-                       plan["lookahead_distance"])
+    # The nearer of the snippet's end and where playing on leads (the heading term is the same for both).
+    cost = np.minimum(*(target_cost(space[at], space["future_turn"], target, plan["heading_weight"],
+                                    plan["lookahead_distance"]) for at in ("net", "future")))
     if prev_id is None:
         level = np.zeros(len(ids), dtype=int)
         order_key = cost

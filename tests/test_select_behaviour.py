@@ -133,7 +133,7 @@ MIRRORED_TERMINATORS = "SELECT c.name, t.frame, md5(t.rotations::text), md5(t.po
                        "JOIN modb.clips c ON c.id = t.clip_id WHERE t.mirrored ORDER BY 1, 2"
 
 
-@pytest.mark.parametrize("old", ["0.1.0", "0.2.0"])
+@pytest.mark.parametrize("old", ["0.1.0", "0.2.0", "0.3.0"])
 def test_update_keeps_the_data(cluster, fresh_db, db, old):
     current = db.execute("SELECT default_version FROM pg_available_extensions WHERE name = 'modb'").fetchone()[0]
     db.execute("DROP EXTENSION modb")
@@ -162,16 +162,24 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
         # 0.2.0's mirror images had rotations in other joint frames: the update rebuilt them, as a fresh
         # install's load would (compared after the reinstall below).
         updated_mirrored = db.execute(MIRRORED_TERMINATORS).fetchall()
-        assert len(updated_mirrored) == len(old_mirrored) and updated_mirrored != old_mirrored
+        assert len(updated_mirrored) == len(old_mirrored)
+        assert (updated_mirrored != old_mirrored) == (old == "0.2.0")
         assert db.execute("SELECT count(*) FROM modb.snippets WHERE mirrored").fetchone()[0] > 0
         assert db.execute("SELECT count(*) FROM modb.snippets WHERE future_translation IS NULL").fetchone()[0] == 0
         assert db.execute("SELECT settings FROM modb.match_profiles WHERE name = 'mine'").fetchone()[0] == mine
-        assert mine != db.execute("SELECT settings FROM modb.match_profiles WHERE name = 'default'").fetchone()[0]
+        if old == "0.2.0":  # 0.3.0 retuned the shipped default; the copy the user made keeps 0.2.0's
+            assert mine != db.execute("SELECT settings FROM modb.match_profiles WHERE name = 'default'").fetchone()[0]
     else:
         (added,) = db.execute("SELECT modb.build_snippets()").fetchone()
         assert added > 0
     assert db.execute("SELECT count(*) FROM modb.select_next_snippet(NULL, '{0,2}')").fetchone()[0] == 1
     assert db.execute("SELECT count(*) FROM modb.synthesize('{{0,3}}', 4)").fetchone()[0] == 4
+    db.execute("SELECT modb.build_transition_graph('g')")
+    db.execute("SET modb.graph = 'g'")
+    chosen, in_graph = db.execute("SELECT count(*), count(g.snippet_id) FROM modb.synthesize('{{0,3}}', 4) s "
+                                  "LEFT JOIN modb.graph_snippets g USING (snippet_id)").fetchone()
+    assert chosen > 0 and in_graph == chosen
+    db.execute("RESET modb.graph")
     # What a fresh install of the current version has, the updated one has: same objects, same definitions.
     objects = "SELECT pg_describe_object(classid, objid, 0) FROM pg_depend WHERE refobjid = " \
               "(SELECT oid FROM pg_extension WHERE extname = 'modb') AND deptype = 'e' ORDER BY 1"

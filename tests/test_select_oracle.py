@@ -10,7 +10,8 @@ import pytest
 
 from conftest import mocap, run_modb, scratch_database
 from modb.connection import connect
-from snippet_oracle import KNOBS, load_snippet_space, resolve_profile, select
+from snippet_oracle import (KNOBS, largest_strong_component, level0_ratios, load_snippet_space, resolve_profile,
+                            select)
 
 BOUNDARIES = np.array([1.0, 2.0, 4.0, 8.0])
 
@@ -140,3 +141,52 @@ def test_unknown_knob_and_profile_are_errors(loaded):
         assert set(KNOBS) == {r[0] for r in conn.execute("SELECT unnest(modb.match_knobs())").fetchall()}
         with pytest.raises(psycopg.errors.RaiseException, match='unknown match profile "nope"'):
             conn.execute("SELECT * FROM modb.select_next_snippet(NULL, '{0,1}', 'nope')").fetchall()
+
+
+@pytest.fixture(scope="module")
+def cmu_graph(loaded):
+    """The transition graph of CMU 131 (default profile), and the oracle's level-0 ratios among its snippets."""
+    dsn, space = loaded
+    with connect(dsn) as conn:
+        conn.execute("SELECT modb.build_transition_graph('cmu', 'default', 'cmu/131')")
+        kept = {r[0] for r in conn.execute("SELECT s.snippet_id FROM modb.graph_snippets s JOIN modb.graphs g "
+                                           "ON g.id = s.graph_id WHERE g.name = 'cmu'").fetchall()}
+        (subtree,) = conn.execute("SELECT modb.collection_subtree('cmu/131')").fetchone()
+        settings = conn.execute("SELECT settings FROM modb.match_profiles WHERE name = 'default'").fetchone()[0]
+    members = np.flatnonzero(np.isin(space["collection"], subtree))
+    return kept, members, level0_ratios(space, members, resolve_profile(settings, {}))
+
+
+def test_the_graph_keeps_the_largest_strongly_connected_component_of_level_0(loaded, cmu_graph):
+    _, space = loaded
+    kept, members, pairs = cmu_graph
+    ids = space["id"]
+    # Float32 terminators against the oracle's float64: a ratio within 1e-4 of 1 may fall either side.
+    strict = {int(ids[p]): [int(ids[q]) for q in qs[r <= 1 - 1e-4]] for p, (qs, r) in pairs.items()}
+    loose = {int(ids[p]): [int(ids[q]) for q in qs[r <= 1 + 1e-4]] for p, (qs, r) in pairs.items()}
+    inner, outer = largest_strong_component(list(strict), strict), largest_strong_component(list(loose), loose)
+    assert len(inner) > 10 and len(outer) < len(members), (len(inner), len(outer), len(members))  # a real pruning
+    assert inner <= kept <= outer, (len(inner), len(kept), len(outer))
+
+
+def test_selection_with_a_graph_equals_brute_force_over_its_snippets(loaded, cmu_graph):
+    dsn, space = loaded
+    kept, members, _ = cmu_graph
+    rng = np.random.default_rng(11)
+    inside = np.array(sorted(kept))
+    outside = np.setdiff1d(space["id"][members], inside)
+    with connect(dsn) as conn:
+        settings = conn.execute("SELECT settings FROM modb.match_profiles WHERE name = 'default'").fetchone()[0]
+        plan = resolve_profile(settings, {})
+        conn.execute("SET modb.graph = 'cmu'")
+        for q in range(30):
+            # From inside the graph, from a dead end outside it, and to start.
+            prev = None if q % 10 == 0 else int(rng.choice(outside if q % 3 == 0 else inside))
+            target = list(np.round(rng.uniform(-6, 6, size=2), 3))
+            row = conn.execute("SELECT snippet_id, relax_level, continuity FROM modb.select_next_snippet(%s, %s)",
+                               [prev, target]).fetchone()
+            assert row[0] in kept
+            _assert_same_choice(row, select(space, prev, target, plan, graph=kept), dict(prev=prev, target=target))
+        conn.execute("SET modb.graph = 'nope'")
+        with pytest.raises(psycopg.errors.RaiseException, match='no transition graph "nope"'):
+            conn.execute("SELECT * FROM modb.select_next_snippet(NULL, '{0,1}')").fetchall()

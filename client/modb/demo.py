@@ -12,6 +12,7 @@ import psycopg
 from .avatar import NoContinuation, Settings
 from .bvh_export import write_bvh_file
 from .demo_data import DemoDataError, cmu_01_01, locomotion_files
+from .graphs import describe, ensure_graph
 from .source_frames import UnplaceableSkeleton
 from .synth import clip_names, format_report, report, synthesize
 
@@ -65,15 +66,21 @@ def run_demo(args: argparse.Namespace, load: Callable[[Sequence[str]], int],
     out = cache / "synthesized.bvh"
     with connect() as conn:
         _print_contents(conn)
-        goals = ", ".join(f"({x:g}, {z:g})" for x, z in COURSE)
-        print(f"\nSynthesizing {SECONDS:g} s from {collection} through the goals {goals} (metres; the avatar "
-              f"starts at the origin facing +Z)...")
         try:
-            result = synthesize(conn, COURSE, SECONDS, Settings(collection=collection))
+            print(f"\nTransition graph of {collection} (kept from one run of the demo to the next)...")
+            graph = ensure_graph(conn, "demo", collection=collection, progress=lambda text: print(f"  {text}"))
+            print(f"  {describe(graph)}")
+            goals = ", ".join(f"({x:g}, {z:g})" for x, z in COURSE)
+            print(f"\nSynthesizing {SECONDS:g} s from {collection} through the goals {goals} (metres; the avatar "
+                  f"starts at the origin facing +Z)...")
+            if not graph.kept:  # e.g. one short clip: no part of it leads back into itself
+                print("  it keeps no snippet: synthesizing without it")
+            settings = Settings(collection=collection, graph=graph.name if graph.kept else None)
+            result = synthesize(conn, COURSE, SECONDS, settings)
             out.parent.mkdir(parents=True, exist_ok=True)
             write_bvh_file(result.strip, out)
             print(format_report(result, report(conn, result, collection), clip_names(conn, result.chain)))
-        except (NoContinuation, UnplaceableSkeleton, ValueError, OSError) as e:
+        except (NoContinuation, UnplaceableSkeleton, ValueError, OSError, psycopg.Error) as e:
             print(f"modb demo: synthesis failed: {e}", file=sys.stderr)
             return 1
     print(f"\nwrote {out}: {result.strip.n_frames} frames at {result.strip.fps:g} fps. Next: `modb synth --to X,Z "

@@ -23,6 +23,7 @@ class GraphSummary:
     kept: int
     edges: int
     dead_ends: int
+    current: bool  # no snippet of its scope added or removed since it was built
 
 
 def build_graph(conn: psycopg.Connection, name: str, profile: str = "default", collection: str | None = None,
@@ -42,14 +43,30 @@ def build_graph(conn: psycopg.Connection, name: str, profile: str = "default", c
 
 
 def list_graphs(conn: psycopg.Connection) -> list[GraphSummary]:
+    # Loads replace snippets (new ids): the graph's rows of removed snippets go with them (ON DELETE
+    # CASCADE) and new snippets are not in it, so either count changing means it needs a rebuild.
     rows = conn.execute(
-        "SELECT name, data->>'profile', data->>'collection', (data->>'snippets')::int, (data->>'kept')::int, "
-        "(data->>'edges')::bigint, (data->>'dead_ends')::int FROM modb.graphs WHERE kind = 'transitions' "
-        "ORDER BY name").fetchall()
+        "SELECT g.name, g.data->>'profile', g.data->>'collection', (g.data->>'snippets')::int, "
+        "       (g.data->>'kept')::int, (g.data->>'edges')::bigint, (g.data->>'dead_ends')::int, "
+        "       (SELECT count(*) FROM modb.graph_snippets gs WHERE gs.graph_id = g.id) = (g.data->>'kept')::int "
+        "       AND (SELECT count(*) FROM modb.snippets s WHERE g.data->>'collection' IS NULL "
+        "            OR s.collection_id = ANY (modb.collection_subtree(g.data->>'collection'))) "
+        "           = (g.data->>'snippets')::int "
+        "  FROM modb.graphs g WHERE g.kind = 'transitions' ORDER BY g.name").fetchall()
     return [GraphSummary(*row) for row in rows]
+
+
+def ensure_graph(conn: psycopg.Connection, name: str, profile: str = "default", collection: str | None = None,
+                 progress: Callable[[str], None] | None = None) -> GraphSummary:
+    """The graph `name`, built when it is missing or no longer current."""
+    existing = next((g for g in list_graphs(conn) if g.name == name), None)
+    if existing and existing.current and existing.profile == profile and existing.collection == collection:
+        return existing
+    return build_graph(conn, name, profile, collection, progress)
 
 
 def describe(g: GraphSummary) -> str:
     scope = f"collection {g.collection}" if g.collection else "every collection"
+    stale = "" if g.current else " STALE: snippets were loaded or removed since; rebuild it"
     return (f"{g.name}: {g.kept:,} of {g.snippets:,} snippets kept ({scope}, profile {g.profile}; "
-            f"{g.edges:,} level-0 transitions, {g.dead_ends:,} snippets with none)")
+            f"{g.edges:,} level-0 transitions, {g.dead_ends:,} snippets with none){stale}")

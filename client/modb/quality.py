@@ -108,11 +108,14 @@ class GoalReach:
     seconds: float | None
     straight_seconds: float  # the straight line at the median walking speed
     ratio: float | None
+    current_seconds: float = 0.0  # how long it was the current goal (to the strip's end when not reached)
 
     @property
     def counts_for_aim(self) -> bool:
-        """The issue's reach aim covers goals at least 5 m away and not behind; the others are reported."""
-        return self.distance_m >= REACH_MIN_DISTANCE and not self.behind
+        """The issue's reach aim covers goals at least 5 m away and not behind; the others are reported.
+        A goal still unreached when the strip ended counts only once it has had its 2x straight line."""
+        pending = not self.reached and self.current_seconds < AIM_REACH_RATIO * self.straight_seconds
+        return self.distance_m >= REACH_MIN_DISTANCE and not self.behind and not pending
 
 
 def goal_reach(chain: Sequence[Choice], goals: Sequence[tuple[float, ...]], walking_speed: float) -> list[GoalReach]:
@@ -133,9 +136,10 @@ def goal_reach(chain: Sequence[Choice], goals: Sequence[tuple[float, ...]], walk
         facing = (math.sin(first.placement.heading), math.cos(first.placement.heading))
         behind = dx * facing[0] + dz * facing[1] < 0
         seconds = None if done is None else (done.end_frame - first.start_frame) / first.fps
+        current = (served[-1].end_frame - first.start_frame) / first.fps
         straight = distance / walking_speed
         out.append(GoalReach(goal, first.target, distance, behind, done is not None, seconds, straight,
-                             None if seconds is None or straight == 0 else seconds / straight))
+                             None if seconds is None or straight == 0 else seconds / straight, current))
     return out
 
 

@@ -13,7 +13,7 @@ import psycopg
 from .avatar import Avatar, Choice, Frame, Goal, NoContinuation, Settings, checked_goal
 from .clips import read_motion
 from .motion import Motion
-from .quality import NaturalSteps, Report, measure
+from .quality import REACH_MIN_DISTANCE, NaturalSteps, Report, measure
 
 WALKING_SPEEDS = (0.3, 2.5)  # m/s: snippets slower are standing, faster are running
 
@@ -133,8 +133,9 @@ def format_summary(result: Synthesis, rep: Report) -> str:
     for g in served:
         where = ", ".join(f"{v:g}" for v in g.target)
         took = "not reached" if g.seconds is None else f"{g.seconds:.1f} s = {g.ratio:.2f}x"
-        note = ("" if g.counts_for_aim else " (nearer than 5 m: reported only)" if not g.behind
-                else " (behind: reported only)")
+        note = ("" if g.counts_for_aim else " (behind: reported only)" if g.behind
+                else " (nearer than 5 m: reported only)" if g.distance_m < REACH_MIN_DISTANCE
+                else " (still current when the strip ended, before 2x: not counted)")
         lines.append(f"  goal {g.goal} ({where}): {g.distance_m:.1f} m{' behind' if g.behind else ''}, "
                      f"straight {g.straight_seconds:.1f} s, took {took}{note}")
     if len(served) < len(rep.goals):

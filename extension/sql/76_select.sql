@@ -1,7 +1,8 @@
 -- select_next_snippet: continuity (WHERE) and objective (ORDER BY) as one query the planner sees whole.
--- The objective: where the candidate leads (future_translation: itself and up to two play-on snippets)
--- measured against the aim point (the goal, or the point lookahead_distance along the way to a farther
--- one, so that a far goal does not favour the fastest gait, which cannot turn), plus the profile's
+-- The objective (modb.approach_cost): the nearer of where the candidate ends and where it leads
+-- (future_translation: itself and up to two play-on snippets) measured against the aim point (the goal,
+-- or the point lookahead_distance along the way to a farther one, so that a far goal does not favour the
+-- fastest gait, which cannot turn), plus the profile's
 -- continuity_weight x its continuity ratio, so a smoother candidate wins unless another serves the goal
 -- clearly better. CREATE OR REPLACE: upgrades include this file.
 -- LANGUAGE sql, STABLE, not STRICT, one SELECT: inlined into the caller's plan, so EXPLAIN shows the
@@ -42,7 +43,7 @@ WITH cfg AS MATERIALIZED (
                           AND s.first_frame + 1 <= x.first_frame + x.n_frames - 1)
 )
 (SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
-        modb.target_cost(c.future_translation, c.future_heading, (SELECT aim FROM cfg), (SELECT (plan).heading_weight FROM cfg)) AS proximity,
+        modb.approach_cost(c.net_translation, c.future_translation, c.future_heading, (SELECT aim FROM cfg), (SELECT (plan).heading_weight FROM cfg)) AS proximity,
         0, NULL::float8, c.net_translation, c.net_rotation, c.net_heading
    FROM candidates c
   WHERE prev_snippet IS NULL AND (SELECT checked FROM cfg)
@@ -51,7 +52,7 @@ WITH cfg AS MATERIALIZED (
 -- level it satisfies. Level 4, the last: the nearest start configuration (feature distance), any ratio.
 UNION ALL
 (SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
-        modb.target_cost(c.future_translation, c.future_heading, (SELECT aim FROM cfg), (SELECT (plan).heading_weight FROM cfg)), 0, r.ratio,
+        modb.approach_cost(c.net_translation, c.future_translation, c.future_heading, (SELECT aim FROM cfg), (SELECT (plan).heading_weight FROM cfg)), 0, r.ratio,
         c.net_translation, c.net_rotation, c.net_heading
    FROM candidates c JOIN modb.terminators b ON b.id = c.begin_terminator
   CROSS JOIN prev CROSS JOIN cfg  -- as columns, not sub-selects, so continuity_ratio is inlined
@@ -59,11 +60,11 @@ UNION ALL
   WHERE c.begin_features <@ (SELECT modb.match_box(prev.features, cfg.plan, 1.0) FROM prev, cfg)
     AND c.pose_key = (SELECT pose_key FROM prev) AND c.fps = (SELECT fps FROM prev)
     AND r.ratio <= 1.0
-  ORDER BY modb.target_cost(c.future_translation, c.future_heading, (SELECT aim FROM cfg), (SELECT (plan).heading_weight FROM cfg))
+  ORDER BY modb.approach_cost(c.net_translation, c.future_translation, c.future_heading, (SELECT aim FROM cfg), (SELECT (plan).heading_weight FROM cfg))
            + (SELECT (plan).continuity_weight FROM cfg) * r.ratio, 1 LIMIT k)
 UNION ALL
 (SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
-        modb.target_cost(c.future_translation, c.future_heading, (SELECT aim FROM cfg), (SELECT (plan).heading_weight FROM cfg)), 1, r.ratio,
+        modb.approach_cost(c.net_translation, c.future_translation, c.future_heading, (SELECT aim FROM cfg), (SELECT (plan).heading_weight FROM cfg)), 1, r.ratio,
         c.net_translation, c.net_rotation, c.net_heading
    FROM candidates c JOIN modb.terminators b ON b.id = c.begin_terminator
   CROSS JOIN prev CROSS JOIN cfg  -- as columns, not sub-selects, so continuity_ratio is inlined
@@ -71,11 +72,11 @@ UNION ALL
   WHERE c.begin_features <@ (SELECT modb.match_box(prev.features, cfg.plan, 2.0) FROM prev, cfg)
     AND c.pose_key = (SELECT pose_key FROM prev) AND c.fps = (SELECT fps FROM prev)
     AND r.ratio <= 2.0 AND r.ratio > 1.0
-  ORDER BY modb.target_cost(c.future_translation, c.future_heading, (SELECT aim FROM cfg), (SELECT (plan).heading_weight FROM cfg))
+  ORDER BY modb.approach_cost(c.net_translation, c.future_translation, c.future_heading, (SELECT aim FROM cfg), (SELECT (plan).heading_weight FROM cfg))
            + (SELECT (plan).continuity_weight FROM cfg) * r.ratio, 1 LIMIT k)
 UNION ALL
 (SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
-        modb.target_cost(c.future_translation, c.future_heading, (SELECT aim FROM cfg), (SELECT (plan).heading_weight FROM cfg)), 2, r.ratio,
+        modb.approach_cost(c.net_translation, c.future_translation, c.future_heading, (SELECT aim FROM cfg), (SELECT (plan).heading_weight FROM cfg)), 2, r.ratio,
         c.net_translation, c.net_rotation, c.net_heading
    FROM candidates c JOIN modb.terminators b ON b.id = c.begin_terminator
   CROSS JOIN prev CROSS JOIN cfg  -- as columns, not sub-selects, so continuity_ratio is inlined
@@ -83,11 +84,11 @@ UNION ALL
   WHERE c.begin_features <@ (SELECT modb.match_box(prev.features, cfg.plan, 4.0) FROM prev, cfg)
     AND c.pose_key = (SELECT pose_key FROM prev) AND c.fps = (SELECT fps FROM prev)
     AND r.ratio <= 4.0 AND r.ratio > 2.0
-  ORDER BY modb.target_cost(c.future_translation, c.future_heading, (SELECT aim FROM cfg), (SELECT (plan).heading_weight FROM cfg))
+  ORDER BY modb.approach_cost(c.net_translation, c.future_translation, c.future_heading, (SELECT aim FROM cfg), (SELECT (plan).heading_weight FROM cfg))
            + (SELECT (plan).continuity_weight FROM cfg) * r.ratio, 1 LIMIT k)
 UNION ALL
 (SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
-        modb.target_cost(c.future_translation, c.future_heading, (SELECT aim FROM cfg), (SELECT (plan).heading_weight FROM cfg)), 3, r.ratio,
+        modb.approach_cost(c.net_translation, c.future_translation, c.future_heading, (SELECT aim FROM cfg), (SELECT (plan).heading_weight FROM cfg)), 3, r.ratio,
         c.net_translation, c.net_rotation, c.net_heading
    FROM candidates c JOIN modb.terminators b ON b.id = c.begin_terminator
   CROSS JOIN prev CROSS JOIN cfg  -- as columns, not sub-selects, so continuity_ratio is inlined
@@ -95,11 +96,11 @@ UNION ALL
   WHERE c.begin_features <@ (SELECT modb.match_box(prev.features, cfg.plan, 8.0) FROM prev, cfg)
     AND c.pose_key = (SELECT pose_key FROM prev) AND c.fps = (SELECT fps FROM prev)
     AND r.ratio <= 8.0 AND r.ratio > 4.0
-  ORDER BY modb.target_cost(c.future_translation, c.future_heading, (SELECT aim FROM cfg), (SELECT (plan).heading_weight FROM cfg))
+  ORDER BY modb.approach_cost(c.net_translation, c.future_translation, c.future_heading, (SELECT aim FROM cfg), (SELECT (plan).heading_weight FROM cfg))
            + (SELECT (plan).continuity_weight FROM cfg) * r.ratio, 1 LIMIT k)
 UNION ALL
 (SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
-        modb.target_cost(c.future_translation, c.future_heading, (SELECT aim FROM cfg), (SELECT (plan).heading_weight FROM cfg)),
+        modb.approach_cost(c.net_translation, c.future_translation, c.future_heading, (SELECT aim FROM cfg), (SELECT (plan).heading_weight FROM cfg)),
         4, modb.continuity_ratio(prev.term, b, cfg.plan),
         c.net_translation, c.net_rotation, c.net_heading
    FROM candidates c JOIN modb.terminators b ON b.id = c.begin_terminator
@@ -111,7 +112,7 @@ UNION ALL
 LIMIT k
 $$;
 COMMENT ON FUNCTION modb.select_next_snippets(bigint, float8[], int, text, text, bigint[]) IS
-    'The k best continuations of prev_snippet toward target ({x, z} or {x, y, z}, metres, in the avatar''s heading frame at its end), ordered by relaxation level, then proximity (from where the snippet leads to the aim point: the target, or the point the profile''s lookahead_distance along the way to it) + continuity_weight x continuity; prev_snippet NULL: the snippets that best serve the target';
+    'The k best continuations of prev_snippet toward target ({x, z} or {x, y, z}, metres, in the avatar''s heading frame at its end), ordered by relaxation level, then proximity (from the nearer of where the snippet ends and where it leads to the aim point: the target, or the point the profile''s lookahead_distance along the way to it) + continuity_weight x continuity; prev_snippet NULL: the snippets that best serve the target';
 
 CREATE OR REPLACE FUNCTION modb.select_next_snippet(prev_snippet bigint, target float8[], profile text DEFAULT 'default',
                                          collection text DEFAULT NULL, exclude bigint[] DEFAULT NULL)

@@ -1,7 +1,7 @@
 -- The quaternion-angle operator and the configuration-level functions, on known values.
 BEGIN;
 CREATE EXTENSION IF NOT EXISTS pgtap;
-SELECT plan(22);
+SELECT plan(25);
 
 SELECT is(round(('{1,0,0,0}'::float8[] OPERATOR(modb.<%>) ARRAY[cos(pi() / 4), sin(pi() / 4), 0, 0])::numeric, 12),
           round((pi() / 2)::numeric, 12), '90 degrees about x');
@@ -43,6 +43,10 @@ SELECT is(modb.aim_point('{3,4}', 2.5), '{1.5,2}'::float8[], 'a far target: the 
 SELECT is(modb.aim_point('{3,7,4}', 1), '{0.6,7,0.8}'::float8[], '{x, y, z}: the ground part scaled, y kept');
 SELECT is(modb.aim_point('{1,1}', 2.5), '{1,1}'::float8[], 'a target nearer than the lookahead: itself');
 SELECT is(modb.aim_point('{30,40}', NULL), '{30,40}'::float8[], 'no lookahead: the target itself');
+SELECT is(modb.approach_cost('{0,0,1}', '{0,0,3}', 0, '{0,1}', 0), 0::float8, 'a snippet that ends on the aim, though playing on passes it');
+SELECT is(modb.approach_cost('{0,0,1}', '{0,0,3}', 0, '{0,2.5}', 0), 0.5::float8, 'the nearer point: where playing on leads');
+SELECT is(round(modb.approach_cost('{0,0,1}', '{0,0,3}', pi() / 2, '{0,1}', 1)::numeric, 9), round((pi() / 2)::numeric, 9),
+          'the heading term counts once');
 SELECT throws_ok($$SELECT modb.match_plan('no such profile')$$, 'P0001', 'unknown match profile "no such profile"',
                  'an unknown profile is an error');
 
