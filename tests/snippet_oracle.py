@@ -179,9 +179,9 @@ def level0_ratios(space: dict, members: np.ndarray, plan: dict) -> dict[int, tup
     return out
 
 
-def largest_strong_component(nodes, successors: dict) -> set:
-    """The largest set of nodes that all reach each other: for each node not yet placed, the nodes it
-    reaches that also reach it (two breadth-first searches)."""
+def strong_components(nodes, successors: dict) -> list[set]:
+    """The sets of nodes that all reach each other: for each node not yet placed, the nodes it reaches
+    that also reach it (two breadth-first searches)."""
     predecessors: dict = {n: [] for n in nodes}
     for n in nodes:
         for m in successors[n]:
@@ -197,13 +197,13 @@ def largest_strong_component(nodes, successors: dict) -> set:
         return seen
 
     placed: set = set()
-    best: set = set()
+    components = []
     for n in nodes:
         if n not in placed:
             component = reach(n, successors) & reach(n, predecessors)
             placed |= component
-            best = max(best, component, key=len)
-    return best
+            components.append(component)
+    return components
 
 
 def levels(r: np.ndarray) -> np.ndarray:

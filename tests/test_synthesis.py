@@ -318,7 +318,8 @@ def test_the_report_lists_goals_never_served(locomotion):
 
 def test_the_graph_leaves_out_the_runs_which_never_lead_back_to_a_walk(locomotion):
     # Measured on this data (README "Transition graphs"): from no run snippet does any walk or turn pass the
-    # default thresholds, so every run is a dead end for a chain that has to turn.
+    # default thresholds, and no run turns more than 14 degrees in 1.5 s: the runs' components are dead ends
+    # for a chain that has to turn. The walks (every style) and turns are kept.
     with connect(locomotion) as conn:
         kinds = dict(conn.execute(
             "SELECT substring(c.name from '^dataset-2_([a-z-]+)_'), count(*) FROM modb.graph_snippets gs "

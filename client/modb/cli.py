@@ -241,7 +241,8 @@ def cmd_graph(args: argparse.Namespace) -> int:
             return 2
         try:
             g = build_graph(conn, args.name, args.profile, args.collection,
-                            progress=None if args.quiet else lambda text: print(text, file=sys.stderr))
+                            progress=None if args.quiet else lambda text: print(text, file=sys.stderr),
+                            min_turn_degrees=args.min_turn)
         except psycopg.Error as e:
             print(f"modb graph build: {e.diag.message_primary or e}"
                   + (f" ({e.diag.message_hint})" if e.diag.message_hint else ""), file=sys.stderr)
@@ -352,6 +353,8 @@ def build_parser() -> argparse.ArgumentParser:
     graph.add_argument("name", nargs="?", help="build: the graph's name (rebuilt when it exists)")
     graph.add_argument("--profile", default="default", help="build: the match profile whose level 0 is an edge")
     graph.add_argument("--collection", help="build: snippets of this collection (and those below it) only")
+    graph.add_argument("--min-turn", type=float, default=45.0, metavar="DEGREES",
+                       help="build: keep the components whose snippets turn at least this much each way (default 45)")
     graph.add_argument("-q", "--quiet", action="store_true", help="no progress")
     graph.set_defaults(func=cmd_graph)
 

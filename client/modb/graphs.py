@@ -27,7 +27,7 @@ class GraphSummary:
 
 
 def build_graph(conn: psycopg.Connection, name: str, profile: str = "default", collection: str | None = None,
-                progress: Callable[[str], None] | None = None) -> GraphSummary:
+                progress: Callable[[str], None] | None = None, min_turn_degrees: float = 45.0) -> GraphSummary:
     """Builds (or rebuilds) the graph `name` in one transaction and returns what it holds."""
     def on_notice(diag: psycopg.errors.Diagnostic) -> None:
         if progress and diag.message_primary and diag.message_primary.startswith(NOTICE_PREFIX):
@@ -36,7 +36,8 @@ def build_graph(conn: psycopg.Connection, name: str, profile: str = "default", c
     conn.add_notice_handler(on_notice)
     try:
         with conn.transaction():
-            conn.execute("SELECT modb.build_transition_graph(%s, %s, %s)", [name, profile, collection])
+            conn.execute("SELECT modb.build_transition_graph(%s, %s, %s, %s)",
+                         [name, profile, collection, min_turn_degrees])
     finally:
         conn.remove_notice_handler(on_notice)
     return next(g for g in list_graphs(conn) if g.name == name)

@@ -1,4 +1,5 @@
--- Transition graphs: which snippets a chain can keep moving among (modb_kernel/transitions.py says why).
+-- Transition graphs: which snippets a chain can keep moving and steering among (modb_kernel/transitions.py
+-- says why).
 -- A graph is a modb.graphs row (kind 'transitions': how it was built and what it holds, in jsonb) and
 -- its snippets in modb.graph_snippets, which select_next_snippet reads when the `graph` knob names it.
 
@@ -8,12 +9,12 @@ CREATE TABLE modb.graph_snippets (
     PRIMARY KEY (graph_id, snippet_id)
 );
 COMMENT ON TABLE modb.graph_snippets IS
-    'The snippets of a transition graph''s largest strongly connected component: with SET modb.graph = ''<name>'' (or "graph" in a profile) select_next_snippet chooses among these only';
+    'The snippets a transition graph keeps (its steerable strongly connected components): with SET modb.graph = ''<name>'' (or "graph" in a profile) select_next_snippet chooses among these only';
 CREATE INDEX graph_snippets_snippet_idx ON modb.graph_snippets (snippet_id);  -- for ON DELETE CASCADE
 SELECT pg_catalog.pg_extension_config_dump('modb.graph_snippets', '');
 
 CREATE OR REPLACE FUNCTION modb.build_transition_graph(name text, profile text DEFAULT 'default',
-                                                       collection text DEFAULT NULL)
+                                                       collection text DEFAULT NULL, min_turn_degrees float8 DEFAULT 45)
 RETURNS bigint
 LANGUAGE plpython3u VOLATILE PARALLEL UNSAFE
 AS $py$
@@ -24,6 +25,8 @@ import numpy as np
 T = kernel.transitions
 if not name:
     plpy.error("a transition graph needs a name")
+if min_turn_degrees is None or not 0 <= min_turn_degrees <= 180:
+    plpy.error(f"min_turn_degrees must be between 0 and 180, got {min_turn_degrees}")
 plan = plpy.execute(plpy.prepare(
     """SELECT to_jsonb(p) - 'box_half_width' AS shown, p.* FROM modb.match_plan($1) p""", ["text"]), [profile])[0]
 collections = None
@@ -32,7 +35,7 @@ if collection is not None:
     if not collections:
         plpy.error(f'no collection "{collection}"', hint="modb.collection_path(id) names the stored ones")
 snippets = plpy.execute(plpy.prepare(
-    """SELECT s.id, s.begin_terminator, s.end_terminator, s.pose_key || '@' || s.fps AS grp,
+    """SELECT s.id, s.begin_terminator, s.end_terminator, s.pose_key || '@' || s.fps AS grp, s.future_heading,
               s.clip_id || '/' || s.version || '/' || s.mirrored AS clip, s.first_frame, s.n_frames
          FROM modb.snippets s WHERE $1::bigint[] IS NULL OR s.collection_id = ANY ($1) ORDER BY s.id""",
     ["bigint[]"]), [collections])
@@ -62,10 +65,12 @@ spec = dict(thresholds, joints=list(plan["joints"]), norm=plan["norm"], velocity
             box_half_width=plan["box_half_width"])
 src, dst = T.edges(term, begin, end, group, clip, first_frame, n_frames, spec,
                    progress=lambda done: plpy.notice(f"modb: transition graph \"{name}\": {done}/{n} snippets"))
-keep = T.core(n, src, dst, group)
+turn = np.array([np.nan if t is None else t for t in column("future_heading")], dtype=np.float64)
+keep = T.steerable(n, src, dst, np.nan_to_num(turn), np.radians(min_turn_degrees))
 ids = np.array(column("id"), dtype=np.int64)
 out_degree = np.bincount(src, minlength=n)
-data = {"profile": profile, "collection": collection, "plan": json.loads(plan["shown"]),
+data = {"profile": profile, "collection": collection, "min_turn_degrees": min_turn_degrees,
+        "plan": json.loads(plan["shown"]),
         "snippets": n, "edges": int(len(src)), "kept": int(keep.sum()),
         "dead_ends": int((out_degree == 0).sum()),
         "edges_within_kept": int((keep[src] & keep[dst]).sum())}
@@ -80,5 +85,5 @@ plpy.notice(f"modb: transition graph \"{name}\": kept {data['kept']} of {n} snip
             f"({data['edges']} transitions, {data['dead_ends']} snippets with none)")
 return graph_id
 $py$;
-COMMENT ON FUNCTION modb.build_transition_graph(text, text, text) IS
-    'Builds (or rebuilds) the transition graph "name": every snippet (of the collection) that can follow another at relaxation level 0 of the profile, kept when it lies in the largest strongly connected component of its skeleton and rate, so a chain restricted to it (SET modb.graph) never runs into a dead end; returns the modb.graphs id. Rebuild after loading';
+COMMENT ON FUNCTION modb.build_transition_graph(text, text, text, float8) IS
+    'Builds (or rebuilds) the transition graph "name" over the snippets (of the collection): edges are relaxation level 0 of the profile; a snippet is kept when its strongly connected component holds turns of at least min_turn_degrees each way (where snippets lead: future_heading), so a chain restricted to it (SET modb.graph) never runs into a dead end and can face any goal; returns the modb.graphs id. Rebuild after loading';

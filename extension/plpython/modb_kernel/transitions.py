@@ -1,9 +1,11 @@
 """The transition graph of a snippet set: which snippet can follow which at relaxation level 0, and the
-part of it a chain can keep moving in (the largest strongly connected component, as in motion graphs).
+parts of it a chain can keep moving and steering in: the strongly connected components (as in motion
+graphs) that hold turns both ways.
 
-A snippet outside that component is a dead end: a chain that takes it can never come back to the rest
-of the data without relaxing continuity (in Bandai dataset 2, every run: from a run's end only runs
-pass the thresholds). Restricting the choice to the component keeps every chain where it can turn.
+Outside them a chain runs into a dead end: a snippet from which the data cannot be left smoothly, or a
+component it cannot leave that never turns (in Bandai dataset 2, the runs: from a run's end only runs
+pass the thresholds, and no run turns more than 14 degrees in 1.5 s). Restricting the choice to the
+steerable components keeps every chain where it can face its next goal.
 
 The edge test is select_next_snippets' level 0, computed for all pairs at once: the same search box
 around the end's features, the same per-joint ratio (position by the norm, rotation angle, velocities)
@@ -87,18 +89,19 @@ def edges(term, begin, end, group, clip, first_frame, n_frames, plan, chunk=2000
     return np.concatenate(out_src), np.concatenate(out_dst)
 
 
-def core(n, src, dst, group):
-    """Per snippet: True when it lies in the largest strongly connected component of its pose/rate group
-    (and that component has more than one snippet, so a chain in it can always move on)."""
+def steerable(n, src, dst, turn, min_turn):
+    """Per snippet: True when it lies in a strongly connected component (of more than one snippet) whose
+    snippets include turns of at least min_turn radians each way (`turn`: the heading change where each
+    one leads). A chain in such a component can always move on, and can face any goal."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
     graph = coo_matrix((np.ones(len(src), dtype=np.int8), (src, dst)), shape=(n, n)).tocsr()
     _, label = connected_components(graph, directed=True, connection="strong")
-    keep = np.zeros(n, dtype=bool)
-    for g in np.unique(group):
-        members = np.flatnonzero(group == g)
-        labels, sizes = np.unique(label[members], return_counts=True)
-        if sizes.max() > 1:
-            keep[members[label[members] == labels[sizes.argmax()]]] = True
-    return keep
+    turn = np.asarray(turn, dtype=np.float64)
+    size = np.bincount(label, minlength=label.max() + 1)
+    left = np.zeros(len(size), dtype=bool)
+    right = np.zeros(len(size), dtype=bool)
+    np.logical_or.at(left, label, turn >= min_turn)
+    np.logical_or.at(right, label, turn <= -min_turn)
+    return ((size > 1) & left & right)[label]

@@ -1,6 +1,7 @@
--- 0.4.0: transition graphs. modb.build_transition_graph keeps the snippets a chain can keep moving among
--- (the largest strongly connected component of level-0 transitions); the `graph` knob restricts
--- select_next_snippet (and modb.synthesize) to them, so chains no longer run into dead ends.
+-- 0.4.0: transition graphs. modb.build_transition_graph keeps the snippets a chain can keep moving and
+-- steering among (strongly connected components of level-0 transitions that turn both ways); the `graph`
+-- knob restricts select_next_snippet (and modb.synthesize) to them, so chains no longer run into dead
+-- ends. The objective scores the nearer of a candidate's end and where it leads (modb.approach_cost).
 
 ALTER TYPE modb.match_plan ADD ATTRIBUTE graph_id bigint;
 COMMENT ON TYPE modb.match_plan IS
@@ -10,5 +11,5 @@ COMMENT ON TYPE modb.match_plan IS
 --@include 76_select.sql
 GRANT SELECT ON modb.graph_snippets TO modb_reader;
 GRANT INSERT, DELETE ON modb.graph_snippets TO modb_loader;
-REVOKE EXECUTE ON FUNCTION modb.build_transition_graph(text, text, text) FROM PUBLIC;
-GRANT EXECUTE ON FUNCTION modb.build_transition_graph(text, text, text) TO modb_loader;
+REVOKE EXECUTE ON FUNCTION modb.build_transition_graph(text, text, text, float8) FROM PUBLIC;
+GRANT EXECUTE ON FUNCTION modb.build_transition_graph(text, text, text, float8) TO modb_loader;
