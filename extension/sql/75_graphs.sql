@@ -9,7 +9,7 @@ CREATE TABLE modb.graph_snippets (
     PRIMARY KEY (graph_id, snippet_id)
 );
 COMMENT ON TABLE modb.graph_snippets IS
-    'The snippets a transition graph keeps (its steerable strongly connected components): with SET modb.graph = ''<name>'' (or "graph" in a profile) select_next_snippet chooses among these only';
+    'The snippets a transition graph keeps (its largest strongly connected component that turns both ways): with SET modb.graph = ''<name>'' (or "graph" in a profile) select_next_snippet chooses among these only';
 CREATE INDEX graph_snippets_snippet_idx ON modb.graph_snippets (snippet_id);  -- for ON DELETE CASCADE
 SELECT pg_catalog.pg_extension_config_dump('modb.graph_snippets', '');
 
@@ -66,7 +66,7 @@ spec = dict(thresholds, joints=list(plan["joints"]), norm=plan["norm"], velocity
 src, dst = T.edges(term, begin, end, group, clip, first_frame, n_frames, spec,
                    progress=lambda done: plpy.notice(f"modb: transition graph \"{name}\": {done}/{n} snippets"))
 turn = np.array([np.nan if t is None else t for t in column("future_heading")], dtype=np.float64)
-keep = T.steerable(n, src, dst, np.nan_to_num(turn), np.radians(min_turn_degrees))
+keep = T.steerable(n, src, dst, group, np.nan_to_num(turn), np.radians(min_turn_degrees))
 ids = np.array(column("id"), dtype=np.int64)
 out_degree = np.bincount(src, minlength=n)
 data = {"profile": profile, "collection": collection, "min_turn_degrees": min_turn_degrees,
@@ -86,4 +86,4 @@ plpy.notice(f"modb: transition graph \"{name}\": kept {data['kept']} of {n} snip
 return graph_id
 $py$;
 COMMENT ON FUNCTION modb.build_transition_graph(text, text, text, float8) IS
-    'Builds (or rebuilds) the transition graph "name" over the snippets (of the collection): edges are relaxation level 0 of the profile; a snippet is kept when its strongly connected component holds turns of at least min_turn_degrees each way (where snippets lead: future_heading), so a chain restricted to it (SET modb.graph) never runs into a dead end and can face any goal; returns the modb.graphs id. Rebuild after loading';
+    'Builds (or rebuilds) the transition graph "name" over the snippets (of the collection): edges are relaxation level 0 of the profile; a snippet is kept when it lies in the largest strongly connected component (per skeleton and rate) among those holding turns of at least min_turn_degrees each way (where snippets lead: future_heading), so a chain restricted to it (SET modb.graph) never runs into a dead end and can face any goal; returns the modb.graphs id. Rebuild after loading';

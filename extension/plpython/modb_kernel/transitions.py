@@ -1,11 +1,11 @@
 """The transition graph of a snippet set: which snippet can follow which at relaxation level 0, and the
-parts of it a chain can keep moving and steering in: the strongly connected components (as in motion
-graphs) that hold turns both ways.
+part of it a chain can keep moving and steering in: the largest strongly connected component (as in
+motion graphs) that holds turns both ways.
 
 Outside them a chain runs into a dead end: a snippet from which the data cannot be left smoothly, or a
 component it cannot leave that never turns (in Bandai dataset 2, the runs: from a run's end only runs
 pass the thresholds, and no run turns more than 14 degrees in 1.5 s). Restricting the choice to the
-steerable components keeps every chain where it can face its next goal.
+steerable component keeps every chain where it can face its next goal.
 
 The edge test is select_next_snippets' level 0, computed for all pairs at once: the same search box
 around the end's features, the same per-joint ratio (position by the norm, rotation angle, velocities)
@@ -89,10 +89,12 @@ def edges(term, begin, end, group, clip, first_frame, n_frames, plan, chunk=2000
     return np.concatenate(out_src), np.concatenate(out_dst)
 
 
-def steerable(n, src, dst, turn, min_turn):
-    """Per snippet: True when it lies in a strongly connected component (of more than one snippet) whose
-    snippets include turns of at least min_turn radians each way (`turn`: the heading change where each
-    one leads). A chain in such a component can always move on, and can face any goal."""
+def steerable(n, src, dst, group, turn, min_turn):
+    """Per snippet: True when it lies in the largest strongly connected component of its pose/rate group
+    among those (of more than one snippet) whose snippets include turns of at least min_turn radians each
+    way (`turn`: the heading change where each one leads). A chain in it can always move on, and can face
+    any goal. (The largest only, as in motion graphs: on Bandai dataset 2, adding the active walks'
+    component to the slow walks' made right-angle courses worse: README "Transition graphs".)"""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
@@ -104,4 +106,11 @@ def steerable(n, src, dst, turn, min_turn):
     right = np.zeros(len(size), dtype=bool)
     np.logical_or.at(left, label, turn >= min_turn)
     np.logical_or.at(right, label, turn <= -min_turn)
-    return ((size > 1) & left & right)[label]
+    eligible = (size > 1) & left & right
+    keep = np.zeros(n, dtype=bool)
+    for g in np.unique(group):
+        members = np.flatnonzero(group == g)
+        candidates = np.unique(label[members][eligible[label[members]]])
+        if len(candidates):
+            keep[members[label[members] == candidates[size[candidates].argmax()]]] = True
+    return keep
