@@ -348,5 +348,7 @@ def test_a_course_of_right_angle_turns_reaches_every_goal_within_the_aims(locomo
     with connect(locomotion) as conn:
         result = synthesize(conn, COURSE, 60.0, Settings(graph=GRAPH))
         rep = report(conn, result, None)
-    assert all(g.reached for g in rep.goals), [(g.goal, g.ratio) for g in rep.goals]
-    assert all(rep.aims.values()), rep.aims
+    figures = ([g.ratio and round(g.ratio, 2) for g in rep.goals], f"seams r > 1: {rep.seam_share_over_one:.1%}",
+               f"recombination {rep.recombination:.1%}")  # pytest --runxfail -k right_angle shows them
+    assert all(g.reached for g in rep.goals), figures
+    assert all(rep.aims.values()), (rep.aims, figures)
