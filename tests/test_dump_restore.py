@@ -17,6 +17,7 @@ def test_dump_restore_keeps_clips_and_loading_continues(cluster, fresh_db, db, t
     assert r.returncode == 0, r.stderr
     db.execute("UPDATE modb.clip_versions SET meta = '{\"tags\": [\"kept\"]}' WHERE clip_id = 1")
     db.execute("INSERT INTO modb.models (name, kind, data) VALUES ('m', 'test', '{\"k\": 1}')")
+    db.execute("SELECT modb.build_transition_graph('g', 'locomotion', NULL, 0)")
     db.execute("INSERT INTO modb.match_profiles (name, settings) SELECT 'mine', settings FROM modb.match_profiles "
                "WHERE name = 'strict'")
     source_name = psycopg.conninfo.conninfo_to_dict(fresh_db)["dbname"]
@@ -40,6 +41,9 @@ def test_dump_restore_keeps_clips_and_loading_continues(cluster, fresh_db, db, t
             assert restored.execute(profiles).fetchall() == db.execute(profiles).fetchall()
             snippets = "SELECT count(*), sum(first_frame), count(DISTINCT begin_terminator) FROM modb.snippets"
             assert restored.execute(snippets).fetchone() == db.execute(snippets).fetchone()
+            graph = "SELECT g.name, g.data, array_agg(s.snippet_id ORDER BY s.snippet_id) FROM modb.graphs g " \
+                    "JOIN modb.graph_snippets s ON s.graph_id = g.id GROUP BY g.name, g.data"
+            assert restored.execute(graph).fetchall() == db.execute(graph).fetchall() != []
             assert db.execute(snippets).fetchone()[0] > 0
             assert restored.execute("SELECT count(*) FROM modb.select_next_snippet(1, '{0,1}', 'mine')").fetchone()[0] == 1
             for (clip_id,) in db.execute("SELECT id FROM modb.clips").fetchall():
