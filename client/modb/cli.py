@@ -354,7 +354,8 @@ def build_parser() -> argparse.ArgumentParser:
     graph.add_argument("--profile", default="default", help="build: the match profile whose level 0 is an edge")
     graph.add_argument("--collection", help="build: snippets of this collection (and those below it) only")
     graph.add_argument("--min-turn", type=float, default=45.0, metavar="DEGREES",
-                       help="build: keep the components whose snippets turn at least this much each way (default 45)")
+                       help="build: keep the largest component whose snippets turn at least this much each way "
+                            "(default 45)")
     graph.add_argument("-q", "--quiet", action="store_true", help="no progress")
     graph.set_defaults(func=cmd_graph)
 

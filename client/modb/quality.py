@@ -162,14 +162,15 @@ class Report:
     goals: list[GoalReach]
 
     @property
-    def aims(self) -> dict[str, bool]:
+    def aims(self) -> dict[str, bool | None]:
+        """Which aims are met; None where the strip gives nothing to measure (no goal counts for reach)."""
         counted = [g for g in self.goals if g.counts_for_aim]
         return {
             "seam share r>1 <= 2x natural": self.seam_share_over_one <= AIM_SEAM_SHARE_FACTOR * self.natural_share_over_one,
             "seam r p99 <= natural r p99.9": self.seam_r_p99 <= self.natural_r_p999,
             "recombination >= 20%": self.recombination >= AIM_RECOMBINATION,
             "goals >= 5 m reached within 2x straight line": all(
-                g.ratio is not None and g.ratio <= AIM_REACH_RATIO for g in counted),
+                g.ratio is not None and g.ratio <= AIM_REACH_RATIO for g in counted) if counted else None,
             "last relaxation level < 1%": self.last_level_share < AIM_LAST_LEVEL_SHARE,
         }
 

@@ -140,7 +140,8 @@ def format_summary(result: Synthesis, rep: Report) -> str:
                      f"straight {g.straight_seconds:.1f} s, took {took}{note}")
     if len(served) < len(rep.goals):
         lines.append(f"  goals {len(served) + 1}-{len(rep.goals)}: never became current (not reached)")
-    lines.append("aims: " + "; ".join(f"{k}: {'met' if v else 'NOT met'}" for k, v in rep.aims.items()))
+    verdict = {True: "met", False: "NOT met", None: "not measured"}
+    lines.append("aims: " + "; ".join(f"{k}: {verdict[v]}" for k, v in rep.aims.items()))
     return "\n".join(lines)
 
 

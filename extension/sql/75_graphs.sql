@@ -44,16 +44,15 @@ if n == 0:
     plpy.error("no snippets to build a graph from" + (f' in collection "{collection}"' if collection else ""),
                hint="`modb load` builds snippets")
 plpy.notice(f"modb: transition graph \"{name}\": reading the terminators of {n} snippets")
-terminators = plpy.execute(plpy.prepare(
+column = lambda key: [r[key] for r in snippets]
+terminators = plpy.execute(plpy.prepare(  # those of the snippets just read, each once
     """SELECT t.id, t.positions, t.rotations, t.velocities, t.angular_velocities,
               (SELECT array_agg(cube_ll_coord(t.features, i) ORDER BY i) FROM generate_series(1, cube_dim(t.features)) i) AS features
-         FROM modb.terminators t
-        WHERE t.id IN (SELECT unnest(array[s.begin_terminator, s.end_terminator]) FROM modb.snippets s
-                        WHERE $1::bigint[] IS NULL OR s.collection_id = ANY ($1))""", ["bigint[]"]), [collections])
+         FROM modb.terminators t WHERE t.id = ANY ($1)""", ["bigint[]"]),
+    [sorted(set(column("begin_terminator")) | set(column("end_terminator")))])
 row_of = {r["id"]: i for i, r in enumerate(terminators)}
 term = T.Terminators(*([r[c] for r in terminators] for c in
                        ("positions", "rotations", "velocities", "angular_velocities", "features")))
-column = lambda key: [r[key] for r in snippets]
 keys = lambda values: np.unique(values, return_inverse=True)[1]
 begin = np.array([row_of[t] for t in column("begin_terminator")])
 end = np.array([row_of[t] for t in column("end_terminator")])

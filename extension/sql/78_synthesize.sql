@@ -98,6 +98,10 @@ RETURNS TABLE (step int, snippet_id bigint, clip_id bigint, version int, mirrore
                end_position float8[], end_heading float8, goal int, target float8[], reached boolean,
                relax_level int, continuity float8, proximity float8)
 LANGUAGE sql STABLE PARALLEL SAFE
+-- Each step runs select_next_snippet_world as a function with a generic plan, whose estimate (it keeps the
+-- opening branch's full scan) passes jit_above_cost: JIT then compiled for ~9 s per step, against ~0.15 s
+-- of work. A SET clause keeps synthesize from being inlined, which gains nothing for one recursive query.
+SET jit = off
 AS $$
 WITH RECURSIVE cfg AS MATERIALIZED (
     SELECT modb.check_synthesis(targets, max_snippets, start_snippet, start_position, start_heading, profile,

@@ -2,7 +2,7 @@
 part of it a chain can keep moving and steering in: the largest strongly connected component (as in
 motion graphs) that holds turns both ways.
 
-Outside them a chain runs into a dead end: a snippet from which the data cannot be left smoothly, or a
+Outside it a chain runs into a dead end: a snippet from which the data cannot be left smoothly, or a
 component it cannot leave that never turns (in Bandai dataset 2, the runs: from a run's end only runs
 pass the thresholds, and no run turns more than 14 degrees in 1.5 s). Restricting the choice to the
 steerable component keeps every chain where it can face its next goal.

@@ -1,5 +1,5 @@
 -- 0.4.0: transition graphs. modb.build_transition_graph keeps the snippets a chain can keep moving and
--- steering among (strongly connected components of level-0 transitions that turn both ways); the `graph`
+-- steering among (the largest strongly connected component of level-0 transitions that turns both ways); the `graph`
 -- knob restricts select_next_snippet (and modb.synthesize) to them, so chains no longer run into dead
 -- ends. The objective scores the nearer of a candidate's end and where it leads (modb.approach_cost).
 
@@ -9,6 +9,8 @@ COMMENT ON TYPE modb.match_plan IS
 --@include 75_graphs.sql
 --@include 72_plan.sql
 --@include 76_select.sql
+-- Without JIT: its per-step generic plans passed jit_above_cost and compiled for seconds each (78_synthesize.sql).
+ALTER FUNCTION modb.synthesize(float8[], int, bigint, float8[], float8, text, text, float8, float8) SET jit = off;
 GRANT SELECT ON modb.graph_snippets TO modb_reader;
 GRANT INSERT, DELETE ON modb.graph_snippets TO modb_loader;
 REVOKE EXECUTE ON FUNCTION modb.build_transition_graph(text, text, text, float8) FROM PUBLIC;
