@@ -1,4 +1,4 @@
-"""The `modb` command: load, export, list, synth, graph, demo, bench, db."""
+"""The `modb` command: load, export, list, synth, graph, serve, demo, bench, db."""
 from __future__ import annotations
 
 import argparse
@@ -273,6 +273,27 @@ def cmd_db(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_serve(args: argparse.Namespace) -> int:
+    import uvicorn
+
+    from .dsn import resolve
+    from .web.app import ThreeMissing, create_app
+
+    conninfo, origin = resolve(args.dsn)
+    try:
+        app = create_app(conninfo, args.host, args.port)
+    except ThreeMissing as e:
+        print(f"modb serve: {e}", file=sys.stderr)
+        return 2
+    if args.host not in ("127.0.0.1", "localhost", "::1"):
+        print(f"modb serve: listening on {args.host}, beyond this machine: anyone who can reach it can read the "
+              f"database (it answers only requests naming {args.host}:{args.port} as their Host)", file=sys.stderr)
+    shown = f"[{args.host}]" if ":" in args.host else args.host
+    print(f"modb serve: http://{shown}:{args.port}/  (database: {origin}; Ctrl-C stops)", file=sys.stderr)
+    uvicorn.run(app, host=args.host, port=args.port, log_level="warning")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="modb", description="MoDB for PostgreSQL: motion capture in a database.")
     p.add_argument("--version", action="version", version=f"modb {__version__}")
@@ -358,6 +379,12 @@ def build_parser() -> argparse.ArgumentParser:
                             "(default 45)")
     graph.add_argument("-q", "--quiet", action="store_true", help="no progress")
     graph.set_defaults(func=cmd_graph)
+
+    serve = sub.add_parser("serve", help="browse the database in the web browser (three.js) and JSON endpoints")
+    serve.add_argument("--port", type=int, default=8765, help="port (default 8765)")
+    serve.add_argument("--host", default="127.0.0.1",
+                       help="address to listen on (default 127.0.0.1: this machine only)")
+    serve.set_defaults(func=cmd_serve)
 
     db = sub.add_parser("db", help="the embedded database cluster")
     db.add_argument("action", choices=["start", "stop", "status", "url"])

@@ -1,0 +1,135 @@
+"""The read-only JSON views of the motion database (the DFKI data server's browsing role).
+
+Each function takes a connection and validated arguments and returns what the endpoint sends; unknown ids
+raise NotFound, bad arguments BadRequest, so the app can answer 404 and 400 with the message.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import psycopg
+
+from ..clips import ClipNotFound, read_motion
+
+MAX_FRAMES = 20_000  # per request: a clip longer than this is fetched in pages (start, count)
+
+
+class NotFound(LookupError):
+    pass
+
+
+class BadRequest(ValueError):
+    pass
+
+
+def _rows(conn: psycopg.Connection, query: str, params: list[Any] | None = None) -> list[dict[str, Any]]:
+    with conn.cursor(row_factory=psycopg.rows.dict_row) as cur:
+        return cur.execute(query, params or []).fetchall()
+
+
+def _one(conn: psycopg.Connection, what: str, query: str, ident: int) -> dict[str, Any]:
+    rows = _rows(conn, query, [ident])
+    if not rows:
+        raise NotFound(f"no {what} with id {ident}")
+    return rows[0]
+
+
+def collections(conn: psycopg.Connection) -> list[dict[str, Any]]:
+    """Every collection with its path and how many clips it holds directly."""
+    return _rows(conn, "SELECT c.id, c.parent_id, c.name, modb.collection_path(c.id) AS path, "
+                       "       (SELECT count(*) FROM modb.clips k WHERE k.collection_id = c.id) AS clips "
+                       "  FROM modb.collections c ORDER BY path")
+
+
+_CLIP_LIST = """
+SELECT c.id, c.name, c.collection_id, modb.collection_path(c.collection_id) AS collection,
+       v.version, v.n_frames, v.fps, v.skeleton_id
+  FROM modb.clips c
+  JOIN LATERAL (SELECT * FROM modb.clip_versions v WHERE v.clip_id = c.id ORDER BY v.version DESC LIMIT 1) v ON true
+"""
+
+
+def clips(conn: psycopg.Connection, collection_id: int | None) -> list[dict[str, Any]]:
+    """The clips of one collection (all when None), newest versions."""
+    if collection_id is not None:
+        _one(conn, "collection", "SELECT id FROM modb.collections WHERE id = %s", collection_id)
+    return _rows(conn, _CLIP_LIST + " WHERE %s::bigint IS NULL OR c.collection_id = %s ORDER BY c.name, c.id",
+                 [collection_id, collection_id])
+
+
+def clip(conn: psycopg.Connection, clip_id: int) -> dict[str, Any]:
+    """One clip: its newest version's shape, every version, and its annotations."""
+    out = _one(conn, "clip", _CLIP_LIST + " WHERE c.id = %s", clip_id)
+    out["versions"] = _rows(conn, "SELECT version, n_frames, fps, skeleton_id, source_file, created_at::text, "
+                                  "       meta FROM modb.clip_versions WHERE clip_id = %s ORDER BY version", [clip_id])
+    return out
+
+
+def frames(conn: psycopg.Connection, clip_id: int, version: int | None, start: int, count: int | None) -> dict[str, Any]:
+    """Frames start..start+count-1 of a clip version: local rotations (w, x, y, z per joint, skeleton order),
+    the translations of the joints that have position channels, and every joint's world position (metres),
+    computed here by the shared forward kinematics."""
+    if start < 0:
+        raise BadRequest(f"start must be 0 or more, got {start}")
+    if count is not None and not 1 <= count <= MAX_FRAMES:
+        raise BadRequest(f"count must be 1-{MAX_FRAMES}, got {count}")
+    try:
+        motion = read_motion(conn, clip_id, version)
+    except ClipNotFound as e:
+        raise NotFound(str(e)) from None
+    if start >= motion.n_frames:
+        raise BadRequest(f"start {start} is past the clip's last frame ({motion.n_frames - 1})")
+    stop = min(motion.n_frames, start + (count or MAX_FRAMES))
+    positions = motion.world_positions()[start:stop]
+    return {
+        "clip_id": clip_id, "version": motion.meta["version"], "fps": motion.fps, "n_frames": motion.n_frames,
+        "start": start, "count": stop - start, "joints": motion.skeleton.names,
+        "translated": motion.skeleton.translated,
+        "rotations": np.round(motion.rotations[start:stop], 7).tolist(),
+        "translations": np.round(motion.translations[start:stop], 6).tolist(),
+        "positions": np.round(positions, 6).tolist(),
+    }
+
+
+def skeletons(conn: psycopg.Connection) -> list[dict[str, Any]]:
+    return _rows(conn, "SELECT s.id, s.name, s.hierarchy->>'format' AS format, "
+                       "       jsonb_array_length(s.hierarchy->'joints') AS joints, "
+                       "       (SELECT count(*) FROM modb.clip_versions v WHERE v.skeleton_id = s.id) AS clip_versions "
+                       "  FROM modb.skeletons s ORDER BY s.id")
+
+
+def skeleton(conn: psycopg.Connection, skeleton_id: int) -> dict[str, Any]:
+    """The hierarchy (offsets in metres, channels, rest positions), joint map and mirror pairs."""
+    return _one(conn, "skeleton", "SELECT id, name, hierarchy, joint_map, mirror_pairs, meta "
+                                  "  FROM modb.skeletons WHERE id = %s", skeleton_id)
+
+
+def _named_table(table: str) -> tuple[str, str]:
+    listing = f"SELECT id, name, kind, skeleton_id, meta, created_at::text FROM modb.{table} ORDER BY name, kind"
+    one = f"SELECT id, name, kind, skeleton_id, data, meta, created_at::text FROM modb.{table} WHERE id = %s"
+    return listing, one
+
+
+def models(conn: psycopg.Connection) -> list[dict[str, Any]]:
+    return _rows(conn, _named_table("models")[0])
+
+
+def model(conn: psycopg.Connection, model_id: int) -> dict[str, Any]:
+    return _one(conn, "model", _named_table("models")[1], model_id)
+
+
+def graphs(conn: psycopg.Connection) -> list[dict[str, Any]]:
+    """Motion and transition graphs; transition graphs with how many snippets they keep."""
+    rows = _rows(conn, _named_table("graphs")[0])
+    kept = dict(conn.execute("SELECT graph_id, count(*) FROM modb.graph_snippets GROUP BY graph_id").fetchall())
+    for r in rows:
+        r["snippets"] = kept.get(r["id"], 0)
+    return rows
+
+
+def graph(conn: psycopg.Connection, graph_id: int) -> dict[str, Any]:
+    out = _one(conn, "graph", _named_table("graphs")[1], graph_id)
+    out["snippets"] = conn.execute("SELECT count(*) FROM modb.graph_snippets WHERE graph_id = %s",
+                                   [graph_id]).fetchone()[0]
+    return out

@@ -1,0 +1,55 @@
+"""Host and Origin checks for every request (HTTP and WebSocket) to the local web app.
+
+The app serves the user's database to their own browser. Another web site open in that browser can still
+send it requests: by pointing its own DNS name at 127.0.0.1 (the Host header then names that site), or by
+posting or opening a WebSocket from its page (the Origin header names that site). Both are refused.
+"""
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable
+from urllib.parse import urlsplit
+
+from starlette.types import ASGIApp, Receive, Scope, Send
+
+LOOPBACK_NAMES = ("127.0.0.1", "localhost", "[::1]")
+
+
+def allowed_hosts(host: str, port: int) -> frozenset[str]:
+    """Host header values that name this server: the address it binds to, and the loopback names."""
+    names = {host if ":" not in host else f"[{host}]", *LOOPBACK_NAMES}
+    return frozenset(f"{name}:{port}" for name in names) | (frozenset(names) if port == 80 else frozenset())
+
+
+class HostOriginGuard:
+    """ASGI middleware: 403 for a Host this server does not answer to, or an Origin other than its own."""
+
+    def __init__(self, app: ASGIApp, hosts: Iterable[str]) -> None:
+        self.app = app
+        self.hosts = frozenset(h.lower() for h in hosts)
+
+    def refusal(self, scope: Scope) -> str | None:
+        headers = {k.decode("latin-1").lower(): v.decode("latin-1") for k, v in scope["headers"]}
+        host = headers.get("host", "").lower()
+        if host not in self.hosts:
+            return f"Host {host!r} is not this server: open it as http://{sorted(self.hosts)[0]}/"
+        origin = headers.get("origin")
+        if origin is not None and (urlsplit(origin).scheme not in ("http", "https")
+                                   or urlsplit(origin).netloc.lower() not in self.hosts):
+            return f"requests from the page of {origin!r} are refused: only this server's own pages may call it"
+        return None
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] not in ("http", "websocket"):
+            await self.app(scope, receive, send)
+            return
+        reason = self.refusal(scope)
+        if reason is None:
+            await self.app(scope, receive, send)
+        elif scope["type"] == "websocket":
+            await send({"type": "websocket.close", "code": 1008, "reason": reason[:120]})
+        else:
+            body = json.dumps({"error": reason}).encode()
+            await send({"type": "http.response.start", "status": 403,
+                        "headers": [(b"content-type", b"application/json"), (b"content-length", str(len(body)).encode())]})
+            await send({"type": "http.response.body", "body": body})

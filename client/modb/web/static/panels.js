@@ -1,0 +1,51 @@
+// The side panels: the collection hierarchy, a collection's clips, and the skeleton's joint tree.
+
+export async function getJSON(url) {
+  const response = await fetch(url);
+  const body = await response.json();
+  if (!response.ok) throw new Error(body.error || `${url}: HTTP ${response.status}`);
+  return body;
+}
+
+function item(label, title, onSelect) {
+  const li = document.createElement('li');
+  const span = document.createElement('span');
+  span.textContent = label;
+  if (title) span.title = title;
+  span.addEventListener('click', () => {
+    span.closest('aside > section').querySelectorAll('span.selected').forEach((s) => s.classList.remove('selected'));
+    span.classList.add('selected');
+    onSelect();
+  });
+  li.appendChild(span);
+  return li;
+}
+
+// Nested lists from rows that name their parent (parentOf(row) is null at the top).
+function tree(root, rows, idOf, parentOf, render) {
+  root.replaceChildren();
+  const children = new Map();
+  rows.forEach((r) => { const p = parentOf(r); if (!children.has(p)) children.set(p, []); children.get(p).push(r); });
+  const grow = (ul, parent) => (children.get(parent) || []).forEach((r) => {
+    const li = render(r);
+    if (children.has(idOf(r))) { const sub = document.createElement('ul'); grow(sub, idOf(r)); li.appendChild(sub); }
+    ul.appendChild(li);
+  });
+  grow(root, null);
+}
+
+export function showCollections(root, collections, onSelect) {
+  tree(root, collections, (c) => c.id, (c) => c.parent_id,
+       (c) => item(`${c.name} (${c.clips})`, c.path, () => onSelect(c)));
+}
+
+export function showClips(root, counter, clips, onSelect) {
+  root.replaceChildren(...clips.map((c) => item(c.name, `${c.n_frames} frames at ${c.fps} fps`, () => onSelect(c))));
+  counter.textContent = `(${clips.length})`;
+}
+
+export function showSkeleton(root, joints, onSelect) {
+  const rows = joints.map((j, i) => ({ ...j, index: i }));
+  tree(root, rows, (j) => j.index, (j) => (j.parent < 0 ? null : j.parent),
+       (j) => item(j.name, `joint ${j.index}`, () => onSelect(j.index)));
+}

@@ -1,0 +1,48 @@
+// A skeleton as a three.js Object3D hierarchy, posed from the stored frames. The browser does its own
+// forward kinematics (three.js matrices), so the server's positions are an independent check of the page.
+import * as THREE from 'three';
+
+export class Rig {
+  constructor(hierarchy) {
+    this.joints = hierarchy.joints;
+    this.translated = hierarchy.translated;
+    this.root = new THREE.Group();
+    // Each joint sits at its offset in the parent's frame; joints with position channels replace it per frame.
+    this.nodes = this.joints.map((j) => {
+      const node = new THREE.Object3D();
+      node.name = j.name;
+      node.position.fromArray(j.offset);
+      return node;
+    });
+    this.nodes.forEach((node, i) => (this.joints[i].parent < 0 ? this.root : this.nodes[this.joints[i].parent]).add(node));
+    // End sites: drawn (the tips of head, hands, feet) but not joints of the data.
+    this.ends = [];
+    this.joints.forEach((j, i) => {
+      if (!j.end_site) return;
+      const tip = new THREE.Object3D();
+      tip.position.fromArray(j.end_site);
+      this.nodes[i].add(tip);
+      this.ends.push({ parent: i, node: tip });
+    });
+  }
+
+  // One frame: rotations[j] = [w, x, y, z] relative to the parent; translations[k] for joint translated[k].
+  pose(rotations, translations) {
+    rotations.forEach((q, i) => this.nodes[i].quaternion.set(q[1], q[2], q[3], q[0]));
+    this.translated.forEach((j, k) => this.nodes[j].position.fromArray(translations[k]));
+    this.root.updateMatrixWorld(true);
+  }
+
+  worldPositions() {
+    return this.nodes.map((node) => node.getWorldPosition(new THREE.Vector3()).toArray());
+  }
+
+  // Bone segments as pairs of world points: every joint to its parent, and every end site to its joint.
+  boneSegments() {
+    const at = (node) => node.getWorldPosition(new THREE.Vector3());
+    const pairs = [];
+    this.joints.forEach((j, i) => { if (j.parent >= 0) pairs.push([at(this.nodes[j.parent]), at(this.nodes[i])]); });
+    this.ends.forEach((e) => pairs.push([at(this.nodes[e.parent]), at(e.node)]));
+    return pairs;
+  }
+}

@@ -1,0 +1,98 @@
+// The three.js stage: ground grid, camera that orbits or follows, and the figure drawn as bones and joints.
+import * as THREE from 'three';
+import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
+
+const JOINT_RADIUS = 0.02; // metres
+const MAX_BONES = 256;
+
+// Ground lines every `step` metres out to `half` metres, cut into step-long pieces: a line whose ends lie
+// behind the camera can vanish whole on software renderers (headless Chromium's SwiftShader did).
+function groundGrid(half, step) {
+  const points = [];
+  for (let a = -half; a <= half; a += step) {
+    for (let b = -half; b < half; b += step) points.push(a, 0, b, a, 0, b + step, b, 0, a, b + step, 0, a);
+  }
+  const geometry = new THREE.BufferGeometry();
+  geometry.setAttribute('position', new THREE.Float32BufferAttribute(points, 3));
+  return new THREE.LineSegments(geometry, new THREE.LineBasicMaterial({ color: 0xb0b0b0 }));
+}
+
+export class Stage {
+  constructor(container) {
+    this.container = container;
+    this.renderer = new THREE.WebGLRenderer({ antialias: true });
+    this.renderer.setPixelRatio(window.devicePixelRatio);
+    container.appendChild(this.renderer.domElement);
+    this.scene = new THREE.Scene();
+    this.scene.background = new THREE.Color(0xf4f4f4);
+    this.scene.add(groundGrid(20, 1));
+    this.camera = new THREE.PerspectiveCamera(45, 1, 0.01, 500);
+    this.camera.position.set(2.5, 1.8, 3.5);
+    this.controls = new OrbitControls(this.camera, this.renderer.domElement);
+    this.controls.target.set(0, 0.9, 0);
+    this.controls.update();
+
+    const lines = new THREE.BufferGeometry();
+    lines.setAttribute('position', new THREE.BufferAttribute(new Float32Array(MAX_BONES * 6), 3));
+    this.bones = new THREE.LineSegments(lines, new THREE.LineBasicMaterial({ color: 0x1f4e8c }));
+    this.bones.frustumCulled = false;
+    this.scene.add(this.bones);
+    this.jointMesh = null;
+    this.highlight = new THREE.Mesh(new THREE.SphereGeometry(JOINT_RADIUS * 2, 16, 12),
+                                    new THREE.MeshBasicMaterial({ color: 0xe0402a }));
+    this.highlight.visible = false;
+    this.scene.add(this.highlight);
+    this.followed = null; // the last followed point, so the camera moves by the figure's travel
+
+    new ResizeObserver(() => this.resize()).observe(container);
+    this.resize();
+  }
+
+  resize() {
+    const { clientWidth: w, clientHeight: h } = this.container;
+    if (!w || !h) return;
+    this.renderer.setSize(w, h);
+    this.camera.aspect = w / h;
+    this.camera.updateProjectionMatrix();
+  }
+
+  // A new figure: joint spheres sized to its joint count; the camera frames it.
+  setFigure(jointCount, at) {
+    if (this.jointMesh) { this.scene.remove(this.jointMesh); this.jointMesh.dispose(); }
+    this.jointMesh = new THREE.InstancedMesh(new THREE.SphereGeometry(JOINT_RADIUS, 10, 8),
+                                             new THREE.MeshBasicMaterial({ color: 0x333333 }), jointCount);
+    this.jointMesh.frustumCulled = false;
+    this.scene.add(this.jointMesh);
+    const target = new THREE.Vector3(at[0], Math.max(at[1], 0.5), at[2]);
+    this.camera.position.copy(target).add(new THREE.Vector3(2.5, 0.9, 3.5));
+    this.controls.target.copy(target);
+    this.controls.update();
+    this.followed = target.clone();
+  }
+
+  draw(segments, positions, highlighted, follow) {
+    const buffer = this.bones.geometry.attributes.position;
+    segments.slice(0, MAX_BONES).forEach(([a, b], i) => { buffer.setXYZ(2 * i, a.x, a.y, a.z); buffer.setXYZ(2 * i + 1, b.x, b.y, b.z); });
+    buffer.needsUpdate = true;
+    this.bones.geometry.setDrawRange(0, 2 * Math.min(segments.length, MAX_BONES));
+    const m = new THREE.Matrix4();
+    positions.forEach((p, i) => this.jointMesh.setMatrixAt(i, m.makeTranslation(p[0], p[1], p[2])));
+    this.jointMesh.instanceMatrix.needsUpdate = true;
+    this.highlight.visible = highlighted !== null;
+    if (highlighted !== null) this.highlight.position.fromArray(positions[highlighted]);
+    if (this.followed) { // the root's travel on the ground; the camera keeps its place relative to it
+      const now = new THREE.Vector3(positions[0][0], this.followed.y, positions[0][2]);
+      if (follow) {
+        const travel = now.clone().sub(this.followed);
+        this.camera.position.add(travel);
+        this.controls.target.add(travel);
+      }
+      this.followed = now;
+    }
+  }
+
+  render() {
+    this.controls.update();
+    this.renderer.render(this.scene, this.camera);
+  }
+}

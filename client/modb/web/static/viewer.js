@@ -1,0 +1,114 @@
+// Browse the motion database and play a clip at its own rate. window.modbViewer is what tests (and the
+// console) use to read the page's state; the page itself only uses the JSON endpoints.
+import { Rig } from './rig.js';
+import { Stage } from './stage.js';
+import { getJSON, showClips, showCollections, showSkeleton } from './panels.js';
+
+const $ = (id) => document.getElementById(id);
+const stage = new Stage($('view'));
+const state = { clip: null, fps: 0, frames: null, frame: 0, playing: false, time: 0, highlighted: null, rig: null };
+
+function status(text, isError = false) {
+  $('status').textContent = text;
+  $('status').classList.toggle('error', isError);
+}
+
+async function allFrames(clipId, nFrames) {
+  // Pages of the endpoint's maximum; most clips are one page.
+  const pages = [];
+  for (let start = 0; start < nFrames; start += 20000) {
+    pages.push(await getJSON(`/api/clips/${clipId}/frames?start=${start}&count=${Math.min(20000, nFrames - start)}`));
+  }
+  return {
+    rotations: pages.flatMap((p) => p.rotations),
+    translations: pages.flatMap((p) => p.translations), // the server's positions are not used: the rig poses itself
+  };
+}
+
+async function loadClip(clipId) {
+  status(`loading clip ${clipId}…`);
+  pause();
+  const clip = await getJSON(`/api/clips/${clipId}`);
+  const skeleton = await getJSON(`/api/skeletons/${clip.skeleton_id}`);
+  const frames = await allFrames(clipId, clip.n_frames);
+  Object.assign(state, { clip, fps: clip.fps, frames, frame: 0, time: 0, highlighted: null,
+                         rig: new Rig(skeleton.hierarchy) });
+  $('skeleton-name').textContent = `(${skeleton.name || skeleton.id}, ${skeleton.hierarchy.joints.length} joints)`;
+  showSkeleton($('skeleton'), skeleton.hierarchy.joints, (index) => { state.highlighted = index; setFrame(state.frame); });
+  $('timeline').max = String(clip.n_frames - 1);
+  state.rig.pose(frames.rotations[0], frames.translations[0]);
+  stage.setFigure(skeleton.hierarchy.joints.length, state.rig.worldPositions()[0]);
+  setFrame(0);
+  status('');
+  document.title = `MoDB: ${clip.collection}/${clip.name}`;
+  history.replaceState(null, '', `?clip=${clipId}`);
+}
+
+function setFrame(index) {
+  if (!state.frames) return;
+  const n = state.clip.n_frames;
+  state.frame = ((index % n) + n) % n;
+  state.rig.pose(state.frames.rotations[state.frame], state.frames.translations[state.frame]);
+  stage.draw(state.rig.boneSegments(), state.rig.worldPositions(), state.highlighted, $('follow').checked);
+  $('timeline').value = String(state.frame);
+  $('frame').textContent = `${state.frame} / ${n - 1}  ${(state.frame / state.fps).toFixed(2)} s`;
+}
+
+function play() {
+  if (!state.frames) return;
+  state.playing = true;
+  state.time = state.frame / state.fps;
+  $('play').textContent = 'pause';
+}
+
+function pause() {
+  state.playing = false;
+  $('play').textContent = 'play';
+}
+
+let last = performance.now();
+function tick(now) {
+  const dt = (now - last) / 1000;
+  last = now;
+  if (state.playing) {
+    state.time += dt * Number($('speed').value);
+    const next = Math.floor(state.time * state.fps + 1e-9);
+    if (next !== state.frame) setFrame(next);
+  }
+  stage.render();
+  requestAnimationFrame(tick);
+}
+
+$('play').addEventListener('click', () => (state.playing ? pause() : play()));
+$('prev').addEventListener('click', () => { pause(); setFrame(state.frame - 1); });
+$('next').addEventListener('click', () => { pause(); setFrame(state.frame + 1); });
+$('timeline').addEventListener('input', (e) => { pause(); setFrame(Number(e.target.value)); });
+window.addEventListener('keydown', (e) => {
+  if (e.target.tagName === 'INPUT' || e.target.tagName === 'SELECT') return;
+  if (e.key === ' ') { e.preventDefault(); state.playing ? pause() : play(); }
+  if (e.key === 'ArrowLeft') { pause(); setFrame(state.frame - 1); }
+  if (e.key === 'ArrowRight') { pause(); setFrame(state.frame + 1); }
+});
+
+async function start() {
+  const collections = await getJSON('/api/collections');
+  showCollections($('collections'), collections, async (c) => {
+    showClips($('clips'), $('clip-count'), await getJSON(`/api/clips?collection=${c.id}`), (clip) => loadClip(clip.id));
+  });
+  const wanted = new URLSearchParams(location.search).get('clip');
+  if (wanted) await loadClip(Number(wanted));
+  else status(collections.length ? 'choose a collection, then a clip' : 'the database holds no clips yet: `modb load`');
+}
+
+window.modbViewer = {
+  stage,
+  state,
+  loadClip,
+  setFrame,
+  play,
+  pause,
+  jointNames: () => (state.rig ? state.rig.joints.map((j) => j.name) : []),
+  jointWorldPositions: () => (state.rig ? state.rig.worldPositions() : []),
+  ready: start().then(() => true, (error) => { status(error.message, true); throw error; }),
+};
+requestAnimationFrame(tick);
