@@ -9,9 +9,9 @@
 -- avatar keeps serving the last one. Snippets whose play ended less than exclude_seconds before the end of
 -- the current one are passed as exclude. Time is counted in frames (the chain has one rate), so both
 -- paths compare the same integers. When nothing can follow, the chain ends (the Avatar raises NoContinuation
--- there, and modb synth stops the strip and says so).
+-- there, and modb synth stops the strip and says so). CREATE OR REPLACE: upgrades include this file.
 
-CREATE FUNCTION modb.local_to_world(origin float8[], heading float8, local_point float8[])
+CREATE OR REPLACE FUNCTION modb.local_to_world(origin float8[], heading float8, local_point float8[])
 RETURNS float8[]
 LANGUAGE sql IMMUTABLE STRICT PARALLEL SAFE
 -- The inverse of world_to_local: x left and z forward of a character at origin facing heading.
@@ -24,7 +24,7 @@ RETURN CASE WHEN array_length(local_point, 1) = 3
 COMMENT ON FUNCTION modb.local_to_world(float8[], float8, float8[]) IS
     'A point given in the heading frame of a character at origin {x, y, z} with heading theta ({x, z} or {x, y, z}; x left, z forward) in world coordinates';
 
-CREATE FUNCTION modb.synthesis_goal(targets float8[], goal int)
+CREATE OR REPLACE FUNCTION modb.synthesis_goal(targets float8[], goal int)
 RETURNS float8[]
 LANGUAGE sql IMMUTABLE STRICT PARALLEL SAFE
 RETURN CASE array_length(targets, 2) WHEN 2 THEN ARRAY[targets[goal][1], targets[goal][2]]
@@ -32,7 +32,7 @@ RETURN CASE array_length(targets, 2) WHEN 2 THEN ARRAY[targets[goal][1], targets
 COMMENT ON FUNCTION modb.synthesis_goal(float8[], int) IS
     'Row goal (1-based) of a synthesize targets array, as a {x, z} or {x, y, z} world point';
 
-CREATE FUNCTION modb.synthesis_step_end(origin float8[], heading float8, net_translation float8[], net_heading float8,
+CREATE OR REPLACE FUNCTION modb.synthesis_step_end(origin float8[], heading float8, net_translation float8[], net_heading float8,
                                         target float8[], arrival_radius float8)
 RETURNS TABLE (end_position float8[], end_heading float8, reached boolean)
 LANGUAGE sql IMMUTABLE PARALLEL SAFE
@@ -45,7 +45,7 @@ $$;
 COMMENT ON FUNCTION modb.synthesis_step_end(float8[], float8, float8[], float8, float8[], float8) IS
     'Where a snippet placed at origin/heading leaves the avatar (its ground travel and turn), and whether the pelvis is then within arrival_radius of target on the ground';
 
-CREATE FUNCTION modb.check_synthesis(targets float8[], max_snippets int, start_snippet bigint,
+CREATE OR REPLACE FUNCTION modb.check_synthesis(targets float8[], max_snippets int, start_snippet bigint,
                                      start_position float8[], start_heading float8, profile text,
                                      arrival_radius float8, exclude_seconds float8)
 RETURNS boolean
@@ -89,7 +89,7 @@ $$;
 COMMENT ON FUNCTION modb.check_synthesis(float8[], int, bigint, float8[], float8, text, float8, float8) IS
     'Raises a clear error for a synthesize request that cannot be run (bad targets, sizes, start or profile)';
 
-CREATE FUNCTION modb.synthesize(targets float8[], max_snippets int, start_snippet bigint DEFAULT NULL,
+CREATE OR REPLACE FUNCTION modb.synthesize(targets float8[], max_snippets int, start_snippet bigint DEFAULT NULL,
                                 start_position float8[] DEFAULT '{0,0,0}', start_heading float8 DEFAULT 0,
                                 profile text DEFAULT 'default', collection text DEFAULT NULL,
                                 arrival_radius float8 DEFAULT 0.5, exclude_seconds float8 DEFAULT 2)
@@ -152,6 +152,7 @@ WITH RECURSIVE cfg AS MATERIALIZED (
 SELECT step, snippet_id, clip_id, version, mirrored, first_frame, n_frames, fps, start_frame / fps,
        "position", heading, end_position, end_heading, goal, target, reached, relax_level, continuity, proximity
   FROM chain
+ WHERE (SELECT ok FROM cfg)  -- a one-time filter, run first: bad requests raise even when no snippet matches
 $$;
 COMMENT ON FUNCTION modb.synthesize(float8[], int, bigint, float8[], float8, text, text, float8, float8) IS
     'A chain of up to max_snippets snippets from start_position/start_heading (world metres, radians; 0 faces +Z) through the world goals in targets ({{x, z}, ...} or {{x, y, z}, ...}), in order: one row per snippet with where it is placed, where it ends, the goal it served and whether it reached it (pelvis within arrival_radius on the ground), and its selection (relaxation level, continuity, proximity). Its first frame stands in for the previous snippet''s last; start_time is the time of that frame. The chain ends early when nothing can follow (every candidate excluded)';

@@ -9,8 +9,9 @@ COMMENT ON TYPE modb.match_plan IS
 --@include 75_graphs.sql
 --@include 72_plan.sql
 --@include 76_select.sql
--- Without JIT: its per-step generic plans passed jit_above_cost and compiled for seconds each (78_synthesize.sql).
-ALTER FUNCTION modb.synthesize(float8[], int, bigint, float8[], float8, text, text, float8, float8) SET jit = off;
+-- synthesize runs without JIT (its steps' generic plans passed jit_above_cost and compiled for seconds each)
+-- and checks every request first.
+--@include 78_synthesize.sql
 GRANT SELECT ON modb.graph_snippets TO modb_reader;
 GRANT INSERT, DELETE ON modb.graph_snippets TO modb_loader;
 REVOKE EXECUTE ON FUNCTION modb.build_transition_graph(text, text, text, float8) FROM PUBLIC;
