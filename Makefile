@@ -9,12 +9,14 @@ DATA ?= $(abspath ../shared/mocap)
 SUDO := $(if $(filter 0,$(shell id -u)),,sudo)
 # cube ships in postgresql-15 itself.
 APT_PACKAGES := postgresql-15 postgresql-plpython3-15 postgresql-15-pgtap gcc make \
-	libtap-parser-sourcehandler-pgtap-perl postgresql-server-dev-15 python3-numpy python3-scipy python3-venv
+	libtap-parser-sourcehandler-pgtap-perl postgresql-server-dev-15 python3-numpy python3-scipy python3-venv \
+	chromium chromium-driver
+WEB := client/modb/web
 EXTVERSION := $(shell sed -n "s/^default_version *= *'\(.*\)'/\1/p" extension/modb.control)
 
-.PHONY: setup apt extension venv test demo bench-load bench-select bench-synth clean
+.PHONY: setup apt extension venv web test demo bench-load bench-select bench-synth clean
 
-setup: apt extension venv
+setup: apt extension venv web
 
 apt:
 	@missing=$$(for p in $(APT_PACKAGES); do \
@@ -37,6 +39,16 @@ extension: apt
 	fi
 
 venv: $(VENV)/.installed
+
+# three.js for `modb serve`, at the version package-lock.json pins (served from here: no CDN).
+web: $(WEB)/node_modules/.installed
+
+$(WEB)/node_modules/.installed: $(WEB)/package.json $(WEB)/package-lock.json
+	@command -v npm >/dev/null || { echo "setup: installing npm"; \
+		$(SUDO) env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq npm; }
+	@echo "setup: installing three.js into $(WEB)/node_modules (npm ci)"
+	npm ci --prefix $(WEB) --no-audit --no-fund --loglevel=error
+	@touch $@
 
 $(VENV)/.installed: pyproject.toml
 	@echo "setup: installing the Python package into $(VENV)"

@@ -74,6 +74,7 @@ def frames(conn: psycopg.Connection, clip_id: int, version: int | None, start: i
         raise BadRequest(f"start must be 0 or more, got {start}")
     if count is not None and not 1 <= count <= MAX_FRAMES:
         raise BadRequest(f"count must be 1-{MAX_FRAMES}, got {count}")
+    _one(conn, "clip", "SELECT id FROM modb.clips WHERE id = %s", clip_id)
     try:
         motion = read_motion(conn, clip_id, version)
     except ClipNotFound as e:

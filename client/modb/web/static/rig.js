@@ -3,8 +3,12 @@
 import * as THREE from 'three';
 
 export class Rig {
-  constructor(hierarchy) {
+  // pelvisName: the skeleton's joint map entry for pelvis (the body's travel); the joints above it, like
+  // Bandai's joint_Root on the ground at the origin, are frames of reference, not bones.
+  constructor(hierarchy, pelvisName) {
     this.joints = hierarchy.joints;
+    const named = this.joints.findIndex((j) => j.name === pelvisName);
+    this.pelvis = named >= 0 ? named : 0;
     this.translated = hierarchy.translated;
     this.root = new THREE.Group();
     // Each joint sits at its offset in the parent's frame; joints with position channels replace it per frame.
@@ -37,11 +41,12 @@ export class Rig {
     return this.nodes.map((node) => node.getWorldPosition(new THREE.Vector3()).toArray());
   }
 
-  // Bone segments as pairs of world points: every joint to its parent, and every end site to its joint.
+  // Bone segments as pairs of world points: every joint to its parent (the pelvis aside), and every end
+  // site to its joint.
   boneSegments() {
     const at = (node) => node.getWorldPosition(new THREE.Vector3());
     const pairs = [];
-    this.joints.forEach((j, i) => { if (j.parent >= 0) pairs.push([at(this.nodes[j.parent]), at(this.nodes[i])]); });
+    this.joints.forEach((j, i) => { if (j.parent >= 0 && i !== this.pelvis) pairs.push([at(this.nodes[j.parent]), at(this.nodes[i])]); });
     this.ends.forEach((e) => pairs.push([at(this.nodes[e.parent]), at(e.node)]));
     return pairs;
   }

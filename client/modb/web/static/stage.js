@@ -70,7 +70,8 @@ export class Stage {
     this.followed = target.clone();
   }
 
-  draw(segments, positions, highlighted, follow) {
+  // follow: the camera moves with `positions[pelvis]` on the ground.
+  draw(segments, positions, pelvis, highlighted, follow) {
     const buffer = this.bones.geometry.attributes.position;
     segments.slice(0, MAX_BONES).forEach(([a, b], i) => { buffer.setXYZ(2 * i, a.x, a.y, a.z); buffer.setXYZ(2 * i + 1, b.x, b.y, b.z); });
     buffer.needsUpdate = true;
@@ -81,7 +82,7 @@ export class Stage {
     this.highlight.visible = highlighted !== null;
     if (highlighted !== null) this.highlight.position.fromArray(positions[highlighted]);
     if (this.followed) { // the root's travel on the ground; the camera keeps its place relative to it
-      const now = new THREE.Vector3(positions[0][0], this.followed.y, positions[0][2]);
+      const now = new THREE.Vector3(positions[pelvis][0], this.followed.y, positions[pelvis][2]);
       if (follow) {
         const travel = now.clone().sub(this.followed);
         this.camera.position.add(travel);

@@ -32,12 +32,12 @@ async function loadClip(clipId) {
   const skeleton = await getJSON(`/api/skeletons/${clip.skeleton_id}`);
   const frames = await allFrames(clipId, clip.n_frames);
   Object.assign(state, { clip, fps: clip.fps, frames, frame: 0, time: 0, highlighted: null,
-                         rig: new Rig(skeleton.hierarchy) });
+                         rig: new Rig(skeleton.hierarchy, skeleton.joint_map.pelvis) });
   $('skeleton-name').textContent = `(${skeleton.name || skeleton.id}, ${skeleton.hierarchy.joints.length} joints)`;
   showSkeleton($('skeleton'), skeleton.hierarchy.joints, (index) => { state.highlighted = index; setFrame(state.frame); });
   $('timeline').max = String(clip.n_frames - 1);
   state.rig.pose(frames.rotations[0], frames.translations[0]);
-  stage.setFigure(skeleton.hierarchy.joints.length, state.rig.worldPositions()[0]);
+  stage.setFigure(skeleton.hierarchy.joints.length, state.rig.worldPositions()[state.rig.pelvis]);
   setFrame(0);
   status('');
   document.title = `MoDB: ${clip.collection}/${clip.name}`;
@@ -49,7 +49,8 @@ function setFrame(index) {
   const n = state.clip.n_frames;
   state.frame = ((index % n) + n) % n;
   state.rig.pose(state.frames.rotations[state.frame], state.frames.translations[state.frame]);
-  stage.draw(state.rig.boneSegments(), state.rig.worldPositions(), state.highlighted, $('follow').checked);
+  stage.draw(state.rig.boneSegments(), state.rig.worldPositions(), state.rig.pelvis, state.highlighted,
+             $('follow').checked);
   $('timeline').value = String(state.frame);
   $('frame').textContent = `${state.frame} / ${n - 1}  ${(state.frame / state.fps).toFixed(2)} s`;
 }

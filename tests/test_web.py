@@ -1,0 +1,302 @@
+"""`modb serve`: the JSON endpoints and the page in a real browser (Debian's chromium via chromium-driver),
+against the real server and a database of real capture (a Bandai BVH clip and a CMU ASF/AMC clip)."""
+from __future__ import annotations
+
+import http.client
+import json
+import os
+import shutil
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from asf_oracle import bone_tips, parse_amc, parse_asf
+from conftest import CMU_UNITS, REPO, mocap, run_modb, scratch_database
+from oracle import bvhio_world_positions, in_order
+
+TOLERANCE_M = 0.01  # the issue's bar for the page against the server
+ARTIFACTS = REPO / "tests" / "artifacts"
+BVH_FILE = ("bandai-2-dev", "data", "dataset-2_walk_active_001.bvh")
+CHROMIUM, CHROMEDRIVER = Path("/usr/bin/chromium"), Path("/usr/bin/chromedriver")
+
+
+@pytest.fixture(scope="module")
+def web_db(cluster, tmp_path_factory):
+    """A BVH clip (collection web/bvh) and an ASF/AMC clip (web/amc)."""
+    bvh = mocap(*BVH_FILE)
+    amc_folder = tmp_path_factory.mktemp("amc")
+    for name in ("131.asf", "131_01.amc"):
+        shutil.copy(mocap("cmu", "131", name), amc_folder / name)
+    with scratch_database(cluster, f"web_{os.getpid()}") as dsn:
+        for path, collection, units in ((bvh, "web/bvh", "auto"), (amc_folder, "web/amc", repr(CMU_UNITS))):
+            r = run_modb(dsn, "load", path, "--collection", collection, "--units", units, "--no-snippets", "-q")
+            assert r.returncode == 0, r.stderr
+        yield dsn
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def server(web_db):
+    """The real `modb serve` on a free port; (host:port, dsn)."""
+    port = _free_port()
+    log = tempfile.TemporaryFile()
+    proc = subprocess.Popen([sys.executable, "-m", "modb.cli", "--dsn", web_db, "serve", "--port", str(port)],
+                            stdout=log, stderr=subprocess.STDOUT)
+    address = f"127.0.0.1:{port}"
+    for _ in range(150):
+        try:
+            if get(address, "/api/collections")[0] == 200:
+                break
+        except OSError:
+            if proc.poll() is not None:
+                break
+            time.sleep(0.2)
+    else:
+        proc.kill()
+    if proc.poll() is not None:
+        log.seek(0)
+        pytest.fail(f"modb serve did not start:\n{log.read().decode()}")
+    yield address, web_db
+    proc.terminate()
+    proc.wait(10)
+
+
+def get(address: str, path: str, headers: dict[str, str] | None = None) -> tuple[int, dict]:
+    conn = http.client.HTTPConnection(address, timeout=30)
+    try:
+        conn.request("GET", path, headers=headers or {})
+        response = conn.getresponse()
+        return response.status, json.loads(response.read() or b"null")
+    finally:
+        conn.close()
+
+
+def ok(address: str, path: str):
+    status, body = get(address, path)
+    assert status == 200, body
+    return body
+
+
+def clip_ids(address: str) -> dict[str, int]:
+    """{'bvh': id, 'amc': id} from the endpoints themselves."""
+    out = {}
+    for c in ok(address, "/api/collections"):
+        if c["path"] in ("web/bvh", "web/amc"):
+            (clip,) = ok(address, f"/api/clips?collection={c['id']}")
+            out[c["path"][4:]] = clip["id"]
+    return out
+
+
+# --- JSON endpoints ---------------------------------------------------------------------------------------
+
+def test_the_endpoints_list_what_the_database_holds(server):
+    address, dsn = server
+    paths = {c["path"]: c for c in ok(address, "/api/collections")}
+    assert {"web", "web/bvh", "web/amc"} <= set(paths)
+    assert paths["web"]["clips"] == 0 and paths["web/bvh"]["parent_id"] == paths["web"]["id"]
+    ids = clip_ids(address)
+    everything = ok(address, "/api/clips")
+    assert sorted(c["id"] for c in everything) == sorted(ids.values())
+    amc = ok(address, f"/api/clips/{ids['amc']}")
+    assert amc["name"] == "131_01" and amc["collection"] == "web/amc" and len(amc["versions"]) == 1
+    skeleton = ok(address, f"/api/skeletons/{amc['skeleton_id']}")
+    assert skeleton["hierarchy"]["format"] == "asf" and skeleton["joint_map"]["pelvis"] == "root"
+    assert {s["id"] for s in ok(address, "/api/skeletons")} == {
+        ok(address, f"/api/clips/{i}")["skeleton_id"] for i in ids.values()}
+    assert ok(address, "/api/models") == [] and ok(address, "/api/graphs") == []
+
+
+def test_frames_carry_world_positions_that_independent_readers_agree_with(server):
+    address, _ = server
+    ids = clip_ids(address)
+    # BVH: bvhio (PyPI) reads the same file.
+    page = ok(address, f"/api/clips/{ids['bvh']}/frames?start=5&count=40")
+    assert page["start"] == 5 and page["count"] == 40 and len(page["positions"]) == 40
+    skeleton_id = ok(address, f"/api/clips/{ids['bvh']}")["skeleton_id"]
+    unit_m = ok(address, f"/api/skeletons/{skeleton_id}")["hierarchy"]["unit_m"]
+    names, expected = bvhio_world_positions(str(mocap(*BVH_FILE)), unit_m)
+    served = in_order(page["joints"], names, np.array(page["positions"]))
+    assert np.abs(served - expected[5:45]).max() < 1e-4
+    # ASF/AMC: the test suite's own reader; a joint sits at its parent bone's tip.
+    page = ok(address, f"/api/clips/{ids['amc']}/frames?count=30")
+    tips, parent = bone_tips(parse_asf(str(mocap("cmu", "131", "131.asf"))),
+                             parse_amc(str(mocap("cmu", "131", "131_01.amc"))))
+    served = np.array(page["positions"])
+    for k, name in enumerate(page["joints"]):
+        reference = tips["root"] if name == "root" else tips[parent[name]]
+        assert np.abs(served[:, k] - reference[:30]).max() < 1e-4, name
+
+
+@pytest.mark.parametrize("path,message", [
+    ("/api/clips/987654", "no clip with id 987654"),
+    ("/api/clips/987654/frames", "no clip with id 987654"),
+    ("/api/clips/{amc}/frames?version=7", "clip {amc} has no version 7"),
+    ("/api/skeletons/987654", "no skeleton with id 987654"),
+    ("/api/models/987654", "no model with id 987654"),
+    ("/api/graphs/987654", "no graph with id 987654"),
+    ("/api/clips?collection=987654", "no collection with id 987654"),
+    ("/api/nothing-here", "no such page: /api/nothing-here"),
+])
+def test_unknown_ids_get_404_with_a_message(server, path, message):
+    ids = clip_ids(server[0])
+    status, body = get(server[0], path.format(**ids))
+    assert (status, body) == (404, {"error": message.format(**ids)})
+
+
+@pytest.mark.parametrize("query,message", [
+    ("/api/clips/abc", "clip id must be an integer, got 'abc'"),
+    ("/api/clips/{amc}/frames?count=0", "count must be 1-20000, got 0"),
+    ("/api/clips/{amc}/frames?start=-1", "start must be 0 or more, got -1"),
+    ("/api/clips/{amc}/frames?start=99999", "start 99999 is past the clip's last frame"),
+    ("/api/clips/{amc}/frames?version=x", "version must be an integer, got 'x'"),
+    ("/api/clips/{amc}/frames?frame=3", "unknown parameter 'frame'"),
+    ("/api/clips?collection=web", "collection must be an integer, got 'web'"),
+    ("/api/collections?all=1", "unknown parameter 'all': /api/collections takes no parameters"),
+])
+def test_bad_parameters_get_400_with_a_message(server, query, message):
+    status, body = get(server[0], query.format(**clip_ids(server[0])))
+    assert status == 400 and body["error"].startswith(message), body
+    assert "Traceback" not in json.dumps(body)
+
+
+@pytest.mark.parametrize("headers", [
+    {"Origin": "http://evil.example"},  # another site's page calling the API from the user's browser
+    {"Origin": "null"},  # a sandboxed or file:// page
+    {"Host": "evil.example:80"},  # DNS rebinding: another name resolving to 127.0.0.1
+])
+def test_another_origin_or_host_is_refused(server, headers):
+    address = server[0]
+    for path in ("/api/collections", "/", "/static/viewer.js", "/vendor/three/build/three.module.js"):
+        status, body = get(address, path, headers)
+        assert status == 403 and ("refused" in body["error"] or "is not this server" in body["error"]), (path, body)
+    assert get(address, "/api/collections", {"Origin": f"http://{address}"})[0] == 200  # its own page may
+
+
+# --- the page in a real browser ---------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def browser():
+    if not (CHROMIUM.exists() and CHROMEDRIVER.exists()):
+        pytest.skip("Debian's chromium and chromium-driver are not installed (`make setup` installs them)")
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    options = webdriver.ChromeOptions()
+    options.binary_location = str(CHROMIUM)
+    profile = tempfile.mkdtemp(prefix="modb-chromium-")
+    for flag in ("--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+                 "--disable-component-update", "--no-first-run", "--disable-sync", f"--user-data-dir={profile}",
+                 "--enable-unsafe-swiftshader",  # software WebGL, which headless Chromium needs an opt-in for
+                 "--window-size=1280,800"):
+        options.add_argument(flag)
+    options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
+    driver = webdriver.Chrome(service=Service(str(CHROMEDRIVER)), options=options)
+    yield driver
+    driver.quit()
+    shutil.rmtree(profile, ignore_errors=True)
+
+
+def open_page(browser, address: str, query: str = "") -> None:
+    browser.get(f"http://{address}/{query}")
+    result = browser.execute_async_script(
+        "const done = arguments[0]; window.modbViewer.ready.then(() => done('ok'), (e) => done(String(e)))")
+    assert result == "ok"
+
+
+def severe_console_entries(browser) -> list[dict]:
+    return [e for e in browser.get_log("browser") if e["level"] == "SEVERE"]
+
+
+def test_the_page_loads_and_browses_collections_and_clips_without_console_errors(server, browser):
+    from selenium.webdriver.common.by import By
+
+    address = server[0]
+    open_page(browser, address)
+    tree = browser.find_element(By.ID, "collections")
+    labels = [e.text for e in tree.find_elements(By.CSS_SELECTOR, "li > span")]
+    assert "web (0)" in labels and "bvh (1)" in labels and "amc (1)" in labels
+    next(e for e in tree.find_elements(By.CSS_SELECTOR, "li > span") if e.text == "amc (1)").click()
+    clip = None
+    for _ in range(50):  # the list arrives with the next fetch
+        items = browser.find_elements(By.CSS_SELECTOR, "#clips li > span")
+        if items:
+            clip = items[0]
+            break
+        time.sleep(0.1)
+    assert clip is not None and clip.text == "131_01"
+    clip.click()
+    for _ in range(100):
+        if browser.execute_script("return window.modbViewer.state.clip && window.modbViewer.state.clip.name"):
+            break
+        time.sleep(0.1)
+    assert browser.execute_script("return window.modbViewer.state.clip.name") == "131_01"
+    assert browser.find_element(By.ID, "skeleton").find_elements(By.CSS_SELECTOR, "li > span")[0].text == "root"
+    assert severe_console_entries(browser) == []
+
+
+def page_pose(browser) -> tuple[int, np.ndarray]:
+    """The frame shown and the bone positions of the three.js scene, read in one step."""
+    frame, positions = browser.execute_script(
+        "const v = window.modbViewer; return [v.state.frame, v.jointWorldPositions()];")
+    return frame, np.array(positions)
+
+
+@pytest.mark.parametrize("kind", ["bvh", "amc"])
+def test_a_clip_plays_and_its_bones_match_the_servers_kinematics(server, browser, kind):
+    address = server[0]
+    clip_id = clip_ids(address)[kind]
+    info = ok(address, f"/api/clips/{clip_id}")
+    served = np.array(ok(address, f"/api/clips/{clip_id}/frames")["positions"])
+    open_page(browser, address, f"?clip={clip_id}")
+    browser.execute_script("window.modbViewer.play()")
+    seen: dict[int, np.ndarray] = {}
+    started = time.monotonic()
+    while len(seen) < 8 and time.monotonic() - started < 20:
+        frame, positions = page_pose(browser)
+        seen[frame] = positions
+        time.sleep(0.05)
+    page_time = browser.execute_script("window.modbViewer.pause(); return window.modbViewer.state.time")
+    assert len(seen) >= 8, f"the clip did not play: frames seen {sorted(seen)}"
+    for frame, positions in seen.items():
+        worst = np.abs(positions - served[frame]).max()
+        assert worst < TOLERANCE_M, (frame, worst)
+    frames = sorted(seen)
+    assert all(np.abs(seen[a] - seen[b]).max() > 1e-4 for a, b in zip(frames, frames[1:]))  # the pose moves
+    # At the clip's own rate: never ahead of the page's clock (a frame per screen refresh would be).
+    assert max(frames) <= page_time * info["fps"] + 1
+    ARTIFACTS.mkdir(exist_ok=True)
+    browser.save_screenshot(str(ARTIFACTS / f"web-view-{kind}.png"))
+    assert severe_console_entries(browser) == []
+
+
+def test_frame_stepping_and_the_selected_joint(server, browser):
+    from selenium.webdriver.common.by import By
+
+    address = server[0]
+    clip_id = clip_ids(address)["bvh"]
+    served = np.array(ok(address, f"/api/clips/{clip_id}/frames?count=3")["positions"])
+    open_page(browser, address, f"?clip={clip_id}")
+    browser.find_element(By.ID, "next").click()
+    browser.find_element(By.ID, "next").click()
+    browser.find_element(By.ID, "prev").click()
+    frame, positions = page_pose(browser)
+    assert frame == 1 and np.abs(positions - served[1]).max() < TOLERANCE_M
+    joints = browser.find_element(By.ID, "skeleton").find_elements(By.CSS_SELECTOR, "li > span")
+    chosen = joints[5]
+    chosen.click()
+    index = browser.execute_script("return window.modbViewer.state.highlighted")
+    names = browser.execute_script("return window.modbViewer.jointNames()")
+    assert names[index] == chosen.text and "selected" in chosen.get_attribute("class")
+    marker = browser.execute_script("return window.modbViewer.stage.highlight.position.toArray()")
+    assert np.abs(np.array(marker) - served[1][index]).max() < TOLERANCE_M
