@@ -183,6 +183,27 @@ def test_another_origin_or_host_is_refused(server, headers):
     assert get(address, "/api/collections", {"Origin": f"http://{address}"})[0] == 200  # its own page may
 
 
+def _external_addresses() -> list[str]:
+    """This machine's IPv4 addresses other than loopback."""
+    try:
+        names = socket.getaddrinfo(socket.gethostname(), None, socket.AF_INET)
+    except socket.gaierror:
+        names = []
+    found = {a[4][0] for a in names} | set(subprocess.run(["hostname", "-I"], capture_output=True, text=True).stdout.split())
+    return sorted(a for a in found if "." in a and not a.startswith("127."))
+
+
+def test_by_default_it_listens_on_loopback_only(server):
+    port = int(server[0].rsplit(":", 1)[1])
+    addresses = _external_addresses()
+    if not addresses:
+        pytest.skip("this machine has no address but loopback to try")
+    for address in addresses:
+        with socket.socket() as s:
+            s.settimeout(2)
+            assert s.connect_ex((address, port)) != 0, f"modb serve answered on {address}"
+
+
 # --- the page in a real browser ---------------------------------------------------------------------------
 
 @pytest.fixture(scope="module")

@@ -281,13 +281,15 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
     conninfo, origin = resolve(args.dsn)
     try:
-        app = create_app(conninfo, args.host, args.port)
+        app = create_app(conninfo, args.host, args.port, tuple(args.allow_host))
     except ThreeMissing as e:
         print(f"modb serve: {e}", file=sys.stderr)
         return 2
     if args.host not in ("127.0.0.1", "localhost", "::1"):
         print(f"modb serve: listening on {args.host}, beyond this machine: anyone who can reach it can read the "
-              f"database (it answers only requests naming {args.host}:{args.port} as their Host)", file=sys.stderr)
+              f"database. It answers requests that name it as 127.0.0.1, localhost"
+              + (f", {args.host}" if args.host not in ("0.0.0.0", "::") else "")
+              + "".join(f", {h}" for h in args.allow_host) + " (more with --allow-host NAME)", file=sys.stderr)
     shown = f"[{args.host}]" if ":" in args.host else args.host
     print(f"modb serve: http://{shown}:{args.port}/  (database: {origin}; Ctrl-C stops)", file=sys.stderr)
     uvicorn.run(app, host=args.host, port=args.port, log_level="warning")
@@ -384,6 +386,9 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--port", type=int, default=8765, help="port (default 8765)")
     serve.add_argument("--host", default="127.0.0.1",
                        help="address to listen on (default 127.0.0.1: this machine only)")
+    serve.add_argument("--allow-host", action="append", default=[], metavar="NAME",
+                       help="also answer requests that name this server NAME (e.g. the machine's DNS name when "
+                            "--host 0.0.0.0); repeatable")
     serve.set_defaults(func=cmd_serve)
 
     db = sub.add_parser("db", help="the embedded database cluster")

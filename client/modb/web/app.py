@@ -123,7 +123,8 @@ def _configure(conn: psycopg.Connection) -> None:
     pgarray.register(conn)
 
 
-def create_app(conninfo: str, host: str = "127.0.0.1", port: int = 8765) -> HostOriginGuard:
+def create_app(conninfo: str, host: str = "127.0.0.1", port: int = 8765,
+               allow_hosts: tuple[str, ...] = ()) -> HostOriginGuard:
     if not (THREE / "build" / "three.module.js").exists():
         raise ThreeMissing(f"three.js is not installed in {THREE.parent}: run `make setup` (npm ci there)")
     connect(conninfo).close()  # fails now, saying what to do, when the database has no modb extension
@@ -142,4 +143,4 @@ def create_app(conninfo: str, host: str = "127.0.0.1", port: int = 8765) -> Host
     app = Starlette(routes=routes, lifespan=lifespan, exception_handlers={
         api.NotFound: _error(404), api.BadRequest: _error(400), HTTPException: _http_error,
         Exception: _internal_error})
-    return HostOriginGuard(app, allowed_hosts(host, port))
+    return HostOriginGuard(app, allowed_hosts(host, port, allow_hosts))

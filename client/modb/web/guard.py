@@ -15,10 +15,14 @@ from starlette.types import ASGIApp, Receive, Scope, Send
 LOOPBACK_NAMES = ("127.0.0.1", "localhost", "[::1]")
 
 
-def allowed_hosts(host: str, port: int) -> frozenset[str]:
-    """Host header values that name this server: the address it binds to, and the loopback names."""
-    names = {host if ":" not in host else f"[{host}]", *LOOPBACK_NAMES}
-    return frozenset(f"{name}:{port}" for name in names) | (frozenset(names) if port == 80 else frozenset())
+def allowed_hosts(host: str, port: int, extra_names: Iterable[str] = ()) -> frozenset[str]:
+    """Host header values that name this server: the loopback names, the address it binds to (unless a
+    wildcard such as 0.0.0.0, which names nothing), and the names the user allowed, each with the port."""
+    names = {*LOOPBACK_NAMES, *extra_names}
+    if host not in ("0.0.0.0", "::", ""):
+        names.add(host if ":" not in host else f"[{host}]")
+    bare = {name.lower() for name in names} if port == 80 else set()  # browsers leave out the default port
+    return frozenset(f"{name.lower()}:{port}" for name in names) | bare
 
 
 class HostOriginGuard:
