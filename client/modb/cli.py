@@ -273,6 +273,12 @@ def cmd_db(args: argparse.Namespace) -> int:
     return 0
 
 
+def _tcp_port(text: str) -> int:
+    if not text.isascii() or not text.isdigit() or not 1 <= int(text) <= 65535:
+        raise argparse.ArgumentTypeError(f"a port is a number from 1 to 65535, got {text!r}")
+    return int(text)
+
+
 def cmd_serve(args: argparse.Namespace) -> int:
     import uvicorn
 
@@ -383,7 +389,7 @@ def build_parser() -> argparse.ArgumentParser:
     graph.set_defaults(func=cmd_graph)
 
     serve = sub.add_parser("serve", help="browse the database in the web browser (three.js) and JSON endpoints")
-    serve.add_argument("--port", type=int, default=8765, help="port (default 8765)")
+    serve.add_argument("--port", type=_tcp_port, default=8765, help="port, 1-65535 (default 8765)")
     serve.add_argument("--host", default="127.0.0.1",
                        help="address to listen on (default 127.0.0.1: this machine only)")
     serve.add_argument("--allow-host", action="append", default=[], metavar="NAME",

@@ -5,6 +5,7 @@ raise NotFound, bad arguments BadRequest, so the app can answer 404 and 400 with
 """
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -82,7 +83,8 @@ def frames(conn: psycopg.Connection, clip_id: int, version: int | None, start: i
     if start >= motion.n_frames:
         raise BadRequest(f"start {start} is past the clip's last frame ({motion.n_frames - 1})")
     stop = min(motion.n_frames, start + (count or MAX_FRAMES))
-    positions = motion.world_positions()[start:stop]
+    positions = replace(motion, rotations=motion.rotations[start:stop],
+                        translations=motion.translations[start:stop]).world_positions()
     return {
         "clip_id": clip_id, "version": motion.meta["version"], "fps": motion.fps, "n_frames": motion.n_frames,
         "start": start, "count": stop - start, "joints": motion.skeleton.names,
@@ -125,12 +127,12 @@ def graphs(conn: psycopg.Connection) -> list[dict[str, Any]]:
     rows = _rows(conn, _named_table("graphs")[0])
     kept = dict(conn.execute("SELECT graph_id, count(*) FROM modb.graph_snippets GROUP BY graph_id").fetchall())
     for r in rows:
-        r["snippets"] = kept.get(r["id"], 0)
+        r["kept_snippets"] = kept.get(r["id"], 0)
     return rows
 
 
 def graph(conn: psycopg.Connection, graph_id: int) -> dict[str, Any]:
     out = _one(conn, "graph", _named_table("graphs")[1], graph_id)
-    out["snippets"] = conn.execute("SELECT count(*) FROM modb.graph_snippets WHERE graph_id = %s",
+    out["kept_snippets"] = conn.execute("SELECT count(*) FROM modb.graph_snippets WHERE graph_id = %s",
                                    [graph_id]).fetchone()[0]
     return out

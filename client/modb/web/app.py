@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import re
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -38,10 +39,9 @@ class ThreeMissing(RuntimeError):
 def _int(name: str, value: str | None, default: int | None = None) -> int | None:
     if value is None:
         return default
-    try:
-        return int(value)
-    except ValueError:
-        raise api.BadRequest(f"{name} must be an integer, got {value!r}") from None
+    if not re.fullmatch(r"-?[0-9]{1,18}", value):  # ASCII digits only: int() would take "1_0", "+1", "٣"
+        raise api.BadRequest(f"{name} must be an integer, got {value!r}")
+    return int(value)
 
 
 def _query(request: Request, *allowed: str) -> dict[str, str]:
@@ -49,6 +49,9 @@ def _query(request: Request, *allowed: str) -> dict[str, str]:
     if unknown:
         takes = ", ".join(allowed) if allowed else "no parameters"
         raise api.BadRequest(f"unknown parameter {unknown[0]!r}: {request.url.path} takes {takes}")
+    repeated = sorted(k for k in request.query_params if len(request.query_params.getlist(k)) > 1)
+    if repeated:
+        raise api.BadRequest(f"parameter {repeated[0]!r} is given more than once")
     return dict(request.query_params)
 
 
@@ -109,7 +112,7 @@ def _error(status: int) -> Callable:
 
 async def _http_error(request: Request, exc: HTTPException) -> JSONResponse:
     message = f"no such page: {request.url.path}" if exc.status_code == 404 else exc.detail
-    return JSONResponse({"error": message}, status_code=exc.status_code)
+    return JSONResponse({"error": message}, status_code=exc.status_code, headers=exc.headers)  # 405 keeps Allow
 
 
 async def _internal_error(request: Request, exc: Exception) -> JSONResponse:
@@ -128,7 +131,8 @@ def create_app(conninfo: str, host: str = "127.0.0.1", port: int = 8765,
     if not (THREE / "build" / "three.module.js").exists():
         raise ThreeMissing(f"three.js is not installed in {THREE.parent}: run `make setup` (npm ci there)")
     connect(conninfo).close()  # fails now, saying what to do, when the database has no modb extension
-    pool = ConnectionPool(conninfo, min_size=1, max_size=4, configure=_configure, open=False)
+    pool = ConnectionPool(conninfo, min_size=1, max_size=4, configure=_configure, open=False,
+                          check=ConnectionPool.check_connection)  # a restarted server costs no failed request
 
     @contextlib.asynccontextmanager
     async def lifespan(app: Starlette):

@@ -7,6 +7,7 @@ posting or opening a WebSocket from its page (the Origin header names that site)
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Iterable
 from urllib.parse import urlsplit
 
@@ -17,12 +18,14 @@ LOOPBACK_NAMES = ("127.0.0.1", "localhost", "[::1]")
 
 def allowed_hosts(host: str, port: int, extra_names: Iterable[str] = ()) -> frozenset[str]:
     """Host header values that name this server: the loopback names, the address it binds to (unless a
-    wildcard such as 0.0.0.0, which names nothing), and the names the user allowed, each with the port."""
-    names = {*LOOPBACK_NAMES, *extra_names}
+    wildcard such as 0.0.0.0, which names nothing), and the names the user allowed (NAME, with this port, or
+    NAME:PORT as a proxy in front would show it)."""
+    given_port = {n.lower() for n in extra_names if re.fullmatch(r"[^:\[\]]+:[0-9]+|\[.+\]:[0-9]+", n)}
+    names = {*LOOPBACK_NAMES, *(n for n in extra_names if n.lower() not in given_port)}
     if host not in ("0.0.0.0", "::", ""):
         names.add(host if ":" not in host else f"[{host}]")
     bare = {name.lower() for name in names} if port == 80 else set()  # browsers leave out the default port
-    return frozenset(f"{name.lower()}:{port}" for name in names) | bare
+    return frozenset(f"{name.lower()}:{port}" for name in names) | bare | given_port
 
 
 class HostOriginGuard:

@@ -58,7 +58,12 @@ export class Stage {
 
   // A new figure: joint spheres sized to its joint count; the camera frames it.
   setFigure(jointCount, at) {
-    if (this.jointMesh) { this.scene.remove(this.jointMesh); this.jointMesh.dispose(); }
+    if (this.jointMesh) {
+      this.scene.remove(this.jointMesh);
+      this.jointMesh.geometry.dispose();
+      this.jointMesh.material.dispose();
+      this.jointMesh.dispose();
+    }
     this.jointMesh = new THREE.InstancedMesh(new THREE.SphereGeometry(JOINT_RADIUS, 10, 8),
                                              new THREE.MeshBasicMaterial({ color: 0x333333 }), jointCount);
     this.jointMesh.frustumCulled = false;
@@ -90,6 +95,22 @@ export class Stage {
       }
       this.followed = now;
     }
+  }
+
+  // The joint spheres' centres and the bone lines' end points, read back from the scene's buffers.
+  drawn() {
+    const m = new THREE.Matrix4();
+    const p = new THREE.Vector3();
+    const joints = [];
+    for (let i = 0; this.jointMesh && i < this.jointMesh.count; i++) {
+      this.jointMesh.getMatrixAt(i, m);
+      joints.push(p.setFromMatrixPosition(m).toArray());
+    }
+    const buffer = this.bones.geometry.attributes.position;
+    const ends = [];
+    const shown = Math.min(this.bones.geometry.drawRange.count, buffer.count);
+    for (let i = 0; i < shown; i++) ends.push([buffer.getX(i), buffer.getY(i), buffer.getZ(i)]);
+    return { joints, boneEnds: ends };
   }
 
   render() {

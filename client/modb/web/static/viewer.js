@@ -25,12 +25,22 @@ async function allFrames(clipId, nFrames) {
   };
 }
 
+let latestLoad = 0; // only the clip asked for last is shown, however the answers arrive
+
 async function loadClip(clipId) {
+  const load = ++latestLoad;
   status(`loading clip ${clipId}…`);
   pause();
-  const clip = await getJSON(`/api/clips/${clipId}`);
-  const skeleton = await getJSON(`/api/skeletons/${clip.skeleton_id}`);
-  const frames = await allFrames(clipId, clip.n_frames);
+  let clip, skeleton, frames;
+  try {
+    clip = await getJSON(`/api/clips/${clipId}`);
+    skeleton = await getJSON(`/api/skeletons/${clip.skeleton_id}`);
+    frames = await allFrames(clipId, clip.n_frames);
+  } catch (error) {
+    if (load === latestLoad) status(`clip ${clipId}: ${error.message}`, true);
+    return false;
+  }
+  if (load !== latestLoad) return false;
   Object.assign(state, { clip, fps: clip.fps, frames, frame: 0, time: 0, highlighted: null,
                          rig: new Rig(skeleton.hierarchy, skeleton.joint_map.pelvis) });
   $('skeleton-name').textContent = `(${skeleton.name || skeleton.id}, ${skeleton.hierarchy.joints.length} joints)`;
@@ -42,6 +52,7 @@ async function loadClip(clipId) {
   status('');
   document.title = `MoDB: ${clip.collection}/${clip.name}`;
   history.replaceState(null, '', `?clip=${clipId}`);
+  return true;
 }
 
 function setFrame(index) {
@@ -97,7 +108,7 @@ async function start() {
     showClips($('clips'), $('clip-count'), await getJSON(`/api/clips?collection=${c.id}`), (clip) => loadClip(clip.id));
   });
   const wanted = new URLSearchParams(location.search).get('clip');
-  if (wanted) await loadClip(Number(wanted));
+  if (wanted) await loadClip(encodeURIComponent(wanted));
   else status(collections.length ? 'choose a collection, then a clip' : 'the database holds no clips yet: `modb load`');
 }
 
@@ -110,6 +121,7 @@ window.modbViewer = {
   pause,
   jointNames: () => (state.rig ? state.rig.joints.map((j) => j.name) : []),
   jointWorldPositions: () => (state.rig ? state.rig.worldPositions() : []),
+  drawn: () => stage.drawn(), // what the scene shows: joint spheres and bone line ends
   ready: start().then(() => true, (error) => { status(error.message, true); throw error; }),
 };
 requestAnimationFrame(tick);
