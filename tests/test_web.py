@@ -14,6 +14,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import psycopg
 import pytest
 
 from asf_oracle import bone_tips, parse_amc, parse_asf
@@ -35,8 +36,11 @@ def web_db(cluster, tmp_path_factory):
         shutil.copy(mocap("cmu", "131", name), amc_folder / name)
     with scratch_database(cluster, f"web_{os.getpid()}") as dsn:
         for path, collection, units in ((bvh, "web/bvh", "auto"), (amc_folder, "web/amc", repr(CMU_UNITS))):
-            r = run_modb(dsn, "load", path, "--collection", collection, "--units", units, "--no-snippets", "-q")
+            r = run_modb(dsn, "load", path, "--collection", collection, "--units", units, "-q")
             assert r.returncode == 0, r.stderr
+        r = run_modb(dsn, "graph", "build", "web", "--collection", "web/amc", "--profile", "locomotion",
+                     "--min-turn", "0", "-q")
+        assert r.returncode == 0, r.stderr
         yield dsn
 
 
@@ -114,7 +118,14 @@ def test_the_endpoints_list_what_the_database_holds(server):
     assert skeleton["hierarchy"]["format"] == "asf" and skeleton["joint_map"]["pelvis"] == "root"
     assert {s["id"] for s in ok(address, "/api/skeletons")} == {
         ok(address, f"/api/clips/{i}")["skeleton_id"] for i in ids.values()}
-    assert ok(address, "/api/models") == [] and ok(address, "/api/graphs") == []
+    assert ok(address, "/api/models") == []
+    with psycopg.connect(dsn) as conn:
+        graph_id, kept = conn.execute("SELECT g.id, count(s.*) FROM modb.graphs g JOIN modb.graph_snippets s "
+                                      "ON s.graph_id = g.id GROUP BY g.id").fetchone()
+    (listed,) = ok(address, "/api/graphs")
+    assert (listed["id"], listed["name"], listed["kept_snippets"]) == (graph_id, "web", kept) and kept > 0
+    one = ok(address, f"/api/graphs/{graph_id}")
+    assert one["kept_snippets"] == kept and one["data"]["kept"] == kept
 
 
 def test_frames_carry_world_positions_that_independent_readers_agree_with(server):
