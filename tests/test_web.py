@@ -41,6 +41,8 @@ def web_db(cluster, tmp_path_factory):
         r = run_modb(dsn, "graph", "build", "web", "--collection", "web/amc", "--profile", "locomotion",
                      "--min-turn", "0", "-q")
         assert r.returncode == 0, r.stderr
+        with psycopg.connect(dsn, autocommit=True) as conn:  # nothing writes models yet: one by hand
+            conn.execute("INSERT INTO modb.models (name, kind, data) VALUES ('gait', 'pca', '{\"components\": 3}')")
         yield dsn
 
 
@@ -118,7 +120,9 @@ def test_the_endpoints_list_what_the_database_holds(server):
     assert skeleton["hierarchy"]["format"] == "asf" and skeleton["joint_map"]["pelvis"] == "root"
     assert {s["id"] for s in ok(address, "/api/skeletons")} == {
         ok(address, f"/api/clips/{i}")["skeleton_id"] for i in ids.values()}
-    assert ok(address, "/api/models") == []
+    (model,) = ok(address, "/api/models")
+    assert (model["name"], model["kind"]) == ("gait", "pca") and "data" not in model  # listings stay small
+    assert ok(address, f"/api/models/{model['id']}")["data"] == {"components": 3}
     with psycopg.connect(dsn) as conn:
         graph_id, kept = conn.execute("SELECT g.id, count(s.*) FROM modb.graphs g JOIN modb.graph_snippets s "
                                       "ON s.graph_id = g.id GROUP BY g.id").fetchone()
