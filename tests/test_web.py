@@ -337,6 +337,9 @@ def test_a_clip_plays_and_its_bones_match_the_servers_kinematics(server, browser
     assert all(np.abs(seen[a][0] - seen[b][0]).max() > 1e-4 for a, b in zip(frames, frames[1:]))  # it moves
     # At the clip's own rate, by this test's clock: never ahead (a frame per screen refresh would be, at 30 fps).
     assert last[0] - first[0] <= (last[1] - first[1] + 0.1) * info["fps"] + 2, (first, last, info["fps"])
+    selected = browser.execute_script(
+        "return [...document.querySelectorAll('aside span.selected')].map((s) => s.textContent)")
+    assert selected == [kind + " (1)", info["name"]]  # opened by address, the panels show where it is
     ARTIFACTS.mkdir(exist_ok=True)
     browser.save_screenshot(str(ARTIFACTS / f"web-view-{kind}.png"))
     assert severe_console_entries(browser) == []

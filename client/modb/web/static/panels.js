@@ -7,10 +7,11 @@ export async function getJSON(url) {
   return body;
 }
 
-function item(label, title, onSelect) {
+function item(label, title, id, onSelect) {
   const li = document.createElement('li');
   const span = document.createElement('span');
   span.textContent = label;
+  span.dataset.id = id;
   if (title) span.title = title;
   span.addEventListener('click', () => {
     span.closest('aside > section').querySelectorAll('span.selected').forEach((s) => s.classList.remove('selected'));
@@ -36,16 +37,23 @@ function tree(root, rows, idOf, parentOf, render) {
 
 export function showCollections(root, collections, onSelect) {
   tree(root, collections, (c) => c.id, (c) => c.parent_id,
-       (c) => item(`${c.name} (${c.clips})`, c.path, () => onSelect(c)));
+       (c) => item(`${c.name} (${c.clips})`, c.path, c.id, () => onSelect(c)));
 }
 
 export function showClips(root, counter, clips, onSelect) {
-  root.replaceChildren(...clips.map((c) => item(c.name, `${c.n_frames} frames at ${c.fps} fps`, () => onSelect(c))));
+  root.replaceChildren(...clips.map((c) => item(c.name, `${c.n_frames} frames at ${c.fps} fps`, c.id, () => onSelect(c))));
   counter.textContent = `(${clips.length})`;
 }
 
 export function showSkeleton(root, joints, onSelect) {
   const rows = joints.map((j, i) => ({ ...j, index: i }));
   tree(root, rows, (j) => j.index, (j) => (j.parent < 0 ? null : j.parent),
-       (j) => item(j.name, `joint ${j.index}`, () => onSelect(j.index)));
+       (j) => item(j.name, `joint ${j.index}`, j.index, () => onSelect(j.index)));
+}
+
+// Marks the entry with this id as selected (as a click would, without acting on it).
+export function markSelected(root, id) {
+  root.querySelectorAll('span.selected').forEach((s) => s.classList.remove('selected'));
+  const span = root.querySelector(`span[data-id="${id}"]`);
+  if (span) { span.classList.add('selected'); span.scrollIntoView({ block: 'nearest' }); }
 }

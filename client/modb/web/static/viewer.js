@@ -2,7 +2,7 @@
 // console) use to read the page's state; the page itself only uses the JSON endpoints.
 import { Rig } from './rig.js';
 import { Stage } from './stage.js';
-import { getJSON, showClips, showCollections, showSkeleton } from './panels.js';
+import { getJSON, markSelected, showClips, showCollections, showSkeleton } from './panels.js';
 
 const $ = (id) => document.getElementById(id);
 const stage = new Stage($('view'));
@@ -102,13 +102,19 @@ window.addEventListener('keydown', (e) => {
   if (e.key === 'ArrowRight') { pause(); setFrame(state.frame + 1); }
 });
 
+async function showCollection(collectionId) {
+  showClips($('clips'), $('clip-count'), await getJSON(`/api/clips?collection=${collectionId}`), (clip) => loadClip(clip.id));
+}
+
 async function start() {
   const collections = await getJSON('/api/collections');
-  showCollections($('collections'), collections, async (c) => {
-    showClips($('clips'), $('clip-count'), await getJSON(`/api/clips?collection=${c.id}`), (clip) => loadClip(clip.id));
-  });
+  showCollections($('collections'), collections, (c) => showCollection(c.id));
   const wanted = new URLSearchParams(location.search).get('clip');
-  if (wanted) await loadClip(encodeURIComponent(wanted));
+  if (wanted && await loadClip(encodeURIComponent(wanted))) { // the panels show where the clip is
+    markSelected($('collections'), state.clip.collection_id);
+    await showCollection(state.clip.collection_id);
+    markSelected($('clips'), state.clip.id);
+  }
   else status(collections.length ? 'choose a collection, then a clip' : 'the database holds no clips yet: `modb load`');
 }
 
