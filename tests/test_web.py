@@ -24,18 +24,30 @@ from oracle import bvhio_world_positions, in_order
 TOLERANCE_M = 0.01  # the issue's bar for the page against the server
 ARTIFACTS = REPO / "tests" / "artifacts"
 BVH_FILE = ("bandai-2-dev", "data", "dataset-2_walk_active_001.bvh")
+BANDAI_1_FILE = "dataset-1_bow_active_001.bvh"
+KINDS = ["bvh", "bandai1", "cmubvh", "amc", "amc01"]
 CHROMIUM, CHROMEDRIVER = Path("/usr/bin/chromium"), Path("/usr/bin/chromedriver")
+
+
+def sources(tmp: Path) -> list[tuple[Path, str, str]]:
+    """(file or folder, collection, --units): one clip of each skeleton kind in the shared data."""
+    out = [(mocap(*BVH_FILE), "web/bvh", "auto"), (mocap("bandai-1", "data", BANDAI_1_FILE), "web/bandai1", "auto"),
+           (mocap("cmu", "131", "bvh", "131_01.bvh"), "web/cmubvh", repr(CMU_UNITS))]
+    for folder, asf, amc, collection in (("131", "131.asf", "131_01.amc", "web/amc"),
+                                         ("01", "01.asf", "01_01.amc", "web/amc01")):
+        (tmp / folder).mkdir()
+        for name in (asf, amc):
+            shutil.copy(mocap("cmu", folder, name), tmp / folder / name)
+        out.append((tmp / folder, collection, repr(CMU_UNITS)))
+    return out
 
 
 @pytest.fixture(scope="module")
 def web_db(cluster, tmp_path_factory):
-    """A BVH clip (collection web/bvh) and an ASF/AMC clip (web/amc)."""
-    bvh = mocap(*BVH_FILE)
-    amc_folder = tmp_path_factory.mktemp("amc")
-    for name in ("131.asf", "131_01.amc"):
-        shutil.copy(mocap("cmu", "131", name), amc_folder / name)
+    """One clip per collection web/<kind>: Bandai dataset 2 and 1 BVH, a CMU BVH conversion, CMU ASF/AMC
+    (131 and 01)."""
     with scratch_database(cluster, f"web_{os.getpid()}") as dsn:
-        for path, collection, units in ((bvh, "web/bvh", "auto"), (amc_folder, "web/amc", repr(CMU_UNITS))):
+        for path, collection, units in sources(tmp_path_factory.mktemp("sources")):
             r = run_modb(dsn, "load", path, "--collection", collection, "--units", units, "-q")
             assert r.returncode == 0, r.stderr
         r = run_modb(dsn, "graph", "build", "web", "--collection", "web/amc", "--profile", "locomotion",
@@ -95,10 +107,10 @@ def ok(address: str, path: str):
 
 
 def clip_ids(address: str) -> dict[str, int]:
-    """{'bvh': id, 'amc': id} from the endpoints themselves."""
+    """{kind: clip id} (KINDS) from the endpoints themselves."""
     out = {}
     for c in ok(address, "/api/collections"):
-        if c["path"] in ("web/bvh", "web/amc"):
+        if c["path"].startswith("web/"):
             (clip,) = ok(address, f"/api/clips?collection={c['id']}")
             out[c["path"][4:]] = clip["id"]
     return out
@@ -109,7 +121,7 @@ def clip_ids(address: str) -> dict[str, int]:
 def test_the_endpoints_list_what_the_database_holds(server):
     address, dsn = server
     paths = {c["path"]: c for c in ok(address, "/api/collections")}
-    assert {"web", "web/bvh", "web/amc"} <= set(paths)
+    assert {"web", *(f"web/{k}" for k in KINDS)} <= set(paths)
     assert paths["web"]["clips"] == 0 and paths["web/bvh"]["parent_id"] == paths["web"]["id"]
     ids = clip_ids(address)
     everything = ok(address, "/api/clips")
@@ -311,7 +323,7 @@ def assert_drawn_like(served: np.ndarray, joints: np.ndarray, bone_ends: np.ndar
             assert np.abs(drawn - expected).max(axis=(1, 2)).min() < TOLERANCE_M, joint["name"]
 
 
-@pytest.mark.parametrize("kind", ["bvh", "amc"])
+@pytest.mark.parametrize("kind", KINDS)
 def test_a_clip_plays_and_its_bones_match_the_servers_kinematics(server, browser, kind):
     address = server[0]
     clip_id = clip_ids(address)[kind]
