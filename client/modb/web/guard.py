@@ -41,8 +41,8 @@ class HostOriginGuard:
         if host not in self.hosts:
             return f"Host {host!r} is not this server: open it as http://{sorted(self.hosts)[0]}/"
         origin = headers.get("origin")
-        if origin is not None and (urlsplit(origin).scheme not in ("http", "https")
-                                   or urlsplit(origin).netloc.lower() not in self.hosts):
+        page = urlsplit(origin) if origin is not None else None
+        if page is not None and (page.scheme not in ("http", "https") or page.netloc.lower() not in self.hosts):
             return f"requests from the page of {origin!r} are refused: only this server's own pages may call it"
         return None
 

@@ -14,10 +14,10 @@ function status(text, isError = false) {
 }
 
 async function allFrames(clipId, nFrames) {
-  // Pages of the endpoint's maximum; most clips are one page.
+  // Pages as large as the endpoint gives (most clips are one page).
   const pages = [];
-  for (let start = 0; start < nFrames; start += 20000) {
-    pages.push(await getJSON(`/api/clips/${clipId}/frames?start=${start}&count=${Math.min(20000, nFrames - start)}`));
+  for (let start = 0; start < nFrames; start += pages[pages.length - 1].count) {
+    pages.push(await getJSON(`/api/clips/${clipId}/frames?start=${start}`));
   }
   return {
     rotations: pages.flatMap((p) => p.rotations),
