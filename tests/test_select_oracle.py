@@ -178,6 +178,49 @@ def test_the_graph_keeps_the_largest_component_that_turns_both_ways(loaded, cmu_
     assert inner <= kept <= outer, (len(inner), len(kept), len(outer))
 
 
+def test_the_graph_stores_the_level0_transitions_among_its_snippets(loaded, cmu_graph):
+    dsn, space = loaded
+    kept, _, pairs = cmu_graph
+    ids = space["id"]
+    with connect(dsn) as conn:
+        stored = {f: set(t) for f, t in conn.execute(
+            "SELECT e.from_snippet, e.to_snippets FROM modb.graph_transitions e JOIN modb.graphs g ON g.id = e.graph_id "
+            "WHERE g.name = 'cmu'").fetchall()}
+    assert set(stored) == kept  # in a strongly connected component every snippet has a successor
+    for p, (qs, r) in pairs.items():
+        if int(ids[p]) in kept:  # float32 terminators: a ratio within 1e-4 of 1 may fall either side
+            strict = {int(ids[q]) for q in qs[r <= 1 - 1e-4]} & kept
+            loose = {int(ids[q]) for q in qs[r <= 1 + 1e-4]} & kept
+            assert strict <= stored[int(ids[p])] <= loose, int(ids[p])
+
+
+def _scans(conn, sql, params) -> dict[str, int]:
+    """Loops of the index scans EXPLAIN ANALYZE shows for a query, by index name."""
+    loops: dict[str, int] = {}
+
+    def walk(node):
+        if "Index Name" in node:
+            loops[node["Index Name"]] = loops.get(node["Index Name"], 0) + node.get("Actual Loops", 0)
+        for child in node.get("Plans", []):
+            walk(child)
+    walk(conn.execute("EXPLAIN (ANALYZE, FORMAT JSON) " + sql, params).fetchone()[0][0]["Plan"])
+    return loops
+
+
+def test_from_a_graph_snippet_level_0_reads_the_stored_transitions_not_the_box(loaded, cmu_graph):
+    dsn, _ = loaded
+    kept, _, _ = cmu_graph
+    prev = sorted(kept)[len(kept) // 2]
+    query = "SELECT * FROM modb.select_next_snippet(%s, '{1,2}', 'locomotion')"
+    with connect(dsn) as conn:
+        conn.execute("SET modb.graph = 'cmu'")
+        stored = _scans(conn, query, [prev])
+        assert stored.get("snippets_begin_features_idx", 0) == 0 and stored["graph_transitions_pkey"] >= 1, stored
+        # Thresholds other than the graph's: its transitions do not apply, the box does.
+        conn.execute("SET modb.angle_threshold = 0.4")
+        assert _scans(conn, query, [prev]).get("snippets_begin_features_idx", 0) >= 1
+
+
 def test_selection_with_a_graph_equals_brute_force_over_its_snippets(loaded, cmu_graph):
     dsn, space = loaded
     kept, members, _ = cmu_graph
@@ -185,17 +228,18 @@ def test_selection_with_a_graph_equals_brute_force_over_its_snippets(loaded, cmu
     inside = np.array(sorted(kept))
     outside = np.setdiff1d(space["id"][members], inside)
     with connect(dsn) as conn:
-        settings = conn.execute("SELECT settings FROM modb.match_profiles WHERE name = 'default'").fetchone()[0]
-        plan = resolve_profile(settings, {})
         conn.execute("SET modb.graph = 'cmu'")
-        for q in range(30):
+        # locomotion: the graph's own thresholds, so level 0 comes from its stored transitions; default: the box.
+        for q, profile in enumerate(["locomotion", "default"] * 20):
+            settings = conn.execute("SELECT settings FROM modb.match_profiles WHERE name = %s", [profile]).fetchone()[0]
             # From inside the graph, from a dead end outside it, and to start.
             prev = None if q % 10 == 0 else int(rng.choice(outside if q % 3 == 0 else inside))
             target = list(np.round(rng.uniform(-6, 6, size=2), 3))
-            row = conn.execute("SELECT snippet_id, relax_level, continuity FROM modb.select_next_snippet(%s, %s)",
-                               [prev, target]).fetchone()
+            row = conn.execute("SELECT snippet_id, relax_level, continuity FROM modb.select_next_snippet(%s, %s, %s)",
+                               [prev, target, profile]).fetchone()
             assert row[0] in kept
-            _assert_same_choice(row, select(space, prev, target, plan, graph=kept), dict(prev=prev, target=target))
+            _assert_same_choice(row, select(space, prev, target, resolve_profile(settings, {}), graph=kept),
+                                dict(prev=prev, target=target, profile=profile))
         conn.execute("SET modb.graph = 'nope'")
         with pytest.raises(psycopg.errors.RaiseException, match='no transition graph "nope"'):
             conn.execute("SELECT * FROM modb.select_next_snippet(NULL, '{0,1}')").fetchall()

@@ -116,6 +116,10 @@ class Avatar:
         self.library = FrameLibrary(self.conn)
         self.choices: list[Choice] = []
         self._graph_set: str | None = None  # what this avatar last SET modb.graph to on its connection
+        # Selection's plan does not depend on its arguments' values, and planning it each call costs ~100 ms
+        # (issue 9's figures): a generic plan, planned once; without JIT, whose threshold its estimate passes.
+        self.conn.execute("SELECT set_config('plan_cache_mode', 'force_generic_plan', false), "
+                          "set_config('jit', 'off', false)")
 
     # Goals may change at any time (from another thread too): they apply to the next query issued.
     def set_goal(self, goal: Goal) -> None:
@@ -208,7 +212,7 @@ class Avatar:
                 self._graph_set = request["graph"]
             query = {k: request[k] for k in ("prev", "position", "heading", "target", "profile", "collection",
                                               "exclude")}
-            row = self.conn.execute(_SELECT, query).fetchone()
+            row = self.conn.execute(_SELECT, query, prepare=True).fetchone()
             latency = (time.perf_counter() - t) * 1000.0
             if row is None and previous is None:
                 raise NoContinuation("no snippet to start from: the collection (or the database) has no snippets; "

@@ -23,6 +23,7 @@ import json
 import numpy as np
 
 T = kernel.transitions
+TRANSITION_SLACK = 1e-9
 if not name:
     plpy.error("a transition graph needs a name")
 if min_turn_degrees is None or not 0 <= min_turn_degrees <= 180:
@@ -60,6 +61,9 @@ group, clip = keys(column("grp")), keys(column("clip"))
 first_frame, n_frames = np.array(column("first_frame")), np.array(column("n_frames"))
 thresholds = {k: np.array(plan[k], dtype=np.float64) for k in
               ("position_threshold", "angle_threshold", "velocity_threshold", "angular_velocity_threshold")}
+# A hair looser than level 0, so the stored transitions hold every pair the SQL test passes (numpy and
+# SQL round differently); selection applies the exact test again.
+thresholds = {k: v * (1 + TRANSITION_SLACK) for k, v in thresholds.items()}
 spec = dict(thresholds, joints=list(plan["joints"]), norm=plan["norm"], velocity_terms=plan["velocity_terms"],
             box_half_width=plan["box_half_width"])
 src, dst = T.edges(term, begin, end, group, clip, first_frame, n_frames, spec,
@@ -74,12 +78,18 @@ data = {"profile": profile, "collection": collection, "min_turn_degrees": min_tu
         "dead_ends": int((out_degree == 0).sum()),
         "edges_within_kept": int((keep[src] & keep[dst]).sum())}
 plpy.execute(plpy.prepare("DELETE FROM modb.graphs WHERE name = $1 AND kind = 'transitions'", ["text"]), [name])
-graph_id = plpy.execute(plpy.prepare(
-    "INSERT INTO modb.graphs (name, kind, data) VALUES ($1, 'transitions', $2::jsonb) RETURNING id",
-    ["text", "text"]), [name, json.dumps(data)])[0]["id"]
+graph_id = plpy.execute(plpy.prepare(  # the key in SQL, so that selection compares it with its own
+    """INSERT INTO modb.graphs (name, kind, data)
+       VALUES ($1, 'transitions', $2::jsonb || jsonb_build_object('transition_key', modb.transition_key(modb.match_plan($3))))
+       RETURNING id""", ["text", "text", "text"]), [name, json.dumps(data), profile])[0]["id"]
 plpy.execute(plpy.prepare(
     "INSERT INTO modb.graph_snippets (graph_id, snippet_id) SELECT $1, unnest($2::bigint[])", ["bigint", "bigint[]"]),
     [graph_id, ids[keep].tolist()])
+inside = keep[src] & keep[dst]
+plpy.execute(plpy.prepare(
+    """INSERT INTO modb.graph_transitions (graph_id, from_snippet, to_snippets)
+       SELECT $1, f, array_agg(t ORDER BY t) FROM unnest($2::bigint[], $3::bigint[]) AS e(f, t) GROUP BY f""",
+    ["bigint", "bigint[]", "bigint[]"]), [graph_id, ids[src[inside]].tolist(), ids[dst[inside]].tolist()])
 plpy.notice(f"modb: transition graph \"{name}\": kept {data['kept']} of {n} snippets "
             f"({data['edges']} transitions, {data['dead_ends']} snippets with none)")
 return graph_id

@@ -17,7 +17,11 @@ RETURNS TABLE (snippet_id bigint, clip_id bigint, version int, mirrored boolean,
 LANGUAGE sql STABLE PARALLEL SAFE
 AS $$
 WITH cfg AS MATERIALIZED (
-    SELECT plan, checked, collections, modb.aim_point(target, (plan).lookahead_distance) AS aim
+    SELECT plan, checked, collections, modb.aim_point(target, (plan).lookahead_distance) AS aim,
+           -- prev's level-0 successors are stored (modb.graph_transitions) for these continuity settings
+           EXISTS (SELECT FROM modb.graphs g JOIN modb.graph_transitions e ON e.graph_id = g.id
+                    WHERE g.id = (plan).graph_id AND e.from_snippet = prev_snippet
+                      AND g.data->'transition_key' = modb.transition_key(plan)) AS stored
       FROM (SELECT modb.match_plan(profile) AS plan, modb.check_request(prev_snippet, target, k, collection) AS checked,
                    CASE WHEN collection IS NULL THEN NULL ELSE modb.collection_subtree(collection) END AS collections) resolved
 ), prev AS MATERIALIZED (
@@ -50,6 +54,21 @@ WITH cfg AS MATERIALIZED (
   ORDER BY 7, 1 LIMIT k)
 -- Relaxation levels 0-3: every threshold (and the box) scaled by 2^level; a row reports the lowest
 -- level it satisfies. Level 4, the last: the nearest start configuration (feature distance), any ratio.
+-- Level 0 from a graph's stored transitions when it has them for prev and these settings, else the box.
+UNION ALL
+(SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
+        modb.approach_cost(c.net_translation, c.future_translation, c.future_heading, (SELECT aim FROM cfg), (SELECT (plan).heading_weight FROM cfg)), 0, r.ratio,
+        c.net_translation, c.net_rotation, c.net_heading
+   FROM modb.graph_transitions e CROSS JOIN LATERAL unnest(e.to_snippets) AS next(id)
+   JOIN candidates c ON c.id = next.id
+   JOIN modb.terminators b ON b.id = c.begin_terminator
+  CROSS JOIN prev CROSS JOIN cfg
+  CROSS JOIN LATERAL (SELECT modb.continuity_ratio(prev.term, b, cfg.plan) AS ratio) r
+  WHERE (SELECT stored FROM cfg)
+    AND e.graph_id = (SELECT (plan).graph_id FROM cfg) AND e.from_snippet = prev_snippet
+    AND r.ratio <= 1.0
+  ORDER BY modb.approach_cost(c.net_translation, c.future_translation, c.future_heading, (SELECT aim FROM cfg), (SELECT (plan).heading_weight FROM cfg))
+           + (SELECT (plan).continuity_weight FROM cfg) * r.ratio, 1 LIMIT k)
 UNION ALL
 (SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
         modb.approach_cost(c.net_translation, c.future_translation, c.future_heading, (SELECT aim FROM cfg), (SELECT (plan).heading_weight FROM cfg)), 0, r.ratio,
@@ -57,7 +76,8 @@ UNION ALL
    FROM candidates c JOIN modb.terminators b ON b.id = c.begin_terminator
   CROSS JOIN prev CROSS JOIN cfg  -- as columns, not sub-selects, so continuity_ratio is inlined
   CROSS JOIN LATERAL (SELECT modb.continuity_ratio(prev.term, b, cfg.plan) AS ratio) r
-  WHERE c.begin_features <@ (SELECT modb.match_box(prev.features, cfg.plan, 1.0) FROM prev, cfg)
+  WHERE NOT (SELECT stored FROM cfg)
+    AND c.begin_features <@ (SELECT modb.match_box(prev.features, cfg.plan, 1.0) FROM prev, cfg)
     AND c.pose_key = (SELECT pose_key FROM prev) AND c.fps = (SELECT fps FROM prev)
     AND r.ratio <= 1.0
   ORDER BY modb.approach_cost(c.net_translation, c.future_translation, c.future_heading, (SELECT aim FROM cfg), (SELECT (plan).heading_weight FROM cfg))

@@ -6,7 +6,8 @@ SELECT plan(23);
 SELECT has_extension('modb');
 SELECT has_schema('modb');
 SELECT tables_are('modb', ARRAY['collections', 'skeletons', 'clips', 'clip_versions', 'models', 'graphs',
-                               'snippet_sources', 'terminators', 'snippets', 'match_profiles', 'graph_snippets']);
+                               'snippet_sources', 'terminators', 'snippets', 'match_profiles', 'graph_snippets',
+                               'graph_transitions']);
 SELECT views_are('modb', ARRAY['current_clips']);
 SELECT functions_are('modb', ARRAY[
     'skeleton_identity', 'unit_quaternions_ok', 'finite_ok', 'skeleton_joint_names', 'joint_map_ok', 'mirror_pairs_ok',
@@ -15,7 +16,7 @@ SELECT functions_are('modb', ARRAY[
     'skeleton_pose_key', 'standard_joints', 'feature_names', 'quat_angle', 'max_joint_angle', 'weighted_joint_angle',
     'match_knobs', 'session_settings', 'match_plan', '_thresholds', 'continuity_ratio', 'match_box', 'target_cost', 'aim_point', 'approach_cost', 'collection_subtree',
     'check_request', 'build_snippets', 'select_next_snippets', 'select_next_snippet', 'world_to_local', 'select_next_snippet_world',
-    'local_to_world', 'synthesis_goal', 'synthesis_step_end', 'check_synthesis', 'synthesize', 'fill_futures', 'build_transition_graph']);
+    'local_to_world', 'synthesis_goal', 'synthesis_step_end', 'check_synthesis', 'synthesize', 'fill_futures', 'build_transition_graph', 'transition_key']);
 SELECT col_type_is('modb', 'clip_versions', 'rotations', 'real[]', 'rotations is real[]');
 SELECT col_type_is('modb', 'clip_versions', 'translations', 'real[]', 'translations is real[]');
 SELECT col_is_pk('modb', 'clip_versions', ARRAY['clip_id', 'version'], 'primary key (clip_id, version)');
@@ -42,7 +43,7 @@ SELECT set_eq(
     ARRAY['modb.collections', 'modb.collections_id_seq', 'modb.skeletons', 'modb.skeletons_id_seq',
           'modb.clips', 'modb.clips_id_seq', 'modb.clip_versions', 'modb.models', 'modb.models_id_seq',
           'modb.graphs', 'modb.graphs_id_seq', 'modb.snippet_sources', 'modb.terminators', 'modb.terminators_id_seq',
-          'modb.snippets', 'modb.snippets_id_seq', 'modb.match_profiles', 'modb.graph_snippets'],
+          'modb.snippets', 'modb.snippets_id_seq', 'modb.match_profiles', 'modb.graph_snippets', 'modb.graph_transitions'],
     'every data table and id sequence is registered for pg_dump');
 
 DROP EXTENSION modb;
@@ -51,7 +52,7 @@ SELECT has_role('modb_reader', 'modb_reader outlives DROP EXTENSION');
 SELECT has_role('modb_loader', 'modb_loader outlives DROP EXTENSION');
 CREATE EXTENSION modb CASCADE;
 SELECT has_table('modb', 'clip_versions', 're-install after a drop works');
-SELECT is((SELECT extversion FROM pg_extension WHERE extname = 'modb'), '0.4.0', 're-installed version');
+SELECT is((SELECT extversion FROM pg_extension WHERE extname = 'modb'), '0.5.0', 're-installed version');
 
 SELECT * FROM finish();
 ROLLBACK;
