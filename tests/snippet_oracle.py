@@ -19,7 +19,7 @@ FEATURE_POS = ["head", "left_wrist", "right_wrist", "left_ankle", "right_ankle"]
 FEATURE_VEL = ["pelvis", "left_ankle", "right_ankle"]
 KNOBS = ("joints", "norm", "position_threshold", "angle_threshold", "velocity_threshold",
          "angular_velocity_threshold", "velocity_terms", "heading_weight", "continuity_weight",
-         "lookahead_distance", "graph")
+         "lookahead_distance", "graph", "graph_lookahead")
 
 
 def _rot(q: np.ndarray) -> Rotation:
@@ -108,7 +108,7 @@ def resolve_profile(settings: dict, knobs: dict) -> dict:
             settings[knob] = value.replace(" ", "").split(",")
         elif knob == "norm":
             settings[knob] = value.lower()
-        elif knob == "velocity_terms":
+        elif knob in ("velocity_terms", "graph_lookahead"):
             settings[knob] = value.lower() in ("on", "true", "1", "yes")
         elif knob.endswith("threshold"):
             settings[knob] = {"default": float(value)}
@@ -126,6 +126,7 @@ def resolve_profile(settings: dict, knobs: dict) -> dict:
         "velocity_terms": settings.get("velocity_terms", True), "heading_weight": float(settings.get("heading_weight", 0)),
         "continuity_weight": float(settings.get("continuity_weight", 0)),
         "lookahead_distance": None if settings.get("lookahead_distance") is None else float(settings["lookahead_distance"]),
+        "graph_lookahead": bool(settings.get("graph_lookahead", False)),
         **{k: np.array([per_joint(settings[k], STANDARD[j]) for j in included])
            for k in ("position_threshold", "angle_threshold", "velocity_threshold", "angular_velocity_threshold")},
     }
@@ -221,7 +222,7 @@ def load_snippet_space(conn) -> dict:
     skeletons = {sid: (h, m) for sid, h, m in conn.execute("SELECT id, hierarchy, joint_map FROM modb.skeletons")}
     cache: dict = {}
     out = {k: [] for k in ("id", "clip", "version", "first", "n", "collection", "fps", "pose", "pos", "rot", "vel",
-                           "angvel", "feat", "net", "future", "future_turn", "end")}
+                           "angvel", "feat", "net", "net_turn", "future", "future_turn", "end")}
     starts = {(clip, version, first) for _, clip, version, first, *_ in rows}
     for sid, clip, version, first, n_frames, collection, fps, skeleton in rows:
         if (clip, version) not in cache:
@@ -244,6 +245,7 @@ def load_snippet_space(conn) -> dict:
                            "feat": t.feat[last]})
         to_local = _yaw([t.heading[first]]).inv()
         out["net"].append(to_local.apply(t.pelvis[last] - t.pelvis[first])[0])
+        out["net_turn"].append(np.angle(np.exp(1j * (t.heading[last] - t.heading[first]))))
         # Where playing on leads: this window and up to two more, each starting on the last one's end.
         end = last
         for _ in range(2):
@@ -255,10 +257,25 @@ def load_snippet_space(conn) -> dict:
     return {k: (np.array(v) if k not in ("end", "pose") else v) for k, v in out.items()}
 
 
+def two_step_cost(space: dict, i: int, nexts: np.ndarray, target, plan: dict) -> float:
+    """The best objective among the snippets that may follow snippet i, each placed where i ends: the
+    target seen from there (i's end point, turned by i's heading change)."""
+    if not len(nexts):
+        return np.inf
+    t = np.asarray(target, dtype=np.float64)
+    world = np.array([t[0], 0.0, t[-1]]) if len(t) == 2 else t.copy()
+    seen = _yaw([space["net_turn"][i]]).inv().apply(world - space["net"][i] * [1, 0 if len(t) == 2 else 1, 1])[0]
+    local = [seen[0], seen[2]] if len(t) == 2 else list(seen)
+    return float(min(np.minimum(*(target_cost(space[at][nexts], space["future_turn"][nexts], local,
+                                               plan["heading_weight"], plan["lookahead_distance"])
+                                   for at in ("net", "future")))))
+
+
 def select(space: dict, prev_id, target, plan: dict, collections=None, exclude=(),
-           graph=None) -> list[tuple[int, float, int, float]]:
+           graph=None, successors=None) -> list[tuple[int, float, int, float]]:
     """Every eligible snippet as (level, order key, id, continuity ratio), best first. graph: the snippet ids
-    of a transition graph, the only ones eligible."""
+    of a transition graph, the only ones eligible; successors: its level-0 transitions (snippet index ->
+    indices of those that may follow it), for graph_lookahead when prev lies in it."""
     ids = space["id"]
     ok = np.ones(len(ids), dtype=bool)
     if graph is not None:
@@ -285,6 +302,9 @@ def select(space: dict, prev_id, target, plan: dict, collections=None, exclude=(
         cand = {k: space[k] for k in ("pos", "rot", "vel", "angvel")}
         ratio = ratios(prev, cand, plan)
         level = levels(ratio)
+        if plan["graph_lookahead"] and successors is not None and p in successors:
+            for i in np.flatnonzero(ok & (level == 0)):
+                cost[i] = min(cost[i], two_step_cost(space, i, successors[i], target, plan))
         order_key = np.where(level == 4, np.linalg.norm(space["feat"] - prev["feat"], axis=1),
                              cost + plan["continuity_weight"] * ratio)
     rows = [(int(level[i]), float(order_key[i]), int(ids[i]), float(ratio[i])) for i in np.flatnonzero(ok)]

@@ -223,23 +223,29 @@ def test_from_a_graph_snippet_level_0_reads_the_stored_transitions_not_the_box(l
 
 def test_selection_with_a_graph_equals_brute_force_over_its_snippets(loaded, cmu_graph):
     dsn, space = loaded
-    kept, members, _ = cmu_graph
+    kept, members, pairs = cmu_graph
     rng = np.random.default_rng(11)
     inside = np.array(sorted(kept))
     outside = np.setdiff1d(space["id"][members], inside)
+    kept_index = np.flatnonzero(np.isin(space["id"], inside))
+    successors = {p: np.intersect1d(qs[r <= 1], kept_index) for p, (qs, r) in pairs.items() if p in set(kept_index)}
     with connect(dsn) as conn:
         conn.execute("SET modb.graph = 'cmu'")
-        # locomotion: the graph's own thresholds, so level 0 comes from its stored transitions; default: the box.
-        for q, profile in enumerate(["locomotion", "default"] * 20):
+        # locomotion: the graph's own thresholds, so level 0 comes from its stored transitions (and may look
+        # one snippet further); default: the box.
+        configs = [("locomotion", "off"), ("default", "off"), ("locomotion", "on")]
+        for q, (profile, lookahead) in enumerate(configs * 15):
             settings = conn.execute("SELECT settings FROM modb.match_profiles WHERE name = %s", [profile]).fetchone()[0]
+            conn.execute("SELECT set_config('modb.graph_lookahead', %s, false)", [lookahead])
+            knobs = {"graph_lookahead": lookahead}
             # From inside the graph, from a dead end outside it, and to start.
-            prev = None if q % 10 == 0 else int(rng.choice(outside if q % 3 == 0 else inside))
+            prev = None if q % 10 == 0 else int(rng.choice(outside if q % 4 == 0 else inside))
             target = list(np.round(rng.uniform(-6, 6, size=2), 3))
             row = conn.execute("SELECT snippet_id, relax_level, continuity FROM modb.select_next_snippet(%s, %s, %s)",
                                [prev, target, profile]).fetchone()
             assert row[0] in kept
-            _assert_same_choice(row, select(space, prev, target, resolve_profile(settings, {}), graph=kept),
-                                dict(prev=prev, target=target, profile=profile))
+            rows = select(space, prev, target, resolve_profile(settings, knobs), graph=kept, successors=successors)
+            _assert_same_choice(row, rows, dict(prev=prev, target=target, profile=profile, knobs=knobs))
         conn.execute("SET modb.graph = 'nope'")
         with pytest.raises(psycopg.errors.RaiseException, match='no transition graph "nope"'):
             conn.execute("SELECT * FROM modb.select_next_snippet(NULL, '{0,1}')").fetchall()

@@ -195,10 +195,14 @@ def cmd_bench(args: argparse.Namespace) -> int:
         print(summary)  # `modb synth --report` also lists every choice
         return 0
     if args.what == "select":
-        from .bench_select import bench_select, report as select_report
+        from .bench_select import bench_select, bench_select_graph, report as select_report, report_graph
 
         with _connect(args) as conn:
-            print(select_report(bench_select(conn, args.queries, args.seed, args.profile), args.profile))
+            if args.graph:
+                print(report_graph(bench_select_graph(conn, args.queries, args.seed, args.profile, args.graph),
+                                   args.profile, args.graph))
+            else:
+                print(select_report(bench_select(conn, args.queries, args.seed, args.profile), args.profile))
         return 0
 
     from .bench_load import bench_load, bench_parse, report
@@ -371,7 +375,8 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--profile", default="default", help="select, synth: match profile")
     bench.add_argument("--seconds", type=float, default=600.0, help="synth: length of the course")
     bench.add_argument("--collection", help="synth: draw snippets from this collection")
-    bench.add_argument("--graph", help="synth: choose among this transition graph's snippets only")
+    bench.add_argument("--graph", help="synth: choose among this transition graph's snippets only; select: time "
+                       "level 0 from its stored transitions against the box")
     bench.add_argument("--data", help="load: folder of .bvh files (default ../shared/mocap/bandai-1); synth: "
                                       "bandai-2-dev/data, whose walks, turns and runs go into a fresh database")
     bench.add_argument("--rounds", type=int, default=3, help="load: rounds")

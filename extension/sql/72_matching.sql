@@ -89,10 +89,11 @@ CREATE TYPE modb.match_plan AS (
     box_half_width             float8[],
     continuity_weight          float8,
     lookahead_distance         float8,
-    graph_id                   bigint
+    graph_id                   bigint,
+    graph_lookahead            boolean
 );
 COMMENT ON TYPE modb.match_plan IS
-    'A profile resolved for one query: included joints (0-based standard indices), thresholds per standard joint (Infinity when not included), the half-widths of the search box per feature, the objective''s weights, and the transition graph (modb.graphs id) candidates must belong to, if any';
+    'A profile resolved for one query: included joints (0-based standard indices), thresholds per standard joint (Infinity when not included), the half-widths of the search box per feature, the objective''s weights, the transition graph (modb.graphs id) candidates must belong to, if any, and whether the objective looks one snippet further through it';
 
 CREATE FUNCTION modb.session_settings()
 RETURNS text[]

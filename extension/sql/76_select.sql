@@ -4,7 +4,9 @@
 -- or the point lookahead_distance along the way to a farther one, so that a far goal does not favour the
 -- fastest gait, which cannot turn), plus the profile's
 -- continuity_weight x its continuity ratio, so a smoother candidate wins unless another serves the goal
--- clearly better. CREATE OR REPLACE: upgrades include this file.
+-- clearly better. With a transition graph's stored transitions and graph_lookahead, level 0 also scores
+-- each candidate by the best of its successors placed after it (a two-snippet look ahead: a chain can
+-- take a step whose turn only the next snippet completes). CREATE OR REPLACE: upgrades include this file.
 -- LANGUAGE sql, STABLE, not STRICT, one SELECT: inlined into the caller's plan, so EXPLAIN shows the
 -- GiST index scan on snippets.begin_features with the profile's box as its Index Cond.
 
@@ -64,10 +66,19 @@ UNION ALL
    JOIN modb.terminators b ON b.id = c.begin_terminator
   CROSS JOIN prev CROSS JOIN cfg
   CROSS JOIN LATERAL (SELECT modb.continuity_ratio(prev.term, b, cfg.plan) AS ratio) r
+  -- graph_lookahead: the best of this candidate's successors in the graph, placed after it, may stand in for
+  -- where it leads (a turn that only the next snippet completes); least() ignores the NULL without it.
+  CROSS JOIN LATERAL (
+      SELECT min(modb.approach_cost(n2.net_translation, n2.future_translation, n2.future_heading,
+                                    modb.aim_point(modb.world_to_local(c.net_translation, c.net_heading, target), (cfg.plan).lookahead_distance),
+                                    (cfg.plan).heading_weight)) AS cost
+        FROM modb.graph_transitions e2 CROSS JOIN LATERAL unnest(e2.to_snippets) AS next2(id)
+        JOIN modb.snippets n2 ON n2.id = next2.id
+       WHERE (cfg.plan).graph_lookahead AND e2.graph_id = (cfg.plan).graph_id AND e2.from_snippet = c.id) two
   WHERE (SELECT stored FROM cfg)
     AND e.graph_id = (SELECT (plan).graph_id FROM cfg) AND e.from_snippet = prev_snippet
     AND r.ratio <= 1.0
-  ORDER BY modb.approach_cost(c.net_translation, c.future_translation, c.future_heading, (SELECT aim FROM cfg), (SELECT (plan).heading_weight FROM cfg))
+  ORDER BY least(modb.approach_cost(c.net_translation, c.future_translation, c.future_heading, (SELECT aim FROM cfg), (SELECT (plan).heading_weight FROM cfg)), two.cost)
            + (SELECT (plan).continuity_weight FROM cfg) * r.ratio, 1 LIMIT k)
 UNION ALL
 (SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
@@ -132,7 +143,7 @@ UNION ALL
 LIMIT k
 $$;
 COMMENT ON FUNCTION modb.select_next_snippets(bigint, float8[], int, text, text, bigint[]) IS
-    'The k best continuations of prev_snippet toward target ({x, z} or {x, y, z}, metres, in the avatar''s heading frame at its end), ordered by relaxation level, then proximity (from the nearer of where the snippet ends and where it leads to the aim point: the target, or the point the profile''s lookahead_distance along the way to it) + continuity_weight x continuity; prev_snippet NULL: the snippets that best serve the target';
+    'The k best continuations of prev_snippet toward target ({x, z} or {x, y, z}, metres, in the avatar''s heading frame at its end), ordered by relaxation level, then proximity (from the nearer of where the snippet ends and where it leads to the aim point: the target, or the point the profile''s lookahead_distance along the way to it) + continuity_weight x continuity (with graph_lookahead, from a graph snippet at level 0: the proximity of the candidate or of its best successor, whichever is nearer); prev_snippet NULL: the snippets that best serve the target';
 
 CREATE OR REPLACE FUNCTION modb.select_next_snippet(prev_snippet bigint, target float8[], profile text DEFAULT 'default',
                                          collection text DEFAULT NULL, exclude bigint[] DEFAULT NULL)
