@@ -49,32 +49,42 @@ def bench_select(conn: psycopg.Connection, queries: int, seed: int, profile: str
 
 
 def bench_select_graph(conn: psycopg.Connection, queries: int, seed: int, profile: str, graph: str) -> dict:
-    """From the graph's snippets: level 0 read from its stored transitions, against the same query with them
-    hidden (deleted in a savepoint that is rolled back), so it searches the feature box. Generic plans, no
-    JIT, no graph_lookahead (the box path has none): both must return the same snippet."""
+    """From the graph's snippets: level 0 read from its stored transitions, against the same query on a copy
+    of the graph that has none stored (made for the run, then dropped), so it searches the feature box.
+    Generic plans, no JIT, no graph_lookahead (the box path has none): both must return the same snippet."""
     ids = [r[0] for r in conn.execute(
         "SELECT s.snippet_id FROM modb.graph_snippets s JOIN modb.graphs g ON g.id = s.graph_id "
         "WHERE g.name = %s AND g.kind = 'transitions' ORDER BY 1", [graph]).fetchall()]
     if not ids:
         raise RuntimeError(f'no transition graph "{graph}" with snippets: `modb graph build {graph}` builds it')
-    for name, value in (("plan_cache_mode", "force_generic_plan"), ("jit", "off"), ("modb.graph", graph),
-                        ("modb.graph_lookahead", "off")):
-        conn.execute("SELECT set_config(%s, %s, false)", [name, value])
-    rng = np.random.default_rng(seed)
-    sql = "SELECT snippet_id, relax_level FROM modb.select_next_snippet(%s, %s, %s)"
-    conn.execute(sql, [int(ids[0]), [0.0, 1.0], profile], prepare=True).fetchone()
-    stored_ms, box_ms, levels, mismatches = [], [], [], 0
-    for _ in range(queries):
-        args = [int(rng.choice(ids)), [float(v) for v in rng.uniform(-5, 5, size=2)], profile]
-        a_ms, a = _timed(conn, sql, args)
-        with conn.transaction(force_rollback=True):
-            conn.execute("DELETE FROM modb.graph_transitions e USING modb.graphs g "
-                         "WHERE g.id = e.graph_id AND g.name = %s", [graph])
+    box_graph = f"{graph} (bench select: no stored transitions)"
+    with conn.transaction():
+        (copy_id,) = conn.execute(
+            "INSERT INTO modb.graphs (name, kind, data) SELECT %s, kind, data - 'transition_key' FROM modb.graphs "
+            "WHERE name = %s AND kind = 'transitions' RETURNING id", [box_graph, graph]).fetchone()
+        conn.execute("INSERT INTO modb.graph_snippets (graph_id, snippet_id) SELECT %s, unnest(%s::bigint[])",
+                     [copy_id, ids])
+    try:
+        for name, value in (("plan_cache_mode", "force_generic_plan"), ("jit", "off"),
+                            ("modb.graph_lookahead", "off")):
+            conn.execute("SELECT set_config(%s, %s, false)", [name, value])
+        rng = np.random.default_rng(seed)
+        sql = "SELECT snippet_id, relax_level FROM modb.select_next_snippet(%s, %s, %s)"
+        use = "SELECT set_config('modb.graph', %s, false)"
+        conn.execute(sql, [int(ids[0]), [0.0, 1.0], profile], prepare=True).fetchone()
+        stored_ms, box_ms, levels, mismatches = [], [], [], 0
+        for _ in range(queries):
+            args = [int(rng.choice(ids)), [float(v) for v in rng.uniform(-5, 5, size=2)], profile]
+            conn.execute(use, [graph])
+            a_ms, a = _timed(conn, sql, args)
+            conn.execute(use, [box_graph])
             b_ms, b = _timed(conn, sql, args)
-        stored_ms.append(a_ms)
-        box_ms.append(b_ms)
-        levels.append(a[1])
-        mismatches += a[0] != b[0]
+            stored_ms.append(a_ms)
+            box_ms.append(b_ms)
+            levels.append(a[1])
+            mismatches += a[0] != b[0]
+    finally:
+        conn.execute("DELETE FROM modb.graphs WHERE id = %s", [copy_id])
     size = conn.execute("SELECT pg_total_relation_size('modb.graph_transitions')").fetchone()[0]
     return {"snippets": len(ids), "queries": queries, "stored_ms": stored_ms, "box_ms": box_ms, "levels": levels,
             "mismatches": mismatches, "bytes_per_snippet": size / len(ids)}
@@ -91,7 +101,7 @@ def report_graph(result: dict, profile: str, graph: str) -> str:
         "| level 0 from | p50 ms | p99 ms |",
         "|---|---|---|",
         f"| the stored transitions | {a50:.1f} | {a99:.1f} |",
-        f"| the GiST box, transitions hidden (baseline) | {b50:.1f} | {b99:.1f} |",
+        f"| the GiST box (a copy of the graph without them; baseline) | {b50:.1f} | {b99:.1f} |",
         "",
         f"Median per-query speed-up: {statistics.median(ratios):.1f}x. "
         f"Same snippet from both: {result['queries'] - result['mismatches']}/{result['queries']}.",
