@@ -9,6 +9,7 @@ import pytest
 
 from conftest import mocap, run_modb, scratch_database
 from modb.connection import connect
+from modb.graphs import list_graphs
 
 
 @pytest.fixture(scope="module")
@@ -163,6 +164,7 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
                                       "LEFT JOIN modb.graph_snippets g USING (snippet_id)").fetchone()
         assert chosen == 4 and in_graph == chosen
         db.execute("RESET modb.graph")
+        assert not next(g for g in list_graphs(db) if g.name == "old").current  # `modb graph list`: rebuild it
     assert db.execute("SELECT extversion FROM pg_extension WHERE extname = 'modb'").fetchone()[0] == current
     assert db.execute("SELECT clip_id, version, n_frames, meta, md5(rotations::text) FROM modb.clip_versions "
                       "ORDER BY 1").fetchall() == before
@@ -189,6 +191,7 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
     db.execute("SELECT modb.build_transition_graph('g', 'locomotion', NULL, 0)")
     assert db.execute("SELECT count(*) FROM modb.graph_transitions e JOIN modb.graphs g ON g.id = e.graph_id "
                       "WHERE g.name = 'g'").fetchone()[0] > 0
+    assert next(g for g in list_graphs(db) if g.name == "g").current
     db.execute("SET modb.graph = 'g'")
     chosen, in_graph = db.execute("SELECT count(*), count(g.snippet_id) FROM modb.synthesize('{{0,3}}', 4) s "
                                   "LEFT JOIN modb.graph_snippets g USING (snippet_id)").fetchone()

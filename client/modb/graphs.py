@@ -23,7 +23,7 @@ class GraphSummary:
     kept: int
     edges: int
     dead_ends: int
-    current: bool  # no snippet of its scope added or removed since it was built
+    current: bool  # transitions stored, and no snippet of its scope added or removed since it was built
 
 
 def build_graph(conn: psycopg.Connection, name: str, profile: str = "default", collection: str | None = None,
@@ -45,11 +45,12 @@ def build_graph(conn: psycopg.Connection, name: str, profile: str = "default", c
 
 def list_graphs(conn: psycopg.Connection) -> list[GraphSummary]:
     # Loads replace snippets (new ids): the graph's rows of removed snippets go with them (ON DELETE
-    # CASCADE) and new snippets are not in it, so either count changing means it needs a rebuild.
+    # CASCADE) and new snippets are not in it, so either count changing means it needs a rebuild. So does
+    # a graph built before 0.5.0, which stored no transitions (no transition_key).
     rows = conn.execute(
         "SELECT g.name, g.data->>'profile', g.data->>'collection', (g.data->>'snippets')::int, "
         "       (g.data->>'kept')::int, (g.data->>'edges')::bigint, (g.data->>'dead_ends')::int, "
-        "       (SELECT count(*) FROM modb.graph_snippets gs WHERE gs.graph_id = g.id) = (g.data->>'kept')::int "
+        "       g.data ? 'transition_key' AND (SELECT count(*) FROM modb.graph_snippets gs WHERE gs.graph_id = g.id) = (g.data->>'kept')::int "
         "       AND (SELECT count(*) FROM modb.snippets s WHERE g.data->>'collection' IS NULL "
         "            OR s.collection_id = ANY (modb.collection_subtree(g.data->>'collection'))) "
         "           = (g.data->>'snippets')::int "
@@ -68,6 +69,7 @@ def ensure_graph(conn: psycopg.Connection, name: str, profile: str = "default", 
 
 def describe(g: GraphSummary) -> str:
     scope = f"collection {g.collection}" if g.collection else "every collection"
-    stale = "" if g.current else " STALE: snippets were loaded or removed since; rebuild it"
+    stale = "" if g.current else (" STALE: snippets were loaded or removed since, or it was built before modb 0.5.0 "
+                                   "stored transitions; rebuild it")
     return (f"{g.name}: {g.kept:,} of {g.snippets:,} snippets kept ({scope}, profile {g.profile}; "
             f"{g.edges:,} level-0 transitions, {g.dead_ends:,} snippets with none){stale}")
