@@ -1,46 +1,66 @@
 """`modb bench select`: latency of select_next_snippet on the stored snippets, beside a sequential scan.
 
 Both run the same seeded queries in the same session, alternating query by query; the sequential scan is
-the same function with index scans switched off, so both must return the same snippet.
+the same function with index scans switched off, so both must return the same snippet. With --graph:
+level 0 from the graph's stored transitions beside the box (bench_select_graph).
 """
 from __future__ import annotations
 
 import statistics
 import time
+from collections.abc import Callable
 
 import numpy as np
 import psycopg
+
+
+SELECT = "SELECT snippet_id, relax_level FROM modb.select_next_snippet(%s, %s, %s)"
 
 
 def _p50_p99(ms: list[float]) -> tuple[float, float]:
     return statistics.median(ms), float(np.percentile(ms, 99))
 
 
-def _timed(conn: psycopg.Connection, sql: str, args: list) -> tuple[float, tuple]:
+def _timed(conn: psycopg.Connection, args: list) -> tuple[float, tuple]:
     t = time.perf_counter()
-    row = conn.execute(sql, args, prepare=True).fetchone()
+    row = conn.execute(SELECT, args, prepare=True).fetchone()
     return (time.perf_counter() - t) * 1000, row
+
+
+Timed = Callable[[list], tuple[float, tuple]]
+
+
+def _alternate(ids: list[int], queries: int, seed: int, profile: str, first: Timed,
+               second: Timed) -> tuple[list[float], list[float], list[int], int]:
+    """Seeded queries (a random prev among ids, a target within 5 m), each run by `first` then `second`:
+    their times, the levels `first` chose, and how often the two chose different snippets."""
+    rng = np.random.default_rng(seed)
+    first_ms, second_ms, levels, mismatches = [], [], [], 0
+    for _ in range(queries):
+        args = [int(rng.choice(ids)), [float(v) for v in rng.uniform(-5, 5, size=2)], profile]
+        a_ms, a = first(args)
+        b_ms, b = second(args)
+        first_ms.append(a_ms)
+        second_ms.append(b_ms)
+        levels.append(a[1])
+        mismatches += a[0] != b[0]
+    return first_ms, second_ms, levels, mismatches
 
 
 def bench_select(conn: psycopg.Connection, queries: int, seed: int, profile: str) -> dict:
     ids = [r[0] for r in conn.execute("SELECT id FROM modb.snippets ORDER BY id").fetchall()]
     if not ids:
         raise RuntimeError("no snippets stored: `modb load` builds them (or SELECT modb.build_snippets())")
-    rng = np.random.default_rng(seed)
-    sql = "SELECT snippet_id, relax_level FROM modb.select_next_snippet(%s, %s, %s)"
-    conn.execute(sql, [int(ids[0]), [0.0, 1.0], profile]).fetchone()  # first call: plans, PL/pgSQL caches
-    index_ms, seq_ms, levels, mismatches = [], [], [], 0
-    for _ in range(queries):
-        args = [int(rng.choice(ids)), [float(v) for v in rng.uniform(-5, 5, size=2)], profile]
-        a_ms, a = _timed(conn, sql, args)
+    conn.execute(SELECT, [int(ids[0]), [0.0, 1.0], profile]).fetchone()  # first call: plans, PL/pgSQL caches
+
+    def sequential(args: list) -> tuple[float, tuple]:
         with conn.transaction():
             conn.execute("SET LOCAL enable_indexscan = off")
             conn.execute("SET LOCAL enable_bitmapscan = off")
-            b_ms, b = _timed(conn, sql, args)
-        index_ms.append(a_ms)
-        seq_ms.append(b_ms)
-        levels.append(a[1])
-        mismatches += a[0] != b[0]
+            return _timed(conn, args)
+
+    index_ms, seq_ms, levels, mismatches = _alternate(ids, queries, seed, profile,
+                                                      lambda args: _timed(conn, args), sequential)
     size = conn.execute(
         "SELECT sum(pg_total_relation_size(c)) FROM unnest(ARRAY['modb.snippets', 'modb.terminators', "
         "'modb.snippet_sources']::regclass[]) AS c").fetchone()[0]
@@ -68,21 +88,15 @@ def bench_select_graph(conn: psycopg.Connection, queries: int, seed: int, profil
         for name, value in (("plan_cache_mode", "force_generic_plan"), ("jit", "off"),
                             ("modb.graph_lookahead", "off")):
             conn.execute("SELECT set_config(%s, %s, false)", [name, value])
-        rng = np.random.default_rng(seed)
-        sql = "SELECT snippet_id, relax_level FROM modb.select_next_snippet(%s, %s, %s)"
-        use = "SELECT set_config('modb.graph', %s, false)"
-        conn.execute(sql, [int(ids[0]), [0.0, 1.0], profile], prepare=True).fetchone()
-        stored_ms, box_ms, levels, mismatches = [], [], [], 0
-        for _ in range(queries):
-            args = [int(rng.choice(ids)), [float(v) for v in rng.uniform(-5, 5, size=2)], profile]
-            conn.execute(use, [graph])
-            a_ms, a = _timed(conn, sql, args)
-            conn.execute(use, [box_graph])
-            b_ms, b = _timed(conn, sql, args)
-            stored_ms.append(a_ms)
-            box_ms.append(b_ms)
-            levels.append(a[1])
-            mismatches += a[0] != b[0]
+        conn.execute(SELECT, [int(ids[0]), [0.0, 1.0], profile], prepare=True).fetchone()
+
+        def on(name: str) -> Timed:
+            def run(args: list) -> tuple[float, tuple]:
+                conn.execute("SELECT set_config('modb.graph', %s, false)", [name])
+                return _timed(conn, args)
+            return run
+
+        stored_ms, box_ms, levels, mismatches = _alternate(ids, queries, seed, profile, on(graph), on(box_graph))
     finally:
         conn.execute("DELETE FROM modb.graphs WHERE id = %s", [copy_id])
     size = conn.execute("SELECT pg_total_relation_size('modb.graph_transitions')").fetchone()[0]

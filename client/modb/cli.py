@@ -288,6 +288,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
     from .dsn import resolve
     from .web.app import ThreeMissing, create_app
+    from .web.guard import WILDCARD_ADDRESSES, is_loopback
 
     conninfo, origin = resolve(args.dsn)
     try:
@@ -295,10 +296,10 @@ def cmd_serve(args: argparse.Namespace) -> int:
     except ThreeMissing as e:
         print(f"modb serve: {e}", file=sys.stderr)
         return 2
-    if args.host not in ("127.0.0.1", "localhost", "::1"):
+    if not is_loopback(args.host):
         print(f"modb serve: listening on {args.host}, beyond this machine: anyone who can reach it can read the "
               f"database. It answers requests that name it as 127.0.0.1, localhost"
-              + (f", {args.host}" if args.host not in ("0.0.0.0", "::") else "")
+              + (f", {args.host}" if args.host not in WILDCARD_ADDRESSES else "")
               + "".join(f", {h}" for h in args.allow_host) + " (more with --allow-host NAME)", file=sys.stderr)
     shown = f"[{args.host}]" if ":" in args.host else args.host
     print(f"modb serve: http://{shown}:{args.port}/  (database: {origin}; Ctrl-C stops)", file=sys.stderr)

@@ -29,7 +29,8 @@ if not name:
 if min_turn_degrees is None or not 0 <= min_turn_degrees <= 180:
     plpy.error(f"min_turn_degrees must be between 0 and 180, got {min_turn_degrees}")
 plan = plpy.execute(plpy.prepare(
-    """SELECT to_jsonb(p) - 'box_half_width' AS shown, p.* FROM modb.match_plan($1) p""", ["text"]), [profile])[0]
+    """SELECT to_jsonb(p) - 'box_half_width' AS shown, modb.transition_key(p) AS transition_key, p.*
+         FROM modb.match_plan($1) p""", ["text"]), [profile])[0]
 collections = None
 if collection is not None:
     collections = plpy.execute(plpy.prepare("SELECT modb.collection_subtree($1) AS ids", ["text"]), [collection])[0]["ids"]
@@ -59,11 +60,10 @@ begin = np.array([row_of[t] for t in column("begin_terminator")])
 end = np.array([row_of[t] for t in column("end_terminator")])
 group, clip = keys(column("grp")), keys(column("clip"))
 first_frame, n_frames = np.array(column("first_frame")), np.array(column("n_frames"))
-thresholds = {k: np.array(plan[k], dtype=np.float64) for k in
-              ("position_threshold", "angle_threshold", "velocity_threshold", "angular_velocity_threshold")}
 # A hair looser than level 0, so the stored transitions hold every pair the SQL test passes (numpy and
 # SQL round differently); selection applies the exact test again.
-thresholds = {k: v * (1 + TRANSITION_SLACK) for k, v in thresholds.items()}
+thresholds = {k: np.array(plan[k], dtype=np.float64) * (1 + TRANSITION_SLACK) for k in
+              ("position_threshold", "angle_threshold", "velocity_threshold", "angular_velocity_threshold")}
 spec = dict(thresholds, joints=list(plan["joints"]), norm=plan["norm"], velocity_terms=plan["velocity_terms"],
             box_half_width=plan["box_half_width"])
 src, dst = T.edges(term, begin, end, group, clip, first_frame, n_frames, spec,
@@ -72,20 +72,19 @@ turn = np.array([np.nan if t is None else t for t in column("future_heading")], 
 keep = T.steerable(n, src, dst, group, np.nan_to_num(turn), np.radians(min_turn_degrees))
 ids = np.array(column("id"), dtype=np.int64)
 out_degree = np.bincount(src, minlength=n)
+inside = keep[src] & keep[dst]
 data = {"profile": profile, "collection": collection, "min_turn_degrees": min_turn_degrees,
         "plan": json.loads(plan["shown"]),
         "snippets": n, "edges": int(len(src)), "kept": int(keep.sum()),
         "dead_ends": int((out_degree == 0).sum()),
-        "edges_within_kept": int((keep[src] & keep[dst]).sum())}
+        "edges_within_kept": int(inside.sum()), "transition_key": json.loads(plan["transition_key"])}
 plpy.execute(plpy.prepare("DELETE FROM modb.graphs WHERE name = $1 AND kind = 'transitions'", ["text"]), [name])
-graph_id = plpy.execute(plpy.prepare(  # the key in SQL, so that selection compares it with its own
-    """INSERT INTO modb.graphs (name, kind, data)
-       VALUES ($1, 'transitions', $2::jsonb || jsonb_build_object('transition_key', modb.transition_key(modb.match_plan($3))))
-       RETURNING id""", ["text", "text", "text"]), [name, json.dumps(data), profile])[0]["id"]
+graph_id = plpy.execute(plpy.prepare(
+    "INSERT INTO modb.graphs (name, kind, data) VALUES ($1, 'transitions', $2::jsonb) RETURNING id",
+    ["text", "text"]), [name, json.dumps(data)])[0]["id"]
 plpy.execute(plpy.prepare(
     "INSERT INTO modb.graph_snippets (graph_id, snippet_id) SELECT $1, unnest($2::bigint[])", ["bigint", "bigint[]"]),
     [graph_id, ids[keep].tolist()])
-inside = keep[src] & keep[dst]
 plpy.execute(plpy.prepare(
     """INSERT INTO modb.graph_transitions (graph_id, from_snippet, to_snippets)
        SELECT $1, f, array_agg(t ORDER BY t) FROM unnest($2::bigint[], $3::bigint[]) AS e(f, t) GROUP BY f""",

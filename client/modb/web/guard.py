@@ -14,6 +14,12 @@ from urllib.parse import urlsplit
 from starlette.types import ASGIApp, Receive, Scope, Send
 
 LOOPBACK_NAMES = ("127.0.0.1", "localhost", "[::1]")
+WILDCARD_ADDRESSES = ("0.0.0.0", "::", "")  # bind to every interface; as a Host they name nothing
+
+
+def is_loopback(host: str) -> bool:
+    """Whether a --host address (bare, as given to bind) keeps the server on this machine."""
+    return host in LOOPBACK_NAMES or f"[{host}]" in LOOPBACK_NAMES
 
 
 def allowed_hosts(host: str, port: int, extra_names: Iterable[str] = ()) -> frozenset[str]:
@@ -22,7 +28,7 @@ def allowed_hosts(host: str, port: int, extra_names: Iterable[str] = ()) -> froz
     NAME:PORT as a proxy in front would show it)."""
     given_port = {n.lower() for n in extra_names if re.fullmatch(r"[^:\[\]]+:[0-9]+|\[.+\]:[0-9]+", n)}
     names = {*LOOPBACK_NAMES, *(n for n in extra_names if n.lower() not in given_port)}
-    if host not in ("0.0.0.0", "::", ""):
+    if host not in WILDCARD_ADDRESSES:
         names.add(host if ":" not in host else f"[{host}]")
     bare = {name.lower() for name in names} if port == 80 else set()  # browsers leave out the default port
     return frozenset(f"{name.lower()}:{port}" for name in names) | bare | given_port
