@@ -82,3 +82,13 @@ def run_modb(dsn: str, *args: str) -> subprocess.CompletedProcess:
     """The real command line, as a user runs it."""
     return subprocess.run([sys.executable, "-m", "modb.cli", "--dsn", dsn, *map(str, args)],
                           capture_output=True, text=True)
+
+
+def plan_nodes(conn: psycopg.Connection, sql: str, params=()) -> list[dict]:
+    """Every node of the plan EXPLAIN (ANALYZE, FORMAT JSON) shows for a query, depth first."""
+    nodes, todo = [], [conn.execute("EXPLAIN (ANALYZE, FORMAT JSON) " + sql, params).fetchone()[0][0]["Plan"]]
+    while todo:
+        node = todo.pop()
+        nodes.append(node)
+        todo.extend(reversed(node.get("Plans", [])))
+    return nodes

@@ -7,7 +7,7 @@ import numpy as np
 import psycopg
 import pytest
 
-from conftest import mocap, run_modb, scratch_database
+from conftest import mocap, plan_nodes, run_modb, scratch_database
 from modb.connection import connect
 from modb.graphs import list_graphs
 
@@ -96,15 +96,7 @@ def test_exclusion_removes_every_overlapping_window_but_not_the_successor(cmu):
 def test_explain_shows_the_inlined_function_and_the_gist_box(cmu):
     with connect(cmu) as conn:
         prev = conn.execute("SELECT id FROM modb.snippets ORDER BY id LIMIT 1 OFFSET 100").fetchone()[0]
-        plan = conn.execute("EXPLAIN (ANALYZE, FORMAT JSON) SELECT * FROM modb.select_next_snippet(%s, '{1,2}')",
-                            [prev]).fetchone()[0][0]["Plan"]
-        nodes = []
-
-        def walk(node):
-            nodes.append(node)
-            for child in node.get("Plans", []):
-                walk(child)
-        walk(plan)
+        nodes = plan_nodes(conn, "SELECT * FROM modb.select_next_snippet(%s, '{1,2}')", [prev])
         assert not any(n.get("Function Name", "").startswith("select_next_snippet") for n in nodes), \
             "select_next_snippet was not inlined"
         box_scans = [n for n in nodes if n.get("Index Name") == "snippets_begin_features_idx"

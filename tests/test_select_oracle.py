@@ -8,7 +8,7 @@ import numpy as np
 import psycopg
 import pytest
 
-from conftest import mocap, run_modb, scratch_database
+from conftest import mocap, plan_nodes, run_modb, scratch_database
 from modb.connection import connect
 from snippet_oracle import (KNOBS, level0_ratios, load_snippet_space, resolve_profile, select,
                             strong_components)
@@ -197,13 +197,9 @@ def test_the_graph_stores_the_level0_transitions_among_its_snippets(loaded, cmu_
 def _scans(conn, sql, params) -> dict[str, int]:
     """Loops of the index scans EXPLAIN ANALYZE shows for a query, by index name."""
     loops: dict[str, int] = {}
-
-    def walk(node):
+    for node in plan_nodes(conn, sql, params):
         if "Index Name" in node:
             loops[node["Index Name"]] = loops.get(node["Index Name"], 0) + node.get("Actual Loops", 0)
-        for child in node.get("Plans", []):
-            walk(child)
-    walk(conn.execute("EXPLAIN (ANALYZE, FORMAT JSON) " + sql, params).fetchone()[0][0]["Plan"])
     return loops
 
 
