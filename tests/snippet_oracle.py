@@ -10,6 +10,7 @@ import json
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.interpolate import RegularGridInterpolator
 from scipy.spatial.transform import Rotation
 
 STANDARD = ["pelvis", "spine", "chest", "neck", "head",
@@ -19,7 +20,7 @@ FEATURE_POS = ["head", "left_wrist", "right_wrist", "left_ankle", "right_ankle"]
 FEATURE_VEL = ["pelvis", "left_ankle", "right_ankle"]
 KNOBS = ("joints", "norm", "position_threshold", "angle_threshold", "velocity_threshold",
          "angular_velocity_threshold", "velocity_terms", "heading_weight", "continuity_weight",
-         "lookahead_distance", "graph", "graph_lookahead")
+         "lookahead_distance", "graph", "graph_lookahead", "graph_cost_to_go")
 
 
 def _rot(q: np.ndarray) -> Rotation:
@@ -108,7 +109,7 @@ def resolve_profile(settings: dict, knobs: dict) -> dict:
             settings[knob] = value.replace(" ", "").split(",")
         elif knob == "norm":
             settings[knob] = value.lower()
-        elif knob in ("velocity_terms", "graph_lookahead"):
+        elif knob in ("velocity_terms", "graph_lookahead", "graph_cost_to_go"):
             settings[knob] = value.lower() in ("on", "true", "1", "yes")
         elif knob.endswith("threshold"):
             settings[knob] = {"default": float(value)}
@@ -127,6 +128,7 @@ def resolve_profile(settings: dict, knobs: dict) -> dict:
         "continuity_weight": float(settings.get("continuity_weight", 0)),
         "lookahead_distance": None if settings.get("lookahead_distance") is None else float(settings["lookahead_distance"]),
         "graph_lookahead": bool(settings.get("graph_lookahead", False)),
+        "graph_cost_to_go": bool(settings.get("graph_cost_to_go", True)),
         **{k: np.array([per_joint(settings[k], STANDARD[j]) for j in included])
            for k in ("position_threshold", "angle_threshold", "velocity_threshold", "angular_velocity_threshold")},
     }
@@ -271,11 +273,58 @@ def two_step_cost(space: dict, i: int, nexts: np.ndarray, target, plan: dict) ->
                                    for at in ("net", "future")))))
 
 
+def duration_of(space: dict, i: int) -> float:
+    return (space["n"][i] - 1) / space["fps"][i]
+
+
+def _seen_from_end(space: dict, i: int, points) -> np.ndarray:
+    """Points {x, z} or {x, y, z} of snippet i's start frame, as (x, z) seen from its end."""
+    t = np.atleast_2d(np.asarray(points, dtype=np.float64))
+    world = np.stack([t[:, 0], np.zeros(len(t)), t[:, -1]], axis=1)
+    seen = _yaw([space["net_turn"][i]]).inv().apply(world - space["net"][i] * [1, 0, 1])
+    return seen[:, [0, 2]]
+
+
+def read_cost(table: np.ndarray, grid: dict, xz: np.ndarray) -> np.ndarray:
+    """A cost-to-go table (angles x rings) read at goals (x, z): linear in (angle, log radius) by scipy,
+    0 within the inner radius, the outer ring plus the distance beyond it at the grid's speed."""
+    angles, rings, inner, outer = grid["angles"], grid["rings"], grid["inner_radius"], grid["outer_radius"]
+    r = np.hypot(xz[:, 0], xz[:, 1])
+    u = np.clip(np.log(np.maximum(r, 1e-12) / inner) / np.log(outer / inner) * (rings - 1), 0, rings - 1)
+    a = np.mod(np.arctan2(xz[:, 0], xz[:, 1]), 2 * np.pi) / (2 * np.pi / angles)
+    wrapped = np.vstack([table, table[:1]])  # angle A is angle 0 again
+    value = RegularGridInterpolator((np.arange(angles + 1), np.arange(rings)), wrapped)(np.stack([a, u], axis=1))
+    return np.where(r <= inner, 0.0, value + np.maximum(r - outer, 0) / grid["speed"])
+
+
+def cost_to_go(space: dict, successors: dict, grid: dict, tolerance: float = 1e-6) -> dict:
+    """Value iteration from zero: snippet index -> (angles x rings) least seconds until a chain through the
+    graph (successors: index -> indices) ends within the inner radius of a goal at each grid point."""
+    angles, rings = grid["angles"], grid["rings"]
+    theta = np.arange(angles) * 2 * np.pi / angles
+    radii = np.geomspace(grid["inner_radius"], grid["outer_radius"], rings)
+    points = np.stack([np.outer(np.sin(theta), radii).ravel(), np.outer(np.cos(theta), radii).ravel()], axis=1)
+    seen = {i: _seen_from_end(space, i, points) for i in successors}
+    duration = {i: duration_of(space, i) for i in successors}
+    values = {i: np.zeros((angles, rings)) for i in successors}
+    while True:
+        through = {i: duration[i] + read_cost(values[i], grid, seen[i]).reshape(angles, rings) for i in successors}
+        new = {}
+        for i, nexts in successors.items():
+            new[i] = np.min([through[int(t)] for t in nexts], axis=0)
+            new[i][:, 0] = 0.0
+        change = max(np.abs(new[i] - values[i]).max() for i in successors)
+        values = new
+        if change < tolerance:
+            return values
+
+
 def select(space: dict, prev_id, target, plan: dict, collections=None, exclude=(),
-           graph=None, successors=None) -> list[tuple[int, float, int, float]]:
+           graph=None, successors=None, costs=None, grid=None) -> list[tuple[int, float, int, float]]:
     """Every eligible snippet as (level, order key, id, continuity ratio), best first. graph: the snippet ids
     of a transition graph, the only ones eligible; successors: its level-0 transitions (snippet index ->
-    indices of those that may follow it), for graph_lookahead when prev lies in it."""
+    indices of those that may follow it), for graph_lookahead when prev lies in it; costs and grid: its
+    cost-to-go tables (snippet index -> angles x rings) and their grid, which rank level 0 when prev lies in it."""
     ids = space["id"]
     ok = np.ones(len(ids), dtype=bool)
     if graph is not None:
@@ -302,7 +351,11 @@ def select(space: dict, prev_id, target, plan: dict, collections=None, exclude=(
         cand = {k: space[k] for k in ("pos", "rot", "vel", "angvel")}
         ratio = ratios(prev, cand, plan)
         level = levels(ratio)
-        if plan["graph_lookahead"] and successors is not None and p in successors:
+        if plan["graph_cost_to_go"] and costs is not None and p in successors:
+            for i in np.flatnonzero(ok & (level == 0)):
+                seconds = duration_of(space, i) + read_cost(costs[i], grid, _seen_from_end(space, i, target))[0]
+                cost[i] = grid["speed"] * seconds
+        elif plan["graph_lookahead"] and successors is not None and p in successors:
             for i in np.flatnonzero(ok & (level == 0)):
                 cost[i] = min(cost[i], two_step_cost(space, i, successors[i], target, plan))
         order_key = np.where(level == 4, np.linalg.norm(space["feat"] - prev["feat"], axis=1),

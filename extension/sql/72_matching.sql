@@ -90,10 +90,11 @@ CREATE TYPE modb.match_plan AS (
     continuity_weight          float8,
     lookahead_distance         float8,
     graph_id                   bigint,
-    graph_lookahead            boolean
+    graph_lookahead            boolean,
+    graph_cost_to_go           boolean
 );
 COMMENT ON TYPE modb.match_plan IS
-    'A profile resolved for one query: included joints (0-based standard indices), thresholds per standard joint (Infinity when not included), the half-widths of the search box per feature, the objective''s weights, the transition graph (modb.graphs id) candidates must belong to, if any, and whether the objective looks one snippet further through it';
+    'A profile resolved for one query: included joints (0-based standard indices), thresholds per standard joint (Infinity when not included), the half-widths of the search box per feature, the objective''s weights, the transition graph (modb.graphs id) candidates must belong to, if any, whether the objective looks one snippet further through it, and whether it ranks by the graph''s cost-to-go';
 
 CREATE FUNCTION modb.session_settings()
 RETURNS text[]

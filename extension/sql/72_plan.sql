@@ -6,7 +6,7 @@ RETURNS text[]
 LANGUAGE sql IMMUTABLE STRICT PARALLEL SAFE
 RETURN ARRAY['joints', 'norm', 'position_threshold', 'angle_threshold', 'velocity_threshold',
              'angular_velocity_threshold', 'velocity_terms', 'heading_weight', 'continuity_weight', 'lookahead_distance',
-             'graph', 'graph_lookahead'];
+             'graph', 'graph_lookahead', 'graph_cost_to_go'];
 COMMENT ON FUNCTION modb.match_knobs() IS 'Settings a session may override with SET modb.<knob> = ...';
 
 CREATE OR REPLACE FUNCTION modb.match_plan(profile text)
@@ -47,7 +47,7 @@ BEGIN
             WHEN knob = 'joints' THEN to_jsonb(string_to_array(replace(value, ' ', ''), ','))
             WHEN knob = 'norm' THEN to_jsonb(lower(value))
             WHEN knob = 'graph' THEN to_jsonb(value)
-            WHEN knob IN ('velocity_terms', 'graph_lookahead') THEN to_jsonb(value::boolean)
+            WHEN knob IN ('velocity_terms', 'graph_lookahead', 'graph_cost_to_go') THEN to_jsonb(value::boolean)
             WHEN knob LIKE '%threshold' THEN jsonb_build_object('default', value::float8)  -- one value for every joint
             ELSE to_jsonb(value::float8) END);
     END LOOP;
@@ -81,6 +81,7 @@ BEGIN
     plan.continuity_weight := coalesce((settings->>'continuity_weight')::float8, 0);
     plan.lookahead_distance := (settings->>'lookahead_distance')::float8;
     plan.graph_lookahead := coalesce((settings->>'graph_lookahead')::boolean, false);
+    plan.graph_cost_to_go := coalesce((settings->>'graph_cost_to_go')::boolean, true);
     IF settings ? 'graph' THEN
         SELECT g.id INTO plan.graph_id FROM modb.graphs g WHERE g.name = settings->>'graph' AND g.kind = 'transitions';
         IF NOT FOUND THEN

@@ -38,7 +38,8 @@ if collection is not None:
         plpy.error(f'no collection "{collection}"', hint="modb.collection_path(id) names the stored ones")
 snippets = plpy.execute(plpy.prepare(
     """SELECT s.id, s.begin_terminator, s.end_terminator, s.pose_key || '@' || s.fps AS grp, s.future_heading,
-              s.clip_id || '/' || s.version || '/' || s.mirrored AS clip, s.first_frame, s.n_frames
+              s.clip_id || '/' || s.version || '/' || s.mirrored AS clip, s.first_frame, s.n_frames,
+              s.net_translation[1] AS net_x, s.net_translation[3] AS net_z, s.net_heading, (s.n_frames - 1) / s.fps AS duration
          FROM modb.snippets s WHERE $1::bigint[] IS NULL OR s.collection_id = ANY ($1) ORDER BY s.id""",
     ["bigint[]"]), [collections])
 n = len(snippets)
@@ -73,11 +74,23 @@ keep = T.steerable(n, src, dst, group, np.nan_to_num(turn), np.radians(min_turn_
 ids = np.array(column("id"), dtype=np.int64)
 out_degree = np.bincount(src, minlength=n)
 inside = keep[src] & keep[dst]
+# The cost-to-go among the kept snippets (modb_kernel/cost_to_go.py), priced beyond its grid at their median speed.
+C = kernel.cost_to_go
+kept = np.flatnonzero(keep)
+position = np.full(n, -1)
+position[kept] = np.arange(len(kept))
+net_x, net_z, heading, duration = (np.array(column(c), dtype=np.float64)[kept] for c in ("net_x", "net_z", "net_heading", "duration"))
+grid = C.Grid(speed=max(float(np.median(np.hypot(net_x, net_z) / duration)), C.MIN_SPEED))
+plpy.notice(f"modb: transition graph \"{name}\": cost-to-go of {len(kept)} snippets on {grid.angles} x {grid.rings} goal positions")
+costs, iterations, change = C.cost_to_go(
+    grid, net_x, net_z, heading, duration, position[src[inside]], position[dst[inside]],
+    progress=lambda i, c: i % 10 or plpy.notice(f"modb: transition graph \"{name}\": cost-to-go iteration {i}, largest change {c:.3f} s"))
 data = {"profile": profile, "collection": collection, "min_turn_degrees": min_turn_degrees,
         "plan": json.loads(plan["shown"]),
         "snippets": n, "edges": int(len(src)), "kept": int(keep.sum()),
         "dead_ends": int((out_degree == 0).sum()),
-        "edges_within_kept": int(inside.sum()), "transition_key": json.loads(plan["transition_key"])}
+        "edges_within_kept": int(inside.sum()), "transition_key": json.loads(plan["transition_key"]),
+        "cost_to_go": dict(grid.as_json(), iterations=iterations, last_change=change)}
 plpy.execute(plpy.prepare("DELETE FROM modb.graphs WHERE name = $1 AND kind = 'transitions'", ["text"]), [name])
 graph_id = plpy.execute(plpy.prepare(
     "INSERT INTO modb.graphs (name, kind, data) VALUES ($1, 'transitions', $2::jsonb) RETURNING id",
@@ -89,9 +102,15 @@ plpy.execute(plpy.prepare(
     """INSERT INTO modb.graph_transitions (graph_id, from_snippet, to_snippets)
        SELECT $1, f, array_agg(t ORDER BY t) FROM unnest($2::bigint[], $3::bigint[]) AS e(f, t) GROUP BY f""",
     ["bigint", "bigint[]", "bigint[]"]), [graph_id, ids[src[inside]].tolist(), ids[dst[inside]].tolist()])
+size = grid.angles * grid.rings
+plpy.execute(plpy.prepare(  # row k of the values: the k-th kept snippet's
+    """UPDATE modb.graph_transitions e SET cost_to_go = $3[(k.i - 1) * $4 + 1 : k.i * $4]
+         FROM unnest($2::bigint[]) WITH ORDINALITY AS k(id, i) WHERE e.graph_id = $1 AND e.from_snippet = k.id""",
+    ["bigint", "bigint[]", "real[]", "int"]), [graph_id, ids[kept].tolist(), costs.ravel().tolist(), size])
 plpy.notice(f"modb: transition graph \"{name}\": kept {data['kept']} of {n} snippets "
-            f"({data['edges']} transitions, {data['dead_ends']} snippets with none)")
+            f"({data['edges']} transitions, {data['dead_ends']} snippets with none); "
+            f"cost-to-go after {iterations} iterations (last change {change:.3f} s)")
 return graph_id
 $py$;
 COMMENT ON FUNCTION modb.build_transition_graph(text, text, text, float8) IS
-    'Builds (or rebuilds) the transition graph "name" over the snippets (of the collection): edges are relaxation level 0 of the profile; a snippet is kept when it lies in the largest strongly connected component (per skeleton and rate) among those holding turns of at least min_turn_degrees each way (where snippets lead: future_heading), so a chain restricted to it (SET modb.graph) never runs into a dead end and can face any goal; returns the modb.graphs id. Rebuild after loading';
+    'Builds (or rebuilds) the transition graph "name" over the snippets (of the collection): edges are relaxation level 0 of the profile; a snippet is kept when it lies in the largest strongly connected component (per skeleton and rate) among those holding turns of at least min_turn_degrees each way (where snippets lead: future_heading), so a chain restricted to it (SET modb.graph) never runs into a dead end and can face any goal; stores each kept snippet''s level-0 successors and its cost-to-go (seconds to goals around its end through the graph); returns the modb.graphs id. Rebuild after loading';

@@ -7,6 +7,7 @@ CREATE TABLE modb.graph_transitions (
     graph_id     bigint NOT NULL,
     from_snippet bigint NOT NULL,
     to_snippets  bigint[] NOT NULL,
+    cost_to_go   real[],
     PRIMARY KEY (graph_id, from_snippet),
     FOREIGN KEY (graph_id, from_snippet) REFERENCES modb.graph_snippets ON DELETE CASCADE
 );

@@ -4,9 +4,10 @@
 -- or the point lookahead_distance along the way to a farther one, so that a far goal does not favour the
 -- fastest gait, which cannot turn), plus the profile's
 -- continuity_weight x its continuity ratio, so a smoother candidate wins unless another serves the goal
--- clearly better. With a transition graph's stored transitions and graph_lookahead, level 0 also scores
--- each candidate by the best of its successors placed after it (a two-snippet look ahead: a chain can
--- take a step whose turn only the next snippet completes). CREATE OR REPLACE: upgrades include this file.
+-- clearly better. With a transition graph's stored transitions, level 0 ranks by the graph's cost-to-go
+-- instead: the time to the goal through the candidate, however many snippets the turn takes (graphs
+-- built before 0.6.0 have none: there graph_lookahead scores each candidate also by the best of its
+-- successors placed after it). CREATE OR REPLACE: upgrades include this file.
 -- LANGUAGE sql, STABLE, not STRICT, one SELECT: inlined into the caller's plan, so EXPLAIN shows the
 -- GiST index scan on snippets.begin_features with the profile's box as its Index Cond.
 
@@ -23,7 +24,9 @@ WITH cfg AS MATERIALIZED (
            -- prev's level-0 successors are stored (modb.graph_transitions) for these continuity settings
            EXISTS (SELECT FROM modb.graphs g JOIN modb.graph_transitions e ON e.graph_id = g.id
                     WHERE g.id = (plan).graph_id AND e.from_snippet = prev_snippet
-                      AND g.data->'transition_key' = modb.transition_key(plan)) AS stored
+                      AND g.data->'transition_key' = modb.transition_key(plan)) AS stored,
+           -- the grid of the graph's cost-to-go, when it has one and the plan ranks by it
+           (SELECT g.data->'cost_to_go' FROM modb.graphs g WHERE g.id = (plan).graph_id AND (plan).graph_cost_to_go) AS cost_grid
       FROM (SELECT modb.match_plan(profile) AS plan, modb.check_request(prev_snippet, target, k, collection) AS checked,
                    CASE WHEN collection IS NULL THEN NULL ELSE modb.collection_subtree(collection) END AS collections) resolved
 ), prev AS MATERIALIZED (
@@ -58,28 +61,36 @@ WITH cfg AS MATERIALIZED (
 -- level it satisfies. Level 4, the last: the nearest start configuration (feature distance), any ratio.
 -- Level 0 from a graph's stored transitions when it has them for prev and these settings, else the box.
 UNION ALL
-(SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
-        modb.approach_cost(c.net_translation, c.future_translation, c.future_heading, (SELECT aim FROM cfg), (SELECT (plan).heading_weight FROM cfg)), 0, r.ratio,
+(SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames, o.objective, 0, r.ratio,
         c.net_translation, c.net_rotation, c.net_heading
    FROM modb.graph_transitions e CROSS JOIN LATERAL unnest(e.to_snippets) AS next(id)
    JOIN candidates c ON c.id = next.id
+   JOIN modb.graph_transitions ce ON ce.graph_id = e.graph_id AND ce.from_snippet = c.id  -- the candidate's own row
    JOIN modb.terminators b ON b.id = c.begin_terminator
   CROSS JOIN prev CROSS JOIN cfg
   CROSS JOIN LATERAL (SELECT modb.continuity_ratio(prev.term, b, cfg.plan) AS ratio) r
-  -- graph_lookahead: the best of this candidate's successors in the graph, placed after it, may stand in for
-  -- where it leads (a turn that only the next snippet completes); least() ignores the NULL without it.
+  -- graph_lookahead (graphs without a cost-to-go): the best of this candidate's successors in the graph,
+  -- placed after it, may stand in for where it leads (a turn that only the next snippet completes);
+  -- least() ignores the NULL without it.
   CROSS JOIN LATERAL (
       SELECT min(modb.approach_cost(n2.net_translation, n2.future_translation, n2.future_heading,
                                     modb.aim_point(modb.world_to_local(c.net_translation, c.net_heading, target), (cfg.plan).lookahead_distance),
                                     (cfg.plan).heading_weight)) AS cost
-        FROM modb.graph_transitions e2 CROSS JOIN LATERAL unnest(e2.to_snippets) AS next2(id)
-        JOIN modb.snippets n2 ON n2.id = next2.id
-       WHERE (cfg.plan).graph_lookahead AND e2.graph_id = (cfg.plan).graph_id AND e2.from_snippet = c.id) two
+        FROM unnest(ce.to_snippets) AS next2(id) JOIN modb.snippets n2 ON n2.id = next2.id
+       WHERE (cfg.plan).graph_lookahead AND cfg.cost_grid IS NULL) two
+  -- The objective in metres: with the graph's cost-to-go, the seconds to the goal through this candidate
+  -- (its own duration, then the cost-to-go from its end) at the graph's median speed; else as the box levels.
+  CROSS JOIN LATERAL (
+      SELECT CASE WHEN cfg.cost_grid IS NOT NULL
+                  THEN (cfg.cost_grid->>'speed')::float8
+                       * ((c.n_frames - 1) / c.fps
+                          + modb.cost_to_go(ce.cost_to_go, modb.world_to_local(c.net_translation, c.net_heading, target), cfg.cost_grid))
+                  ELSE least(modb.approach_cost(c.net_translation, c.future_translation, c.future_heading, cfg.aim, (cfg.plan).heading_weight),
+                             two.cost) END AS objective) o
   WHERE (SELECT stored FROM cfg)
     AND e.graph_id = (SELECT (plan).graph_id FROM cfg) AND e.from_snippet = prev_snippet
     AND r.ratio <= 1.0
-  ORDER BY least(modb.approach_cost(c.net_translation, c.future_translation, c.future_heading, (SELECT aim FROM cfg), (SELECT (plan).heading_weight FROM cfg)), two.cost)
-           + (SELECT (plan).continuity_weight FROM cfg) * r.ratio, 1 LIMIT k)
+  ORDER BY o.objective + (SELECT (plan).continuity_weight FROM cfg) * r.ratio, 1 LIMIT k)
 UNION ALL
 (SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
         modb.approach_cost(c.net_translation, c.future_translation, c.future_heading, (SELECT aim FROM cfg), (SELECT (plan).heading_weight FROM cfg)), 0, r.ratio,
@@ -143,7 +154,7 @@ UNION ALL
 LIMIT k
 $$;
 COMMENT ON FUNCTION modb.select_next_snippets(bigint, float8[], int, text, text, bigint[]) IS
-    'The k best continuations of prev_snippet toward target ({x, z} or {x, y, z}, metres, in the avatar''s heading frame at its end), ordered by relaxation level, then proximity (from the nearer of where the snippet ends and where it leads to the aim point: the target, or the point the profile''s lookahead_distance along the way to it) + continuity_weight x continuity (with graph_lookahead, from a graph snippet at level 0: the proximity of the candidate or of its best successor, whichever is nearer); prev_snippet NULL: the snippets that best serve the target';
+    'The k best continuations of prev_snippet toward target ({x, z} or {x, y, z}, metres, in the avatar''s heading frame at its end), ordered by relaxation level, then proximity (from the nearer of where the snippet ends and where it leads to the aim point: the target, or the point the profile''s lookahead_distance along the way to it) + continuity_weight x continuity (from a graph snippet at level 0: with the graph''s cost-to-go, the seconds to the goal through the candidate x the graph''s median speed; else with graph_lookahead, the proximity of the candidate or of its best successor, whichever is nearer); prev_snippet NULL: the snippets that best serve the target';
 
 CREATE OR REPLACE FUNCTION modb.select_next_snippet(prev_snippet bigint, target float8[], profile text DEFAULT 'default',
                                          collection text DEFAULT NULL, exclude bigint[] DEFAULT NULL)
