@@ -297,9 +297,10 @@ def read_cost(table: np.ndarray, grid: dict, xz: np.ndarray) -> np.ndarray:
     return np.where(r <= inner, 0.0, value + np.maximum(r - outer, 0) / grid["speed"])
 
 
-def cost_to_go(space: dict, successors: dict, grid: dict, tolerance: float = 1e-6) -> dict:
-    """Value iteration from zero: snippet index -> (angles x rings) least seconds until a chain through the
-    graph (successors: index -> indices) ends within the inner radius of a goal at each grid point."""
+def cost_to_go(space: dict, successors: dict, seam: dict, grid: dict, tolerance: float = 1e-6) -> dict:
+    """Value iteration from zero: snippet index -> (angles x rings) least seconds (snippet durations, plus
+    seam[(from, to)] per transition) until a chain through the graph (successors: index -> indices) ends
+    within the inner radius of a goal at each grid point."""
     angles, rings = grid["angles"], grid["rings"]
     theta = np.arange(angles) * 2 * np.pi / angles
     radii = np.geomspace(grid["inner_radius"], grid["outer_radius"], rings)
@@ -311,7 +312,7 @@ def cost_to_go(space: dict, successors: dict, grid: dict, tolerance: float = 1e-
         through = {i: duration[i] + read_cost(values[i], grid, seen[i]).reshape(angles, rings) for i in successors}
         new = {}
         for i, nexts in successors.items():
-            new[i] = np.min([through[int(t)] for t in nexts], axis=0)
+            new[i] = np.min([through[int(t)] + seam[i, int(t)] for t in nexts], axis=0)
             new[i][:, 0] = 0.0
         change = max(np.abs(new[i] - values[i]).max() for i in successors)
         values = new

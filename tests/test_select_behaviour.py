@@ -127,7 +127,7 @@ MIRRORED_TERMINATORS = "SELECT c.name, t.frame, md5(t.rotations::text), md5(t.po
                        "JOIN modb.clips c ON c.id = t.clip_id WHERE t.mirrored ORDER BY 1, 2"
 
 
-@pytest.mark.parametrize("old", ["0.1.0", "0.2.0", "0.3.0", "0.4.0"])
+@pytest.mark.parametrize("old", ["0.1.0", "0.2.0", "0.3.0", "0.4.0", "0.5.0"])
 def test_update_keeps_the_data(cluster, fresh_db, db, old):
     current = db.execute("SELECT default_version FROM pg_available_extensions WHERE name = 'modb'").fetchone()[0]
     db.execute("DROP EXTENSION modb")
@@ -146,11 +146,14 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
         db.execute("INSERT INTO modb.match_profiles (name, settings) "
                    "SELECT 'mine', settings FROM modb.match_profiles WHERE name = 'default'")
         mine = db.execute("SELECT settings FROM modb.match_profiles WHERE name = 'mine'").fetchone()[0]
-    if old == "0.4.0":  # a graph built before 0.5.0 stored no transitions: it keeps working through the box
+    # A graph built before 0.5.0 stored no transitions: it keeps working through the box. One built by 0.5.0
+    # has no cost-to-go: it keeps ranking by where the candidates lead.
+    if old in ("0.4.0", "0.5.0"):
         db.execute("SELECT modb.build_transition_graph('old', 'locomotion', NULL, 0)")
     db.execute("ALTER EXTENSION modb UPDATE")
-    if old == "0.4.0":
-        assert db.execute("SELECT count(*) FROM modb.graph_transitions").fetchone()[0] == 0
+    if old in ("0.4.0", "0.5.0"):
+        stored, costs = db.execute("SELECT count(*), count(cost_to_go) FROM modb.graph_transitions").fetchone()
+        assert (stored > 0) == (old == "0.5.0") and costs == 0, (stored, costs)
         db.execute("SET modb.graph = 'old'")
         chosen, in_graph = db.execute("SELECT count(*), count(g.snippet_id) FROM modb.synthesize('{{0,3}}', 4) s "
                                       "LEFT JOIN modb.graph_snippets g USING (snippet_id)").fetchone()
@@ -181,8 +184,9 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
     # Lower body, no turn asked for: under the default profile (tuned at 30 fps) these two 120 fps clips
     # have no component that turns 45 degrees each way.
     db.execute("SELECT modb.build_transition_graph('g', 'locomotion', NULL, 0)")
-    assert db.execute("SELECT count(*) FROM modb.graph_transitions e JOIN modb.graphs g ON g.id = e.graph_id "
-                      "WHERE g.name = 'g'").fetchone()[0] > 0
+    stored, costs = db.execute("SELECT count(*), count(e.cost_to_go) FROM modb.graph_transitions e "
+                               "JOIN modb.graphs g ON g.id = e.graph_id WHERE g.name = 'g'").fetchone()
+    assert stored > 0 and costs == stored
     assert next(g for g in list_graphs(db) if g.name == "g").current
     db.execute("SET modb.graph = 'g'")
     chosen, in_graph = db.execute("SELECT count(*), count(g.snippet_id) FROM modb.synthesize('{{0,3}}', 4) s "

@@ -150,7 +150,9 @@ def cmu_graph(loaded):
     components."""
     dsn, space = loaded
     with connect(dsn) as conn:
+        conn.execute("SET modb.continuity_weight = 0.5")  # the cost-to-go prices seams by it (locomotion: 0)
         conn.execute("SELECT modb.build_transition_graph('cmu', 'locomotion', 'cmu/131', 45)")
+        conn.execute("RESET modb.continuity_weight")
         kept = {r[0] for r in conn.execute("SELECT s.snippet_id FROM modb.graph_snippets s JOIN modb.graphs g "
                                            "ON g.id = s.graph_id WHERE g.name = 'cmu'").fetchall()}
         (subtree,) = conn.execute("SELECT modb.collection_subtree('cmu/131')").fetchone()
@@ -212,14 +214,18 @@ def cmu_costs(loaded, cmu_graph):
 
 def test_the_graph_cost_to_go_equals_value_iteration(loaded, cmu_graph, cmu_costs):
     _, space = loaded
-    kept, _, _ = cmu_graph
+    kept, _, pairs = cmu_graph
     costs, grid, stored = cmu_costs
     assert len(costs) == len(kept) > 10
     # The graph's median speed prices the distance beyond the grid.
     k = np.array(sorted(stored))
     speed = np.median(np.hypot(space["net"][k, 0], space["net"][k, 2]) / ((space["n"][k] - 1) / space["fps"][k]))
     assert grid["speed"] == pytest.approx(speed, rel=1e-6)
-    expected = cost_to_go(space, stored, grid, tolerance=1e-4)  # from zero, with scipy's interpolation
+    # A transition costs its continuity ratio x the continuity_weight it was built with, in seconds.
+    ratio = {p: dict(zip(qs.tolist(), r)) for p, (qs, r) in pairs.items()}
+    seam = {(p, int(q)): ratio[p][int(q)] * 0.5 / speed for p, qs in stored.items() for q in qs}
+    assert 0 < max(seam.values()) <= 0.5 / speed * (1 + 1e-4)
+    expected = cost_to_go(space, stored, seam, grid, tolerance=1e-4)  # from zero, with scipy's interpolation
     error = max(np.abs(costs[i] - expected[i]).max() for i in costs)
     spread = max(expected[i].max() for i in costs)
     # The build stops once no value changes by 0.01 s in an iteration: measured here, the slow tail of far

@@ -46,11 +46,11 @@ def build_graph(conn: psycopg.Connection, name: str, profile: str = "default", c
 def list_graphs(conn: psycopg.Connection) -> list[GraphSummary]:
     # Loads replace snippets (new ids): the graph's rows of removed snippets go with them (ON DELETE
     # CASCADE) and new snippets are not in it, so either count changing means it needs a rebuild. So does
-    # a graph built before 0.5.0, which stored no transitions (no transition_key).
+    # a graph built before 0.6.0, which stored no transitions (no transition_key) or no cost-to-go.
     rows = conn.execute(
         "SELECT g.name, g.data->>'profile', g.data->>'collection', (g.data->>'snippets')::int, "
         "       (g.data->>'kept')::int, (g.data->>'edges')::bigint, (g.data->>'dead_ends')::int, "
-        "       g.data ? 'transition_key' AND (SELECT count(*) FROM modb.graph_snippets gs WHERE gs.graph_id = g.id) = (g.data->>'kept')::int "
+        "       g.data ?& '{transition_key,cost_to_go}' AND (SELECT count(*) FROM modb.graph_snippets gs WHERE gs.graph_id = g.id) = (g.data->>'kept')::int "
         "       AND (SELECT count(*) FROM modb.snippets s WHERE g.data->>'collection' IS NULL "
         "            OR s.collection_id = ANY (modb.collection_subtree(g.data->>'collection'))) "
         "           = (g.data->>'snippets')::int "
@@ -69,7 +69,7 @@ def ensure_graph(conn: psycopg.Connection, name: str, profile: str = "default", 
 
 def describe(g: GraphSummary) -> str:
     scope = f"collection {g.collection}" if g.collection else "every collection"
-    stale = "" if g.current else (" STALE: snippets were loaded or removed since, or it was built before modb 0.5.0 "
-                                   "stored transitions; rebuild it")
+    stale = "" if g.current else (" STALE: snippets were loaded or removed since, or it was built before modb 0.6.0 "
+                                   "stored transitions and a cost-to-go; rebuild it")
     return (f"{g.name}: {g.kept:,} of {g.snippets:,} snippets kept ({scope}, profile {g.profile}; "
             f"{g.edges:,} level-0 transitions, {g.dead_ends:,} snippets with none){stale}")

@@ -67,7 +67,7 @@ thresholds = {k: np.array(plan[k], dtype=np.float64) * (1 + TRANSITION_SLACK) fo
               ("position_threshold", "angle_threshold", "velocity_threshold", "angular_velocity_threshold")}
 spec = dict(thresholds, joints=list(plan["joints"]), norm=plan["norm"], velocity_terms=plan["velocity_terms"],
             box_half_width=plan["box_half_width"])
-src, dst = T.edges(term, begin, end, group, clip, first_frame, n_frames, spec,
+src, dst, ratio = T.edges(term, begin, end, group, clip, first_frame, n_frames, spec,
                    progress=lambda done: plpy.notice(f"modb: transition graph \"{name}\": {done}/{n} snippets"))
 turn = np.array([np.nan if t is None else t for t in column("future_heading")], dtype=np.float64)
 keep = T.steerable(n, src, dst, group, np.nan_to_num(turn), np.radians(min_turn_degrees))
@@ -82,15 +82,17 @@ position[kept] = np.arange(len(kept))
 net_x, net_z, heading, duration = (np.array(column(c), dtype=np.float64)[kept] for c in ("net_x", "net_z", "net_heading", "duration"))
 grid = C.Grid(speed=max(float(np.median(np.hypot(net_x, net_z) / duration)), C.MIN_SPEED))
 plpy.notice(f"modb: transition graph \"{name}\": cost-to-go of {len(kept)} snippets on {grid.angles} x {grid.rings} goal positions")
+seam = ratio[inside] * (plan["continuity_weight"] or 0) / grid.speed  # the selection's price of a rough seam, in seconds
 costs, iterations, change = C.cost_to_go(
-    grid, net_x, net_z, heading, duration, position[src[inside]], position[dst[inside]],
+    grid, net_x, net_z, heading, duration, position[src[inside]], position[dst[inside]], seam,
     progress=lambda i, c: i % 10 or plpy.notice(f"modb: transition graph \"{name}\": cost-to-go iteration {i}, largest change {c:.3f} s"))
 data = {"profile": profile, "collection": collection, "min_turn_degrees": min_turn_degrees,
         "plan": json.loads(plan["shown"]),
         "snippets": n, "edges": int(len(src)), "kept": int(keep.sum()),
         "dead_ends": int((out_degree == 0).sum()),
         "edges_within_kept": int(inside.sum()), "transition_key": json.loads(plan["transition_key"]),
-        "cost_to_go": dict(grid.as_json(), iterations=iterations, last_change=change)}
+        "cost_to_go": dict(grid.as_json(), seconds_per_ratio=(plan["continuity_weight"] or 0) / grid.speed,
+                           iterations=iterations, last_change=change)}
 plpy.execute(plpy.prepare("DELETE FROM modb.graphs WHERE name = $1 AND kind = 'transitions'", ["text"]), [name])
 graph_id = plpy.execute(plpy.prepare(
     "INSERT INTO modb.graphs (name, kind, data) VALUES ($1, 'transitions', $2::jsonb) RETURNING id",

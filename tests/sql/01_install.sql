@@ -1,7 +1,7 @@
 -- The extension installs, drops and re-installs cleanly; objects, comments and declarations as documented.
 BEGIN;
 CREATE EXTENSION IF NOT EXISTS pgtap;
-SELECT plan(23);
+SELECT plan(24);
 
 SELECT has_extension('modb');
 SELECT has_schema('modb');
@@ -16,10 +16,11 @@ SELECT functions_are('modb', ARRAY[
     'skeleton_pose_key', 'standard_joints', 'feature_names', 'quat_angle', 'max_joint_angle', 'weighted_joint_angle',
     'match_knobs', 'session_settings', 'match_plan', '_thresholds', 'continuity_ratio', 'match_box', 'target_cost', 'aim_point', 'approach_cost', 'collection_subtree',
     'check_request', 'build_snippets', 'select_next_snippets', 'select_next_snippet', 'world_to_local', 'select_next_snippet_world',
-    'local_to_world', 'synthesis_goal', 'synthesis_step_end', 'check_synthesis', 'synthesize', 'fill_futures', 'build_transition_graph', 'transition_key']);
+    'local_to_world', 'synthesis_goal', 'synthesis_step_end', 'check_synthesis', 'synthesize', 'fill_futures', 'build_transition_graph', 'transition_key', 'cost_to_go']);
 SELECT col_type_is('modb', 'clip_versions', 'rotations', 'real[]', 'rotations is real[]');
 SELECT col_type_is('modb', 'clip_versions', 'translations', 'real[]', 'translations is real[]');
 SELECT col_is_pk('modb', 'clip_versions', ARRAY['clip_id', 'version'], 'primary key (clip_id, version)');
+SELECT col_type_is('modb', 'graph_transitions', 'cost_to_go', 'real[]', 'a graph''s cost-to-go is real[]');
 SELECT has_trigger('modb', 'clip_versions', 'clip_versions_before_update', 'immutability trigger');
 
 SELECT is((SELECT count(*) FROM pg_proc WHERE pronamespace = 'modb'::regnamespace

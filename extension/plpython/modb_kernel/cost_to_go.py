@@ -9,7 +9,9 @@ near-optimal controllers over motion graphs), so select_next_snippet's stored-tr
 "seconds to the goal through this candidate" in one indexed lookup per candidate.
 
 Computed by value iteration (Bellman): V(s, g) = min over successors t of s of
-duration(t) + V(t, g seen from t's end), V = 0 within the arrival radius. Off-grid goals are read by
+duration(t) + seam(s, t) + V(t, g seen from t's end), V = 0 within the arrival radius. seam(s, t) is the
+transition's continuity ratio times the profile's continuity_weight / speed: the price the selection puts on
+a rough seam, so a plan through many rough cuts costs what the chain will pay for them. Off-grid goals are read by
 bilinear interpolation in (angle, log radius); beyond the outer ring by the outer ring's value plus the
 extra distance at the graph's median speed. The SQL reader is modb.cost_to_go, the same arithmetic.
 """
@@ -76,9 +78,10 @@ def seen_from_end(net_x, net_z, heading, x, z):
     return dx * c - dz * s, dx * s + dz * c
 
 
-def cost_to_go(grid: Grid, net_x, net_z, heading, duration, src, dst, progress=None):
+def cost_to_go(grid: Grid, net_x, net_z, heading, duration, src, dst, seam, progress=None):
     """Values (n snippets, grid size) float32 in seconds, the iterations run and the last change.
-    src, dst: transitions among the n snippets (indices); a snippet without successors gets infinity."""
+    src, dst: transitions among the n snippets (indices), seam: what each costs (seconds) besides the
+    duration of dst; a snippet without successors gets infinity."""
     n = len(duration)
     size = grid.angles * grid.rings
     gx, gz = grid.points()
@@ -87,6 +90,7 @@ def cost_to_go(grid: Grid, net_x, net_z, heading, duration, src, dst, progress=N
     duration = np.asarray(duration, dtype=np.float32)[:, None]
     order = np.argsort(src, kind="stable")
     src, dst = np.asarray(src)[order], np.asarray(dst)[order]
+    seam = np.asarray(seam, dtype=np.float32)[order][:, None]
     starts = np.r_[0, np.flatnonzero(np.diff(src)) + 1] if len(src) else np.zeros(0, dtype=np.int64)
     ring0 = np.tile(np.arange(grid.rings), grid.angles) == 0
     # Start from the straight-line time at the median speed: near the answer, so fewer iterations.
@@ -99,7 +103,7 @@ def cost_to_go(grid: Grid, net_x, net_z, heading, duration, src, dst, progress=N
         for lo in range(0, len(starts), EDGE_CHUNK):
             first = starts[lo:lo + EDGE_CHUNK]
             stop = starts[lo + EDGE_CHUNK] if lo + EDGE_CHUNK < len(starts) else len(src)
-            new[src[first]] = np.minimum.reduceat(through[dst[first[0]:stop]], first - first[0], axis=0)
+            new[src[first]] = np.minimum.reduceat(through[dst[first[0]:stop]] + seam[first[0]:stop], first - first[0], axis=0)
         new[:, ring0] = 0
         finite = np.isfinite(new)
         change = float(np.abs(np.where(finite, new - values, 0)).max()) if n else 0.0

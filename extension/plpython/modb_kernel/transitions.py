@@ -54,14 +54,30 @@ def _within(term, src, dst, plan):
     return keep
 
 
+def ratios(term, src, dst, plan):
+    """The continuity ratio of pairs (end terminator src[k], begin terminator dst[k]): the largest over the
+    plan's joints and terms of difference / threshold (select_next_snippets' continuity_ratio)."""
+    ratio = np.zeros(len(src))
+    for j in plan["joints"]:
+        terms = [(quaternion.angle_between(term.rotations[src, j], term.rotations[dst, j]), plan["angle_threshold"][j]),
+                 (_norm(term.positions[src, j], term.positions[dst, j], plan["norm"]), plan["position_threshold"][j])]
+        if plan["velocity_terms"]:
+            terms += [(_norm(term.velocities[src, j], term.velocities[dst, j], "l2"), plan["velocity_threshold"][j]),
+                      (_norm(term.angular_velocities[src, j], term.angular_velocities[dst, j], "l2"),
+                       plan["angular_velocity_threshold"][j])]
+        for difference, threshold in terms:
+            ratio = np.maximum(ratio, difference / threshold)
+    return ratio
+
+
 def edges(term, begin, end, group, clip, first_frame, n_frames, plan, chunk=2000, progress=None):
-    """Level-0 transitions (from snippet index, to snippet index) among snippets given by their begin and
-    end terminator rows in `term`, their pose/rate group, clip (and version, mirror: one key) and window.
-    progress(done) is called after each chunk of sources."""
+    """Level-0 transitions (from snippet index, to snippet index, continuity ratio) among snippets given by
+    their begin and end terminator rows in `term`, their pose/rate group, clip (and version, mirror: one key)
+    and window. progress(done) is called after each chunk of sources."""
     from scipy.spatial import cKDTree
 
     half = np.asarray(plan["box_half_width"], dtype=np.float64) + BOX_MARGIN
-    out_src, out_dst = [], []
+    out_src, out_dst, out_ratio = [], [], []
     done = 0
     for g in np.unique(group):
         members = np.flatnonzero(group == g)
@@ -82,11 +98,12 @@ def edges(term, begin, end, group, clip, first_frame, n_frames, plan, chunk=2000
             keep = _within(term, end[s], begin[d], plan)
             out_src.append(s[keep])
             out_dst.append(d[keep])
+            out_ratio.append(ratios(term, end[s[keep]], begin[d[keep]], plan))
             if progress:
                 progress(done)
     if not out_src:
-        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
-    return np.concatenate(out_src), np.concatenate(out_dst)
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0)
+    return np.concatenate(out_src), np.concatenate(out_dst), np.concatenate(out_ratio)
 
 
 def steerable(n, src, dst, group, turn, min_turn):
