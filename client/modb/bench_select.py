@@ -71,7 +71,8 @@ def bench_select(conn: psycopg.Connection, queries: int, seed: int, profile: str
 def bench_select_graph(conn: psycopg.Connection, queries: int, seed: int, profile: str, graph: str) -> dict:
     """From the graph's snippets: level 0 read from its stored transitions, against the same query on a copy
     of the graph that has none stored (made for the run, then dropped), so it searches the feature box.
-    Generic plans, no JIT, no graph_lookahead (the box path has none): both must return the same snippet."""
+    Generic plans, no JIT, no graph_lookahead nor cost-to-go (the box path has neither): both must return
+    the same snippet."""
     ids = [r[0] for r in conn.execute(
         "SELECT s.snippet_id FROM modb.graph_snippets s JOIN modb.graphs g ON g.id = s.graph_id "
         "WHERE g.name = %s AND g.kind = 'transitions' ORDER BY 1", [graph]).fetchall()]
@@ -86,7 +87,7 @@ def bench_select_graph(conn: psycopg.Connection, queries: int, seed: int, profil
                      [copy_id, ids])
     try:
         for name, value in (("plan_cache_mode", "force_generic_plan"), ("jit", "off"),
-                            ("modb.graph_lookahead", "off")):
+                            ("modb.graph_lookahead", "off"), ("modb.graph_cost_to_go", "off")):
             conn.execute("SELECT set_config(%s, %s, false)", [name, value])
         conn.execute(SELECT, [int(ids[0]), [0.0, 1.0], profile], prepare=True).fetchone()
 

@@ -4,8 +4,10 @@
 -- default (0.3.0): each joint's angle threshold is its 99th percentile change between consecutive
 -- frames of real walking and running (Bandai dataset 2 locomotion, 30 fps: neck 2.1, spine 2.7, knees 21
 -- degrees per frame), so that a seam looks like a natural step (README "Synthesis quality"); a heading
--- term of 1 m per radian turns the avatar toward its goal, and continuity_weight 0.3 m per unit of
--- continuity ratio keeps the smoother candidate unless another leads clearly better; lookahead_distance
+-- term of 1 m per radian turns the avatar toward its goal, and continuity_weight 0.6 m per unit of
+-- continuity ratio (0.3 before 0.6.0: with a graph's cost-to-go, which prices seams by it too, 0.6 kept
+-- the seams smoother on every course measured and reach within 2x; BENCHMARKS.md "Cost-to-go") keeps the
+-- smoother candidate unless another leads clearly better; lookahead_distance
 -- 2.5 m (about where a walk leads in the 1.5 s the objective sees) scores a far goal as a point that far
 -- along the way, so that it does not favour runs, which in this data never turn (README "Synthesis
 -- quality"). strict: half the thresholds.
@@ -23,7 +25,7 @@ INSERT INTO modb.match_profiles AS p (name, settings, comment, shipped) VALUES
               "velocity_threshold": {"default": 0.6, "left_wrist": 1.0, "right_wrist": 1.0, "left_elbow": 0.8,
               "right_elbow": 0.8},
               "angular_velocity_threshold": {"default": 4.0}, "velocity_terms": true, "heading_weight": 1.0,
-              "continuity_weight": 0.3, "lookahead_distance": 2.5}',
+              "continuity_weight": 0.6, "lookahead_distance": 2.5}',
  'Whole body: feet, hands and head within centimetres, each joint within its natural frame-to-frame change at 30 fps, velocities matched; the smoother candidate wins unless another leads clearly better toward the goal', true),
 ('strict', '{"joints": ["pelvis", "spine", "chest", "neck", "head", "left_hip", "left_knee", "left_ankle", "left_toe",
              "right_hip", "right_knee", "right_ankle", "right_toe", "left_shoulder", "left_elbow", "left_wrist",

@@ -100,15 +100,14 @@ graph_id = plpy.execute(plpy.prepare(
 plpy.execute(plpy.prepare(
     "INSERT INTO modb.graph_snippets (graph_id, snippet_id) SELECT $1, unnest($2::bigint[])", ["bigint", "bigint[]"]),
     [graph_id, ids[keep].tolist()])
-plpy.execute(plpy.prepare(
-    """INSERT INTO modb.graph_transitions (graph_id, from_snippet, to_snippets)
-       SELECT $1, f, array_agg(t ORDER BY t) FROM unnest($2::bigint[], $3::bigint[]) AS e(f, t) GROUP BY f""",
-    ["bigint", "bigint[]", "bigint[]"]), [graph_id, ids[src[inside]].tolist(), ids[dst[inside]].tolist()])
-size = grid.angles * grid.rings
-plpy.execute(plpy.prepare(  # row k of the values: the k-th kept snippet's
-    """UPDATE modb.graph_transitions e SET cost_to_go = $3[(k.i - 1) * $4 + 1 : k.i * $4]
-         FROM unnest($2::bigint[]) WITH ORDINALITY AS k(id, i) WHERE e.graph_id = $1 AND e.from_snippet = k.id""",
-    ["bigint", "bigint[]", "real[]", "int"]), [graph_id, ids[kept].tolist(), costs.ravel().tolist(), size])
+plpy.execute(plpy.prepare(  # one row per kept snippet: its successors, and row k of the costs for the k-th
+    """INSERT INTO modb.graph_transitions (graph_id, from_snippet, to_snippets, cost_to_go)
+       SELECT $1, e.f, e.t, $5[(k.i - 1) * $6 + 1 : k.i * $6]
+         FROM (SELECT f, array_agg(t ORDER BY t) AS t FROM unnest($2::bigint[], $3::bigint[]) AS e(f, t) GROUP BY f) e
+         JOIN unnest($4::bigint[]) WITH ORDINALITY AS k(id, i) ON k.id = e.f""",
+    ["bigint", "bigint[]", "bigint[]", "bigint[]", "real[]", "int"]),
+    [graph_id, ids[src[inside]].tolist(), ids[dst[inside]].tolist(), ids[kept].tolist(), costs.ravel().tolist(),
+     grid.angles * grid.rings])
 plpy.notice(f"modb: transition graph \"{name}\": kept {data['kept']} of {n} snippets "
             f"({data['edges']} transitions, {data['dead_ends']} snippets with none); "
             f"cost-to-go after {iterations} iterations (last change {change:.3f} s)")

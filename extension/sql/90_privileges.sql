@@ -9,6 +9,5 @@ GRANT USAGE ON ALL SEQUENCES IN SCHEMA modb TO modb_loader;
 REVOKE EXECUTE ON FUNCTION modb.ensure_collection(text) FROM PUBLIC;
 GRANT EXECUTE ON FUNCTION modb.ensure_collection(text) TO modb_loader;
 GRANT INSERT, DELETE ON modb.graph_snippets, modb.graph_transitions TO modb_loader;
-GRANT UPDATE (cost_to_go) ON modb.graph_transitions TO modb_loader;
 REVOKE EXECUTE ON FUNCTION modb.build_transition_graph(text, text, text, float8) FROM PUBLIC;
 GRANT EXECUTE ON FUNCTION modb.build_transition_graph(text, text, text, float8) TO modb_loader;
