@@ -47,7 +47,8 @@ if kernel is None:
             importlib.import_module({package!r} + module[len("modb_kernel"):])
     GD[{key!r}] = kernel'''
 
-PLPYTHON_FUNCTION = re.compile(r"^CREATE OR REPLACE FUNCTION .*?^\$py\$;\n", re.S | re.M)
+# A PL/Python function's definition and the COMMENT right after it (an upgrade re-creates both).
+PLPYTHON_FUNCTION = re.compile(r"^CREATE OR REPLACE FUNCTION .*?^\$py\$;\n(?:COMMENT ON FUNCTION .*?';\n)?", re.S | re.M)
 
 
 @functools.cache

@@ -197,7 +197,7 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
     objects = "SELECT pg_describe_object(classid, objid, 0) FROM pg_depend WHERE refobjid = " \
               "(SELECT oid FROM pg_extension WHERE extname = 'modb') AND deptype = 'e' ORDER BY 1"
     updated = [r[0] for r in db.execute(objects).fetchall()]
-    functions = "SELECT p.oid::regprocedure::text, md5(pg_get_functiondef(p.oid)) FROM pg_proc p " \
+    functions = "SELECT p.oid::regprocedure::text, md5(pg_get_functiondef(p.oid)), obj_description(p.oid, 'pg_proc') FROM pg_proc p " \
                 "WHERE pronamespace = 'modb'::regnamespace AND prokind = 'f' ORDER BY 1"
     updated_functions = db.execute(functions).fetchall()
     acls = "SELECT c.relname, c.relacl::text FROM pg_class c WHERE relnamespace = 'modb'::regnamespace ORDER BY 1"

@@ -57,9 +57,12 @@ def python_chain(dsn: str, goals, n: int, **kwargs) -> list[Choice]:
     {},
     {"start": True, "exclude_seconds": 0.0, "arrival_radius": 1.0, "start_heading": 1.2,
      "start_position": (2.0, 0.0, -1.0)},
+    {"graph": GRAPH},  # level 0 from its stored transitions, ranked by its cost-to-go
 ])
 def test_sql_and_python_give_the_same_chain(locomotion, options):
     with connect(locomotion) as conn:
+        if "graph" in options:
+            conn.execute("SELECT set_config('modb.graph', %s, false)", [options["graph"]])
         start = conn.execute("SELECT min(id) FROM modb.snippets").fetchone()[0] if options.get("start") else None
         position = list(options.get("start_position", (0.0, 0.0, 0.0)))
         heading = options.get("start_heading", 0.0)
@@ -68,7 +71,7 @@ def test_sql_and_python_give_the_same_chain(locomotion, options):
             "SELECT step, snippet_id, goal, reached, relax_level, position, heading, end_position, end_heading, "
             "       start_time FROM modb.synthesize(%s, 40, %s, %s, %s, 'default', NULL, %s, %s)",
             [[list(g) for g in COURSE], start, position, heading, radius, exclude]).fetchall()
-    settings = Settings(arrival_radius=radius, exclude_seconds=exclude)
+    settings = Settings(arrival_radius=radius, exclude_seconds=exclude, graph=options.get("graph"))
     chain = python_chain(locomotion, COURSE, 40, position=tuple(position), heading=heading, start_snippet=start,
                          settings=settings)
     assert len(sql) == 40

@@ -82,7 +82,8 @@ position[kept] = np.arange(len(kept))
 net_x, net_z, heading, duration = (np.array(column(c), dtype=np.float64)[kept] for c in ("net_x", "net_z", "net_heading", "duration"))
 grid = C.Grid(speed=max(float(np.median(np.hypot(net_x, net_z) / duration)), C.MIN_SPEED))
 plpy.notice(f"modb: transition graph \"{name}\": cost-to-go of {len(kept)} snippets on {grid.angles} x {grid.rings} goal positions")
-seam = ratio[inside] * (plan["continuity_weight"] or 0) / grid.speed  # the selection's price of a rough seam, in seconds
+seconds_per_ratio = (plan["continuity_weight"] or 0) / grid.speed  # the selection's price of a rough seam
+seam = ratio[inside] * seconds_per_ratio
 costs, iterations, change = C.cost_to_go(
     grid, net_x, net_z, heading, duration, position[src[inside]], position[dst[inside]], seam,
     progress=lambda i, c: i % 10 or plpy.notice(f"modb: transition graph \"{name}\": cost-to-go iteration {i}, largest change {c:.3f} s"))
@@ -91,8 +92,8 @@ data = {"profile": profile, "collection": collection, "min_turn_degrees": min_tu
         "snippets": n, "edges": int(len(src)), "kept": int(keep.sum()),
         "dead_ends": int((out_degree == 0).sum()),
         "edges_within_kept": int(inside.sum()), "transition_key": json.loads(plan["transition_key"]),
-        "cost_to_go": dict(grid.as_json(), seconds_per_ratio=(plan["continuity_weight"] or 0) / grid.speed,
-                           iterations=iterations, last_change=change)}
+        "cost_to_go": dict(grid.as_json(), seconds_per_ratio=seconds_per_ratio, iterations=iterations,
+                           last_change=change)}
 plpy.execute(plpy.prepare("DELETE FROM modb.graphs WHERE name = $1 AND kind = 'transitions'", ["text"]), [name])
 graph_id = plpy.execute(plpy.prepare(
     "INSERT INTO modb.graphs (name, kind, data) VALUES ($1, 'transitions', $2::jsonb) RETURNING id",

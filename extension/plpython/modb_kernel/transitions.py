@@ -37,6 +37,18 @@ def _norm(a, b, norm):
     return np.abs(d).sum(axis=-1) if norm == "l1" else np.sqrt((d * d).sum(axis=-1))
 
 
+def _joint_terms(term, src, dst, plan, j):
+    """Joint j's continuity terms for pairs (end terminator src[k], begin terminator dst[k]): (difference,
+    threshold) for the rotation angle, the position (the plan's norm) and, with velocity terms, the
+    velocity and angular velocity."""
+    yield quaternion.angle_between(term.rotations[src, j], term.rotations[dst, j]), plan["angle_threshold"][j]
+    yield _norm(term.positions[src, j], term.positions[dst, j], plan["norm"]), plan["position_threshold"][j]
+    if plan["velocity_terms"]:
+        yield _norm(term.velocities[src, j], term.velocities[dst, j], "l2"), plan["velocity_threshold"][j]
+        yield (_norm(term.angular_velocities[src, j], term.angular_velocities[dst, j], "l2"),
+               plan["angular_velocity_threshold"][j])
+
+
 def _within(term, src, dst, plan):
     """Of the pairs (end terminator src[k], begin terminator dst[k]), those whose continuity ratio is at
     most 1. Joint by joint, the tightest first, so most pairs are dropped after one or two joints."""
@@ -44,12 +56,9 @@ def _within(term, src, dst, plan):
     order = sorted(plan["joints"], key=lambda j: plan["angle_threshold"][j])
     for j in order:
         s, d = src[keep], dst[keep]
-        ok = quaternion.angle_between(term.rotations[s, j], term.rotations[d, j]) <= plan["angle_threshold"][j]
-        ok &= _norm(term.positions[s, j], term.positions[d, j], plan["norm"]) <= plan["position_threshold"][j]
-        if plan["velocity_terms"]:
-            ok &= _norm(term.velocities[s, j], term.velocities[d, j], "l2") <= plan["velocity_threshold"][j]
-            ok &= (_norm(term.angular_velocities[s, j], term.angular_velocities[d, j], "l2")
-                   <= plan["angular_velocity_threshold"][j])
+        ok = np.ones(len(s), dtype=bool)
+        for difference, threshold in _joint_terms(term, s, d, plan, j):
+            ok &= difference <= threshold
         keep[np.flatnonzero(keep)[~ok]] = False
     return keep
 
@@ -59,13 +68,7 @@ def ratios(term, src, dst, plan):
     plan's joints and terms of difference / threshold (select_next_snippets' continuity_ratio)."""
     ratio = np.zeros(len(src))
     for j in plan["joints"]:
-        terms = [(quaternion.angle_between(term.rotations[src, j], term.rotations[dst, j]), plan["angle_threshold"][j]),
-                 (_norm(term.positions[src, j], term.positions[dst, j], plan["norm"]), plan["position_threshold"][j])]
-        if plan["velocity_terms"]:
-            terms += [(_norm(term.velocities[src, j], term.velocities[dst, j], "l2"), plan["velocity_threshold"][j]),
-                      (_norm(term.angular_velocities[src, j], term.angular_velocities[dst, j], "l2"),
-                       plan["angular_velocity_threshold"][j])]
-        for difference, threshold in terms:
+        for difference, threshold in _joint_terms(term, src, dst, plan, j):
             ratio = np.maximum(ratio, difference / threshold)
     return ratio
 
