@@ -9,7 +9,7 @@ or a virtualenv, and needs no SPI call to get it (SPI would make the functions u
 queries). {{STANDARD_JOINTS}} and {{FEATURES}} become SQL arrays of the kernel's constants.
 
 Upgrade scripts come from sql/upgrades/OLD--NEW.sql: hand-written steps whose '--@include FILE' lines pull
-in files of sql/ (objects new in NEW), and every other PL/Python function re-created with NEW's kernel: at
+in files of sql/ (objects new in NEW), and every other PL/Python function re-created (with its COMMENT) with NEW's kernel: at
 a '--@functions' line, so that the steps after it run NEW's code (a data migration), else at the end.
 When the version after NEW starts, freeze the generated script in git and delete its source, so later
 edits of sql/ cannot change an old upgrade.
