@@ -55,6 +55,8 @@ class Settings:
     exclude_seconds: float = 2.0  # snippets played this recently are passed as `exclude`
     lead_time: float = 0.0  # seconds before a snippet ends at which the next query is issued
     blend_frames: int = 0  # seam blending over this many frames; 0 plays the snippets as captured
+    knobs: dict[str, str] = field(default_factory=dict)  # SET modb.<knob> for this avatar's session (modb.match_knobs())
+    count_candidates: bool = False  # report each choice's modb.candidates_examined (one more query, after it)
 
     def __post_init__(self) -> None:
         if not self.arrival_radius > 0:
@@ -87,6 +89,7 @@ class Choice:
     proximity: float | None
     latency_ms: float | None  # the selection query, as seen by the client
     waited_ms: float  # how long playback stalled waiting for it (0 when the lead time hid the query)
+    candidates: int | None = None  # modb.candidates_examined, with Settings.count_candidates
 
 
 @dataclass(frozen=True)
@@ -115,7 +118,7 @@ class Avatar:
         self._started = False
         self.library = FrameLibrary(self.conn)
         self.choices: list[Choice] = []
-        self._graph_set: str | None = None  # what this avatar last SET modb.graph to on its connection
+        self._knobs_set: dict[str, str] = {}  # what this avatar last SET modb.<knob> to on its connection
         # Selection's plan does not depend on its arguments' values, and planning it each call costs ~100 ms
         # (issue 9's figures): a generic plan, planned once; without JIT, whose threshold its estimate passes.
         self.conn.execute("SELECT set_config('plan_cache_mode', 'force_generic_plan', false), "
@@ -134,6 +137,12 @@ class Avatar:
     def goal(self) -> Goal | None:
         with self._lock:
             return self._goals[self._goal_index] if self._goals else None
+
+    @property
+    def course(self) -> tuple[list[Goal], int, bool]:
+        """The goal queue, the index of the goal being served, and whether it was reached."""
+        with self._lock:
+            return list(self._goals), self._goal_index, self._goal_reached
 
     @property
     def placement(self) -> Placement:
@@ -194,7 +203,8 @@ class Avatar:
             exclude = [i for i, _ in self._recent]
         return {"prev": None if previous is None else previous.snippet_id, "position": list(where.position),
                 "heading": where.heading, "target": list(target), "profile": s.profile,
-                "collection": s.collection, "graph": s.graph, "exclude": exclude, "goal": goal_index + 1, "where": where,
+                "collection": s.collection, "knobs": {**s.knobs, "graph": s.graph or ""}, "exclude": exclude,
+                "count_candidates": s.count_candidates, "goal": goal_index + 1, "where": where,
                 "start_frame": 0 if previous is None else previous.end_frame,
                 "step": 0 if previous is None else previous.step + 1,
                 "arrival_radius": s.arrival_radius, "fps": None if previous is None else previous.fps}
@@ -202,18 +212,20 @@ class Avatar:
     def _choose(self, previous: Choice | None, request: dict) -> tuple[Choice, np.ndarray, np.ndarray]:
         """Runs in the worker thread: the selection query, then the chosen snippet's placed frames."""
         t = time.perf_counter()
+        candidates = None
         if previous is None and self.start_snippet is not None:
             row, latency = self.conn.execute(_START, [self.start_snippet]).fetchone(), None
             if row is None:
                 raise NoContinuation(f"no snippet {self.start_snippet} (start_snippet is a modb.snippets id)")
         else:
-            if request["graph"] != self._graph_set:  # a knob of the session, like SET modb.graph in psql
-                self.conn.execute("SELECT set_config('modb.graph', %s, false)", [request["graph"] or ""])
-                self._graph_set = request["graph"]
+            self._set_knobs(request["knobs"])
             query = {k: request[k] for k in ("prev", "position", "heading", "target", "profile", "collection",
                                               "exclude")}
             row = self.conn.execute(_SELECT, query, prepare=True).fetchone()
             latency = (time.perf_counter() - t) * 1000.0
+            if row is not None and request["count_candidates"]:
+                candidates = self.conn.execute("SELECT modb.candidates_examined(%s, %s, %s)",
+                                               [request["prev"], row[6], request["profile"]]).fetchone()[0]
             if row is None and previous is None:
                 raise NoContinuation("no snippet to start from: the collection (or the database) has no snippets; "
                                      "`modb load` builds them")
@@ -240,8 +252,16 @@ class Avatar:
             end_frame=request["start_frame"] + n_frames - 1, placement=where, end=end, goal=request["goal"],
             target=target, reached=ground_distance(end.position, target) <= request["arrival_radius"],
             relax_level=relax_level, continuity=continuity, proximity=proximity, latency_ms=latency,
-            waited_ms=0.0)
+            waited_ms=0.0, candidates=candidates)
         return choice, rotations, translations
+
+    def _set_knobs(self, knobs: dict[str, str]) -> None:
+        """The session's SET modb.<knob>, as in psql; a knob no longer given goes back to the profile's."""
+        wanted = {**{k: "" for k in self._knobs_set}, **knobs}
+        for knob, value in wanted.items():
+            if self._knobs_set.get(knob, "") != value:
+                self.conn.execute("SELECT set_config(%s, %s, false)", [f"modb.{knob}", value])
+        self._knobs_set = {k: v for k, v in wanted.items() if v != ""}
 
     def _blend(self, previous_last: Frame | None, rotations: np.ndarray,
                translations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -136,3 +136,20 @@ def graph(conn: psycopg.Connection, graph_id: int) -> dict[str, Any]:
     out["kept_snippets"] = conn.execute("SELECT count(*) FROM modb.graph_snippets WHERE graph_id = %s",
                                    [graph_id]).fetchone()[0]
     return out
+
+
+def profiles(conn: psycopg.Connection) -> list[dict[str, Any]]:
+    """The match profiles select_next_snippet takes, with their settings (the avatar panel's starting values)."""
+    return _rows(conn, "SELECT name, settings, comment, shipped FROM modb.match_profiles ORDER BY name")
+
+
+def avatar_choices(conn: psycopg.Connection) -> dict[str, Any]:
+    """What the avatar panel offers: profiles, transition graphs (newest first), collections, joints, knobs."""
+    from modb_kernel.joints import STANDARD_JOINTS
+
+    from .avatar_session import TUNABLE_KNOBS
+
+    graphs = [r[0] for r in conn.execute("SELECT name FROM modb.graphs WHERE kind = 'transitions' "
+                                         "ORDER BY created_at DESC, id DESC")]
+    return {"profiles": profiles(conn), "graphs": graphs, "collections": [c["path"] for c in collections(conn)],
+            "joints": list(STANDARD_JOINTS), "knobs": list(TUNABLE_KNOBS)}

@@ -18,12 +18,13 @@ from starlette.applications import Starlette
 from starlette.exceptions import HTTPException
 from starlette.requests import Request
 from starlette.responses import FileResponse, JSONResponse
-from starlette.routing import Mount, Route
+from starlette.routing import Mount, Route, WebSocketRoute
 from starlette.staticfiles import StaticFiles
 
 from .. import pgarray
 from ..connection import connect
 from . import api
+from .avatar_socket import avatar_endpoint
 from .guard import HostOriginGuard, allowed_hosts
 
 HERE = Path(__file__).parent
@@ -101,6 +102,7 @@ VIEWS: dict[str, Callable[[psycopg.Connection, Request], Any]] = {
     "/api/models/{ident}": _by_id(api.model, "model"),
     "/api/graphs": _listing(api.graphs),
     "/api/graphs/{ident}": _by_id(api.graph, "graph"),
+    "/api/profiles": _listing(api.profiles),
 }
 
 
@@ -142,6 +144,8 @@ def create_app(conninfo: str, host: str = "127.0.0.1", port: int = 8765,
 
     routes = [Route("/", lambda request: FileResponse(STATIC / "index.html")),
               *(Route(path, _endpoint(pool, view)) for path, view in VIEWS.items()),
+              Route("/avatar", lambda request: FileResponse(STATIC / "avatar.html")),
+              WebSocketRoute("/ws/avatar", avatar_endpoint(conninfo, pool)),
               Mount("/static", StaticFiles(directory=STATIC)),
               Mount("/vendor/three", StaticFiles(directory=THREE))]
     app = Starlette(routes=routes, lifespan=lifespan, exception_handlers={

@@ -113,6 +113,23 @@ export class Stage {
     return { joints, boneEnds: ends };
   }
 
+  // The point on the ground (y = 0) under a pointer at (clientX, clientY), or null (the sky).
+  groundPointAt(clientX, clientY) {
+    const rect = this.renderer.domElement.getBoundingClientRect();
+    const ndc = new THREE.Vector2(((clientX - rect.left) / rect.width) * 2 - 1, -((clientY - rect.top) / rect.height) * 2 + 1);
+    const ray = new THREE.Raycaster();
+    ray.setFromCamera(ndc, this.camera);
+    const hit = new THREE.Vector3();
+    return ray.ray.intersectPlane(new THREE.Plane(new THREE.Vector3(0, 1, 0), 0), hit) ? hit : null;
+  }
+
+  // Where a world point shows on the canvas, in pixels from its centre (as WebDriver's pointer offsets are).
+  offsetOf(x, y, z) {
+    const p = new THREE.Vector3(x, y, z).project(this.camera);
+    const { clientWidth: w, clientHeight: h } = this.renderer.domElement;
+    return { x: (p.x * w) / 2, y: (-p.y * h) / 2, visible: Math.abs(p.x) < 1 && Math.abs(p.y) < 1 && p.z < 1 };
+  }
+
   render() {
     this.controls.update();
     this.renderer.render(this.scene, this.camera);

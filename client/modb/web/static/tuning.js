@@ -1,0 +1,96 @@
+// The avatar page's tuning panel: the settings this browser connection's selections use, and the live
+// readouts the server sends after every selection. Every change is sent whole; the server checks it and
+// answers with the settings in force (or refuses, saying why, and keeps the previous ones).
+
+const THRESHOLDS = [
+  ['position_threshold', 'position (m)'], ['angle_threshold', 'angle (rad)'],
+  ['velocity_threshold', 'velocity (m/s)'], ['angular_velocity_threshold', 'angular velocity (rad/s)'],
+];
+
+function element(tag, props = {}, children = []) {
+  const e = Object.assign(document.createElement(tag), props);
+  e.append(...children);
+  return e;
+}
+
+function options(select, values, labels = values) {
+  select.replaceChildren(...values.map((v, i) => element('option', { value: v, textContent: labels[i] })));
+}
+
+function fixed(value, digits) {
+  return value === null || value === undefined ? '-' : Number(value).toFixed(digits);
+}
+
+export class Tuning {
+  constructor(root, send) {
+    this.root = root;
+    this.send = send;
+    this.profiles = new Map();
+  }
+
+  // ready: what the server offers (profiles, graphs, collections, joints) and the settings in force.
+  build(ready) {
+    ready.profiles.forEach((p) => this.profiles.set(p.name, p.settings));
+    const $ = (id) => this.root.querySelector(`#${id}`);
+    options($('profile'), ready.profiles.map((p) => p.name));
+    options($('graph'), ['', ...ready.graphs], ['none: every snippet', ...ready.graphs]);
+    options($('collection'), ['', ...ready.collections], ['all', ...ready.collections]);
+    $('thresholds').replaceChildren(...THRESHOLDS.map(([knob, label]) => element('label', {}, [
+      label, element('input', { id: knob, type: 'number', min: '0', step: 'any', placeholder: "profile's" })])));
+    $('joints').replaceChildren(...ready.joints.map((j) => element('label', {}, [
+      element('input', { type: 'checkbox', value: j, name: 'joint' }), j.replace('_', ' ')])));
+    this.root.querySelectorAll('input, select').forEach((input) => input.addEventListener('change', (e) => this.changed(e.target)));
+    $('profile-joints').addEventListener('click', () => { this.showJoints(this.profileJoints()); this.changed(null); });
+    this.show(ready.settings);
+  }
+
+  profileJoints() {
+    return (this.profiles.get(this.root.querySelector('#profile').value) || {}).joints || [];
+  }
+
+  showJoints(joints) {
+    this.root.querySelectorAll('input[name=joint]').forEach((box) => { box.checked = joints.includes(box.value); });
+  }
+
+  // The settings in force, as the server says.
+  show(settings) {
+    const $ = (id) => this.root.querySelector(`#${id}`);
+    $('profile').value = settings.profile;
+    $('graph').value = settings.graph || '';
+    $('collection').value = settings.collection || '';
+    $('lead_time').value = settings.lead_time;
+    $('arrival_radius').value = settings.arrival_radius;
+    THRESHOLDS.forEach(([knob]) => { $(knob).value = settings.knobs[knob] || ''; });
+    $('norm').value = settings.knobs.norm || '';
+    $('velocity_terms').value = settings.knobs.velocity_terms || '';
+    this.showJoints(settings.knobs.joints ? settings.knobs.joints.split(',') : this.profileJoints());
+    this.settings = settings;
+  }
+
+  changed(target) {
+    const $ = (id) => this.root.querySelector(`#${id}`);
+    if (target && target.id === 'profile') this.showJoints(this.profileJoints()); // its own joints, untouched
+    const chosen = [...this.root.querySelectorAll('input[name=joint]:checked')].map((b) => b.value);
+    const own = this.profileJoints();
+    const sameJoints = chosen.length === own.length && own.every((j) => chosen.includes(j));
+    const knobs = { norm: $('norm').value, velocity_terms: $('velocity_terms').value, joints: sameJoints ? '' : chosen.join(',') };
+    THRESHOLDS.forEach(([knob]) => { knobs[knob] = $(knob).value; });
+    this.send({
+      type: 'settings', profile: $('profile').value, graph: $('graph').value || null,
+      collection: $('collection').value || null, lead_time: Number($('lead_time').value),
+      arrival_radius: Number($('arrival_radius').value), knobs,
+    });
+  }
+
+  // After every selection: the chosen snippet and the figures over the last selections.
+  showReadout(choice) {
+    const r = choice.readout;
+    const $ = (id) => this.root.querySelector(`#${id}`);
+    $('latency').textContent = `${fixed(r.latency_p50_ms, 1)} / ${fixed(r.latency_p99_ms, 1)} ms`;
+    $('selections').textContent = String(r.selections);
+    $('candidates').textContent = choice.candidates === null ? '-' : String(choice.candidates);
+    $('relax').textContent = `${choice.relax_level ?? '-'} (relaxed ${fixed(100 * (r.relaxed_share || 0), 0)}%)`;
+    $('seams').textContent = `median r ${fixed(r.seam_ratio_median, 2)}, ${fixed(100 * (r.seam_rough_share || 0), 0)}% r > 1`;
+    $('snippet').textContent = `${choice.snippet_id} (clip ${choice.clip_id}${choice.mirrored ? ', mirrored' : ''})`;
+  }
+}

@@ -1,0 +1,2 @@
+-- 0.7.0: modb.candidates_examined, how many candidates a selection scored (the avatar view's readout).
+--@include 77_candidates.sql
