@@ -15,6 +15,7 @@ import pytest
 
 from modb.cluster import Cluster
 from modb.connection import connect
+from modb.demo_data import locomotion_files
 
 REPO = Path(__file__).resolve().parents[1]
 MOCAP = Path(os.environ.get("MODB_MOCAP", REPO.parent / "shared" / "mocap"))
@@ -92,3 +93,22 @@ def plan_nodes(conn: psycopg.Connection, sql: str, params=()) -> list[dict]:
         nodes.append(node)
         todo.extend(reversed(node.get("Plans", [])))
     return nodes
+
+
+GRAPH = "locomotion"  # the locomotion fixture's transition graph
+
+
+@pytest.fixture(scope="session")
+def locomotion(cluster, tmp_path_factory):
+    """Every locomotion clip of ../shared/mocap/bandai-2-dev (419 files), with snippets and the transition
+    graph GRAPH (shared by the synthesis and avatar tests, which only read it)."""
+    data = mocap("bandai-2-dev", "data")
+    folder = tmp_path_factory.mktemp("locomotion")
+    for f in locomotion_files(data):
+        os.symlink(f, folder / f.name)
+    with scratch_database(cluster, f"synthesis_{os.getpid()}") as dsn:
+        r = run_modb(dsn, "load", folder, "--collection", "bandai-2/locomotion", "-q")
+        assert r.returncode == 0, r.stderr
+        r = run_modb(dsn, "graph", "build", GRAPH, "-q")
+        assert r.returncode == 0, r.stderr
+        yield dsn

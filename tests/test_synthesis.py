@@ -3,7 +3,6 @@ latency hiding, the BVH written, and the quality figures against independent com
 from __future__ import annotations
 
 import json
-import os
 import threading
 from dataclasses import replace
 
@@ -12,11 +11,10 @@ import psycopg
 import pytest
 from scipy.spatial.transform import Rotation
 
-from conftest import mocap, run_modb, scratch_database
+from conftest import GRAPH, run_modb
 from modb.avatar import Avatar, Choice, Settings
 from modb.bench_synth import seeded_course
 from modb.connection import connect
-from modb.demo_data import locomotion_files
 from modb.placement import Placement
 from modb.quality import NaturalSteps, goal_reach, recombined, seam_steps, step_changes
 from modb.synth import format_summary, report, source_motions, synthesize
@@ -25,22 +23,6 @@ from snippet_oracle import world_transforms
 
 # From the origin facing +Z: ahead, then a right turn of 90 degrees, then another, then one behind.
 COURSE = [(0.0, 6.0), (6.0, 6.0), (6.0, 0.0), (0.0, 0.0)]
-GRAPH = "locomotion"  # its transition graph, built by the fixture
-
-
-@pytest.fixture(scope="module")
-def locomotion(cluster, tmp_path_factory):
-    """Every locomotion clip of ../shared/mocap/bandai-2-dev (419 files), with snippets."""
-    data = mocap("bandai-2-dev", "data")
-    folder = tmp_path_factory.mktemp("locomotion")
-    for f in locomotion_files(data):
-        os.symlink(f, folder / f.name)
-    with scratch_database(cluster, f"synthesis_{os.getpid()}") as dsn:
-        r = run_modb(dsn, "load", folder, "--collection", "bandai-2/locomotion", "-q")
-        assert r.returncode == 0, r.stderr
-        r = run_modb(dsn, "graph", "build", GRAPH, "-q")
-        assert r.returncode == 0, r.stderr
-        yield dsn
 
 
 def python_chain(dsn: str, goals, n: int, **kwargs) -> list[Choice]:

@@ -2,14 +2,11 @@
 against the real server and a database of real capture (a Bandai BVH clip and a CMU ASF/AMC clip)."""
 from __future__ import annotations
 
-import http.client
 import json
 import os
 import shutil
 import socket
 import subprocess
-import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -18,6 +15,7 @@ import psycopg
 import pytest
 
 from asf_oracle import bone_tips, parse_amc, parse_asf
+from browser import chromium, get, serving, severe_console_entries
 from conftest import CMU_UNITS, REPO, mocap, run_modb, scratch_database
 from oracle import bvhio_world_positions, in_order
 
@@ -26,7 +24,6 @@ ARTIFACTS = REPO / "tests" / "artifacts"
 BVH_FILE = ("bandai-2-dev", "data", "dataset-2_walk_active_001.bvh")
 BANDAI_1_FILE = "dataset-1_bow_active_001.bvh"
 KINDS = ["bvh", "bandai1", "cmubvh", "amc", "amc01"]
-CHROMIUM, CHROMEDRIVER = Path("/usr/bin/chromium"), Path("/usr/bin/chromedriver")
 
 
 def sources(tmp: Path) -> list[tuple[Path, str, str]]:
@@ -58,46 +55,11 @@ def web_db(cluster, tmp_path_factory):
         yield dsn
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 @pytest.fixture(scope="module")
 def server(web_db):
     """The real `modb serve` on a free port; (host:port, dsn)."""
-    port = _free_port()
-    log = tempfile.TemporaryFile()
-    proc = subprocess.Popen([sys.executable, "-m", "modb.cli", "--dsn", web_db, "serve", "--port", str(port)],
-                            stdout=log, stderr=subprocess.STDOUT)
-    address = f"127.0.0.1:{port}"
-    for _ in range(150):
-        try:
-            if get(address, "/api/collections")[0] == 200:
-                break
-        except OSError:
-            if proc.poll() is not None:
-                break
-            time.sleep(0.2)
-    else:
-        proc.kill()
-    if proc.poll() is not None:
-        log.seek(0)
-        pytest.fail(f"modb serve did not start:\n{log.read().decode()}")
-    yield address, web_db
-    proc.terminate()
-    proc.wait(10)
-
-
-def get(address: str, path: str, headers: dict[str, str] | None = None) -> tuple[int, dict]:
-    conn = http.client.HTTPConnection(address, timeout=30)
-    try:
-        conn.request("GET", path, headers=headers or {})
-        response = conn.getresponse()
-        return response.status, json.loads(response.read() or b"null")
-    finally:
-        conn.close()
+    with serving(web_db) as address:
+        yield address, web_db
 
 
 def ok(address: str, path: str):
@@ -237,24 +199,8 @@ def test_by_default_it_listens_on_loopback_only(server):
 
 @pytest.fixture(scope="module")
 def browser():
-    if not (CHROMIUM.exists() and CHROMEDRIVER.exists()):
-        pytest.skip("Debian's chromium and chromium-driver are not installed (`make setup` installs them)")
-    from selenium import webdriver
-    from selenium.webdriver.chrome.service import Service
-
-    options = webdriver.ChromeOptions()
-    options.binary_location = str(CHROMIUM)
-    profile = tempfile.mkdtemp(prefix="modb-chromium-")
-    for flag in ("--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-                 "--disable-component-update", "--no-first-run", "--disable-sync", f"--user-data-dir={profile}",
-                 "--enable-unsafe-swiftshader",  # software WebGL, which headless Chromium needs an opt-in for
-                 "--window-size=1280,800"):
-        options.add_argument(flag)
-    options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
-    driver = webdriver.Chrome(service=Service(str(CHROMEDRIVER)), options=options)
-    yield driver
-    driver.quit()
-    shutil.rmtree(profile, ignore_errors=True)
+    with chromium() as driver:
+        yield driver
 
 
 def open_page(browser, address: str, query: str = "") -> None:
@@ -262,10 +208,6 @@ def open_page(browser, address: str, query: str = "") -> None:
     result = browser.execute_async_script(
         "const done = arguments[0]; window.modbViewer.ready.then(() => done('ok'), (e) => done(String(e)))")
     assert result == "ok"
-
-
-def severe_console_entries(browser) -> list[dict]:
-    return [e for e in browser.get_log("browser") if e["level"] == "SEVERE"]
 
 
 def test_the_page_loads_and_browses_collections_and_clips_without_console_errors(server, browser):

@@ -12,6 +12,7 @@ const CLICK_SLOP_PX = 5; // a pointer that moved more than this between press an
 
 const stage = new Stage($('view'));
 const course = new Course(stage.scene);
+stage.look([0, 7, -7], [0, 0, 3]); // from above and behind the avatar, which starts at the origin facing +Z
 const state = {
   connected: false, settings: null, rig: null, framed: false, frames: 0, frame: null,
   choices: [], goals: [], goalIndex: 0, messages: [], closed: null,
@@ -52,7 +53,7 @@ const handlers = {
     const positions = state.rig.worldPositions();
     const pelvis = positions[state.rig.pelvis];
     if (!state.framed) {
-      stage.setFigure(positions.length, pelvis);
+      stage.setFigure(positions.length, pelvis, true);
       state.framed = true;
     }
     stage.draw(state.rig.boneSegments(), positions, state.rig.pelvis, null, true);

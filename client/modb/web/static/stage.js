@@ -56,8 +56,8 @@ export class Stage {
     this.camera.updateProjectionMatrix();
   }
 
-  // A new figure: joint spheres sized to its joint count; the camera frames it.
-  setFigure(jointCount, at) {
+  // A new figure: joint spheres sized to its joint count; the camera frames it unless keepView.
+  setFigure(jointCount, at, keepView = false) {
     if (this.jointMesh) {
       this.scene.remove(this.jointMesh);
       this.jointMesh.geometry.dispose();
@@ -69,9 +69,11 @@ export class Stage {
     this.jointMesh.frustumCulled = false;
     this.scene.add(this.jointMesh);
     const target = new THREE.Vector3(at[0], Math.max(at[1], 0.5), at[2]);
-    this.camera.position.copy(target).add(new THREE.Vector3(2.5, 0.9, 3.5));
-    this.controls.target.copy(target);
-    this.controls.update();
+    if (!keepView) {
+      this.camera.position.copy(target).add(new THREE.Vector3(2.5, 0.9, 3.5));
+      this.controls.target.copy(target);
+      this.controls.update();
+    }
     this.followed = target.clone();
   }
 
@@ -121,6 +123,13 @@ export class Stage {
     ray.setFromCamera(ndc, this.camera);
     const hit = new THREE.Vector3();
     return ray.ray.intersectPlane(new THREE.Plane(new THREE.Vector3(0, 1, 0), 0), hit) ? hit : null;
+  }
+
+  // Look from `eye` at `target` (world points).
+  look(eye, target) {
+    this.camera.position.fromArray(eye);
+    this.controls.target.fromArray(target);
+    this.controls.update();
   }
 
   // Where a world point shows on the canvas, in pixels from its centre (as WebDriver's pointer offsets are).

@@ -1,0 +1,303 @@
+"""Avatar mode in a real browser (Debian's chromium), against the real `modb serve` and database with every
+locomotion clip of ../shared/mocap/bandai-2-dev and its transition graph: clicks set goals the avatar walks
+to, the panel tunes this connection's selections, and the WebSocket keeps other origins out."""
+from __future__ import annotations
+
+import contextlib
+import json
+import time
+
+import numpy as np
+import psycopg
+import pytest
+
+from browser import chromium, serving, severe_console_entries
+from conftest import REPO
+from modb_kernel.joints import STANDARD_JOINTS
+from snippet_oracle import resolve_profile
+
+ARRIVAL_RADIUS = 0.5  # the page's default, metres
+ARTIFACTS = REPO / "tests" / "artifacts"
+
+
+@pytest.fixture(scope="module")
+def avatar_server(locomotion):
+    with serving(locomotion) as address:
+        yield address, locomotion
+
+
+@pytest.fixture(scope="module")
+def browser():
+    with chromium("1400,1000") as driver:
+        yield driver
+
+
+def open_avatar(driver, address: str) -> None:
+    driver.get(f"http://{address}/avatar")
+    ready = driver.execute_async_script(
+        "const done = arguments[0]; window.modbAvatar.ready.then(done, (e) => done(String(e)))")
+    assert ready is True, ready
+
+
+def page_state(driver) -> dict:
+    return driver.execute_script("const s = window.modbAvatar.state; return {goals: s.goals, goalIndex: s.goalIndex, "
+                                 "frames: s.frames, frame: s.frame, choices: s.choices, messages: s.messages, "
+                                 "trail: window.modbAvatar.trail()}")
+
+
+def wait_until(driver, condition, timeout: float, what: str) -> dict:
+    """Polls the page's state until condition(state) holds."""
+    deadline = time.monotonic() + timeout
+    while True:
+        state = page_state(driver)
+        if condition(state):
+            return state
+        if time.monotonic() > deadline:
+            raise AssertionError(f"{what}: not within {timeout} s; the page has {len(state['choices'])} selections, "
+                                 f"goals {state['goals']}, last messages {state['messages'][-3:]}")
+        time.sleep(0.2)
+
+
+def click_ground(driver, x: float, z: float, waypoint: bool = False) -> None:
+    """A real pointer click (WebDriver actions) where the ground point (x, z) shows on the canvas."""
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.common.keys import Keys
+
+    offset = driver.execute_script("return window.modbAvatar.offsetOf(arguments[0], arguments[1])", x, z)
+    assert offset["visible"], f"({x}, {z}) is not on the canvas: {offset}"
+    canvas = driver.find_element(By.CSS_SELECTOR, "#view canvas")
+    actions = ActionChains(driver).move_to_element_with_offset(canvas, round(offset["x"]), round(offset["y"]))
+    if waypoint:
+        actions = actions.key_down(Keys.SHIFT).click().key_up(Keys.SHIFT)
+    else:
+        actions = actions.click()
+    actions.perform()
+
+
+def look_at(driver, x: float, z: float) -> None:
+    """Turns the view (as a user dragging it would) to look down on the ground point (x, z)."""
+    driver.execute_script("window.modbAvatar.stage.look([arguments[0], 12, arguments[1] - 6], "
+                          "[arguments[0], 0, arguments[1]])", x, z)
+
+
+def closest_approach(trail: list, goal: tuple[float, float]) -> float:
+    points = np.asarray(trail, dtype=float)
+    return float(np.hypot(points[:, 0] - goal[0], points[:, 1] - goal[1]).min()) if len(points) else np.inf
+
+
+def test_a_click_sets_a_goal_the_avatar_reaches_and_one_behind_it_turns_it_around(avatar_server, browser):
+    address = avatar_server[0]
+    open_avatar(browser, address)
+    first = (1.0, 4.0)
+    click_ground(browser, *first)
+    state = wait_until(browser, lambda s: len(s["goals"]) == 1, 10, "the clicked goal")
+    assert np.hypot(*np.subtract(state["goals"][0], first)) < 0.1, state["goals"]  # the pointer's ground point
+    first = tuple(state["goals"][0])
+    state = wait_until(browser, lambda s: closest_approach(s["trail"], first) <= ARRIVAL_RADIUS, 60,
+                       "the pelvis within the arrival radius of the first goal")
+    # Behind: from where the pelvis is, against the direction of its last half metre of travel.
+    trail = np.asarray(state["trail"])
+    here = trail[-1]
+    back = next(p for p in trail[::-1] if np.hypot(*(here - p)) >= 0.5)
+    direction = (here - back) / np.hypot(*(here - back))
+    behind = tuple(here - 4.0 * direction)
+    look_at(browser, *(here + np.array(behind)) / 2)
+    click_ground(browser, *behind)
+    state = wait_until(browser, lambda s: len(s["goals"]) == 1 and np.hypot(*np.subtract(s["goals"][0], behind)) < 0.3,
+                       10, "the second goal")
+    second = tuple(state["goals"][0])
+    start = len(state["trail"])
+    state = wait_until(browser, lambda s: closest_approach(s["trail"][start:], second) <= ARRIVAL_RADIUS, 90,
+                       "the pelvis within the arrival radius of the goal behind it")
+    walked = np.asarray(state["trail"][start:])
+    assert np.dot(walked[-1] - walked[0], direction) < -2.0  # it turned: it went back the way it had come
+    ARTIFACTS.mkdir(exist_ok=True)
+    browser.save_screenshot(str(ARTIFACTS / "avatar-mode.png"))  # the README's picture (docs/avatar-mode.png)
+    assert severe_console_entries(browser) == []
+
+
+# --- candidate counts, against a brute-force count over the stored features -----------------------------
+
+@pytest.fixture(scope="module")
+def features(locomotion) -> dict:
+    """Every snippet's begin and end feature point (as stored), pose key and rate; the profiles; the names."""
+    with psycopg.connect(locomotion) as conn:
+        rows = conn.execute("SELECT s.id, s.pose_key, s.fps, b.features::text, e.features::text "
+                            "FROM modb.snippets s JOIN modb.terminators b ON b.id = s.begin_terminator "
+                            "JOIN modb.terminators e ON e.id = s.end_terminator ORDER BY s.id").fetchall()
+        names = conn.execute("SELECT modb.feature_names()").fetchone()[0]
+        profiles = dict(conn.execute("SELECT name, settings FROM modb.match_profiles").fetchall())
+    point = lambda text: [float(v) for v in text.strip("()").split(",")]  # noqa: E731
+    return {"index": {r[0]: k for k, r in enumerate(rows)}, "pose": np.array([r[1] for r in rows]),
+            "fps": np.array([r[2] for r in rows]), "begin": np.array([point(r[3]) for r in rows]),
+            "end": np.array([point(r[4]) for r in rows]), "names": names, "profiles": profiles}
+
+
+def half_widths(features: dict, knobs: dict[str, str]) -> np.ndarray:
+    """The box of the default profile with these knobs: a position feature of an included joint gets that
+    joint's position threshold, a velocity one its velocity threshold (with velocity terms on); the rest
+    are unbounded."""
+    plan = resolve_profile(features["profiles"]["default"], knobs)
+    included = [STANDARD_JOINTS[j] for j in plan["joints"]]
+    out = []
+    for name in features["names"]:
+        joint, axis = name.split(".")
+        if joint not in included or (axis.startswith("v") and not plan["velocity_terms"]):
+            out.append(1e6)
+        else:
+            key = "velocity_threshold" if axis.startswith("v") else "position_threshold"
+            out.append(plan[key][included.index(joint)])
+    return np.array(out)
+
+
+def brute_force_count(features: dict, prev: int, level: int, knobs: dict[str, str]) -> int:
+    """What select_next_snippet scores without a graph's stored transitions: the snippets of prev's pose and
+    rate in the box of each level up to `level` (all of them at level 4), summed."""
+    p = features["index"][prev]
+    same = (features["pose"] == features["pose"][p]) & (features["fps"] == features["fps"][p])
+    hw, f, c = half_widths(features, knobs), features["end"][p], features["begin"]
+    total = 0
+    for lvl in range(level + 1):
+        if lvl == 4:
+            total += int(same.sum())
+        else:
+            scale = 2.0 ** lvl
+            inside = ((c >= f - scale * hw - 1e-4) & (c <= f + scale * hw + 1e-4)).all(axis=1)
+            total += int((inside & same).sum())
+    return total
+
+
+def settings_changed(driver, since: int) -> dict:
+    return wait_until(driver, lambda s: any(m["type"] in ("settings", "refused") for m in s["messages"][since:]), 10,
+                      "the server's answer to the settings")
+
+
+def set_in_panel(driver, element_id: str, value: str) -> None:
+    """What a user does: pick a value, or type one and leave the field (the change event)."""
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.common.keys import Keys
+    from selenium.webdriver.support.ui import Select
+
+    element = driver.find_element(By.ID, element_id)
+    if element.tag_name == "select":
+        Select(element).select_by_value(value)
+    else:
+        element.clear()
+        element.send_keys(value, Keys.TAB)
+
+
+def walk_without_graph(driver, address: str, goal: tuple[float, float]) -> None:
+    """A fresh page walking toward a far goal, choosing by the GiST box (no transition graph)."""
+    open_avatar(driver, address)
+    since = len(page_state(driver)["messages"])
+    set_in_panel(driver, "graph", "")
+    state = settings_changed(driver, since)
+    assert state["messages"][-1]["type"] == "settings" and state["messages"][-1]["settings"]["graph"] is None
+    click_ground(driver, *goal)
+
+
+def counted(state: dict, after_message: int = 0) -> list[tuple[int, int, int]]:
+    """(previous snippet, relax level, candidates reported) of the selections reported after a message."""
+    out, previous = [], None
+    for k, m in enumerate(state["messages"]):
+        if m["type"] == "choice":
+            if previous is not None and k >= after_message:
+                out.append((previous, m["relax_level"], m["candidates"]))
+            previous = m["snippet_id"]
+    return out
+
+
+def test_a_threshold_changed_in_the_panel_changes_the_candidate_counts_of_the_next_queries(
+        avatar_server, browser, features):
+    address = avatar_server[0]
+    walk_without_graph(browser, address, (0.0, 5.0))
+    state = wait_until(browser, lambda s: len(counted(s)) >= 4, 30, "four selections")
+    for prev, level, reported in counted(state):
+        assert reported == brute_force_count(features, prev, level, {}), (prev, level)
+    since = len(state["messages"])
+    set_in_panel(browser, "position_threshold", "0.05")
+    state = settings_changed(browser, since)
+    answer = next(m for m in state["messages"][since:] if m["type"] in ("settings", "refused"))
+    assert answer["type"] == "settings" and answer["settings"]["knobs"] == {"position_threshold": "0.05"}, answer
+    changed_at = state["messages"].index(answer)
+    # The selection in flight when the change arrived may still use the old thresholds: the ones after it.
+    state = wait_until(browser, lambda s: len(counted(s, changed_at)) >= 5, 30, "five selections after the change")
+    after = counted(state, changed_at)[1:]
+    new = {"position_threshold": "0.05"}
+    for prev, level, reported in after:
+        assert reported == brute_force_count(features, prev, level, new), (prev, level)
+    assert any(reported != brute_force_count(features, prev, level, {}) for prev, level, reported in after)
+    assert severe_console_entries(browser) == []
+
+
+def test_two_browser_connections_with_different_settings_do_not_affect_each_other(avatar_server, browser, features):
+    address = avatar_server[0]
+    with chromium("1400,1000") as other:
+        walk_without_graph(browser, address, (0.0, 5.0))
+        walk_without_graph(other, address, (-1.0, 5.0))
+        since = len(page_state(browser)["messages"])
+        set_in_panel(browser, "angle_threshold", "0.1")
+        set_in_panel(browser, "norm", "l1")
+        state = wait_until(browser, lambda s: sum(m["type"] == "settings" for m in s["messages"][since:]) >= 2, 10,
+                           "both settings answered")
+        mine = {"angle_threshold": "0.1", "norm": "l1"}
+        assert [m for m in state["messages"] if m["type"] == "settings"][-1]["settings"]["knobs"] == mine
+        changed_at = len(state["messages"])
+        other_since = len(page_state(other)["messages"])
+        wait_until(browser, lambda s: len(counted(s, changed_at)) >= 4, 30, "selections after the change")
+        theirs = wait_until(other, lambda s: len(counted(s, other_since)) >= 4, 30, "the other page's selections")
+        ours = page_state(browser)
+        # The other page never heard of the change, and its selections still count by the profile's thresholds.
+        assert not [m for m in theirs["messages"] if m["type"] == "settings" and m["settings"]["knobs"]]
+        for prev, level, reported in counted(theirs):
+            assert reported == brute_force_count(features, prev, level, {}), (prev, level)
+        for prev, level, reported in counted(ours, changed_at)[1:]:
+            assert reported == brute_force_count(features, prev, level, mine), (prev, level)
+        assert severe_console_entries(other) == []
+
+
+# --- the WebSocket itself --------------------------------------------------------------------------------
+
+@contextlib.contextmanager
+def socket_to(address: str, origin: str | None):
+    from websockets.sync.client import connect
+
+    with connect(f"ws://{address}/ws/avatar", origin=origin, open_timeout=10) as ws:
+        yield ws
+
+
+@pytest.mark.parametrize("origin", ["http://evil.example", "null", "http://127.0.0.1:1"])
+def test_the_websocket_refuses_a_foreign_origin(avatar_server, origin):
+    from websockets.exceptions import InvalidStatus
+
+    address = avatar_server[0]
+    with pytest.raises(InvalidStatus) as refused, socket_to(address, origin):
+        pass
+    assert refused.value.response.status_code == 403
+    with socket_to(address, f"http://{address}") as ws:  # its own page may
+        assert json.loads(ws.recv(10))["type"] == "ready"
+
+
+def test_bad_settings_are_refused_with_the_reason_and_the_walk_goes_on(avatar_server):
+    with socket_to(avatar_server[0], None) as ws:
+        assert json.loads(ws.recv(10))["type"] == "ready"
+        for message, reason in [
+            ({"knobs": {"position_threshold": "-1"}}, "thresholds must be positive"),
+            ({"knobs": {"joints": "pelvis,tail"}}, "must be standard joints"),
+            ({"knobs": {"graph_lookahead": "on"}}, "unknown knob 'graph_lookahead'"),
+            ({"profile": "nope"}, 'unknown match profile "nope"'),
+            ({"graph": "nope"}, 'no transition graph "nope"'),
+            ({"lead_time": 5}, "lead_time must be"),
+        ]:
+            ws.send(json.dumps({"type": "settings", **message}))
+            answer = json.loads(ws.recv(10))
+            assert answer["type"] == "refused" and reason in answer["message"], (message, answer)
+            assert answer["settings"]["knobs"] == {} and answer["settings"]["profile"] == "default"
+        ws.send(json.dumps({"type": "goal", "x": 0, "z": 3}))
+        kinds = set()
+        deadline = time.monotonic() + 20
+        while "frame" not in kinds and time.monotonic() < deadline:
+            kinds.add(json.loads(ws.recv(10))["type"])
+        assert {"goals", "skeleton", "choice", "frame"} <= kinds
+
