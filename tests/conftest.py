@@ -102,6 +102,9 @@ GRAPH = "locomotion"  # the locomotion fixture's transition graph
 def locomotion(cluster, tmp_path_factory):
     """Every locomotion clip of ../shared/mocap/bandai-2-dev (419 files), with snippets and the transition
     graph GRAPH (shared by the synthesis and avatar tests, which only read it)."""
+    if os.environ.get("MODB_TEST_LOCOMOTION_DSN"):  # development: a database this fixture filled before
+        yield os.environ["MODB_TEST_LOCOMOTION_DSN"]
+        return
     data = mocap("bandai-2-dev", "data")
     folder = tmp_path_factory.mktemp("locomotion")
     for f in locomotion_files(data):

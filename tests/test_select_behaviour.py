@@ -127,7 +127,7 @@ MIRRORED_TERMINATORS = "SELECT c.name, t.frame, md5(t.rotations::text), md5(t.po
                        "JOIN modb.clips c ON c.id = t.clip_id WHERE t.mirrored ORDER BY 1, 2"
 
 
-@pytest.mark.parametrize("old", ["0.1.0", "0.2.0", "0.3.0", "0.4.0", "0.5.0"])
+@pytest.mark.parametrize("old", ["0.1.0", "0.2.0", "0.3.0", "0.4.0", "0.5.0", "0.6.0"])
 def test_update_keeps_the_data(cluster, fresh_db, db, old):
     current = db.execute("SELECT default_version FROM pg_available_extensions WHERE name = 'modb'").fetchone()[0]
     db.execute("DROP EXTENSION modb")
@@ -147,19 +147,19 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
                    "SELECT 'mine', settings FROM modb.match_profiles WHERE name = 'default'")
         mine = db.execute("SELECT settings FROM modb.match_profiles WHERE name = 'mine'").fetchone()[0]
     # A graph built before 0.5.0 stored no transitions: it keeps working through the box. One built by 0.5.0
-    # has no cost-to-go: it keeps ranking by where the candidates lead.
-    if old in ("0.4.0", "0.5.0"):
+    # has no cost-to-go: it keeps ranking by where the candidates lead. One built by 0.6.0 keeps its costs.
+    if old in ("0.4.0", "0.5.0", "0.6.0"):
         db.execute("SELECT modb.build_transition_graph('old', 'locomotion', NULL, 0)")
     db.execute("ALTER EXTENSION modb UPDATE")
-    if old in ("0.4.0", "0.5.0"):
+    if old in ("0.4.0", "0.5.0", "0.6.0"):
         stored, costs = db.execute("SELECT count(*), count(cost_to_go) FROM modb.graph_transitions").fetchone()
-        assert (stored > 0) == (old == "0.5.0") and costs == 0, (stored, costs)
+        assert (stored > 0) == (old != "0.4.0") and costs == (stored if old == "0.6.0" else 0), (stored, costs)
         db.execute("SET modb.graph = 'old'")
         chosen, in_graph = db.execute("SELECT count(*), count(g.snippet_id) FROM modb.synthesize('{{0,3}}', 4) s "
                                       "LEFT JOIN modb.graph_snippets g USING (snippet_id)").fetchone()
         assert chosen == 4 and in_graph == chosen
         db.execute("RESET modb.graph")
-        assert not next(g for g in list_graphs(db) if g.name == "old").current  # `modb graph list`: rebuild it
+        assert next(g for g in list_graphs(db) if g.name == "old").current == (old == "0.6.0")  # else rebuild it
     assert db.execute("SELECT extversion FROM pg_extension WHERE extname = 'modb'").fetchone()[0] == current
     assert db.execute("SELECT clip_id, version, n_frames, meta, md5(rotations::text) FROM modb.clip_versions "
                       "ORDER BY 1").fetchall() == before

@@ -16,7 +16,7 @@ SELECT functions_are('modb', ARRAY[
     'skeleton_pose_key', 'standard_joints', 'feature_names', 'quat_angle', 'max_joint_angle', 'weighted_joint_angle',
     'match_knobs', 'session_settings', 'match_plan', '_thresholds', 'continuity_ratio', 'match_box', 'target_cost', 'aim_point', 'approach_cost', 'collection_subtree',
     'check_request', 'build_snippets', 'select_next_snippets', 'select_next_snippet', 'world_to_local', 'select_next_snippet_world',
-    'local_to_world', 'synthesis_goal', 'synthesis_step_end', 'check_synthesis', 'synthesize', 'fill_futures', 'build_transition_graph', 'transition_key', 'cost_to_go']);
+    'local_to_world', 'synthesis_goal', 'synthesis_step_end', 'check_synthesis', 'synthesize', 'fill_futures', 'build_transition_graph', 'transition_key', 'cost_to_go', 'candidates_examined']);
 SELECT col_type_is('modb', 'clip_versions', 'rotations', 'real[]', 'rotations is real[]');
 SELECT col_type_is('modb', 'clip_versions', 'translations', 'real[]', 'translations is real[]');
 SELECT col_is_pk('modb', 'clip_versions', ARRAY['clip_id', 'version'], 'primary key (clip_id, version)');

@@ -1,7 +1,7 @@
 -- The quaternion-angle operator and the configuration-level functions, on known values.
 BEGIN;
 CREATE EXTENSION IF NOT EXISTS pgtap;
-SELECT plan(25);
+SELECT plan(28);
 
 SELECT is(round(('{1,0,0,0}'::float8[] OPERATOR(modb.<%>) ARRAY[cos(pi() / 4), sin(pi() / 4), 0, 0])::numeric, 12),
           round((pi() / 2)::numeric, 12), '90 degrees about x');
@@ -49,6 +49,10 @@ SELECT is(round(modb.approach_cost('{0,0,1}', '{0,0,3}', pi() / 2, '{0,1}', 1)::
           'the heading term counts once');
 SELECT throws_ok($$SELECT modb.match_plan('no such profile')$$, 'P0001', 'unknown match profile "no such profile"',
                  'an unknown profile is an error');
+SELECT throws_ok($$SELECT modb.candidates_examined(1, 5)$$, 'P0001',
+                 'relax_level must be 0-4 (select_next_snippet''s relax_level), got 5', 'candidates_examined: a level past 4');
+SELECT throws_ok($$SELECT modb.candidates_examined(-1, 0)$$, 'P0001', 'no snippet -1', 'candidates_examined: an unknown snippet');
+SELECT is(modb.candidates_examined(NULL, 0), (SELECT count(*) FROM modb.snippets), 'a start ranks every snippet');
 
 SELECT * FROM finish();
 ROLLBACK;

@@ -56,7 +56,7 @@ const handlers = {
       stage.setFigure(positions.length, pelvis, true);
       state.framed = true;
     }
-    stage.draw(state.rig.boneSegments(), positions, state.rig.pelvis, null, true);
+    stage.draw(state.rig.boneSegments(), positions, state.rig.pelvis, null, $('follow').checked);
     course.addTrail(pelvis[0], pelvis[2]);
     state.frames += 1;
     state.frame = { index: m.index, step: m.step, pelvis };

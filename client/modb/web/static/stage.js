@@ -117,6 +117,7 @@ export class Stage {
 
   // The point on the ground (y = 0) under a pointer at (clientX, clientY), or null (the sky).
   groundPointAt(clientX, clientY) {
+    this.camera.updateMatrixWorld(); // the view may have moved since the last render
     const rect = this.renderer.domElement.getBoundingClientRect();
     const ndc = new THREE.Vector2(((clientX - rect.left) / rect.width) * 2 - 1, -((clientY - rect.top) / rect.height) * 2 + 1);
     const ray = new THREE.Raycaster();
@@ -134,6 +135,7 @@ export class Stage {
 
   // Where a world point shows on the canvas, in pixels from its centre (as WebDriver's pointer offsets are).
   offsetOf(x, y, z) {
+    this.camera.updateMatrixWorld(); // the view may have moved since the last render
     const p = new THREE.Vector3(x, y, z).project(this.camera);
     const { clientWidth: w, clientHeight: h } = this.renderer.domElement;
     return { x: (p.x * w) / 2, y: (-p.y * h) / 2, visible: Math.abs(p.x) < 1 && Math.abs(p.y) < 1 && p.z < 1 };

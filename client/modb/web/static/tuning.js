@@ -39,7 +39,7 @@ export class Tuning {
       label, element('input', { id: knob, type: 'number', min: '0', step: 'any', placeholder: "profile's" })])));
     $('joints').replaceChildren(...ready.joints.map((j) => element('label', {}, [
       element('input', { type: 'checkbox', value: j, name: 'joint' }), j.replace('_', ' ')])));
-    this.root.querySelectorAll('input, select').forEach((input) => input.addEventListener('change', (e) => this.changed(e.target)));
+    this.root.querySelectorAll('section input, section select').forEach((input) => input.addEventListener('change', (e) => this.changed(e.target)));
     $('profile-joints').addEventListener('click', () => { this.showJoints(this.profileJoints()); this.changed(null); });
     this.show(ready.settings);
   }
