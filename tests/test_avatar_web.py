@@ -118,7 +118,19 @@ def test_a_click_sets_a_goal_the_avatar_reaches_and_one_behind_it_turns_it_aroun
                        "the pelvis within the arrival radius of the goal behind it")
     walked = np.asarray(state["trail"][start:])
     assert np.dot(walked[-1] - walked[0], direction) < -2.0  # it turned: it went back the way it had come
+    # The streamed frames put the pelvis, as the page's own kinematics computes it, where each selection
+    # said its snippet would end (the server's placement arithmetic).
+    pelvis_at = browser.execute_script("return window.modbAvatar.state.pelvisAt")
+    ends = [(m["end_frame"], m["end"]["position"]) for m in state["messages"] if m["type"] == "choice"]
+    checked = [(str(f), p) for f, p in ends if str(f) in pelvis_at]
+    assert len(checked) >= 10
+    for frame, end in checked:
+        assert np.hypot(pelvis_at[frame][0] - end[0], pelvis_at[frame][2] - end[2]) < 0.01, frame
     ARTIFACTS.mkdir(exist_ok=True)
+    middle = (np.asarray(first) + np.asarray(second)) / 2
+    browser.execute_script("window.modbAvatar.stage.look([arguments[0] + 2, 6, arguments[1] - 6], "
+                           "[arguments[0], 0, arguments[1]])", *middle)
+    time.sleep(0.5)
     browser.save_screenshot(str(ARTIFACTS / "avatar-mode.png"))  # the README's picture (docs/avatar-mode.png)
     assert severe_console_entries(browser) == []
 
@@ -234,7 +246,29 @@ def test_a_threshold_changed_in_the_panel_changes_the_candidate_counts_of_the_ne
     for prev, level, reported in after:
         assert reported == brute_force_count(features, prev, level, new), (prev, level)
     assert any(reported != brute_force_count(features, prev, level, {}) for prev, level, reported in after)
+    assert_readouts_summarise_the_last_selections(browser)
     assert severe_console_entries(browser) == []
+
+
+def assert_readouts_summarise_the_last_selections(driver) -> None:
+    """The panel shows figures over the last 50 selections: recomputed here from the selections reported."""
+    from selenium.webdriver.common.by import By
+
+    choices = [m for m in page_state(driver)["messages"] if m["type"] == "choice"]
+    last = choices[-1]
+    window = choices[-50:]
+    latencies = [c["latency_ms"] for c in window]
+    seams = np.array([c["continuity"] for c in window if c["continuity"] is not None])
+    r = last["readout"]
+    assert r["selections"] == len(window)
+    assert r["latency_p50_ms"] == pytest.approx(np.median(latencies))
+    assert r["latency_p99_ms"] == pytest.approx(np.percentile(latencies, 99))
+    assert r["seam_ratio_median"] == pytest.approx(np.median(seams)) and r["seam_ratio_max"] == pytest.approx(seams.max())
+    assert r["seam_rough_share"] == pytest.approx(np.mean(seams > 1)) and r["candidates"] == last["candidates"]
+    assert r["relaxed_share"] == pytest.approx(np.mean([c["relax_level"] > 0 for c in window]))
+    shown = driver.find_element(By.ID, "latency").text
+    assert shown == f"{np.median(latencies):.1f} / {np.percentile(latencies, 99):.1f} ms" or \
+        page_state(driver)["choices"][-1]["step"] != last["step"]  # or a newer selection arrived meanwhile
 
 
 def test_two_browser_connections_with_different_settings_do_not_affect_each_other(avatar_server, browser, features):
@@ -243,11 +277,11 @@ def test_two_browser_connections_with_different_settings_do_not_affect_each_othe
         walk_without_graph(browser, address, (0.0, 5.0))
         walk_without_graph(other, address, (-1.0, 5.0))
         since = len(page_state(browser)["messages"])
-        set_in_panel(browser, "angle_threshold", "0.1")
-        set_in_panel(browser, "norm", "l1")
+        set_in_panel(browser, "position_threshold", "0.08")
+        set_in_panel(browser, "velocity_terms", "off")  # the box no longer bounds velocities
         state = wait_until(browser, lambda s: sum(m["type"] == "settings" for m in s["messages"][since:]) >= 2, 10,
                            "both settings answered")
-        mine = {"angle_threshold": "0.1", "norm": "l1"}
+        mine = {"position_threshold": "0.08", "velocity_terms": "off"}
         assert [m for m in state["messages"] if m["type"] == "settings"][-1]["settings"]["knobs"] == mine
         changed_at = len(state["messages"])
         other_since = len(page_state(other)["messages"])
@@ -260,6 +294,8 @@ def test_two_browser_connections_with_different_settings_do_not_affect_each_othe
             assert reported == brute_force_count(features, prev, level, {}), (prev, level)
         for prev, level, reported in counted(ours, changed_at)[1:]:
             assert reported == brute_force_count(features, prev, level, mine), (prev, level)
+        assert any(reported != brute_force_count(features, prev, level, {})
+                   for prev, level, reported in counted(ours, changed_at)[1:])
         assert severe_console_entries(other) == []
 
 

@@ -101,6 +101,7 @@ def readout(choices: list[Choice]) -> dict[str, Any]:
         "relax_level": last.relax_level,
         "relaxed_share": float(np.mean([c.relax_level > 0 for c in recent])) if recent else None,
         "seam_ratio_median": float(np.median(seams)) if len(seams) else None,
+        "seam_ratio_max": float(seams.max()) if len(seams) else None,
         "seam_rough_share": float(np.mean(seams > 1.0)) if len(seams) else None,  # r > 1: past the thresholds
     }
 

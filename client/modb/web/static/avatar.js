@@ -8,6 +8,7 @@ import { Tuning } from './tuning.js';
 
 const $ = (id) => document.getElementById(id);
 const KEEP_CHOICES = 1000;
+const KEEP_FRAMES = 3000;
 const CLICK_SLOP_PX = 5; // a pointer that moved more than this between press and release dragged the view
 
 const stage = new Stage($('view'));
@@ -15,7 +16,7 @@ const course = new Course(stage.scene);
 stage.look([0, 7, -7], [0, 0, 3]); // from above and behind the avatar, which starts at the origin facing +Z
 const state = {
   connected: false, settings: null, rig: null, framed: false, frames: 0, frame: null,
-  choices: [], goals: [], goalIndex: 0, messages: [], closed: null,
+  choices: [], goals: [], goalIndex: 0, messages: [], closed: null, pelvisAt: {},
 };
 
 function status(text, isError = false) {
@@ -52,6 +53,7 @@ const handlers = {
     state.rig.pose(m.rotations, m.translations);
     const positions = state.rig.worldPositions();
     const pelvis = positions[state.rig.pelvis];
+    state.rig.abovePelvis.forEach((k) => { positions[k] = pelvis; }); // no sphere off the body (Bandai's joint_Root)
     if (!state.framed) {
       stage.setFigure(positions.length, pelvis, true);
       state.framed = true;
@@ -60,6 +62,8 @@ const handlers = {
     course.addTrail(pelvis[0], pelvis[2]);
     state.frames += 1;
     state.frame = { index: m.index, step: m.step, pelvis };
+    state.pelvisAt[m.index] = pelvis; // the recent frames' pelvis, for checks
+    delete state.pelvisAt[m.index - KEEP_FRAMES];
   },
   choice(m) {
     state.choices.push(m);

@@ -9,6 +9,8 @@ export class Rig {
     this.joints = hierarchy.joints;
     const named = this.joints.findIndex((j) => j.name === pelvisName);
     this.pelvis = named >= 0 ? named : 0;
+    this.abovePelvis = []; // its ancestors (frames of reference): indices
+    for (let k = this.joints[this.pelvis].parent; k >= 0; k = this.joints[k].parent) this.abovePelvis.push(k);
     this.translated = hierarchy.translated;
     this.root = new THREE.Group();
     // Each joint sits at its offset in the parent's frame; joints with position channels replace it per frame.

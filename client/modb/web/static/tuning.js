@@ -90,7 +90,7 @@ export class Tuning {
     $('selections').textContent = String(r.selections);
     $('candidates').textContent = choice.candidates === null ? '-' : String(choice.candidates);
     $('relax').textContent = `${choice.relax_level ?? '-'} (relaxed ${fixed(100 * (r.relaxed_share || 0), 0)}%)`;
-    $('seams').textContent = `median r ${fixed(r.seam_ratio_median, 2)}, ${fixed(100 * (r.seam_rough_share || 0), 0)}% r > 1`;
+    $('seams').textContent = `r median ${fixed(r.seam_ratio_median, 2)}, max ${fixed(r.seam_ratio_max, 2)}; ${fixed(100 * (r.seam_rough_share || 0), 0)}% over 1`;
     $('snippet').textContent = `${choice.snippet_id} (clip ${choice.clip_id}${choice.mirrored ? ', mirrored' : ''})`;
   }
 }
