@@ -102,6 +102,13 @@ def test_a_click_sets_a_goal_the_avatar_reaches_and_one_behind_it_turns_it_aroun
     look_at(browser, *first)
     state = wait_until(browser, lambda s: closest_approach(s["trail"], first) <= ARRIVAL_RADIUS, 60,
                        "the pelvis within the arrival radius of the first goal")
+    # Streamed at the capture's rate (30 fps here), by this test's clock: never ahead; behind only by the
+    # queries that playback waits for (lead time 0) and a loaded machine.
+    before, t0 = page_state(browser)["frames"], time.monotonic()
+    time.sleep(3)
+    after, t1 = page_state(browser)["frames"], time.monotonic()
+    assert 0.5 * 30 * (t1 - t0) <= after - before <= 30 * (t1 - t0) + 3, (after - before, t1 - t0)
+    state = page_state(browser)
     # Behind: from where the pelvis is, against the direction of its last half metre of travel.
     trail = np.asarray(state["trail"])
     here = trail[-1]

@@ -84,5 +84,6 @@ def run_demo(args: argparse.Namespace, load: Callable[[Sequence[str]], int],
             print(f"modb demo: synthesis failed: {e}", file=sys.stderr)
             return 1
     print(f"\nwrote {out}: {result.strip.n_frames} frames at {result.strip.fps:g} fps. Next: `modb synth --to X,Z "
-          f"... --seconds N --out walk.bvh --report`, `modb list`, `modb export CLIP --out clip.bvh`.")
+          f"... --seconds N --out walk.bvh --report`, `modb list`, `modb export CLIP --out clip.bvh`, or "
+          f"`modb serve` and open http://127.0.0.1:8765/avatar to click goals for the avatar (README \"Avatar mode\").")
     return 0

@@ -53,7 +53,7 @@ SELECT has_role('modb_reader', 'modb_reader outlives DROP EXTENSION');
 SELECT has_role('modb_loader', 'modb_loader outlives DROP EXTENSION');
 CREATE EXTENSION modb CASCADE;
 SELECT has_table('modb', 'clip_versions', 're-install after a drop works');
-SELECT is((SELECT extversion FROM pg_extension WHERE extname = 'modb'), '0.6.0', 're-installed version');
+SELECT is((SELECT extversion FROM pg_extension WHERE extname = 'modb'), '0.7.0', 're-installed version');
 
 SELECT * FROM finish();
 ROLLBACK;
