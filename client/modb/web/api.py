@@ -144,12 +144,10 @@ def profiles(conn: psycopg.Connection) -> list[dict[str, Any]]:
 
 
 def avatar_choices(conn: psycopg.Connection) -> dict[str, Any]:
-    """What the avatar panel offers: profiles, transition graphs (newest first), collections, joints, knobs."""
+    """What the avatar panel offers: profiles, transition graphs (newest first), collections, joints."""
     from modb_kernel.joints import STANDARD_JOINTS
-
-    from .avatar_session import TUNABLE_KNOBS
 
     graphs = [r[0] for r in conn.execute("SELECT name FROM modb.graphs WHERE kind = 'transitions' "
                                          "ORDER BY created_at DESC, id DESC")]
     return {"profiles": profiles(conn), "graphs": graphs, "collections": [c["path"] for c in collections(conn)],
-            "joints": list(STANDARD_JOINTS), "knobs": list(TUNABLE_KNOBS)}
+            "joints": list(STANDARD_JOINTS)}

@@ -29,7 +29,7 @@ TUNABLE_KNOBS = ("position_threshold", "angle_threshold", "velocity_threshold", 
                  "norm", "joints", "velocity_terms")
 MAX_LEAD_TIME = 2.0  # seconds: longer than any snippet, the next query would start before this one plays
 RECENT = 50  # the readouts summarise the last this many selections
-BEHIND_S = 0.25  # when playback falls this far behind (a stalled query), it resumes from now, not faster
+STATEMENT_TIMEOUT = "10s"  # an avatar's query that takes longer stops it (and frees its slot)
 
 Send = Callable[[dict[str, Any]], None]
 Check = Callable[[Settings], None]
@@ -45,8 +45,11 @@ def settings_from(message: dict[str, Any], current: Settings) -> Settings:
                                      "knobs"})
     if unknown:
         raise SettingsRefused(f"unknown setting {unknown[0]!r}")
+    asked = message.get("knobs") or {}
+    if not isinstance(asked, dict):
+        raise SettingsRefused(f"knobs is an object of knob: value, got {asked!r}")
     knobs = dict(current.knobs)
-    for knob, value in (message.get("knobs") or {}).items():
+    for knob, value in asked.items():
         if knob not in TUNABLE_KNOBS:
             raise SettingsRefused(f"unknown knob {knob!r}: the panel tunes {', '.join(TUNABLE_KNOBS)}")
         if value is None or value == "":
@@ -62,13 +65,12 @@ def settings_from(message: dict[str, Any], current: Settings) -> Settings:
             if value is not None and not isinstance(value, str):
                 raise SettingsRefused(f"{name} is a name, got {value!r}")
             changes[name] = value or (None if name != "profile" else "default")
-    for name, most in (("lead_time", MAX_LEAD_TIME), ("arrival_radius", 10.0)):
+    for name, unit, least, most in (("lead_time", "seconds", 0.0, MAX_LEAD_TIME), ("arrival_radius", "metres", 0.01, 10.0)):
         if name in message:
             value = message[name]
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-                    or not 0 <= value <= most or (name == "arrival_radius" and value == 0):
-                raise SettingsRefused(f"{name} must be a number of {'seconds' if name == 'lead_time' else 'metres'} "
-                                      f"in {'[0' if name == 'lead_time' else '(0'}, {most}], got {value!r}")
+            number = not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(value)
+            if not number or not least <= value <= most:
+                raise SettingsRefused(f"{name} must be {least:g}-{most:g} {unit}, got {value!r}")
             changes[name] = float(value)
     return replace(current, **changes)
 
@@ -174,14 +176,29 @@ class AvatarSession:
         else:  # the first goal, or after the walk stopped on an error: a new avatar where the last one stood
             if self._avatar is not None:
                 self._placement = self._avatar.placement
-            self._avatar = Avatar(connect(self._conninfo), goals=[goal], position=self._placement.position,
-                                  heading=self._placement.heading, settings=self.settings)
-            self._avatar.conn.execute("SET default_transaction_read_only = on")
+            try:
+                self._avatar = self._new_avatar(goal)
+            except psycopg.Error as e:
+                self._avatar = None
+                self._send({"type": "stopped", "message": f"cannot reach the database: {e}; click to try again"})
+                return
             self._thread = threading.Thread(target=self._play, args=(self._avatar,), daemon=True,
                                             name="modb-avatar-play")
             self._thread.start()
         goals, index, _ = self._avatar.course
         self._send({"type": "goals", "goals": goals, "goal_index": index})
+
+    def _new_avatar(self, goal: tuple[float, ...]) -> Avatar:
+        """An avatar on a read-only database session of its own, where the last one stood."""
+        conn = connect(self._conninfo)
+        try:
+            conn.execute("SELECT set_config('default_transaction_read_only', 'on', false), "
+                         "set_config('statement_timeout', %s, false)", [STATEMENT_TIMEOUT])
+            return Avatar(conn, goals=[goal], position=self._placement.position, heading=self._placement.heading,
+                          settings=self.settings)
+        except BaseException:
+            conn.close()
+            raise
 
     def _play(self, avatar: Avatar) -> None:
         """Frames at the source rate; a readout after every selection."""
@@ -194,9 +211,8 @@ class AvatarSession:
                 if frame.index == choice.start_frame + (0 if choice.step == 0 else 1):
                     self._skeleton(avatar, choice)
                     self._send(choice_message(choice, avatar.course, avatar.choices))
-                now = time.monotonic()
-                due = now if now - due > BEHIND_S else due
-                if self._stopping.wait(max(0.0, due - now)):
+                due = max(due, time.monotonic())  # after a stall, on from now: no burst to catch up
+                if self._stopping.wait(max(0.0, due - time.monotonic())):
                     break
                 self._send(frame_message(frame))
                 due += 1.0 / choice.fps

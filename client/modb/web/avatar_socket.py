@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import logging
 import threading
 from collections.abc import Callable
 from typing import Any
@@ -20,13 +21,15 @@ from ..avatar import Settings
 from . import api
 from .avatar_session import AvatarSession, check_settings
 
-MAX_AVATARS = 8
+log = logging.getLogger("modb.web")
+MAX_AVATARS = 8  # open avatar sockets (walking or not) per server
 SEND_TIMEOUT_S = 30  # a page that reads nothing for this long stops its avatar
 
 
 def _defaults(choices: dict[str, Any]) -> Settings:
     # The newest transition graph: the aims of synthesis (README "Synthesis quality") need one.
-    return Settings(graph=choices["graphs"][0] if choices["graphs"] else None)
+    # A lead time of 0.1 s hides a selection (~20-30 ms with a graph) behind the snippet's last frames.
+    return Settings(graph=choices["graphs"][0] if choices["graphs"] else None, lead_time=0.1)
 
 
 def avatar_endpoint(conninfo: str, pool: ConnectionPool) -> Callable:
@@ -49,7 +52,12 @@ def avatar_endpoint(conninfo: str, pool: ConnectionPool) -> Callable:
 
         def send(message: dict[str, Any]) -> None:  # from the session's threads
             text = json.dumps(message, allow_nan=False)
-            asyncio.run_coroutine_threadsafe(websocket.send_text(text), loop).result(SEND_TIMEOUT_S)
+            future = asyncio.run_coroutine_threadsafe(websocket.send_text(text), loop)
+            try:
+                future.result(SEND_TIMEOUT_S)
+            except BaseException:
+                future.cancel()
+                raise
 
         session: AvatarSession | None = None
         try:
@@ -57,15 +65,19 @@ def avatar_endpoint(conninfo: str, pool: ConnectionPool) -> Callable:
             session = AvatarSession(conninfo, send, check, _defaults(choices))
             await websocket.send_text(json.dumps({"type": "ready", **choices, "settings": session.public_settings()}))
             while True:
-                text = await websocket.receive_text()
+                received = await websocket.receive()
+                if received["type"] == "websocket.disconnect":
+                    break
                 try:
-                    message = json.loads(text)
+                    message = json.loads(received.get("text") or "")
                 except json.JSONDecodeError as e:
-                    await websocket.send_text(json.dumps({"type": "refused", "message": f"not JSON: {e}"}))
+                    await websocket.send_text(json.dumps({"type": "refused", "message": f"not JSON text: {e}"}))
                     continue
                 await run_in_threadpool(session.handle, message)
         except WebSocketDisconnect:
             pass
+        except Exception:  # the server's log has it; the page sees the socket close
+            log.exception("avatar socket")
         finally:
             if session is not None:
                 await run_in_threadpool(session.close)

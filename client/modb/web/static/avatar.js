@@ -9,6 +9,7 @@ import { Tuning } from './tuning.js';
 const $ = (id) => document.getElementById(id);
 const KEEP_CHOICES = 1000;
 const KEEP_FRAMES = 3000;
+const KEEP_MESSAGES = 20000; // all but frames, for checks: the older half goes when full
 const CLICK_SLOP_PX = 5; // a pointer that moved more than this between press and release dragged the view
 
 const stage = new Stage($('view'));
@@ -24,7 +25,7 @@ function status(text, isError = false) {
   $('status').classList.toggle('error', isError);
 }
 
-const socket = new WebSocket(`ws://${location.host}/ws/avatar`);
+const socket = new WebSocket(`${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/ws/avatar`);
 const send = (message) => socket.send(JSON.stringify(message));
 const tuning = new Tuning($('tuning'), send);
 let resolveReady;
@@ -88,6 +89,7 @@ const handlers = {
 socket.addEventListener('message', (event) => {
   const message = JSON.parse(event.data);
   if (message.type !== 'frame') state.messages.push(message);
+  if (state.messages.length > KEEP_MESSAGES) state.messages.splice(0, state.messages.length - KEEP_MESSAGES / 2);
   handlers[message.type](message);
 });
 socket.addEventListener('close', (event) => {

@@ -75,11 +75,14 @@ export class Tuning {
     const sameJoints = chosen.length === own.length && own.every((j) => chosen.includes(j));
     const knobs = { norm: $('norm').value, velocity_terms: $('velocity_terms').value, joints: sameJoints ? '' : chosen.join(',') };
     THRESHOLDS.forEach(([knob]) => { knobs[knob] = $(knob).value; });
-    this.send({
+    const message = {
       type: 'settings', profile: $('profile').value, graph: $('graph').value || null,
-      collection: $('collection').value || null, lead_time: Number($('lead_time').value),
-      arrival_radius: Number($('arrival_radius').value), knobs,
+      collection: $('collection').value || null, knobs,
+    };
+    ['lead_time', 'arrival_radius'].forEach((name) => { // an empty field keeps the value in force
+      if ($(name).value !== '') message[name] = Number($(name).value);
     });
+    this.send(message);
   }
 
   // After every selection: the chosen snippet and the figures over the last selections.
