@@ -67,31 +67,7 @@ def _constants() -> dict:
     namespace: dict = {}
     exec((KERNEL / "joints.py").read_text(), namespace)  # plain constants, no imports
     sql = lambda names: "ARRAY[" + ", ".join(f"'{n}'" for n in names) + "]"
-    return {"{{STANDARD_JOINTS}}": sql(namespace["STANDARD_JOINTS"]), "{{FEATURES}}": sql(namespace["FEATURES"]),
-            "{{CONTINUITY_RATIO}}": _continuity_ratio(len(namespace["STANDARD_JOINTS"]))}
-
-
-def _continuity_ratio(n_joints: int) -> str:
-    """greatest over joints of difference/threshold: position (the plan's norm), rotation angle and, with
-    velocity terms, velocity and angular velocity. Unrolled so that it stays one inlinable expression."""
-    def diff(col: str, j: int, k: int) -> str:
-        return f"(a.{col}[{3 * j + k}] - b.{col}[{3 * j + k}])"
-
-    def l2(col: str, j: int) -> str:
-        return "sqrt(" + " + ".join(f"{diff(col, j, k)} ^ 2" for k in (1, 2, 3)) + ")"
-
-    terms = []
-    for j in range(n_joints):
-        t = j + 1
-        l1 = " + ".join(f"abs{diff('positions', j, k)}" for k in (1, 2, 3))
-        rot = ", ".join([f"a.rotations[{4 * j + k}]" for k in (1, 2, 3, 4)] + [f"b.rotations[{4 * j + k}]" for k in (1, 2, 3, 4)])
-        terms.append(
-            f"CASE WHEN (plan).position_threshold[{t}] = 'Infinity' THEN 0 ELSE greatest(\n"
-            f"        CASE WHEN (plan).norm = 'l1' THEN {l1} ELSE {l2('positions', j)} END / (plan).position_threshold[{t}],\n"
-            f"        modb.quat_angle({rot}) / (plan).angle_threshold[{t}],\n"
-            f"        CASE WHEN (plan).velocity_terms THEN greatest({l2('velocities', j)} / (plan).velocity_threshold[{t}],\n"
-            f"             {l2('angular_velocities', j)} / (plan).angular_velocity_threshold[{t}]) ELSE 0 END) END")
-    return "greatest(\n    " + ",\n    ".join(terms) + ")"
+    return {"{{STANDARD_JOINTS}}": sql(namespace["STANDARD_JOINTS"]), "{{FEATURES}}": sql(namespace["FEATURES"])}
 
 
 def _expand(text: str, version: str) -> str:

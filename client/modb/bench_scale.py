@@ -9,6 +9,7 @@ bytes per snippet, and throughput with pgbench and the shipped script at 1, 2 an
 """
 from __future__ import annotations
 
+import os
 import re
 import statistics
 import subprocess
@@ -21,6 +22,7 @@ import psycopg
 
 from modb_kernel import transitions
 
+PGBENCH = "/usr/lib/postgresql/15/bin/pgbench"  # postgresql-15's own (Debian keeps it off PATH)
 PGBENCH_SCRIPT = Path(__file__).resolve().parents[2] / "bench" / "select_next_snippet.pgbench"
 FUNCTION = "SELECT snippet_id, relax_level FROM modb.select_next_snippet(%s, %s, %s)"
 LEVELS = (1.0, 2.0, 4.0, 8.0)  # relaxation levels 0-3 scale every threshold; level 4 takes the nearest
@@ -180,13 +182,14 @@ def pgbench(dsn: str, clients: int, seconds: int) -> float:
     plans, no JIT."""
     with psycopg.connect(dsn) as conn:
         low, high = conn.execute("SELECT min(id), max(id) FROM modb.snippets").fetchone()
-    params = psycopg.conninfo.conninfo_to_dict(dsn)
-    env = {"PGOPTIONS": "-c jit=off -c plan_cache_mode=force_generic_plan", "PATH": "/usr/bin:/bin",
-           **{f"PG{k.upper()}": str(v) for k, v in params.items() if k in ("host", "port", "user", "dbname")}}
-    binary = next(p for p in ("/usr/lib/postgresql/15/bin/pgbench", "pgbench") if Path(p).exists() or p == "pgbench")
-    out = subprocess.run([binary, "-n", "-M", "prepared", "-T", str(seconds), "-c", str(clients),
-                          "-j", str(min(clients, 2)), "-f", str(PGBENCH_SCRIPT), "-D", f"low={low}", "-D", f"high={high}"],
-                         capture_output=True, text=True, env=env, check=True).stdout
+    env = {**os.environ, "PGOPTIONS": "-c jit=off -c plan_cache_mode=force_generic_plan"}
+    out = subprocess.run([PGBENCH, "-n", "-M", "prepared", "-T", str(seconds), "-c", str(clients),
+                          "-j", str(min(clients, 2)), "-f", str(PGBENCH_SCRIPT), "-D", f"low={low}", "-D", f"high={high}",
+                          dsn],  # pgbench takes a conninfo string where a database name goes
+                         capture_output=True, text=True, env=env)
+    if out.returncode != 0:
+        raise RuntimeError(f"pgbench failed: {out.stderr.strip()}")
+    out = out.stdout
     return float(re.search(r"tps = ([0-9.]+) \(without initial connection time\)", out).group(1))
 
 

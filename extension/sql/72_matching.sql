@@ -115,14 +115,7 @@ END;
 COMMENT ON FUNCTION modb._thresholds(jsonb, text[], text[]) IS
     'Internal: a threshold per joint from a number or {"default": x, "<joint>": y}; Infinity for joints not included';
 
-CREATE FUNCTION modb.continuity_ratio(a modb.terminators, b modb.terminators, plan modb.match_plan)
-RETURNS float8
-LANGUAGE sql IMMUTABLE CALLED ON NULL INPUT PARALLEL SAFE
--- One expression over every standard joint, written out by build_sql.py so the planner can inline it
--- (an aggregate over unnest() cost ~0.5 ms a row); a joint the profile leaves out has infinite thresholds.
-RETURN {{CONTINUITY_RATIO}};
-COMMENT ON FUNCTION modb.continuity_ratio(modb.terminators, modb.terminators, modb.match_plan) IS
-    'max over included joints of difference/threshold (position by the profile''s norm, quaternion angle, velocities): <= 1 within thresholds';
+-- modb.continuity_ratio: 72_matching_continuity.sql
 
 CREATE FUNCTION modb.match_box(features cube, plan modb.match_plan, scale float8)
 RETURNS cube

@@ -1,0 +1,123 @@
+/*
+ * The continuity ratio of a seam, in C: select_next_snippet scores every candidate the search box yields
+ * with it, and as an inlined SQL expression over the terminators' arrays it cost ~0.1 ms a candidate
+ * (BENCHMARKS.md "Selection at scale"). The arithmetic is the SQL expression's, operation for operation
+ * (float4 differences widened to float8, pow(x, 2), sqrt, 4 * atan2 of the quaternion chords, the L1 sum
+ * in float4), so both give the same value to the last bit and the same rows.
+ */
+#include "postgres.h"
+
+#include <math.h>
+
+#include "executor/executor.h"
+#include "fmgr.h"
+#include "utils/array.h"
+#include "utils/builtins.h"
+
+#define N_JOINTS 19
+
+PG_FUNCTION_INFO_V1(modb_continuity_ratio);
+
+/* A one-dimensional array without NULLs of `length` elements of the given type, from a composite's field. */
+static void *
+field_array(HeapTupleHeader row, const char *name, Oid element, int length)
+{
+	bool		isnull;
+	Datum		value = GetAttributeByName(row, name, &isnull);
+	ArrayType  *array;
+
+	if (isnull)
+		ereport(ERROR, (errcode(ERRCODE_NULL_VALUE_NOT_ALLOWED), errmsg("continuity_ratio: %s is NULL", name)));
+	array = DatumGetArrayTypeP(value);
+	if (ARR_ELEMTYPE(array) != element || ARR_NDIM(array) != 1 || ARR_HASNULL(array)
+		|| ARR_DIMS(array)[0] != length)
+		ereport(ERROR, (errcode(ERRCODE_INVALID_PARAMETER_VALUE),
+						errmsg("continuity_ratio: %s must be %d values without NULLs", name, length)));
+	return ARR_DATA_PTR(array);
+}
+
+/*
+ * SQL's x ^ 2 calls libm's pow(), which may differ from x * x in the last bit; a constant exponent would
+ * let the compiler turn pow(x, 2.0) into x * x.
+ */
+static volatile double two = 2.0;
+
+static double
+square(float difference)
+{
+	return pow((double) difference, two);
+}
+
+/* sqrt of the sum of squared float4 differences of three components (the SQL's l2). */
+static double
+l2(const float *a, const float *b)
+{
+	return sqrt(square(a[0] - b[0]) + square(a[1] - b[1]) + square(a[2] - b[2]));
+}
+
+/* modb.quat_angle: 4 * atan2 of the smaller and larger chords between q and +-r, in float8. */
+static double
+quat_angle(const float *a, const float *b)
+{
+	double		minus = sqrt(pow((double) a[0] - (double) b[0], two) + pow((double) a[1] - (double) b[1], two)
+							 + pow((double) a[2] - (double) b[2], two) + pow((double) a[3] - (double) b[3], two));
+	double		plus = sqrt(pow((double) a[0] + (double) b[0], two) + pow((double) a[1] + (double) b[1], two)
+							+ pow((double) a[2] + (double) b[2], two) + pow((double) a[3] + (double) b[3], two));
+
+	return 4 * atan2(Min(minus, plus), Max(minus, plus));
+}
+
+Datum
+modb_continuity_ratio(PG_FUNCTION_ARGS)
+{
+	HeapTupleHeader a = PG_GETARG_HEAPTUPLEHEADER(0);
+	HeapTupleHeader b = PG_GETARG_HEAPTUPLEHEADER(1);
+	HeapTupleHeader plan = PG_GETARG_HEAPTUPLEHEADER(2);
+	const float *a_pos = field_array(a, "positions", FLOAT4OID, 3 * N_JOINTS);
+	const float *b_pos = field_array(b, "positions", FLOAT4OID, 3 * N_JOINTS);
+	const float *a_rot = field_array(a, "rotations", FLOAT4OID, 4 * N_JOINTS);
+	const float *b_rot = field_array(b, "rotations", FLOAT4OID, 4 * N_JOINTS);
+	const float *a_vel = field_array(a, "velocities", FLOAT4OID, 3 * N_JOINTS);
+	const float *b_vel = field_array(b, "velocities", FLOAT4OID, 3 * N_JOINTS);
+	const float *a_ang = field_array(a, "angular_velocities", FLOAT4OID, 3 * N_JOINTS);
+	const float *b_ang = field_array(b, "angular_velocities", FLOAT4OID, 3 * N_JOINTS);
+	const double *position_threshold = field_array(plan, "position_threshold", FLOAT8OID, N_JOINTS);
+	const double *angle_threshold = field_array(plan, "angle_threshold", FLOAT8OID, N_JOINTS);
+	const double *velocity_threshold = field_array(plan, "velocity_threshold", FLOAT8OID, N_JOINTS);
+	const double *angular_threshold = field_array(plan, "angular_velocity_threshold", FLOAT8OID, N_JOINTS);
+	bool		isnull;
+	Datum		norm = GetAttributeByName(plan, "norm", &isnull);
+	bool		l1_norm = !isnull && strcmp(TextDatumGetCString(norm), "l1") == 0;
+	Datum		velocity_terms = GetAttributeByName(plan, "velocity_terms", &isnull);
+	bool		with_velocities = !isnull && DatumGetBool(velocity_terms);
+	double		ratio = -INFINITY;
+
+	for (int j = 0; j < N_JOINTS; j++)
+	{
+		const float *pa = a_pos + 3 * j, *pb = b_pos + 3 * j;
+		double		term;
+		double		position;
+
+		if (isinf(position_threshold[j]) && position_threshold[j] > 0)
+		{
+			ratio = Max(ratio, 0.0);	/* a joint the profile leaves out */
+			continue;
+		}
+		if (l1_norm)
+		{
+			float		sum = fabsf(pa[0] - pb[0]) + fabsf(pa[1] - pb[1]);
+
+			sum = sum + fabsf(pa[2] - pb[2]);
+			position = (double) sum;
+		}
+		else
+			position = l2(pa, pb);
+		term = Max(position / position_threshold[j], quat_angle(a_rot + 4 * j, b_rot + 4 * j) / angle_threshold[j]);
+		term = Max(term, with_velocities
+				   ? Max(l2(a_vel + 3 * j, b_vel + 3 * j) / velocity_threshold[j],
+						 l2(a_ang + 3 * j, b_ang + 3 * j) / angular_threshold[j])
+				   : 0.0);
+		ratio = Max(ratio, term);
+	}
+	PG_RETURN_FLOAT8(ratio);
+}
