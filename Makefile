@@ -14,7 +14,7 @@ APT_PACKAGES := postgresql-15 postgresql-plpython3-15 postgresql-15-pgtap gcc ma
 WEB := client/modb/web
 EXTVERSION := $(shell sed -n "s/^default_version *= *'\(.*\)'/\1/p" extension/modb.control)
 
-.PHONY: setup apt extension venv web test demo bench-load bench-select bench-synth clean
+.PHONY: setup apt extension venv web test demo bench bench-data bench-load bench-select bench-synth clean
 
 setup: apt extension venv web
 
@@ -68,11 +68,18 @@ demo: setup
 bench-load: setup
 	$(VENV)/bin/modb bench load --data "$(DATA)/bandai-1"
 
-# Selection latency on all real data in $(DATA), mirrored, beside a sequential scan (see BENCHMARKS.md).
-# Loads into the embedded database first (once: re-loads store nothing new).
-bench-select: setup
+# All real data in $(DATA), mirrored, in the embedded database (once: re-loads store nothing new).
+bench-data: setup
 	$(VENV)/bin/modb load "$(DATA)/bandai-1" "$(DATA)/bandai-2-dev" --mirror --quiet
 	$(VENV)/bin/modb load "$(DATA)"/cmu/131/*.amc "$(DATA)"/cmu/01/*.amc --collection cmu --mirror --quiet
+
+# Selection at scale: select_next_snippet at ~10k, ~100k and all snippets beside the paper's flat query,
+# numpy and a k-d tree, candidates, index and pgbench (see BENCHMARKS.md "Selection at scale").
+bench: bench-data
+	$(VENV)/bin/modb bench scale --queries 100
+
+# Selection latency on all real data beside a sequential scan of the same query (see BENCHMARKS.md).
+bench-select: bench-data
 	$(VENV)/bin/modb bench select --queries 100
 
 # A seeded 10-minute course on Bandai dataset 2 locomotion and its transition graph, in a database of its

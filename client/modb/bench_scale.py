@@ -157,14 +157,20 @@ class Snapshot:
         return self._best(prev, members, target)
 
 
-def sized_database(admin: psycopg.Connection, source: str, name: str, size: int, seed: int) -> None:
-    """Database `name` (made once): a copy of `source` keeping whole clips, drawn in a seeded order, up to
-    `size` snippets; its index rebuilt, so that it is as compact as after a load of that size."""
-    if admin.execute("SELECT FROM pg_database WHERE datname = %s", [name]).fetchone():
-        return
-    admin.execute(f'CREATE DATABASE "{name}" TEMPLATE "{source}"')
-    dsn = admin.info.dsn.replace(f"dbname={admin.info.dbname}", f"dbname={name}")
-    with psycopg.connect(dsn, autocommit=True) as conn:
+def _with_dbname(dsn: str, name: str) -> str:
+    return psycopg.conninfo.make_conninfo(dsn, dbname=name)
+
+
+def sized_database(dsn: str, size: int, seed: int) -> str:
+    """A copy of the database at `dsn` (made once, kept for the next run) with whole clips drawn in a seeded
+    order up to `size` snippets, compacted as after a load of that size; its conninfo."""
+    source = psycopg.conninfo.conninfo_to_dict(dsn).get("dbname") or "modb"
+    name = f"{source}_{size}"
+    with psycopg.connect(_with_dbname(dsn, "postgres"), autocommit=True) as admin:
+        if admin.execute("SELECT FROM pg_database WHERE datname = %s", [name]).fetchone():
+            return _with_dbname(dsn, name)
+        admin.execute(f'CREATE DATABASE "{name}" TEMPLATE "{source}"')  # needs no other session on the source
+    with psycopg.connect(_with_dbname(dsn, name), autocommit=True) as conn:
         clips = conn.execute("SELECT clip_id, count(*) FROM modb.snippets GROUP BY clip_id ORDER BY clip_id").fetchall()
         order = np.random.default_rng(seed).permutation(len(clips))
         kept, total = set(), 0
@@ -175,6 +181,7 @@ def sized_database(admin: psycopg.Connection, source: str, name: str, size: int,
         conn.execute("DELETE FROM modb.clips WHERE NOT id = ANY (%s)", [sorted(kept)])
         conn.execute("VACUUM (FULL, ANALYZE) modb.snippets")
         conn.execute("VACUUM (FULL, ANALYZE) modb.terminators")
+    return _with_dbname(dsn, name)
 
 
 def pgbench(dsn: str, clients: int, seconds: int) -> float:
@@ -274,3 +281,15 @@ def report(name: str, r: dict) -> str:
         "- pgbench (shipped script, prepared): " + ", ".join(f"{k} client{'s' if k > 1 else ''} {v:,.0f}/s"
                                                             for k, v in r["tps"].items()) + ".",
     ])
+
+
+def bench_scale(dsn: str, sizes: list[int | None], queries: int, baseline_queries: int, seed: int, profile: str,
+                pgbench_seconds: int, progress=print) -> list[tuple[str, dict]]:
+    """Every size (None: the database at `dsn` itself, all it holds), smallest first."""
+    out = []
+    for size in sizes:
+        where = dsn if size is None else sized_database(dsn, size, seed)
+        name = "all the data" if size is None else f"about {size:,}"
+        progress(f"{name}:")
+        out.append((name, bench_database(where, queries, baseline_queries, seed, profile, pgbench_seconds, progress)))
+    return out

@@ -194,6 +194,17 @@ def cmd_bench(args: argparse.Namespace) -> int:
         print(f"seeded course (seed {args.seed}, goals 1-20 m apart), {args.seconds:g} s, profile {args.profile}{graph}:")
         print(summary)  # `modb synth --report` also lists every choice
         return 0
+    if args.what == "scale":
+        from .bench_scale import bench_scale, report as scale_report
+        from .dsn import resolve
+
+        sizes = [None if v == "all" else int(v) for v in args.sizes.split(",")]
+        print(f"modb bench scale: profile {args.profile}, {args.queries} seeded queries (seed {args.seed}); "
+              f"the flat query on the first {args.baseline_queries}", file=sys.stderr)
+        results = bench_scale(resolve(args.dsn)[0], sizes, args.queries, args.baseline_queries, args.seed,
+                              args.profile, args.pgbench_seconds, progress=lambda text: print(text, file=sys.stderr))
+        print("\n\n".join(scale_report(name, r) for name, r in results))
+        return 0
     if args.what == "select":
         from .bench_select import bench_select, bench_select_graph, report as select_report, report_graph
 
@@ -370,7 +381,14 @@ def build_parser() -> argparse.ArgumentParser:
     demo.set_defaults(func=cmd_demo)
 
     bench = sub.add_parser("bench", help="benchmarks (results go in BENCHMARKS.md)")
-    bench.add_argument("what", choices=["load", "select", "synth"])
+    bench.add_argument("what", choices=["load", "select", "synth", "scale"])
+    bench.add_argument("--sizes", default="10000,100000,all",
+                       help="scale: snippet counts to measure at (copies of the database with whole clips drawn up to "
+                            "that many; kept for the next run), 'all' for the database itself")
+    bench.add_argument("--baseline-queries", type=int, default=3,
+                       help="scale: how many of the queries the flat sequential query (a) also answers (it takes "
+                            "seconds to minutes each)")
+    bench.add_argument("--pgbench-seconds", type=int, default=10, help="scale: length of each pgbench run")
     bench.add_argument("--queries", type=int, default=200, help="select: number of seeded queries")
     bench.add_argument("--seed", type=int, default=1, help="select, synth: random seed")
     bench.add_argument("--profile", default="default", help="select, synth: match profile")

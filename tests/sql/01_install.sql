@@ -14,7 +14,7 @@ SELECT functions_are('modb', ARRAY[
     'annotations_ok', 'clip_versions_before_insert', 'clip_versions_before_update', 'skeletons_before_update',
     'collection_path', 'find_collection', 'ensure_collection', 'forward_kinematics', 'world_positions',
     'skeleton_pose_key', 'standard_joints', 'feature_names', 'quat_angle', 'max_joint_angle', 'weighted_joint_angle',
-    'match_knobs', 'session_settings', 'match_plan', '_thresholds', 'continuity_ratio', 'match_box', 'target_cost', 'aim_point', 'approach_cost', 'collection_subtree',
+    'match_knobs', 'session_settings', 'match_plan', '_thresholds', 'continuity_ratio', 'continuity_ratio_native', 'match_box', 'target_cost', 'aim_point', 'approach_cost', 'collection_subtree',
     'check_request', 'build_snippets', 'select_next_snippets', 'select_next_snippet', 'world_to_local', 'select_next_snippet_world',
     'local_to_world', 'synthesis_goal', 'synthesis_step_end', 'check_synthesis', 'synthesize', 'fill_futures', 'build_transition_graph', 'transition_key', 'cost_to_go', 'candidates_examined']);
 SELECT col_type_is('modb', 'clip_versions', 'rotations', 'real[]', 'rotations is real[]');
