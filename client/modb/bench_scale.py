@@ -167,7 +167,7 @@ def sized_database(dsn: str, size: int, seed: int) -> str:
     source = psycopg.conninfo.conninfo_to_dict(dsn).get("dbname") or "modb"
     name = f"{source}_{size}"
     with psycopg.connect(_with_dbname(dsn, "postgres"), autocommit=True) as admin:
-        if admin.execute("SELECT FROM pg_database WHERE datname = %s", [name]).fetchone():
+        if admin.execute("SELECT 1 FROM pg_database WHERE datname = %s", [name]).fetchone():
             return _with_dbname(dsn, name)
         admin.execute(f'CREATE DATABASE "{name}" TEMPLATE "{source}"')  # needs no other session on the source
     with psycopg.connect(_with_dbname(dsn, name), autocommit=True) as conn:
