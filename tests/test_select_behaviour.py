@@ -107,6 +107,32 @@ def test_explain_shows_the_inlined_function_and_the_gist_box(cmu):
         assert "Index Cond: (begin_features <@" in text
 
 
+def test_candidates_examined_is_what_the_box_scans_of_the_selection_returned(cmu):
+    # modb.candidates_examined recounts; EXPLAIN ANALYZE of the selection itself says what its box scans
+    # handed on (rows after the pose and rate filter), at each relaxation level it ran.
+    with connect(cmu) as conn:
+        ids = [r[0] for r in conn.execute("SELECT id FROM modb.snippets ORDER BY id")]
+        checked, counts = 0, set()
+        for knobs in ({}, {"position_threshold": "0.05"}, {"velocity_terms": "off", "norm": "l1"}):
+            conn.execute("SET jit = off")
+            for knob, value in knobs.items():
+                conn.execute("SELECT set_config(%s, %s, false)", [f"modb.{knob}", value])
+            for prev in ids[7::len(ids) // 8]:
+                level = conn.execute("SELECT relax_level FROM modb.select_next_snippet(%s, '{1,2}')", [prev]).fetchone()[0]
+                if level == 4:  # the nearest start configuration: an ordered scan, not a box
+                    continue
+                nodes = plan_nodes(conn, "SELECT * FROM modb.select_next_snippet(%s, '{1,2}')", [prev])
+                scanned = sum(n["Actual Rows"] * n["Actual Loops"] for n in nodes
+                              if n["Node Type"] in ("Bitmap Heap Scan", "Index Scan")
+                              and "begin_features <@" in n.get("Recheck Cond", "") + n.get("Index Cond", ""))
+                examined = conn.execute("SELECT modb.candidates_examined(%s, %s)", [prev, level]).fetchone()[0]
+                assert scanned == examined, (knobs, prev, level)
+                checked += 1
+                counts.add(examined)
+            conn.execute("RESET ALL")
+        assert checked >= 16 and len(counts) >= 8, (checked, counts)
+
+
 def test_reader_selects_loader_builds(cmu):
     with connect(cmu) as conn:
         conn.execute("DROP ROLE IF EXISTS t_reader")
