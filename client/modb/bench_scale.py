@@ -80,12 +80,13 @@ class Snapshot:
             "       (SELECT array_agg(cube_ll_coord(e.features, i) ORDER BY i) FROM generate_series(1, 25) i) "
             "  FROM modb.snippets s JOIN modb.terminators b ON b.id = s.begin_terminator "
             "  JOIN modb.terminators e ON e.id = s.end_terminator ORDER BY s.id").fetchall()
+        if not rows:
+            raise RuntimeError("no snippets stored: `modb load` builds them")
         plan = conn.execute("SELECT to_jsonb(p) FROM modb.match_plan(%s) p", [profile]).fetchone()[0]
         term = transitions.Terminators(*([r[c] for r in rows] + [r[c + 4] for r in rows] for c in range(8, 12)),
                                        [r[16] for r in rows] + [r[17] for r in rows])
         group = np.array([r[1] for r in rows])
         half = np.asarray(plan["box_half_width"], dtype=np.float64) + transitions.BOX_MARGIN
-        n = len(rows)
         trees = {}
         for g in np.unique(group):
             members = np.flatnonzero(group == g)
@@ -95,10 +96,10 @@ class Snapshot:
                    net=np.array([r[5] for r in rows], dtype=np.float64),
                    future=np.array([r[6] for r in rows], dtype=np.float64),
                    future_heading=np.array([r[7] for r in rows], dtype=np.float64), plan=plan,
-                   trees=trees) if n else None
+                   trees=trees)
 
     def _objective(self, rows: np.ndarray, target: list[float], ratio: np.ndarray) -> np.ndarray:
-        """approach_cost + continuity_weight x ratio, as select_next_snippets computes it."""
+        """approach_cost + continuity_weight x ratio, as select_next_snippets computes it ({x, z} targets)."""
         p = self.plan
         t = np.asarray(target, dtype=np.float64)
         reach = np.hypot(t[0], t[-1])
@@ -210,8 +211,6 @@ def bench_database(dsn: str, queries: int, baseline_queries: int, seed: int, pro
         t = time.perf_counter()
         snap = Snapshot.load(conn, profile)
         load_s = time.perf_counter() - t
-        if snap is None:
-            raise RuntimeError("no snippets stored: `modb load` builds them")
         rng = np.random.default_rng(seed)
         requests = [(int(rng.choice(snap.ids)), [float(v) for v in rng.uniform(-5, 5, size=2)]) for _ in range(queries)]
         conn.execute(FUNCTION, [requests[0][0], requests[0][1], profile], prepare=True).fetchone()  # plans once
