@@ -58,6 +58,10 @@ class Settings:
     knobs: dict[str, str] = field(default_factory=dict)  # SET modb.<knob> for this avatar's session (modb.match_knobs())
     count_candidates: bool = False  # report each choice's modb.candidates_examined (one more query, after it)
 
+    def session_knobs(self) -> dict[str, str]:
+        """What SET modb.<knob> a session selecting with these settings has ('' goes back to the profile's)."""
+        return {**self.knobs, "graph": self.graph or ""}
+
     def __post_init__(self) -> None:
         if not self.arrival_radius > 0:
             raise ValueError(f"arrival_radius must be positive, got {self.arrival_radius}")
@@ -203,7 +207,7 @@ class Avatar:
             exclude = [i for i, _ in self._recent]
         return {"prev": None if previous is None else previous.snippet_id, "position": list(where.position),
                 "heading": where.heading, "target": list(target), "profile": s.profile,
-                "collection": s.collection, "knobs": {**s.knobs, "graph": s.graph or ""}, "exclude": exclude,
+                "collection": s.collection, "knobs": s.session_knobs(), "exclude": exclude,
                 "count_candidates": s.count_candidates, "goal": goal_index + 1, "where": where,
                 "start_frame": 0 if previous is None else previous.end_frame,
                 "step": 0 if previous is None else previous.step + 1,

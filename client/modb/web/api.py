@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 import psycopg
+from modb_kernel.joints import STANDARD_JOINTS
 
 from ..clips import ClipNotFound, read_motion
 
@@ -145,8 +146,6 @@ def profiles(conn: psycopg.Connection) -> list[dict[str, Any]]:
 
 def avatar_choices(conn: psycopg.Connection) -> dict[str, Any]:
     """What the avatar panel offers: profiles, transition graphs (newest first), collections, joints."""
-    from modb_kernel.joints import STANDARD_JOINTS
-
     graphs = [r[0] for r in conn.execute("SELECT name FROM modb.graphs WHERE kind = 'transitions' "
                                          "ORDER BY created_at DESC, id DESC")]
     return {"profiles": profiles(conn), "graphs": graphs, "collections": [c["path"] for c in collections(conn)],

@@ -80,7 +80,7 @@ def check_settings(conn: psycopg.Connection, settings: Settings) -> None:
     own, so that the database says what is wrong before any avatar uses them."""
     try:
         with conn.transaction():
-            for knob, value in {**settings.knobs, "graph": settings.graph or ""}.items():
+            for knob, value in settings.session_knobs().items():
                 conn.execute("SELECT set_config(%s, %s, true)", [f"modb.{knob}", value])
             conn.execute("SELECT modb.match_plan(%s), modb.check_request(NULL, '{0,1}', 1, %s)",
                          [settings.profile, settings.collection])
@@ -203,12 +203,14 @@ class AvatarSession:
     def _play(self, avatar: Avatar) -> None:
         """Frames at the source rate; a readout after every selection."""
         due = time.monotonic()
+        reported = 0  # choices sent so far
         try:
             for frame in avatar.frames():
                 if self._stopping.is_set():
                     break
                 choice = avatar.choices[-1]
-                if frame.index == choice.start_frame + (0 if choice.step == 0 else 1):
+                if len(avatar.choices) > reported:  # the first frame of a new snippet
+                    reported = len(avatar.choices)
                     self._skeleton(avatar, choice)
                     self._send(choice_message(choice, avatar.course, avatar.choices))
                 due = max(due, time.monotonic())  # after a stall, on from now: no burst to catch up

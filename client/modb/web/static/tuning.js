@@ -24,6 +24,7 @@ function fixed(value, digits) {
 export class Tuning {
   constructor(root, send) {
     this.root = root;
+    this.$ = (id) => root.querySelector(`#${id}`);
     this.send = send;
     this.profiles = new Map();
   }
@@ -31,7 +32,7 @@ export class Tuning {
   // ready: what the server offers (profiles, graphs, collections, joints) and the settings in force.
   build(ready) {
     ready.profiles.forEach((p) => this.profiles.set(p.name, p.settings));
-    const $ = (id) => this.root.querySelector(`#${id}`);
+    const $ = this.$;
     options($('profile'), ready.profiles.map((p) => p.name));
     options($('graph'), ['', ...ready.graphs], ['none: every snippet', ...ready.graphs]);
     options($('collection'), ['', ...ready.collections], ['all', ...ready.collections]);
@@ -54,7 +55,7 @@ export class Tuning {
 
   // The settings in force, as the server says.
   show(settings) {
-    const $ = (id) => this.root.querySelector(`#${id}`);
+    const $ = this.$;
     $('profile').value = settings.profile;
     $('graph').value = settings.graph || '';
     $('collection').value = settings.collection || '';
@@ -68,7 +69,7 @@ export class Tuning {
   }
 
   changed(target) {
-    const $ = (id) => this.root.querySelector(`#${id}`);
+    const $ = this.$;
     if (target && target.id === 'profile') this.showJoints(this.profileJoints()); // its own joints, untouched
     const chosen = [...this.root.querySelectorAll('input[name=joint]:checked')].map((b) => b.value);
     const own = this.profileJoints();
@@ -88,7 +89,7 @@ export class Tuning {
   // After every selection: the chosen snippet and the figures over the last selections.
   showReadout(choice) {
     const r = choice.readout;
-    const $ = (id) => this.root.querySelector(`#${id}`);
+    const $ = this.$;
     $('latency').textContent = `${fixed(r.latency_p50_ms, 1)} / ${fixed(r.latency_p99_ms, 1)} ms`;
     $('selections').textContent = String(r.selections);
     $('candidates').textContent = choice.candidates === null ? '-' : String(choice.candidates);
