@@ -7,7 +7,7 @@ import numpy as np
 import psycopg
 import pytest
 
-from conftest import mocap, plan_nodes, run_modb, scratch_database
+from conftest import REPO, mocap, plan_nodes, run_modb, scratch_database
 from modb.connection import connect
 from modb.graphs import list_graphs
 
@@ -131,6 +131,37 @@ def test_candidates_examined_is_what_the_box_scans_of_the_selection_returned(cmu
                 counts.add(examined)
             conn.execute("RESET ALL")
         assert checked >= 16 and len(counts) >= 8, (checked, counts)
+
+
+FROZEN_0_6_0 = REPO / "extension" / "modb--0.6.0.sql"
+
+
+def test_the_c_continuity_ratio_equals_the_sql_expression_it_replaced_to_the_last_bit(cmu):
+    # 0.7.0 computes the ratio in C. The 0.6.0 expression (from its frozen install script, as a temporary
+    # function) is the reference: same float4 differences, pow(x, 2), atan2, so the same value, bit for bit.
+    text = FROZEN_0_6_0.read_text()
+    start = text.index("CREATE FUNCTION modb.continuity_ratio(a modb.terminators")
+    old = text[start:text.index("COMMENT ON FUNCTION modb.continuity_ratio(", start)].replace(
+        "CREATE FUNCTION modb.continuity_ratio(", "CREATE FUNCTION pg_temp.continuity_ratio_sql(", 1)
+    with connect(cmu) as conn:
+        conn.execute(old)
+        ends = [r[0] for r in conn.execute("SELECT end_terminator FROM modb.snippets ORDER BY id")]
+        compared = 0
+        for knobs in ({}, {"norm": "l1", "velocity_terms": "off", "joints": "pelvis,left_hip,head"},
+                      {"position_threshold": "0.05", "angle_threshold": "0.2"}):
+            conn.execute("RESET ALL")
+            for knob, value in knobs.items():
+                conn.execute("SELECT set_config(%s, %s, false)", [f"modb.{knob}", value])
+            for prev in ends[5::len(ends) // 3][:3]:
+                n, differ = conn.execute(
+                    "WITH p AS MATERIALIZED (SELECT modb.match_plan('default') AS plan), "
+                    "     q AS MATERIALIZED (SELECT t FROM modb.terminators t WHERE id = %s) "
+                    "SELECT count(*), count(*) FILTER (WHERE modb.continuity_ratio(q.t, b, p.plan) "
+                    "                                  IS DISTINCT FROM pg_temp.continuity_ratio_sql(q.t, b, p.plan)) "
+                    "  FROM p, q, (SELECT * FROM modb.terminators ORDER BY id LIMIT 2500) b", [prev]).fetchone()
+                assert differ == 0, (knobs, prev, differ)
+                compared += n
+        assert compared >= 20_000
 
 
 def test_reader_selects_loader_builds(cmu):
