@@ -73,8 +73,9 @@ bench-data: setup
 	$(VENV)/bin/modb load "$(DATA)/bandai-1" "$(DATA)/bandai-2-dev" --mirror --quiet
 	$(VENV)/bin/modb load "$(DATA)"/cmu/131/*.amc "$(DATA)"/cmu/01/*.amc --collection cmu --mirror --quiet
 
-# Selection at scale: select_next_snippet at ~10k, ~100k and all snippets beside the paper's flat query,
-# numpy and a k-d tree, candidates, index and pgbench (see BENCHMARKS.md "Selection at scale").
+# Selection at scale: select_next_snippet at ~10k, ~100k, all (~235k) and ~1M snippets (the real clips
+# again at other speeds) beside the paper's flat query, numpy and a k-d tree, candidates, index and pgbench
+# (see BENCHMARKS.md "Selection at scale").
 bench: bench-data
 	$(VENV)/bin/modb bench scale --queries 100
 

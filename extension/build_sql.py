@@ -103,7 +103,7 @@ def build_upgrade(source: pathlib.Path) -> str:
                 if path.name not in included:
                     parts.extend(_expand(m.group(0), version) for m in PLPYTHON_FUNCTION.finditer(path.read_text()))
         else:
-            parts.append(line)
+            parts.append(_expand(line, version))
     return "\n".join(parts)
 
 

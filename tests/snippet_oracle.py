@@ -18,6 +18,7 @@ STANDARD = ["pelvis", "spine", "chest", "neck", "head",
             "right_hip", "right_knee", "right_ankle", "right_toe", "right_shoulder", "right_elbow", "right_wrist"]
 FEATURE_POS = ["head", "left_wrist", "right_wrist", "left_ankle", "right_ankle"]
 FEATURE_VEL = ["pelvis", "left_ankle", "right_ankle"]
+FEATURE_ROT = ["neck", "head", "left_wrist", "right_wrist"]  # rotation-matrix columns x, y
 KNOBS = ("joints", "norm", "position_threshold", "angle_threshold", "velocity_threshold",
          "angular_velocity_threshold", "velocity_terms", "heading_weight", "continuity_weight",
          "lookahead_distance", "graph", "graph_lookahead", "graph_cost_to_go")
@@ -44,7 +45,7 @@ class ClipTerms:
     rot: np.ndarray  # (F, 19, 4)
     vel: np.ndarray
     angvel: np.ndarray
-    feat: np.ndarray  # (F, 25)
+    feat: np.ndarray  # (F, 49)
     pelvis: np.ndarray  # (F, 3) world
     heading: np.ndarray
 
@@ -97,8 +98,9 @@ def clip_terms(hierarchy: dict, joint_map: dict, rotations: np.ndarray, translat
         angvel.append((r[before].inv() * r[after]).as_rotvec() / dt[:, None])
     angvel = np.stack(angvel, axis=1)
     s = {name: i for i, name in enumerate(STANDARD)}
-    feat = np.concatenate([pos[:, [0], 1]] + [pos[:, s[j]] for j in FEATURE_POS] + [vel[:, s[j]] for j in FEATURE_VEL],
-                          axis=1)
+    matrices = {j: _rot(rot[:, s[j]]).as_matrix() for j in FEATURE_ROT}
+    feat = np.concatenate([pos[:, [0], 1]] + [pos[:, s[j]] for j in FEATURE_POS] + [vel[:, s[j]] for j in FEATURE_VEL]
+                          + [matrices[j][:, :, column] for j in FEATURE_ROT for column in (0, 1)], axis=1)
     return ClipTerms(pos, rot, vel, angvel, feat, world_p[:, pel], theta)
 
 

@@ -165,8 +165,8 @@ def features(locomotion) -> dict:
 
 def half_widths(features: dict, knobs: dict[str, str]) -> np.ndarray:
     """The box of the default profile with these knobs: a position feature of an included joint gets that
-    joint's position threshold, a velocity one its velocity threshold (with velocity terms on); the rest
-    are unbounded."""
+    joint's position threshold, a velocity one its velocity threshold (with velocity terms on), a
+    rotation-matrix entry the chord of its angle threshold; the rest are unbounded."""
     plan = resolve_profile(features["profiles"]["default"], knobs)
     included = [STANDARD_JOINTS[j] for j in plan["joints"]]
     out = []
@@ -174,6 +174,8 @@ def half_widths(features: dict, knobs: dict[str, str]) -> np.ndarray:
         joint, axis = name.split(".")
         if joint not in included or (axis.startswith("v") and not plan["velocity_terms"]):
             out.append(1e6)
+        elif axis.startswith("R"):
+            out.append(2 * np.sin(min(plan["angle_threshold"][included.index(joint)], np.pi) / 2))
         else:
             key = "velocity_threshold" if axis.startswith("v") else "position_threshold"
             out.append(plan[key][included.index(joint)])

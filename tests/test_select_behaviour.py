@@ -107,6 +107,40 @@ def test_explain_shows_the_inlined_function_and_the_gist_box(cmu):
         assert "Index Cond: (begin_features <@" in text
 
 
+def test_the_feature_index_finds_what_a_sequential_scan_finds(cmu):
+    # modb.cube_feature_ops keeps cube's search and changes how pages are filled: any mistake there loses or
+    # invents rows. Boxes of every relaxation scale and profile, and the nearest-first order of level 4.
+    with connect(cmu) as conn:
+        ends = [r[0] for r in conn.execute("SELECT end_terminator FROM modb.snippets ORDER BY id")]
+        compared = 0
+        for profile in ("default", "strict", "locomotion"):
+            for end in ends[3::len(ends) // 12]:
+                for scale in (1.0, 2.0, 8.0):
+                    box = conn.execute("SELECT modb.match_box(features, modb.match_plan(%s), %s) FROM modb.terminators "
+                                       "WHERE id = %s", [profile, scale, end]).fetchone()[0]
+                    query = "SELECT array_agg(id ORDER BY id) FROM modb.snippets WHERE begin_features <@ %s::cube"
+                    found = {}
+                    for scan, off in (("index", "enable_seqscan"), ("sequential", "enable_indexscan")):
+                        conn.execute("RESET ALL")
+                        conn.execute(f"SET {off} = off")
+                        conn.execute("SET enable_bitmapscan = %s" % ("off" if scan == "sequential" else "on"))
+                        used = [n.get("Index Name") for n in plan_nodes(conn, query, [box])]
+                        assert ("snippets_begin_features_idx" in used) == (scan == "index"), (scan, used)
+                        found[scan] = conn.execute(query, [box]).fetchone()[0]
+                    assert found["index"] == found["sequential"], (profile, end, scale)
+                    compared += len(found["index"] or [])
+            nearest = "SELECT array_agg(id) FROM (SELECT id FROM modb.snippets ORDER BY begin_features <-> " \
+                      "(SELECT features FROM modb.terminators WHERE id = %s), id LIMIT 20) n"
+            conn.execute("RESET ALL")
+            conn.execute("SET enable_seqscan = off")
+            by_index = conn.execute(nearest, [ends[5]]).fetchone()[0]
+            conn.execute("RESET ALL")
+            conn.execute("SET enable_indexscan = off")
+            assert by_index == conn.execute(nearest, [ends[5]]).fetchone()[0]
+        conn.execute("RESET ALL")
+        assert compared >= 1000, compared
+
+
 def test_candidates_examined_is_what_the_box_scans_of_the_selection_returned(cmu):
     # modb.candidates_examined recounts; EXPLAIN ANALYZE of the selection itself says what its box scans
     # handed on (rows after the pose and rate filter), at each relaxation level it ran.
@@ -180,11 +214,14 @@ def test_reader_selects_loader_builds(cmu):
 
 SNIPPET_ROWS = "SELECT id, clip_id, first_frame, begin_terminator, net_heading FROM modb.snippets " \
                "WHERE NOT mirrored ORDER BY id"
+FEATURES = "SELECT c.name, t.mirrored || '/' || t.frame, " \
+           "       (SELECT array_agg(cube_ll_coord(t.features, i) ORDER BY i) FROM generate_series(1, cube_dim(t.features)) i) " \
+           "FROM modb.terminators t JOIN modb.clips c ON c.id = t.clip_id ORDER BY 1, 2"
 MIRRORED_TERMINATORS = "SELECT c.name, t.frame, md5(t.rotations::text), md5(t.positions::text) FROM modb.terminators t " \
                        "JOIN modb.clips c ON c.id = t.clip_id WHERE t.mirrored ORDER BY 1, 2"
 
 
-@pytest.mark.parametrize("old", ["0.1.0", "0.2.0", "0.3.0", "0.4.0", "0.5.0", "0.6.0"])
+@pytest.mark.parametrize("old", ["0.1.0", "0.2.0", "0.3.0", "0.4.0", "0.5.0", "0.6.0", "0.7.0"])
 def test_update_keeps_the_data(cluster, fresh_db, db, old):
     current = db.execute("SELECT default_version FROM pg_available_extensions WHERE name = 'modb'").fetchone()[0]
     db.execute("DROP EXTENSION modb")
@@ -204,19 +241,20 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
                    "SELECT 'mine', settings FROM modb.match_profiles WHERE name = 'default'")
         mine = db.execute("SELECT settings FROM modb.match_profiles WHERE name = 'mine'").fetchone()[0]
     # A graph built before 0.5.0 stored no transitions: it keeps working through the box. One built by 0.5.0
-    # has no cost-to-go: it keeps ranking by where the candidates lead. One built by 0.6.0 keeps its costs.
-    if old in ("0.4.0", "0.5.0", "0.6.0"):
+    # has no cost-to-go: it keeps ranking by where the candidates lead. One built by 0.6.0 or later keeps its
+    # costs (0.8.0's wider feature cube changes no transition).
+    if old in ("0.4.0", "0.5.0", "0.6.0", "0.7.0"):
         db.execute("SELECT modb.build_transition_graph('old', 'locomotion', NULL, 0)")
     db.execute("ALTER EXTENSION modb UPDATE")
-    if old in ("0.4.0", "0.5.0", "0.6.0"):
+    if old in ("0.4.0", "0.5.0", "0.6.0", "0.7.0"):
         stored, costs = db.execute("SELECT count(*), count(cost_to_go) FROM modb.graph_transitions").fetchone()
-        assert (stored > 0) == (old != "0.4.0") and costs == (stored if old == "0.6.0" else 0), (stored, costs)
+        assert (stored > 0) == (old != "0.4.0") and costs == (stored if old >= "0.6.0" else 0), (stored, costs)
         db.execute("SET modb.graph = 'old'")
         chosen, in_graph = db.execute("SELECT count(*), count(g.snippet_id) FROM modb.synthesize('{{0,3}}', 4) s "
                                       "LEFT JOIN modb.graph_snippets g USING (snippet_id)").fetchone()
         assert chosen == 4 and in_graph == chosen
         db.execute("RESET modb.graph")
-        assert next(g for g in list_graphs(db) if g.name == "old").current == (old == "0.6.0")  # else rebuild it
+        assert next(g for g in list_graphs(db) if g.name == "old").current == (old >= "0.6.0")  # else rebuild it
     assert db.execute("SELECT extversion FROM pg_extension WHERE extname = 'modb'").fetchone()[0] == current
     assert db.execute("SELECT clip_id, version, n_frames, meta, md5(rotations::text) FROM modb.clip_versions "
                       "ORDER BY 1").fetchall() == before
@@ -226,6 +264,7 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
         # 0.2.0's mirror images had rotations in other joint frames: the update rebuilt them, as a fresh
         # install's load would (compared after the reinstall below).
         updated_mirrored = db.execute(MIRRORED_TERMINATORS).fetchall()
+        updated_features = db.execute(FEATURES).fetchall()
         assert len(updated_mirrored) == len(old_mirrored)
         assert (updated_mirrored != old_mirrored) == (old == "0.2.0")
         assert db.execute("SELECT count(*) FROM modb.snippets WHERE mirrored").fetchone()[0] > 0
@@ -276,6 +315,12 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
     if with_snippets:
         assert run_modb(fresh_db, "load", *files, "--mirror").returncode == 0
         assert db.execute(MIRRORED_TERMINATORS).fetchall() == updated_mirrored
+        # 0.8.0's update computes the new feature dimensions in SQL from the stored rotations; a load computes
+        # them in the kernel from float8: the same cube, to float4 rounding.
+        fresh = db.execute(FEATURES).fetchall()
+        assert [r[:2] for r in fresh] == [r[:2] for r in updated_features]
+        difference = np.abs(np.array([r[2] for r in fresh]) - np.array([r[2] for r in updated_features]))
+        assert difference.shape[1] == 49 and difference.max() < 1e-6, difference.max(axis=0)
 
 
 def test_new_versions_replace_their_snippets_and_other_ids_stay(fresh_db, db, tmp_path):

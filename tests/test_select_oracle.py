@@ -32,6 +32,19 @@ def loaded(cluster, tmp_path_factory):
             yield dsn, load_snippet_space(conn)
 
 
+def test_stored_features_are_the_oracles(loaded):
+    # The indexed cube, all 49 dimensions (positions, velocities, rotation-matrix columns), recomputed by the
+    # oracle's own kinematics and scipy's rotation matrices.
+    dsn, space = loaded
+    with connect(dsn) as conn:
+        names = conn.execute("SELECT modb.feature_names()").fetchone()[0]
+        stored = dict(conn.execute("SELECT id, begin_features::text FROM modb.snippets WHERE NOT mirrored").fetchall())
+    assert len(names) == space["feat"].shape[1] == 49 and len(stored) == len(space["id"])
+    mine = np.array([[float(v) for v in stored[i].strip("()").split(",")] for i in space["id"]])
+    worst = np.abs(mine - space["feat"]).max(axis=0)
+    assert worst.max() < 1e-4, dict(zip(names, worst))
+
+
 def _near_boundary(ratio: float) -> bool:
     return bool(np.any(np.abs(ratio - BOUNDARIES) < 1e-4 * BOUNDARIES))
 

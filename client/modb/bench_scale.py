@@ -22,6 +22,9 @@ import psycopg
 
 from modb_kernel import transitions
 
+from .bench_resampled import add_resampled_clips
+from .connection import connect
+
 PGBENCH = "/usr/lib/postgresql/15/bin/pgbench"  # postgresql-15's own (Debian keeps it off PATH)
 PGBENCH_SCRIPT = Path(__file__).resolve().parents[2] / "bench" / "select_next_snippet.pgbench"
 FUNCTION = "SELECT snippet_id, relax_level FROM modb.select_next_snippet(%s, %s, %s)"
@@ -52,11 +55,21 @@ SELECT c.id, l.level
 """
 
 
+def _chunks(conn: psycopg.Connection, query: str, size: int = 20000):
+    """The rows of `query` in chunks (a server-side cursor), so a million snippets never sit in Python lists."""
+    with conn.transaction(), conn.cursor(name="snapshot", binary=True) as cur:
+        cur.execute(query)
+        while rows := cur.fetchmany(size):
+            yield rows
+
+
 @dataclass
 class Snapshot:
     """Every snippet as stored, in arrays: what (b) and (c) search."""
     ids: np.ndarray
-    term: transitions.Terminators  # rows: begin terminators 0..n-1, then end terminators n..2n-1
+    term: transitions.Terminators  # every stored terminator
+    begin: np.ndarray  # each snippet's begin terminator (a row of term)
+    end: np.ndarray
     group: np.ndarray  # pose key and rate
     clip: np.ndarray  # clip, version, mirrored as one key
     first: np.ndarray
@@ -71,32 +84,32 @@ class Snapshot:
     def load(cls, conn: psycopg.Connection, profile: str) -> Snapshot:
         from scipy.spatial import cKDTree
 
-        rows = conn.execute(
-            "SELECT s.id, s.pose_key || '@' || s.fps, s.clip_id || '/' || s.version || '/' || s.mirrored, s.first_frame, "
-            "       s.n_frames, s.net_translation, s.future_translation, s.future_heading, "
-            "       b.positions, b.rotations, b.velocities, b.angular_velocities, "
-            "       e.positions, e.rotations, e.velocities, e.angular_velocities, "
-            "       (SELECT array_agg(cube_ll_coord(b.features, i) ORDER BY i) FROM generate_series(1, 25) i), "
-            "       (SELECT array_agg(cube_ll_coord(e.features, i) ORDER BY i) FROM generate_series(1, 25) i) "
-            "  FROM modb.snippets s JOIN modb.terminators b ON b.id = s.begin_terminator "
-            "  JOIN modb.terminators e ON e.id = s.end_terminator ORDER BY s.id").fetchall()
-        if not rows:
+        parts: list[list[np.ndarray]] = [[] for _ in range(6)]
+        for rows in _chunks(conn, "SELECT id, positions, rotations, velocities, angular_velocities, "
+                                  "(SELECT array_agg(cube_ll_coord(features, i) ORDER BY i) FROM generate_series(1, cube_dim(features)) i) "
+                                  "FROM modb.terminators ORDER BY id"):
+            for c, part in enumerate(parts):
+                part.append(np.array([r[c] for r in rows], dtype=np.float64 if c == 5 else np.float32))
+        term_ids, *columns = (np.concatenate(part) for part in parts)
+        term = transitions.Terminators(*columns)
+        parts = [[] for _ in range(10)]
+        for rows in _chunks(conn, "SELECT id, begin_terminator, end_terminator, pose_key || '@' || fps, "
+                                  "clip_id || '/' || version || '/' || mirrored, first_frame, n_frames, "
+                                  "net_translation, future_translation, future_heading FROM modb.snippets ORDER BY id"):
+            for c, part in enumerate(parts):
+                part.append(np.array([r[c] for r in rows], dtype=np.float64 if c >= 7 else None))
+        if not parts[0]:
             raise RuntimeError("no snippets stored: `modb load` builds them")
+        ids, begin, end, group, clip, first, n_frames, net, future, future_heading = (np.concatenate(p) for p in parts)
+        begin, end = np.searchsorted(term_ids, begin), np.searchsorted(term_ids, end)
         plan = conn.execute("SELECT to_jsonb(p) FROM modb.match_plan(%s) p", [profile]).fetchone()[0]
-        term = transitions.Terminators(*([r[c] for r in rows] + [r[c + 4] for r in rows] for c in range(8, 12)),
-                                       [r[16] for r in rows] + [r[17] for r in rows])
-        group = np.array([r[1] for r in rows])
         half = np.asarray(plan["box_half_width"], dtype=np.float64) + transitions.BOX_MARGIN
         trees = {}
         for g in np.unique(group):
             members = np.flatnonzero(group == g)
-            trees[g] = (members, cKDTree(term.features[members] / half))
-        return cls(ids=np.array([r[0] for r in rows]), term=term, group=group, clip=np.array([r[2] for r in rows]),
-                   first=np.array([r[3] for r in rows]), n_frames=np.array([r[4] for r in rows]),
-                   net=np.array([r[5] for r in rows], dtype=np.float64),
-                   future=np.array([r[6] for r in rows], dtype=np.float64),
-                   future_heading=np.array([r[7] for r in rows], dtype=np.float64), plan=plan,
-                   trees=trees)
+            trees[g] = (members, cKDTree(term.features[begin[members]] / half))
+        return cls(ids=ids, term=term, begin=begin, end=end, group=group, clip=clip, first=first, n_frames=n_frames,
+                   net=net, future=future, future_heading=future_heading, plan=plan, trees=trees)
 
     def _objective(self, rows: np.ndarray, target: list[float], ratio: np.ndarray) -> np.ndarray:
         """approach_cost + continuity_weight x ratio, as select_next_snippets computes it ({x, z} targets)."""
@@ -114,18 +127,18 @@ class Snapshot:
 
     def _best(self, prev: int, candidates: np.ndarray, target: list[float]) -> tuple[int, int] | None:
         """The function's choice among candidates (snippet rows): lowest level, then objective, then id."""
-        n = len(self.ids)
         overlap = ((self.clip[candidates] == self.clip[prev])
                    & (self.first[prev] + 1 <= self.first[candidates] + self.n_frames[candidates] - 1)
                    & (self.first[candidates] + 1 <= self.first[prev] + self.n_frames[prev] - 1))
         candidates = candidates[~overlap]
         if not len(candidates):
             return None
-        ratio = transitions.ratios(self.term, np.full(len(candidates), n + prev), candidates, self._thresholds())
+        ratio = transitions.ratios(self.term, np.full(len(candidates), self.end[prev]), self.begin[candidates],
+                                  self._thresholds())
         level = np.searchsorted(LEVELS, ratio, side="left")  # ratio <= 1: 0, <= 2: 1, ... > 8: 4
         lowest = level.min()
         if lowest == 4:
-            distance = np.linalg.norm(self.term.features[candidates] - self.term.features[n + prev], axis=1)
+            distance = np.linalg.norm(self.term.features[self.begin[candidates]] - self.term.features[self.end[prev]], axis=1)
             order = np.lexsort((self.ids[candidates], distance))
         else:
             at = level == lowest
@@ -149,7 +162,7 @@ class Snapshot:
         prev = int(np.searchsorted(self.ids, prev_id))
         members, tree = self.trees[self.group[prev]]
         half = np.asarray(self.plan["box_half_width"], dtype=np.float64)
-        point = self.term.features[len(self.ids) + prev]
+        point = self.term.features[self.end[prev]]
         for level, scale in enumerate(LEVELS):  # the tree's scale includes the box margin: a superset of the box
             ball = tree.query_ball_point(point / (half + transitions.BOX_MARGIN), r=scale, p=np.inf)
             best = self._best(prev, members[np.asarray(ball, dtype=np.int64)], target) if ball else None
@@ -162,26 +175,32 @@ def _with_dbname(dsn: str, name: str) -> str:
     return psycopg.conninfo.make_conninfo(dsn, dbname=name)
 
 
-def sized_database(dsn: str, size: int, seed: int) -> str:
-    """A copy of the database at `dsn` (made once, kept for the next run) with whole clips drawn in a seeded
-    order up to `size` snippets, compacted as after a load of that size; its conninfo."""
+def sized_database(dsn: str, size: int, seed: int, progress=print) -> str:
+    """A copy of the database at `dsn` (made once, kept for the next run) with `size` snippets, about; its
+    conninfo. Smaller: whole clips drawn in a seeded order, compacted as after a load of that size. Larger:
+    speed-resampled copies of its clips added (bench_resampled; an interrupted run resumes)."""
     source = psycopg.conninfo.conninfo_to_dict(dsn).get("dbname") or "modb"
     name = f"{source}_{size}"
     with psycopg.connect(_with_dbname(dsn, "postgres"), autocommit=True) as admin:
-        if admin.execute("SELECT 1 FROM pg_database WHERE datname = %s", [name]).fetchone():
-            return _with_dbname(dsn, name)
-        admin.execute(f'CREATE DATABASE "{name}" TEMPLATE "{source}"')  # needs no other session on the source
-    with psycopg.connect(_with_dbname(dsn, name), autocommit=True) as conn:
+        made = admin.execute("SELECT 1 FROM pg_database WHERE datname = %s", [name]).fetchone() is None
+        if made:
+            admin.execute(f'CREATE DATABASE "{name}" TEMPLATE "{source}"')  # needs no other session on the source
+    with connect(_with_dbname(dsn, name)) as conn:
         clips = conn.execute("SELECT clip_id, count(*) FROM modb.snippets GROUP BY clip_id ORDER BY clip_id").fetchall()
-        order = np.random.default_rng(seed).permutation(len(clips))
-        kept, total = set(), 0
-        for k in order:
-            if total + clips[k][1] <= size:
-                kept.add(clips[k][0])
-                total += clips[k][1]
-        conn.execute("DELETE FROM modb.clips WHERE NOT id = ANY (%s)", [sorted(kept)])
-        conn.execute("VACUUM (FULL, ANALYZE) modb.snippets")
-        conn.execute("VACUUM (FULL, ANALYZE) modb.terminators")
+        if size > sum(n for _, n in clips):
+            progress(f"  adding speed-resampled copies of the clips up to {size:,} snippets (once)")
+            add_resampled_clips(conn, size, seed, progress)
+            conn.execute("VACUUM ANALYZE modb.snippets, modb.terminators")
+        elif made:
+            order = np.random.default_rng(seed).permutation(len(clips))
+            kept, total = set(), 0
+            for k in order:
+                if total + clips[k][1] <= size:
+                    kept.add(clips[k][0])
+                    total += clips[k][1]
+            conn.execute("DELETE FROM modb.clips WHERE NOT id = ANY (%s)", [sorted(kept)])
+            conn.execute("VACUUM (FULL, ANALYZE) modb.snippets")
+            conn.execute("VACUUM (FULL, ANALYZE) modb.terminators")
     return _with_dbname(dsn, name)
 
 
@@ -240,12 +259,14 @@ def bench_database(dsn: str, queries: int, baseline_queries: int, seed: int, pro
         t = time.perf_counter()
         conn.execute("REINDEX INDEX modb.snippets_begin_features_idx")
         index_s = time.perf_counter() - t
+        resampled = conn.execute("SELECT count(*) FROM modb.snippets s JOIN modb.clips c ON c.id = s.clip_id "
+                                 "WHERE modb.collection_path(c.collection_id) LIKE 'resampled-x%'").fetchone()[0]
         index_bytes, table_bytes = conn.execute(
             "SELECT pg_relation_size('modb.snippets_begin_features_idx'), sum(pg_total_relation_size(c)) "
             "FROM unnest(ARRAY['modb.snippets', 'modb.terminators', 'modb.snippet_sources']::regclass[]) AS c").fetchone()
     progress("  pgbench")
     tps = {c: pgbench(dsn, c, pgbench_seconds) for c in (1, 2, 8)}
-    return {**out, "snippets": len(snap.ids), "same_flat": same_flat, "same_numpy": same_numpy,
+    return {**out, "snippets": len(snap.ids), "resampled": resampled, "same_flat": same_flat, "same_numpy": same_numpy,
             "baseline_queries": baseline_queries, "queries": queries, "index_s": index_s, "index_bytes": index_bytes,
             "bytes_per_snippet": table_bytes / len(snap.ids), "snapshot_s": load_s, "tps": tps}
 
@@ -263,6 +284,8 @@ def report(name: str, r: dict) -> str:
     return "\n".join([
         f"### {name}: {r['snippets']:,} snippets",
         "",
+        *([f"{r['resampled']:,} of them are speed-resampled copies of the real clips (bench_resampled.py).", ""]
+          if r["resampled"] else []),
         "| | p50 ms | p99 ms |",
         "|---|---|---|",
         row("select_next_snippet (prepared, generic plan)", r["function_ms"]),
@@ -287,7 +310,7 @@ def bench_scale(dsn: str, sizes: list[int | None], queries: int, baseline_querie
     """Every size (None: the database at `dsn` itself, all it holds), smallest first."""
     out = []
     for size in sizes:
-        where = dsn if size is None else sized_database(dsn, size, seed)
+        where = dsn if size is None else sized_database(dsn, size, seed, progress)
         name = "all the data" if size is None else f"about {size:,}"
         progress(f"{name}:")
         out.append((name, bench_database(where, queries, baseline_queries, seed, profile, pgbench_seconds, progress)))

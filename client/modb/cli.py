@@ -382,9 +382,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     bench = sub.add_parser("bench", help="benchmarks (results go in BENCHMARKS.md)")
     bench.add_argument("what", choices=["load", "select", "synth", "scale"])
-    bench.add_argument("--sizes", default="10000,100000,all",
-                       help="scale: snippet counts to measure at (copies of the database with whole clips drawn up to "
-                            "that many; kept for the next run), 'all' for the database itself")
+    bench.add_argument("--sizes", default="10000,100000,all,1000000",
+                       help="scale: snippet counts to measure at, 'all' for the database itself; copies of the "
+                            "database (kept for the next run) with whole clips drawn up to a smaller count, or "
+                            "speed-resampled copies of its clips added up to a larger one (a million takes about "
+                            "half an hour to build, once)")
     bench.add_argument("--baseline-queries", type=int, default=3,
                        help="scale: how many of the queries the flat sequential query (a) also answers (it takes "
                             "seconds to minutes each)")

@@ -137,7 +137,13 @@ class Cluster:
                 conn.execute(f'CREATE DATABASE "{dbname}"')
         with psycopg.connect(self.dsn(dbname), autocommit=True) as conn:
             conn.execute("CREATE EXTENSION IF NOT EXISTS modb CASCADE")
+            version = "SELECT string_to_array(extversion, '.')::int[] FROM pg_extension WHERE extname = 'modb'"
+            before = conn.execute(version).fetchone()[0]
             conn.execute("ALTER EXTENSION modb UPDATE")
+            if before < [0, 8, 0] <= conn.execute(version).fetchone()[0]:
+                # 0.8.0 rewrote every feature cube; its upgrade script cannot VACUUM, so the index is rebuilt here
+                conn.execute("VACUUM ANALYZE modb.snippets, modb.terminators")
+                conn.execute("REINDEX INDEX modb.snippets_begin_features_idx")
 
     def stop(self) -> None:
         if self.is_running():

@@ -39,7 +39,7 @@ CREATE TABLE modb.terminators (
     velocities         real[] NOT NULL CHECK (array_length(velocities, 1) = 57),
     angular_velocities real[] NOT NULL CHECK (array_length(angular_velocities, 1) = 57),
     configuration      real[] NOT NULL,
-    features           cube NOT NULL CHECK (cube_dim(features) = 25),
+    features           cube NOT NULL CONSTRAINT terminators_features_check CHECK (cube_dim(features) = 49),
     UNIQUE (clip_id, version, mirrored, frame),
     FOREIGN KEY (clip_id, version, mirrored) REFERENCES modb.snippet_sources ON DELETE CASCADE
 );
@@ -56,7 +56,7 @@ COMMENT ON COLUMN modb.terminators.angular_velocities IS
 COMMENT ON COLUMN modb.terminators.configuration IS
     'real[n_joints][4]: every joint''s unit quaternion (skeleton order); the pelvis in the heading frame';
 COMMENT ON COLUMN modb.terminators.features IS
-    'The indexed feature vector, physical units: modb.feature_names() lists its 25 dimensions';
+    'The indexed feature vector, physical units: modb.feature_names() lists its 49 dimensions';
 
 CREATE TABLE modb.snippets (
     id               bigserial PRIMARY KEY,
@@ -88,7 +88,7 @@ COMMENT ON COLUMN modb.snippets.future_translation IS
     'Where playing on leads: pelvis travel over this snippet and up to two play-on snippets of its clip (1.5 s for 0.5 s windows), in the heading frame of its first frame; the objective of select_next_snippet';
 COMMENT ON COLUMN modb.snippets.future_heading IS 'The heading change over the same frames as future_translation (radians)';
 
-CREATE INDEX snippets_begin_features_idx ON modb.snippets USING gist (begin_features);
+-- The feature index's operator class: 70_snippets_index.sql
 CREATE INDEX snippets_clip_idx ON modb.snippets (clip_id, version, mirrored, first_frame);
 CREATE INDEX snippets_pose_key_idx ON modb.snippets (pose_key, fps);
 -- For the foreign keys: deleting a clip version's terminators must not scan every snippet per row.

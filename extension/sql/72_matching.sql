@@ -12,7 +12,7 @@ CREATE FUNCTION modb.feature_names()
 RETURNS text[]
 LANGUAGE sql IMMUTABLE PARALLEL SAFE
 RETURN {{FEATURES}};  -- written by build_sql.py from modb_kernel/joints.py
-COMMENT ON FUNCTION modb.feature_names() IS 'The 25 dimensions of the indexed feature cube, in order (metres, m/s)';
+COMMENT ON FUNCTION modb.feature_names() IS 'The 49 dimensions of the indexed feature cube, in order (metres, m/s, and rotation-matrix entries)';
 
 CREATE FUNCTION modb.quat_angle(aw float8, ax float8, ay float8, az float8, bw float8, bx float8, by float8, bz float8)
 RETURNS float8

@@ -97,7 +97,9 @@ BEGIN
     position_by_joint := plan.position_threshold;
     velocity_by_joint := plan.velocity_threshold;
     -- Box half-widths: a feature of an included joint gets that joint's threshold (an L1 or L2 ball
-    -- lies inside the box of its radius, so the box loses no candidate); the others are unbounded.
+    -- lies inside the box of its radius, so the box loses no candidate); the others are unbounded. A
+    -- rotation-matrix entry moves by at most 2 sin(angle / 2) (R e - R' e is a chord of the unit sphere),
+    -- and 2 sin(s x / 2) <= s x 2 sin(x / 2) for the relaxation scales s >= 1, so scaling the box stays exact.
     plan.box_half_width := '{}';
     FOREACH feature IN ARRAY features LOOP
         joint := split_part(feature, '.', 1);
@@ -106,6 +108,7 @@ BEGIN
             WHEN joint <> ALL (joint_names) THEN 1e6::float8  -- unbounded, without infinities in the cube
             WHEN split_part(feature, '.', 2) LIKE 'v_' THEN
                 CASE WHEN plan.velocity_terms THEN velocity_by_joint[s] ELSE 1e6::float8 END
+            WHEN split_part(feature, '.', 2) LIKE 'R__' THEN 2 * sin(least(plan.angle_threshold[s], pi()) / 2)
             ELSE position_by_joint[s] END;
     END LOOP;
     RETURN plan;

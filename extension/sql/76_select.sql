@@ -28,7 +28,8 @@ WITH cfg AS MATERIALIZED (
            -- the grid of the graph's cost-to-go, when it has one and the plan ranks by it
            (SELECT g.data->'cost_to_go' FROM modb.graphs g WHERE g.id = (plan).graph_id AND (plan).graph_cost_to_go) AS cost_grid
       FROM (SELECT modb.match_plan(profile) AS plan, modb.check_request(prev_snippet, target, k, collection) AS checked,
-                   CASE WHEN collection IS NULL THEN NULL ELSE modb.collection_subtree(collection) END AS collections) resolved
+                   CASE WHEN collection IS NULL THEN NULL ELSE modb.collection_subtree(collection) END AS collections
+            OFFSET 0) resolved  -- not flattened: match_plan runs once, not once per (plan).field above
 ), prev AS MATERIALIZED (
     SELECT t AS term, t.features, s.pose_key, s.fps
       FROM modb.snippets s JOIN modb.terminators t ON t.id = s.end_terminator

@@ -12,12 +12,13 @@ Definitions (README "Snippets and terminators" documents them; tests re-derive t
   frame's heading frame. Angular velocity: the pelvis's world angular velocity in the heading frame; other
   joints' from their parent-relative rotations, in their own frame.
 - Features (the GiST-indexed cube, physical units): pelvis height; head, wrists and ankles positions;
-  pelvis and ankles velocities (FEATURES lists the 25 dimensions).
+  pelvis and ankles velocities; the first two columns of the neck's, head's and wrists' rotation matrices
+  (joints.FEATURES lists the 49 dimensions).
 """
 import numpy as np
 
 from . import kinematics, quaternion
-from .joints import FEATURE_POSITIONS, FEATURE_VELOCITIES, STANDARD_JOINTS
+from .joints import FEATURE_POSITIONS, FEATURE_ROTATIONS, FEATURE_VELOCITIES, STANDARD_JOINTS
 
 HEADING_HALF_WINDOW_S = 0.25
 
@@ -45,6 +46,15 @@ def _rotvec(q):
     s = np.linalg.norm(v, axis=-1, keepdims=True)
     angle = 2.0 * np.arctan2(s, q[..., :1])
     return np.where(s > 1e-12, v / np.maximum(s, 1e-300) * angle, 2.0 * v)
+
+
+def rotation_features(rotations):
+    """The rotation part of the features: for each of joints.FEATURE_ROTATIONS, R e_x then R e_y of its
+    rotation (rotations: (..., 19, 4) as stored, standard joint order)."""
+    rotations = np.asarray(rotations, dtype=np.float64)
+    columns = [quaternion.rotate(rotations[..., STANDARD_JOINTS.index(j), :], np.array(axis, dtype=np.float64))
+               for j in FEATURE_ROTATIONS for axis in ((1, 0, 0), (0, 1, 0))]
+    return np.concatenate(columns, axis=-1)
 
 
 def _neighbours(n):
@@ -101,7 +111,7 @@ def compute(parents, offsets, rotations, translations, translated, std, fps):
     features = np.concatenate(
         [local_positions[:, [pelvis_s], 1]]
         + [local_positions[:, idx[j]] for j in FEATURE_POSITIONS]
-        + [local_velocities[:, idx[j]] for j in FEATURE_VELOCITIES], axis=1)
+        + [local_velocities[:, idx[j]] for j in FEATURE_VELOCITIES] + [rotation_features(local_rotations)], axis=1)
     return {
         "heading": theta, "pelvis": positions[:, pelvis], "pelvis_height": positions[:, pelvis, 1],
         "positions": local_positions, "rotations": local_rotations, "velocities": local_velocities,

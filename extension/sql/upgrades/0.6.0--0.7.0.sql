@@ -1,4 +1,0 @@
--- 0.7.0: modb.candidates_examined, how many candidates a selection scored (the avatar view's readout).
---@include 77_candidates.sql
--- The continuity ratio in C (the same values; select_next_snippet's exact check ~100x faster).
---@include 72_matching_continuity.sql
