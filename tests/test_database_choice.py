@@ -61,6 +61,9 @@ def test_embedded_cluster_lifecycle():
             conn.execute("CREATE FUNCTION pg_temp.numpy_file() RETURNS text LANGUAGE plpython3u "
                          "AS $$ import numpy; return numpy.__file__ $$")
             numpy_file = conn.execute("SELECT pg_temp.numpy_file()").fetchone()[0]
+            shared_mb = conn.execute("SELECT setting::bigint * 8 / 1024 FROM pg_settings WHERE name = 'shared_buffers'").fetchone()[0]
+        memory_kb = int(next(line.split()[1] for line in open("/proc/meminfo") if line.startswith("MemTotal:")))
+        assert shared_mb == max(128, min(8192, memory_kb // 4 // 1024)), shared_mb  # a quarter of the memory
         assert numpy_file.startswith("/usr/lib/python3/dist-packages/"), numpy_file
         assert _modb(home, "db", "stop").returncode == 0
         r = _modb(home, "db", "status")

@@ -187,7 +187,9 @@ def sized_database(dsn: str, size: int, seed: int, progress=print) -> str:
             admin.execute(f'CREATE DATABASE "{name}" TEMPLATE "{source}"')  # needs no other session on the source
     with connect(_with_dbname(dsn, name)) as conn:
         clips = conn.execute("SELECT clip_id, count(*) FROM modb.snippets GROUP BY clip_id ORDER BY clip_id").fetchall()
-        if size > sum(n for _, n in clips):
+        resampling = conn.execute("SELECT EXISTS (SELECT FROM modb.clips "
+                                  "WHERE modb.collection_path(collection_id) LIKE 'resampled-x%')").fetchone()[0]
+        if size > sum(n for _, n in clips) and (made or resampling):  # made now, or an interrupted run's
             progress(f"  adding speed-resampled copies of the clips up to {size:,} snippets (once)")
             add_resampled_clips(conn, size, seed, progress)
             conn.execute("VACUUM ANALYZE modb.snippets, modb.terminators")
