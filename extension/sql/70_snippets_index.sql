@@ -14,7 +14,7 @@ RETURNS internal
 LANGUAGE c IMMUTABLE STRICT PARALLEL SAFE
 AS 'MODULE_PATHNAME', 'modb_cube_picksplit';
 COMMENT ON FUNCTION modb.feature_cube_picksplit(internal, internal) IS
-    'GiST support (modb.cube_feature_ops): splits a page at the median of the dimension its entries spread the most along';
+    'GiST support (modb.cube_feature_ops): the R*-tree''s split, with sums of extents in place of volumes';
 
 CREATE OPERATOR CLASS modb.cube_feature_ops FOR TYPE cube USING gist AS
     OPERATOR 3 &&,

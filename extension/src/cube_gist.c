@@ -4,8 +4,10 @@
  * extents: they underflow to zero, or are zero outright where a joint never moves in some skeleton, so
  * nearly every insert sees penalty 0 and lands anywhere, and a selection's box overlaps most pages
  * (BENCHMARKS.md "Selection at scale"). Here the penalty is the growth of the sum of extents (never
- * degenerate), and a split is a k-d tree's: at the median along the dimension where the entries' centres
- * spread the most.
+ * degenerate), and a split is the R*-tree's with sums of extents for volumes: along the dimension whose
+ * allowed splits (entries in order of their centres, at least 40% each side) have the least total sum of
+ * extents, at the cheapest of them. A median split on the dimension of widest spread visited 17-28% more
+ * index pages per selection at 100k-1M snippets.
  */
 #include "postgres.h"
 
@@ -97,6 +99,47 @@ bounding(NDBOX **boxes, int n)
 	return out;
 }
 
+/*
+ * The sums of extents of the boxes in order[0 .. k - 1] (prefix[k]) and in order[k .. n - 1] (suffix[k]),
+ * for every k, growing one bounding box entry by entry from each end.
+ */
+static void
+margins(NDBOX **boxes, const SplitItem *order, int n, int dims, double *prefix, double *suffix)
+{
+	double	   *lo = (double *) palloc(sizeof(double) * dims);
+	double	   *hi = (double *) palloc(sizeof(double) * dims);
+
+	for (int pass = 0; pass < 2; pass++)
+	{
+		double	   *out = pass == 0 ? prefix : suffix;
+
+		for (int d = 0; d < dims; d++)
+		{
+			lo[d] = get_float8_infinity();
+			hi[d] = -get_float8_infinity();
+		}
+		for (int step = 0; step < n; step++)
+		{
+			int			i = pass == 0 ? step : n - 1 - step;
+			NDBOX	   *b = boxes[order[i].offset - FirstOffsetNumber];
+			double		sum = 0.0;
+
+			for (int d = 0; d < dims; d++)
+			{
+				lo[d] = Min(lo[d], d < DIM(b) ? Min(LL_COORD(b, d), UR_COORD(b, d)) : 0.0);
+				hi[d] = Max(hi[d], d < DIM(b) ? Max(LL_COORD(b, d), UR_COORD(b, d)) : 0.0);
+				sum += hi[d] - lo[d];
+			}
+			if (pass == 0)
+				out[step + 1] = sum;
+			else
+				out[i] = sum;
+		}
+	}
+	pfree(lo);
+	pfree(hi);
+}
+
 Datum
 modb_cube_picksplit(PG_FUNCTION_ARGS)
 {
@@ -106,53 +149,66 @@ modb_cube_picksplit(PG_FUNCTION_ARGS)
 	int			n = maxoff - FirstOffsetNumber + 1;
 	NDBOX	  **boxes = (NDBOX **) palloc(sizeof(NDBOX *) * n);
 	SplitItem  *items = (SplitItem *) palloc(sizeof(SplitItem) * n);
+	SplitItem  *best_order = (SplitItem *) palloc(sizeof(SplitItem) * n);
+	double	   *prefix = (double *) palloc(sizeof(double) * (n + 1));
+	double	   *suffix = (double *) palloc(sizeof(double) * (n + 1));
 	int			dims = 0;
-	int			best = 0;
-	double		widest = -1.0;
-	int			half = n / 2;
+	int			least = Max(1, (n * 2) / 5);	/* each side keeps at least 40%, as in the R*-tree */
+	double		best_axis = get_float8_infinity();
+	int			best_k = n / 2;
+	NDBOX	  **in_order;
 
 	for (int i = 0; i < n; i++)
 	{
 		boxes[i] = DatumGetNDBOXP(entryvec->vector[FirstOffsetNumber + i].key);
 		dims = Max(dims, (int) DIM(boxes[i]));
 	}
+	/* The R*-tree's choice of axis: the least total perimeter over the allowed splits along it. */
 	for (int d = 0; d < dims; d++)
 	{
-		double		lo = get_float8_infinity();
-		double		hi = -get_float8_infinity();
+		double		total = 0.0;
+		double		cheapest = get_float8_infinity();
+		int			cheapest_k = n / 2;
 
 		for (int i = 0; i < n; i++)
 		{
-			double		c = centre(boxes[i], d);
-
-			lo = Min(lo, c);
-			hi = Max(hi, c);
+			items[i].offset = FirstOffsetNumber + i;
+			items[i].key = centre(boxes[i], d);
 		}
-		if (hi - lo > widest)
+		qsort(items, n, sizeof(SplitItem), compare_items);
+		margins(boxes, items, n, dims, prefix, suffix);
+		for (int k = least; k <= n - least; k++)
 		{
-			widest = hi - lo;
-			best = d;
+			double		both = prefix[k] + suffix[k];
+
+			total += both;
+			if (both < cheapest)
+			{
+				cheapest = both;
+				cheapest_k = k;
+			}
+		}
+		if (total < best_axis)
+		{
+			best_axis = total;
+			best_k = cheapest_k;
+			memcpy(best_order, items, sizeof(SplitItem) * n);
 		}
 	}
-	for (int i = 0; i < n; i++)
-	{
-		items[i].offset = FirstOffsetNumber + i;
-		items[i].key = centre(boxes[i], best);
-	}
-	qsort(items, n, sizeof(SplitItem), compare_items);
 
 	v->spl_left = (OffsetNumber *) palloc(sizeof(OffsetNumber) * n);
 	v->spl_right = (OffsetNumber *) palloc(sizeof(OffsetNumber) * n);
 	v->spl_nleft = v->spl_nright = 0;
+	in_order = (NDBOX **) palloc(sizeof(NDBOX *) * n);
 	for (int i = 0; i < n; i++)
 	{
-		if (i < half)
-			v->spl_left[v->spl_nleft++] = items[i].offset;
+		if (i < best_k)
+			v->spl_left[v->spl_nleft++] = best_order[i].offset;
 		else
-			v->spl_right[v->spl_nright++] = items[i].offset;
-		boxes[i] = DatumGetNDBOXP(entryvec->vector[items[i].offset].key);  /* in split order */
+			v->spl_right[v->spl_nright++] = best_order[i].offset;
+		in_order[i] = boxes[best_order[i].offset - FirstOffsetNumber];
 	}
-	v->spl_ldatum = PointerGetDatum(bounding(boxes, half));
-	v->spl_rdatum = PointerGetDatum(bounding(boxes + half, n - half));
+	v->spl_ldatum = PointerGetDatum(bounding(in_order, best_k));
+	v->spl_rdatum = PointerGetDatum(bounding(in_order + best_k, n - best_k));
 	PG_RETURN_POINTER(v);
 }
