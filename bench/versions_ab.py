@@ -35,9 +35,10 @@ def main(old_dsn: str, new_dsn: str, queries: int) -> None:
     same = 0
     for conn in (old, new):
         conn.execute(QUERY, seeded[0], prepare=True).fetchall()  # plan once before timing
-    for prev, target in seeded:
+    for k, (prev, target) in enumerate(seeded):
         chosen = {}
-        for name, conn in (("old", old), ("new", new)):
+        pair = (("old", old), ("new", new))
+        for name, conn in pair if k % 2 == 0 else pair[::-1]:  # which goes first alternates too
             start = time.perf_counter()
             chosen[name] = conn.execute(QUERY, [prev, target], prepare=True).fetchall()
             times[name].append((time.perf_counter() - start) * 1e3)

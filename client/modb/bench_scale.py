@@ -1,9 +1,12 @@
 """`modb bench scale` (make bench): select_next_snippet at several database sizes, beside in the same run
-(a) the paper's formulation: one flat query over every snippet, its continuity ratio written out as
-    arithmetic over the terminator columns, sequential scan (the same rows as the function),
+(a) the paper's formulation: one flat query scoring every snippet (no box, so no index: a sequential scan),
+    its continuity ratio by modb.continuity_ratio, the C function the tests tie to 0.6.0's arithmetic over
+    the terminator columns to the last bit (that arithmetic in SQL is about 4.5x slower: the ratio to (a)
+    here is the conservative one) (the same rows as the function),
 (b) a vectorised numpy brute force in this process over the same stored terminators (the same rows),
 (c) scipy's cKDTree in this process (the box as a Chebyshev ball of the scaled features) plus one
-    `SELECT 1` round trip: what an in-memory index in the client costs.
+    `SELECT 1` round trip: what an in-memory index in the client costs (the same rows).
+The index is rebuilt (REINDEX, timed) before the queries, so every size is measured on a fresh build.
 Also: candidates examined per query (modb.candidates_examined), the GiST index's build time and size,
 bytes per snippet, and throughput with pgbench and the shipped script at 1, 2 and 8 clients.
 """
@@ -232,11 +235,14 @@ def bench_database(dsn: str, queries: int, baseline_queries: int, seed: int, pro
         t = time.perf_counter()
         snap = Snapshot.load(conn, profile)
         load_s = time.perf_counter() - t
+        t = time.perf_counter()
+        conn.execute("REINDEX INDEX modb.snippets_begin_features_idx")
+        index_s = time.perf_counter() - t
         rng = np.random.default_rng(seed)
         requests = [(int(rng.choice(snap.ids)), [float(v) for v in rng.uniform(-5, 5, size=2)]) for _ in range(queries)]
         conn.execute(FUNCTION, [requests[0][0], requests[0][1], profile], prepare=True).fetchone()  # plans once
         out = {k: [] for k in ("function_ms", "flat_ms", "numpy_ms", "kdtree_ms", "candidates", "levels")}
-        same_flat = same_numpy = 0
+        same_flat = same_numpy = same_kdtree = 0
         progress(f"  {queries} seeded queries ({baseline_queries} also by the flat query)")
         for k, (prev, target) in enumerate(requests):
             t = time.perf_counter()
@@ -250,17 +256,15 @@ def bench_database(dsn: str, queries: int, baseline_queries: int, seed: int, pro
             out["numpy_ms"].append((time.perf_counter() - t) * 1000)
             same_numpy += mine == tuple(chosen)
             t = time.perf_counter()
-            snap.kd_tree(prev, target)
+            tree_choice = snap.kd_tree(prev, target)
             conn.execute("SELECT 1", prepare=True).fetchone()
             out["kdtree_ms"].append((time.perf_counter() - t) * 1000)
+            same_kdtree += tree_choice == tuple(chosen)
             if k < baseline_queries:
                 t = time.perf_counter()
                 flat = conn.execute(FLAT, {"prev": prev, "target": target, "profile": profile}, prepare=True).fetchone()
                 out["flat_ms"].append((time.perf_counter() - t) * 1000)
                 same_flat += tuple(flat) == tuple(chosen)
-        t = time.perf_counter()
-        conn.execute("REINDEX INDEX modb.snippets_begin_features_idx")
-        index_s = time.perf_counter() - t
         resampled = conn.execute("SELECT count(*) FROM modb.snippets s JOIN modb.clips c ON c.id = s.clip_id "
                                  "WHERE modb.collection_path(c.collection_id) LIKE 'resampled-x%'").fetchone()[0]
         index_bytes, table_bytes = conn.execute(
@@ -268,7 +272,7 @@ def bench_database(dsn: str, queries: int, baseline_queries: int, seed: int, pro
             "FROM unnest(ARRAY['modb.snippets', 'modb.terminators', 'modb.snippet_sources']::regclass[]) AS c").fetchone()
     progress("  pgbench")
     tps = {c: pgbench(dsn, c, pgbench_seconds) for c in (1, 2, 8)}
-    return {**out, "snippets": len(snap.ids), "resampled": resampled, "same_flat": same_flat, "same_numpy": same_numpy,
+    return {**out, "snippets": len(snap.ids), "resampled": resampled, "same_flat": same_flat, "same_numpy": same_numpy, "same_kdtree": same_kdtree,
             "baseline_queries": baseline_queries, "queries": queries, "index_s": index_s, "index_bytes": index_bytes,
             "bytes_per_snippet": table_bytes / len(snap.ids), "snapshot_s": load_s, "tps": tps}
 
@@ -297,7 +301,8 @@ def report(name: str, r: dict) -> str:
         "",
         f"- Per query, median: (a) / function {flat_ratio:.1f}x; function / (b) {np_ratio:.2f}x; "
         f"function / (c) {kd_ratio:.2f}x.",
-        f"- Same snippet and level as the function: (a) {r['same_flat']}/{n}, (b) {r['same_numpy']}/{r['queries']}.",
+        f"- Same snippet and level as the function: (a) {r['same_flat']}/{n}, (b) {r['same_numpy']}/{r['queries']}, "
+        f"(c) {r['same_kdtree']}/{r['queries']}.",
         f"- Candidates examined: p50 {np.percentile(c, 50):.0f}, p90 {np.percentile(c, 90):.0f}, "
         f"p99 {np.percentile(c, 99):.0f}, max {max(c)}; relaxation levels {levels}.",
         f"- GiST index: {r['index_bytes'] / 2**20:.1f} MiB, rebuilt in {r['index_s']:.1f} s; "

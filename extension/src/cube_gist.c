@@ -6,8 +6,8 @@
  * (BENCHMARKS.md "Selection at scale"). Here the penalty is the growth of the sum of extents (never
  * degenerate), and a split is the R*-tree's with sums of extents for volumes: along the dimension whose
  * allowed splits (entries in order of their centres, at least 40% each side) have the least total sum of
- * extents, at the cheapest of them. A median split on the dimension of widest spread visited 17-28% more
- * index pages per selection at 100k-1M snippets.
+ * extents, at the cheapest of them. A median split on the dimension of widest spread visited 34-41% more
+ * index pages per selection at 10k-1M snippets (bench/box_pages.py).
  */
 #include "postgres.h"
 
@@ -163,6 +163,9 @@ modb_cube_picksplit(PG_FUNCTION_ARGS)
 		boxes[i] = DatumGetNDBOXP(entryvec->vector[FirstOffsetNumber + i].key);
 		dims = Max(dims, (int) DIM(boxes[i]));
 	}
+	/* Halves in stored order unless an axis does better (no dimensions, or sums that are all NaN). */
+	for (int i = 0; i < n; i++)
+		best_order[i].offset = FirstOffsetNumber + i;
 	/* The R*-tree's choice of axis: the least total perimeter over the allowed splits along it. */
 	for (int d = 0; d < dims; d++)
 	{
