@@ -21,6 +21,19 @@
 PG_FUNCTION_INFO_V1(modb_cube_penalty);
 PG_FUNCTION_INFO_V1(modb_cube_picksplit);
 
+/* A box's lower and upper bounds and centre along d; a cube without dimension d is 0 there, as in cube. */
+static double
+low(NDBOX *box, int d)
+{
+	return d < DIM(box) ? Min(LL_COORD(box, d), UR_COORD(box, d)) : 0.0;
+}
+
+static double
+high(NDBOX *box, int d)
+{
+	return d < DIM(box) ? Max(LL_COORD(box, d), UR_COORD(box, d)) : 0.0;
+}
+
 static double
 centre(NDBOX *box, int d)
 {
@@ -40,14 +53,7 @@ modb_cube_penalty(PG_FUNCTION_ARGS)
 	double		growth = 0.0;
 
 	for (int d = 0; d < dims; d++)
-	{
-		double		lo = d < DIM(box) ? Min(LL_COORD(box, d), UR_COORD(box, d)) : 0.0;
-		double		hi = d < DIM(box) ? Max(LL_COORD(box, d), UR_COORD(box, d)) : 0.0;
-		double		alo = d < DIM(added) ? Min(LL_COORD(added, d), UR_COORD(added, d)) : 0.0;
-		double		ahi = d < DIM(added) ? Max(LL_COORD(added, d), UR_COORD(added, d)) : 0.0;
-
-		growth += Max(lo - alo, 0.0) + Max(ahi - hi, 0.0);
-	}
+		growth += Max(low(box, d) - low(added, d), 0.0) + Max(high(added, d) - high(box, d), 0.0);
 	*result = (float) growth;
 	PG_RETURN_POINTER(result);
 }
@@ -86,12 +92,8 @@ bounding(NDBOX **boxes, int n)
 
 		for (int i = 0; i < n; i++)
 		{
-			NDBOX	   *b = boxes[i];
-			double		l = d < DIM(b) ? Min(LL_COORD(b, d), UR_COORD(b, d)) : 0.0;
-			double		u = d < DIM(b) ? Max(LL_COORD(b, d), UR_COORD(b, d)) : 0.0;
-
-			lo = Min(lo, l);
-			hi = Max(hi, u);
+			lo = Min(lo, low(boxes[i], d));
+			hi = Max(hi, high(boxes[i], d));
 		}
 		out->x[d] = lo;
 		out->x[d + dims] = hi;
@@ -126,8 +128,8 @@ margins(NDBOX **boxes, const SplitItem *order, int n, int dims, double *prefix, 
 
 			for (int d = 0; d < dims; d++)
 			{
-				lo[d] = Min(lo[d], d < DIM(b) ? Min(LL_COORD(b, d), UR_COORD(b, d)) : 0.0);
-				hi[d] = Max(hi[d], d < DIM(b) ? Max(LL_COORD(b, d), UR_COORD(b, d)) : 0.0);
+				lo[d] = Min(lo[d], low(b, d));
+				hi[d] = Max(hi[d], high(b, d));
 				sum += hi[d] - lo[d];
 			}
 			if (pass == 0)
