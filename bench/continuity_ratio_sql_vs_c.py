@@ -12,6 +12,8 @@ from pathlib import Path
 import numpy as np
 import psycopg
 
+from modb.connection import configure_for_selection
+
 FROZEN = Path(__file__).resolve().parents[1] / "extension" / "modb--0.6.0.sql"
 QUERY = "SELECT snippet_id FROM modb.select_next_snippet(%s, %s)"
 
@@ -25,8 +27,7 @@ def sql_ratio() -> str:
 
 def main(dsn: str, queries: int) -> None:
     with psycopg.connect(dsn, autocommit=True) as conn:
-        conn.execute("SET jit = off")
-        conn.execute("SET plan_cache_mode = force_generic_plan")
+        configure_for_selection(conn)
         ids = [r[0] for r in conn.execute("SELECT id FROM modb.snippets ORDER BY id")]
         rng = np.random.default_rng(7)
         requests = [(int(rng.choice(ids)), [float(v) for v in rng.uniform(-5, 5, 2)]) for _ in range(queries)]

@@ -13,13 +13,14 @@ import time
 import numpy as np
 import psycopg
 
+from modb.connection import configure_for_selection
+
 QUERY = "SELECT snippet_id, relax_level FROM modb.select_next_snippet(%s, %s)"
 
 
 def session(dsn: str) -> psycopg.Connection:
     conn = psycopg.connect(dsn, autocommit=True)
-    conn.execute("SET jit = off")
-    conn.execute("SET plan_cache_mode = force_generic_plan")
+    configure_for_selection(conn)
     return conn
 
 

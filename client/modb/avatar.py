@@ -20,6 +20,7 @@ import psycopg
 
 from modb_kernel import quaternion
 
+from .connection import configure_for_selection
 from .placement import Placement, after, ground_distance, place_root
 from .source_frames import FrameLibrary
 
@@ -123,10 +124,7 @@ class Avatar:
         self.library = FrameLibrary(self.conn)
         self.choices: list[Choice] = []
         self._knobs_set: dict[str, str] = {}  # what this avatar last SET modb.<knob> to on its connection
-        # Selection's plan does not depend on its arguments' values, and planning it each call costs ~100 ms
-        # (issue 9's figures): a generic plan, planned once; without JIT, whose threshold its estimate passes.
-        self.conn.execute("SELECT set_config('plan_cache_mode', 'force_generic_plan', false), "
-                          "set_config('jit', 'off', false)")
+        configure_for_selection(self.conn)
 
     # Goals may change at any time (from another thread too): they apply to the next query issued.
     def set_goal(self, goal: Goal) -> None:

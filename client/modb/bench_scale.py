@@ -25,8 +25,8 @@ import psycopg
 
 from modb_kernel import transitions
 
-from .bench_resampled import add_resampled_clips
-from .connection import connect
+from .bench_resampled import add_resampled_clips, resampled_snippets
+from .connection import configure_for_selection, connect, selection_pgoptions
 
 PGBENCH = "/usr/lib/postgresql/15/bin/pgbench"  # postgresql-15's own (Debian keeps it off PATH)
 PGBENCH_SCRIPT = Path(__file__).resolve().parents[2] / "bench" / "select_next_snippet.pgbench"
@@ -190,9 +190,7 @@ def sized_database(dsn: str, size: int, seed: int, progress=print) -> str:
             admin.execute(f'CREATE DATABASE "{name}" TEMPLATE "{source}"')  # needs no other session on the source
     with connect(_with_dbname(dsn, name)) as conn:
         clips = conn.execute("SELECT clip_id, count(*) FROM modb.snippets GROUP BY clip_id ORDER BY clip_id").fetchall()
-        resampling = conn.execute("SELECT EXISTS (SELECT FROM modb.clips "
-                                  "WHERE modb.collection_path(collection_id) LIKE 'resampled-x%')").fetchone()[0]
-        if size > sum(n for _, n in clips) and (made or resampling):  # made now, or an interrupted run's
+        if size > sum(n for _, n in clips) and (made or resampled_snippets(conn)):  # made now, or an interrupted run's
             progress(f"  adding speed-resampled copies of the clips up to {size:,} snippets (once)")
             add_resampled_clips(conn, size, seed, progress)
             conn.execute("VACUUM ANALYZE modb.snippets, modb.terminators")
@@ -214,7 +212,7 @@ def pgbench(dsn: str, clients: int, seconds: int) -> float:
     plans, no JIT."""
     with psycopg.connect(dsn) as conn:
         low, high = conn.execute("SELECT min(id), max(id) FROM modb.snippets").fetchone()
-    env = {**os.environ, "PGOPTIONS": "-c jit=off -c plan_cache_mode=force_generic_plan"}
+    env = {**os.environ, "PGOPTIONS": selection_pgoptions()}
     out = subprocess.run([PGBENCH, "-n", "-M", "prepared", "-T", str(seconds), "-c", str(clients),
                           "-j", str(min(clients, 2)), "-f", str(PGBENCH_SCRIPT), "-D", f"low={low}", "-D", f"high={high}",
                           dsn],  # pgbench takes a conninfo string where a database name goes
@@ -229,8 +227,7 @@ def bench_database(dsn: str, queries: int, baseline_queries: int, seed: int, pro
                    pgbench_seconds: int, progress=print) -> dict:
     """Every figure of one database (see the module's docstring)."""
     with psycopg.connect(dsn, autocommit=True) as conn:
-        conn.execute("SET plan_cache_mode = force_generic_plan")
-        conn.execute("SET jit = off")
+        configure_for_selection(conn)
         progress("  reading the snippets into memory (for numpy and the k-d tree)")
         t = time.perf_counter()
         snap = Snapshot.load(conn, profile)
@@ -265,8 +262,7 @@ def bench_database(dsn: str, queries: int, baseline_queries: int, seed: int, pro
                 flat = conn.execute(FLAT, {"prev": prev, "target": target, "profile": profile}, prepare=True).fetchone()
                 out["flat_ms"].append((time.perf_counter() - t) * 1000)
                 same_flat += tuple(flat) == tuple(chosen)
-        resampled = conn.execute("SELECT count(*) FROM modb.snippets s JOIN modb.clips c ON c.id = s.clip_id "
-                                 "WHERE modb.collection_path(c.collection_id) LIKE 'resampled-x%'").fetchone()[0]
+        resampled = resampled_snippets(conn)
         index_bytes, table_bytes = conn.execute(
             "SELECT pg_relation_size('modb.snippets_begin_features_idx'), sum(pg_total_relation_size(c)) "
             "FROM unnest(ARRAY['modb.snippets', 'modb.terminators', 'modb.snippet_sources']::regclass[]) AS c").fetchone()

@@ -13,6 +13,7 @@ from collections.abc import Callable
 import numpy as np
 import psycopg
 
+from .connection import configure_for_selection
 
 SELECT = "SELECT snippet_id, relax_level FROM modb.select_next_snippet(%s, %s, %s)"
 
@@ -86,8 +87,8 @@ def bench_select_graph(conn: psycopg.Connection, queries: int, seed: int, profil
         conn.execute("INSERT INTO modb.graph_snippets (graph_id, snippet_id) SELECT %s, unnest(%s::bigint[])",
                      [copy_id, ids])
     try:
-        for name, value in (("plan_cache_mode", "force_generic_plan"), ("jit", "off"),
-                            ("modb.graph_lookahead", "off"), ("modb.graph_cost_to_go", "off")):
+        configure_for_selection(conn)
+        for name, value in (("modb.graph_lookahead", "off"), ("modb.graph_cost_to_go", "off")):
             conn.execute("SELECT set_config(%s, %s, false)", [name, value])
         conn.execute(SELECT, [int(ids[0]), [0.0, 1.0], profile], prepare=True).fetchone()
 

@@ -6,6 +6,23 @@ import psycopg
 from . import pgarray
 
 
+# Selection's plan does not depend on its arguments' values, and planning it can cost more than executing it
+# (about 140 ms a call on the locomotion data, BENCHMARKS.md): a generic plan, planned once; and no JIT, whose
+# threshold the generic plan's estimate passes.
+SELECTION_SETTINGS = {"plan_cache_mode": "force_generic_plan", "jit": "off"}
+
+
+def configure_for_selection(conn: psycopg.Connection) -> None:
+    """Sets SELECTION_SETTINGS for the session of a connection that calls select_next_snippet repeatedly."""
+    conn.execute("SELECT set_config(name, value, false) FROM unnest(%s::text[], %s::text[]) AS s(name, value)",
+                 [list(SELECTION_SETTINGS), list(SELECTION_SETTINGS.values())])
+
+
+def selection_pgoptions() -> str:
+    """SELECTION_SETTINGS as PGOPTIONS, for a client such as pgbench."""
+    return " ".join(f"-c {name}={value}" for name, value in SELECTION_SETTINGS.items())
+
+
 class NotInstalledError(RuntimeError):
     pass
 
