@@ -16,6 +16,7 @@ from .motion import Motion
 
 # Around 1x, alternating slower and faster, so each step adds gaits a little off the captured ones.
 SPEEDS = (0.8, 1.25, 0.9, 1.1, 0.85, 1.15, 0.95, 1.05)
+COLLECTION_PREFIX = "resampled-x"  # the copies' collections: resampled-x<speed>/<the original's path>
 
 
 def at_speed(motion: Motion, speed: float) -> Motion:
@@ -39,6 +40,12 @@ def at_speed(motion: Motion, speed: float) -> Motion:
     return replace(motion, rotations=rotations, translations=translations)
 
 
+def resampled_snippets(conn: psycopg.Connection) -> int:
+    """How many of the database's snippets are speed-resampled copies."""
+    return conn.execute("SELECT count(*) FROM modb.snippets s JOIN modb.clips c ON c.id = s.clip_id "
+                        "WHERE modb.collection_path(c.collection_id) LIKE %s", [COLLECTION_PREFIX + "%"]).fetchone()[0]
+
+
 def add_resampled_clips(conn: psycopg.Connection, size: int, seed: int, progress=None) -> int:
     """Adds speed-resampled copies of the database's clips (each mirrored when the original is) until it holds
     at least `size` snippets; one transaction per clip. The snippet count afterwards."""
@@ -48,7 +55,8 @@ def add_resampled_clips(conn: psycopg.Connection, size: int, seed: int, progress
     originals = conn.execute(
         "SELECT c.id, modb.collection_path(c.collection_id), bool_or(s.mirrored) FROM modb.clips c "
         "JOIN modb.snippets s ON s.clip_id = c.id "
-        "WHERE modb.collection_path(c.collection_id) NOT LIKE 'resampled-x%%' GROUP BY c.id ORDER BY c.id").fetchall()
+        "WHERE modb.collection_path(c.collection_id) NOT LIKE %s GROUP BY c.id ORDER BY c.id",
+        [COLLECTION_PREFIX + "%"]).fetchall()
     order = np.random.default_rng(seed).permutation(len(originals))
     with tqdm(total=size, initial=total, unit=" snippets", file=sys.stderr, disable=progress is None) as bar:
         for speed in SPEEDS:
@@ -58,7 +66,7 @@ def add_resampled_clips(conn: psycopg.Connection, size: int, seed: int, progress
                 clip_id, path, mirrored = originals[k]
                 motion = at_speed(read_motion(conn, clip_id), speed)
                 motion.meta = {"resampled_from": {"clip": clip_id, "speed": speed}}
-                _, _, added = store_motion(conn, motion, f"resampled-x{speed:.2f}/{path}", f"speed {speed}",
+                _, _, added = store_motion(conn, motion, f"{COLLECTION_PREFIX}{speed:.2f}/{path}", f"speed {speed}",
                                            snippets=True, mirrored=mirrored)
                 total += added
                 bar.update(added)
