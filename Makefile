@@ -26,14 +26,15 @@ apt:
 		$(SUDO) apt-get update -qq && $(SUDO) env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing; \
 	fi
 
-# Builds modb--$(EXTVERSION).sql and installs it into the local server only when it changed.
+# Builds the module (and the scripts of a version not released yet) and installs the extension into the
+# local server only when the module, the control file or a script it installs differs from the installed one.
 extension: apt
 	@$(MAKE) -s -C extension PG_CONFIG=$(PG_CONFIG)
 	@installed=$$($(PG_CONFIG) --sharedir)/extension; \
-	if ! cmp -s extension/modb--$(EXTVERSION).sql $$installed/modb--$(EXTVERSION).sql \
-	   || ! cmp -s extension/modb.so $$($(PG_CONFIG) --pkglibdir)/modb.so \
+	scripts=$$($(MAKE) -s --no-print-directory -C extension print-scripts PG_CONFIG=$(PG_CONFIG)); \
+	if ! cmp -s extension/modb.so $$($(PG_CONFIG) --pkglibdir)/modb.so \
 	   || ! cmp -s extension/modb.control $$installed/modb.control \
-	   || [ -n "$$(for f in extension/modb--*.sql; do [ -e "$$f" ] && ! cmp -s $$f $$installed/$$(basename $$f) && echo x; done)" ]; then \
+	   || [ -n "$$(for f in $$scripts; do cmp -s extension/$$f $$installed/$$(basename $$f) || echo x; done)" ]; then \
 		echo "setup: installing the modb extension into $$installed"; \
 		$(SUDO) $(MAKE) -s -C extension install PG_CONFIG=$(PG_CONFIG); \
 	fi

@@ -14,7 +14,7 @@ import psycopg
 
 from modb.connection import configure_for_selection
 
-FROZEN = Path(__file__).resolve().parents[1] / "extension" / "modb--0.6.0.sql"
+FROZEN = Path(__file__).resolve().parents[1] / "extension" / "sql" / "released" / "modb--0.6.0.sql"
 QUERY = "SELECT snippet_id FROM modb.select_next_snippet(%s, %s)"
 
 

@@ -11,8 +11,12 @@ queries). {{STANDARD_JOINTS}} and {{FEATURES}} become SQL arrays of the kernel's
 Upgrade scripts come from sql/upgrades/OLD--NEW.sql: hand-written steps whose '--@include FILE' lines pull
 in files of sql/ (objects new in NEW), and every other PL/Python function re-created (with its COMMENT) with NEW's kernel: at
 a '--@functions' line, so that the steps after it run NEW's code (a data migration), else at the end.
-When the version after NEW starts, freeze the generated script in git and delete its source, so later
-edits of sql/ cannot change an old upgrade.
+
+Releasing a version freezes its scripts: modb--NEW.sql and modb--OLD--NEW.sql, as built, go into
+sql/released/ under a first line saying they are generated and frozen and the command that made them, and
+sql/upgrades/OLD--NEW.sql is deleted, so later edits of sql/ cannot change a released script (the Makefile
+refuses an upgrade source whose script is released). A released script is what installs; sql/*.sql is the
+working copy of the next version.
 """
 import functools
 import pathlib

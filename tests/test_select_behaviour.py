@@ -167,7 +167,7 @@ def test_candidates_examined_is_what_the_box_scans_of_the_selection_returned(cmu
         assert checked >= 16 and len(counts) >= 8, (checked, counts)
 
 
-FROZEN_0_6_0 = REPO / "extension" / "modb--0.6.0.sql"
+FROZEN_0_6_0 = REPO / "extension" / "sql" / "released" / "modb--0.6.0.sql"
 
 
 def test_the_c_continuity_ratio_equals_the_sql_expression_it_replaced_to_the_last_bit(cmu):
