@@ -32,6 +32,19 @@ END
 $$;
 COMMENT ON FUNCTION modb.find_collection(text) IS 'The id of the collection at path "a/b/c", NULL when absent';
 
+CREATE FUNCTION modb.collection_subtree(path text)
+RETURNS bigint[]
+LANGUAGE sql STABLE STRICT PARALLEL SAFE
+BEGIN ATOMIC
+    WITH RECURSIVE down(id, depth) AS (
+        SELECT id, 0 FROM modb.collections WHERE id = modb.find_collection(path)
+        UNION ALL
+        SELECT c.id, down.depth + 1 FROM modb.collections c JOIN down ON c.parent_id = down.id WHERE down.depth < 1000
+    )
+    SELECT coalesce(array_agg(id), '{}') FROM down;
+END;
+COMMENT ON FUNCTION modb.collection_subtree(text) IS 'Ids of the collection at path "a/b" and of every collection below it';
+
 CREATE FUNCTION modb.ensure_collection(path text)
 RETURNS bigint
 LANGUAGE plpgsql VOLATILE STRICT PARALLEL UNSAFE

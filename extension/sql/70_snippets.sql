@@ -88,7 +88,7 @@ COMMENT ON COLUMN modb.snippets.future_translation IS
     'Where playing on leads: pelvis travel over this snippet and up to two play-on snippets of its clip (1.5 s for 0.5 s windows), in the heading frame of its first frame; the objective of select_next_snippet';
 COMMENT ON COLUMN modb.snippets.future_heading IS 'The heading change over the same frames as future_translation (radians)';
 
--- The feature index's operator class: 70_snippets_index.sql
+-- The feature index's operator class: 71_snippets_index.sql
 CREATE INDEX snippets_clip_idx ON modb.snippets (clip_id, version, mirrored, first_frame);
 CREATE INDEX snippets_pose_key_idx ON modb.snippets (pose_key, fps);
 -- For the foreign keys: deleting a clip version's terminators must not scan every snippet per row.

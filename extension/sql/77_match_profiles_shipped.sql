@@ -1,7 +1,7 @@
 -- The shipped match profiles. An upsert, so that upgrade scripts include this file and shipped rows follow
 -- the release (rows a user added are never touched; shipped rows are not in pg_dump's output).
 --
--- default (0.3.0): each joint's angle threshold is its 99th percentile change between consecutive
+-- default: each joint's angle threshold is its 99th percentile change between consecutive
 -- frames of real walking and running (Bandai dataset 2 locomotion, 30 fps: neck 2.1, spine 2.7, knees 21
 -- degrees per frame), so that a seam looks like a natural step (README "Synthesis quality"); a heading
 -- term of 1 m per radian turns the avatar toward its goal, and continuity_weight 0.6 m per unit of
