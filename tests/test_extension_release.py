@@ -1,0 +1,145 @@
+"""The released install script and the fragments it was built from: the same catalogue, the same code.
+
+Once a version is released its frozen script, extension/sql/released/modb--VERSION.sql, is what
+installs, and extension/sql/*.sql with the kernel become the working copy of the next version. Until
+that version starts (default_version moves on), a fresh install built from them must give exactly the
+released catalogue: the fragments can be reorganised, and the kernel sources reformatted, without
+changing what installs.
+
+pg_dump leaves out an extension's member objects, so each script runs as a plain script (the same shim
+applied to both) into a fresh database of its own, and the two `pg_dump --schema-only` outputs are
+compared. The kernel sources embedded in every PL/Python function are compared apart: in the dumps they
+are replaced by a marker, and each embedded module must parse to the same code (docstrings and comments
+aside) as today's file in extension/plpython/modb_kernel.
+"""
+
+from __future__ import annotations
+
+import ast
+import difflib
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import psycopg
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+EXTENSION = REPO / "extension"
+RELEASED = EXTENSION / "sql" / "released"
+KERNEL = EXTENSION / "plpython" / "modb_kernel"
+VERSION = re.search(r"default_version\s*=\s*'([^']+)'", (EXTENSION / "modb.control").read_text())[1]
+FROZEN = RELEASED / f"modb--{VERSION}.sql"
+
+pytestmark = pytest.mark.skipif(
+    not FROZEN.exists(), reason=f"{VERSION} is not released: the fragments are its working copy"
+)
+
+# The build embeds the kernel as `sources = {'modb_kernel': '...', ...}`, one module a line (build_sql.py).
+EMBEDDED = re.compile(r"^( +)sources = (\{(?:\n +'modb_kernel[\w.]*': .*,)*\})$", re.M)
+CONFIG_DUMP = re.compile(r"^SELECT pg_catalog\.pg_extension_config_dump\((.*)\);\n", re.M)
+GUARD = re.compile(r"^\\echo Use .* \\quit\n", re.M)
+
+
+def _bindir() -> Path:
+    pg_config = Path("/usr/lib/postgresql/15/bin/pg_config")
+    command = str(pg_config) if pg_config.exists() else "pg_config"
+    return Path(subprocess.run([command, "--bindir"], capture_output=True, text=True, check=True).stdout.strip())
+
+
+def built_script() -> str:
+    """The install script built from today's fragments and kernel, as the extension's Makefile builds it."""
+    r = subprocess.run([sys.executable, str(EXTENSION / "build_sql.py"), VERSION], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    return r.stdout
+
+
+def as_plain_script(text: str) -> tuple[str, list[str]]:
+    """The script runnable outside CREATE EXTENSION, and the arguments of its pg_extension_config_dump calls."""
+    assert len(GUARD.findall(text)) == 1
+    config_dump = CONFIG_DUMP.findall(text)
+    text = CONFIG_DUMP.sub("", GUARD.sub("", text)).replace("MODULE_PATHNAME", "$libdir/modb")
+    # As CREATE EXTENSION runs it: function bodies are not checked (a SQL function may call a later one).
+    return "SET check_function_bodies = off;\n" + text, config_dump
+
+
+def embedded_kernels(text: str) -> list[dict[str, str]]:
+    """Every copy of the kernel sources embedded in a script (one per PL/Python function)."""
+    return [ast.literal_eval(m[2]) for m in EMBEDDED.finditer(text)]
+
+
+def code_of(source: str) -> str:
+    """What a module does: its syntax tree without docstrings (comments and layout are not in it)."""
+    tree = ast.parse(source)
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
+            body = node.body
+            if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant):
+                if isinstance(body[0].value.value, str):
+                    node.body = body[1:]
+    return ast.dump(tree)
+
+
+def todays_kernel() -> dict[str, str]:
+    return {
+        "modb_kernel" if p.stem == "__init__" else f"modb_kernel.{p.stem}": p.read_text()
+        for p in sorted(KERNEL.glob("*.py"))
+    }
+
+
+def schema_of(cluster, name: str, script: str, tmp_path: Path) -> str:
+    """pg_dump --schema-only of a fresh database into which `script` ran, with the kernel sources marked."""
+    with psycopg.connect(cluster.dsn("postgres"), autocommit=True) as conn:
+        conn.execute(f'DROP DATABASE IF EXISTS "{name}"')
+        conn.execute(f'CREATE DATABASE "{name}"')
+    try:
+        with psycopg.connect(cluster.dsn(name), autocommit=True) as conn:
+            conn.execute("CREATE EXTENSION cube")
+            conn.execute("CREATE EXTENSION plpython3u")
+        path = tmp_path / f"{name}.sql"
+        path.write_text(script)
+        psql = [str(_bindir() / "psql"), "-X", "-q", "-v", "ON_ERROR_STOP=1", "-1", "-d", cluster.dsn(name)]
+        r = subprocess.run([*psql, "-f", str(path)], capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr
+        r = subprocess.run(
+            # a fixed key for psql's \restrict line (else random per dump)
+            [str(_bindir() / "pg_dump"), "--schema-only", "--restrict-key=modb", "-d", cluster.dsn(name)],
+            capture_output=True,
+            text=True,
+        )
+        assert r.returncode == 0, r.stderr
+        return EMBEDDED.sub(r"\1sources = EMBEDDED_KERNEL_SOURCES", r.stdout)
+    finally:
+        with psycopg.connect(cluster.dsn("postgres"), autocommit=True) as conn:
+            conn.execute(f'DROP DATABASE "{name}" WITH (FORCE)')
+
+
+def test_the_fragments_install_the_released_catalogue(cluster, tmp_path):
+    frozen, frozen_config_dump = as_plain_script(FROZEN.read_text())
+    built, built_config_dump = as_plain_script(built_script())
+    assert sorted(built_config_dump) == sorted(frozen_config_dump)
+    assert len(frozen_config_dump) > 0
+    pid = os.getpid()
+    released = schema_of(cluster, f"release_frozen_{pid}", frozen, tmp_path)
+    fragments = schema_of(cluster, f"release_built_{pid}", built, tmp_path)
+    assert "EMBEDDED_KERNEL_SOURCES" in released and "CREATE FUNCTION modb.select_next_snippets(" in released
+    diff = "".join(
+        difflib.unified_diff(
+            released.splitlines(True), fragments.splitlines(True), str(FROZEN), "build_sql.py " + VERSION, n=2
+        )
+    )
+    assert not diff, diff[:20000]
+
+
+def test_the_released_kernel_is_todays_kernel_in_code():
+    today = todays_kernel()
+    built = embedded_kernels(built_script())
+    frozen = embedded_kernels(FROZEN.read_text())
+    assert frozen and len(frozen) == len(built)
+    assert all(copy == today for copy in built)  # the build embeds the files as they are
+    assert all(copy == frozen[0] for copy in frozen)  # one kernel in every function of the release
+    assert sorted(frozen[0]) == sorted(today)
+    for module, source in frozen[0].items():
+        assert code_of(source) == code_of(today[module]), module
