@@ -218,22 +218,27 @@ def test_the_page_loads_and_browses_collections_and_clips_without_console_errors
     tree = browser.find_element(By.ID, "collections")
     labels = [e.text for e in tree.find_elements(By.CSS_SELECTOR, "li > span")]
     assert "web (0)" in labels and "bvh (1)" in labels and "amc (1)" in labels
-    next(e for e in tree.find_elements(By.CSS_SELECTOR, "li > span") if e.text == "amc (1)").click()
+    # The page opens on the first clip (web/amc's); browse to another collection's.
+    wanted = ok(address, f"/api/clips/{clip_ids(address)['bvh']}")
+    root = ok(address, f"/api/skeletons/{wanted['skeleton_id']}")["hierarchy"]["joints"][0]["name"]
+    next(e for e in tree.find_elements(By.CSS_SELECTOR, "li > span") if e.text == "bvh (1)").click()
     clip = None
     for _ in range(50):  # the list arrives with the next fetch
         items = browser.find_elements(By.CSS_SELECTOR, "#clips li > span")
-        if items:
+        if items and items[0].text == wanted["name"]:
             clip = items[0]
             break
         time.sleep(0.1)
-    assert clip is not None and clip.text == "131_01"
+    assert clip is not None, [e.text for e in browser.find_elements(By.CSS_SELECTOR, "#clips li > span")]
     clip.click()
+    shown = "return window.modbViewer.state.clip && window.modbViewer.state.clip.name"
     for _ in range(100):
-        if browser.execute_script("return window.modbViewer.state.clip && window.modbViewer.state.clip.name"):
+        if browser.execute_script(shown) == wanted["name"]:
             break
         time.sleep(0.1)
-    assert browser.execute_script("return window.modbViewer.state.clip.name") == "131_01"
-    assert browser.find_element(By.ID, "skeleton").find_elements(By.CSS_SELECTOR, "li > span")[0].text == "root"
+    assert browser.execute_script(shown) == wanted["name"]
+    skeleton = browser.find_element(By.ID, "skeleton")
+    assert skeleton.find_elements(By.CSS_SELECTOR, "li > span")[0].text == root
     assert severe_console_entries(browser) == []
 
 
@@ -306,6 +311,7 @@ def test_frame_stepping_and_the_selected_joint(server, browser):
     clip_id = clip_ids(address)["bvh"]
     served = np.array(ok(address, f"/api/clips/{clip_id}/frames?count=3")["positions"])
     open_page(browser, address, f"?clip={clip_id}")
+    browser.execute_script("window.modbViewer.pause(); window.modbViewer.setFrame(0)")  # it opens playing
     browser.find_element(By.ID, "next").click()
     browser.find_element(By.ID, "next").click()
     browser.find_element(By.ID, "prev").click()
@@ -319,3 +325,83 @@ def test_frame_stepping_and_the_selected_joint(server, browser):
     assert names[index] == chosen.text and "selected" in chosen.get_attribute("class")
     marker = browser.execute_script("return window.modbViewer.stage.highlight.position.toArray()")
     assert np.abs(np.array(marker) - served[1][index]).max() < TOLERANCE_M
+
+
+# --- what the page opens on ---------------------------------------------------------------------------
+
+def first_clip(address: str) -> dict:
+    """The clip the page opens on without one in its address: the first collection in the listing's order
+    that holds clips, and the first of its clips in the clip list's order."""
+    collection = next(c for c in ok(address, "/api/collections") if c["clips"] > 0)
+    return ok(address, f"/api/clips?collection={collection['id']}")[0]
+
+
+def assert_plays(browser, address: str, clip: dict, seconds: float = 2.0) -> None:
+    """Untouched for `seconds` of real time, the page plays `clip`: the frame shown advances at about the
+    clip's rate, and what the scene draws moves and is the server's pose of the frame shown."""
+    info = ok(address, f"/api/clips/{clip['id']}")
+    served = np.array(ok(address, f"/api/clips/{clip['id']}/frames")["positions"])
+    skeleton = ok(address, f"/api/skeletons/{info['skeleton_id']}")
+    state = "const s = window.modbViewer.state; return [s.clip && s.clip.id, s.playing];"
+    assert browser.execute_script(state) == [clip["id"], True]
+    samples = []  # (time, frame, joints drawn, bone ends drawn)
+    started = time.monotonic()
+    while (time.monotonic() - started < seconds or len(samples) < 8) and time.monotonic() - started < 20:
+        frame, joints, bone_ends = page_pose(browser)
+        samples.append((time.monotonic(), frame, joints, bone_ends))
+        time.sleep(0.05)
+    for _, frame, joints, bone_ends in samples:
+        assert_drawn_like(served[frame], joints, bone_ends, skeleton)
+    n = info["n_frames"]
+    advanced = sum((b[1] - a[1]) % n for a, b in zip(samples, samples[1:]))  # a clip shorter wraps
+    elapsed = samples[-1][0] - samples[0][0]
+    expected = elapsed * info["fps"]
+    assert 0.5 * expected <= advanced <= expected + 0.1 * info["fps"] + 2, (advanced, elapsed, info["fps"])
+    frames = [s[1] for s in samples]
+    assert len(set(frames)) >= 8, f"the clip did not play: frames seen {frames}"
+    moved = [np.abs(a[2] - b[2]).max() for a, b in zip(samples, samples[1:]) if a[1] != b[1]]
+    assert min(moved) > 1e-4, "the frame counter moved but the drawn skeleton did not"
+    selected = browser.execute_script(
+        "return [...document.querySelectorAll('aside span.selected')].map((s) => s.textContent)")
+    collection = next(c for c in ok(address, "/api/collections") if c["id"] == info["collection_id"])
+    assert selected == [f"{collection['name']} ({collection['clips']})", info["name"]]
+    assert browser.current_url.endswith(f"/?clip={clip['id']}")  # reload and share open it again
+
+
+def test_the_page_opens_playing_the_first_clip(server, browser):
+    address = server[0]
+    first = first_clip(address)
+    assert first["collection"] == "web/amc" and first["name"] == "131_01"  # web holds none directly
+    browser.get_log("browser")  # what earlier tests left
+    open_page(browser, address)
+    assert_plays(browser, address, first)
+    assert severe_console_entries(browser) == []
+
+
+def test_the_page_opens_playing_the_clip_in_its_address(server, browser):
+    address = server[0]
+    wanted = ok(address, f"/api/clips/{clip_ids(address)['bvh']}")
+    assert wanted["id"] != first_clip(address)["id"]
+    browser.get_log("browser")
+    open_page(browser, address, f"?clip={wanted['id']}")
+    assert_plays(browser, address, wanted)
+    assert severe_console_entries(browser) == []
+
+
+def test_an_empty_database_shows_how_to_load_data(fresh_db, browser):
+    from selenium.webdriver.common.by import By
+
+    browser.get_log("browser")
+    with serving(fresh_db) as address:
+        open_page(browser, address)
+        empty = browser.find_element(By.ID, "empty")
+        assert empty.is_displayed() and not browser.find_element(By.ID, "view").is_displayed()
+        text = empty.text
+        assert "no clips" in text and "modb load path/to/" in text and "modb demo" in text, text
+        assert browser.execute_script("return window.modbViewer.state.clip") is None
+        assert "clip=" not in browser.current_url
+        assert severe_console_entries(browser) == []
+    commands = [line.split() for line in text.splitlines() if line.startswith("modb ")]
+    assert {c[1] for c in commands} == {"load", "demo"}
+    load_help = run_modb(fresh_db, "load", "--help").stdout  # the options shown are real ones
+    assert all(o in load_help for c in commands for o in c if o.startswith("--")), commands

@@ -1,5 +1,6 @@
-// Browse the motion database and play a clip at its own rate. window.modbViewer is what tests (and the
-// console) use to read the page's state; the page itself only uses the JSON endpoints.
+// Browse the motion database and play a clip at its own rate. The page opens playing the clip its address
+// names (?clip=ID), else the first clip (firstClip below), else says how to load data. window.modbViewer is
+// what tests (and the console) use to read the page's state; the page itself only uses the JSON endpoints.
 import { Rig } from './rig.js';
 import { Stage } from './stage.js';
 import { getJSON, markSelected, showClips, showCollections, showSkeleton } from './panels.js';
@@ -51,7 +52,8 @@ async function loadClip(clipId) {
   setFrame(0);
   status('');
   document.title = `MoDB: ${clip.collection}/${clip.name}`;
-  history.replaceState(null, '', `?clip=${clipId}`);
+  history.replaceState(null, '', `?clip=${clip.id}`); // reload and share open this clip
+  play(); // a chosen clip plays: the page shows something that moves
   return true;
 }
 
@@ -106,16 +108,36 @@ async function showCollection(collectionId) {
   showClips($('clips'), $('clip-count'), await getJSON(`/api/clips?collection=${collectionId}`), (clip) => loadClip(clip.id));
 }
 
+// The clip the page opens on when the address names none: the first collection in the listing's order
+// (/api/collections sorts by path, as the collection tree shows them) that holds clips, and the first of its
+// clips in the clip list's order (by name, then id). Null when no collection holds a clip.
+async function firstClip(collections) {
+  for (const c of collections.filter((c) => c.clips > 0)) {
+    const clips = await getJSON(`/api/clips?collection=${c.id}`);
+    if (clips.length) return clips[0];
+  }
+  return null;
+}
+
+// An empty database: how to load data, where the view would be.
+function showEmpty() {
+  $('view').hidden = true;
+  $('empty').hidden = false;
+  status('');
+}
+
 async function start() {
   const collections = await getJSON('/api/collections');
   showCollections($('collections'), collections, (c) => showCollection(c.id));
+  if (!collections.some((c) => c.clips > 0)) return showEmpty();
   const wanted = new URLSearchParams(location.search).get('clip');
-  if (wanted && await loadClip(encodeURIComponent(wanted))) { // the panels show where the clip is
+  const clip = wanted ? { id: wanted } : await firstClip(collections);
+  if (!clip) return status('choose a collection, then a clip');
+  if (await loadClip(encodeURIComponent(clip.id))) { // it plays; the panels show where it is
     markSelected($('collections'), state.clip.collection_id);
     await showCollection(state.clip.collection_id);
     markSelected($('clips'), state.clip.id);
   }
-  else status(collections.length ? 'choose a collection, then a clip' : 'the database holds no clips yet: `modb load`');
 }
 
 window.modbViewer = {
