@@ -1,9 +1,11 @@
-"""select_next_snippet with 0.6.0's continuity ratio (the SQL expression, from the frozen install script,
-put in place inside a transaction that is rolled back) against 0.7.0's (C), on the same seeded queries in
-one session, alternating query by query; each timed call follows one that plans it.
+"""select_next_snippet with 0.6.0's continuity ratio (the SQL expression, from the frozen install
+script, put in place inside a transaction that is rolled back) against 0.7.0's (C), on the same
+seeded queries in one session, alternating query by query; each timed call follows one that plans
+it.
 
     .venv/bin/python bench/continuity_ratio_sql_vs_c.py "host=... dbname=..." 30
 """
+
 import statistics
 import sys
 import time
@@ -12,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import psycopg
 
-from modb.connection import configure_for_selection
+from modb.database.connection import configure_for_selection
 
 FROZEN = Path(__file__).resolve().parents[1] / "extension" / "sql" / "released" / "modb--0.6.0.sql"
 QUERY = "SELECT snippet_id FROM modb.select_next_snippet(%s, %s)"
@@ -21,8 +23,9 @@ QUERY = "SELECT snippet_id FROM modb.select_next_snippet(%s, %s)"
 def sql_ratio() -> str:
     text = FROZEN.read_text()
     start = text.index("CREATE FUNCTION modb.continuity_ratio(a modb.terminators")
-    return text[start:text.index("COMMENT ON FUNCTION modb.continuity_ratio(", start)].replace(
-        "CREATE FUNCTION", "CREATE OR REPLACE FUNCTION", 1)
+    return text[start : text.index("COMMENT ON FUNCTION modb.continuity_ratio(", start)].replace(
+        "CREATE FUNCTION", "CREATE OR REPLACE FUNCTION", 1
+    )
 
 
 def main(dsn: str, queries: int) -> None:
@@ -30,7 +33,10 @@ def main(dsn: str, queries: int) -> None:
         configure_for_selection(conn)
         ids = [r[0] for r in conn.execute("SELECT id FROM modb.snippets ORDER BY id")]
         rng = np.random.default_rng(7)
-        requests = [(int(rng.choice(ids)), [float(v) for v in rng.uniform(-5, 5, 2)]) for _ in range(queries)]
+        requests = [
+            (int(rng.choice(ids)), [float(v) for v in rng.uniform(-5, 5, 2)])
+            for _ in range(queries)
+        ]
 
         def timed(prev, target):
             conn.execute(QUERY, [prev, target], prepare=True).fetchone()
@@ -48,9 +54,14 @@ def main(dsn: str, queries: int) -> None:
             ms, b = timed(prev, target)
             c_ms.append(ms)
             same += a == b
-    print(f"{queries} queries: SQL ratio p50 {statistics.median(sql_ms):.1f} ms, p99 {np.percentile(sql_ms, 99):.1f}; "
-          f"C ratio p50 {statistics.median(c_ms):.1f} ms, p99 {np.percentile(c_ms, 99):.1f}; median per-query "
-          f"speed-up {statistics.median(x / y for x, y in zip(sql_ms, c_ms)):.1f}x; same snippet {same}/{queries}")
+    print(
+        f"{queries} queries: SQL ratio p50 {statistics.median(sql_ms):.1f} ms, p99 "
+        f"{np.percentile(sql_ms, 99):.1f}; "
+        f"C ratio p50 {statistics.median(c_ms):.1f} ms, p99 {np.percentile(c_ms, 99):.1f}; median "
+        f"per-query "
+        f"speed-up {statistics.median(x / y for x, y in zip(sql_ms, c_ms)):.1f}x; same snippet "
+        f"{same}/{queries}"
+    )
 
 
 if __name__ == "__main__":

@@ -1,10 +1,11 @@
-"""select_next_snippet in two databases holding the same snippets under different extension versions (say a
-copy kept at 0.7.0 and one updated to 0.8.0), on the same seeded queries, alternating query by query, each
-on its own prepared, generic-plan connection: the latency of each, the median per-query ratio, and whether
-both chose the same snippet.
+"""select_next_snippet in two databases holding the same snippets under different extension versions
+(say a copy kept at 0.7.0 and one updated to 0.8.0), on the same seeded queries, alternating query
+by query, each on its own prepared, generic-plan connection: the latency of each, the median
+per-query ratio, and whether both chose the same snippet.
 
     .venv/bin/python bench/versions_ab.py "host=... dbname=old" "host=... dbname=new" 100
 """
+
 import random
 import statistics
 import sys
@@ -13,7 +14,7 @@ import time
 import numpy as np
 import psycopg
 
-from modb.connection import configure_for_selection
+from modb.database.connection import configure_for_selection
 
 QUERY = "SELECT snippet_id, relax_level FROM modb.select_next_snippet(%s, %s)"
 
@@ -29,7 +30,10 @@ def main(old_dsn: str, new_dsn: str, queries: int) -> None:
     ids = [r[0] for r in new.execute("SELECT id FROM modb.snippets ORDER BY id")]
     if ids != [r[0] for r in old.execute("SELECT id FROM modb.snippets ORDER BY id")]:
         sys.exit("the two databases do not hold the same snippets: compare copies of one database")
-    versions = [c.execute("SELECT extversion FROM pg_extension WHERE extname = 'modb'").fetchone()[0] for c in (old, new)]
+    versions = [
+        c.execute("SELECT extversion FROM pg_extension WHERE extname = 'modb'").fetchone()[0]
+        for c in (old, new)
+    ]
     rng = random.Random(1)
     seeded = [(rng.choice(ids), [rng.uniform(-5, 5), rng.uniform(-5, 5)]) for _ in range(queries)]
     times: dict[str, list[float]] = {"old": [], "new": []}
@@ -45,10 +49,15 @@ def main(old_dsn: str, new_dsn: str, queries: int) -> None:
             times[name].append((time.perf_counter() - start) * 1e3)
         same += chosen["old"] == chosen["new"]
     for name, version in zip(("old", "new"), versions):
-        print(f"{version}: p50 {statistics.median(times[name]):.2f} ms, p99 {np.percentile(times[name], 99):.2f} ms")
+        print(
+            f"{version}: p50 {statistics.median(times[name]):.2f} ms, p99 "
+            f"{np.percentile(times[name], 99):.2f} ms"
+        )
     ratios = [a / b for a, b in zip(times["old"], times["new"])]
-    print(f"median per-query {versions[0]} / {versions[1]}: {statistics.median(ratios):.1f}x; "
-          f"same snippet and level: {same}/{queries}")
+    print(
+        f"median per-query {versions[0]} / {versions[1]}: {statistics.median(ratios):.1f}x; "
+        f"same snippet and level: {same}/{queries}"
+    )
 
 
 if __name__ == "__main__":

@@ -13,9 +13,9 @@ from pathlib import Path
 import psycopg
 import pytest
 
-from modb.cluster import Cluster
-from modb.connection import connect
-from modb.demo_data import locomotion_files
+from modb.database.cluster import Cluster
+from modb.database.connection import connect
+from modb.demo.data import locomotion_files
 
 REPO = Path(__file__).resolve().parents[1]
 MOCAP = Path(os.environ.get("MODB_MOCAP", REPO.parent / "shared" / "mocap"))

@@ -1,4 +1,4 @@
-"""The benchmark's speed-resampled clips (bench_resampled.at_speed) on a real capture: whole steps keep the
+"""The benchmark's speed-resampled clips (modb.bench.resampled.at_speed) on a real capture: whole steps keep the
 captured frames, half steps lie halfway between them (rotation angles by scipy, positions by bvhio-checked
 forward kinematics)."""
 from __future__ import annotations
@@ -8,7 +8,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from conftest import mocap
-from modb.bench_resampled import at_speed
+from modb.bench.resampled import at_speed
 from modb.loader.bvh import read_bvh
 
 

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from modb import dsn
+from modb.database import dsn
 
 
 def test_precedence(monkeypatch):

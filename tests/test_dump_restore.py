@@ -8,8 +8,8 @@ import psycopg
 
 from conftest import mocap, run_modb
 from modb.clips import read_motion
-from modb.cluster import _bindir
-from modb.connection import connect
+from modb.database.cluster import _bindir
+from modb.database.connection import connect
 
 
 def test_dump_restore_keeps_clips_and_loading_continues(cluster, fresh_db, db, tmp_path):

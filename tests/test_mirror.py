@@ -13,7 +13,7 @@ import pytest
 from conftest import mocap
 from modb.loader.asf import read_amc, read_asf
 from modb.loader.bvh import read_bvh
-from modb.demo_data import locomotion_files
+from modb.demo.data import locomotion_files
 from modb.motion import Motion
 from modb_kernel import kinematics, mirror, quaternion
 

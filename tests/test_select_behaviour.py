@@ -8,8 +8,8 @@ import psycopg
 import pytest
 
 from conftest import REPO, mocap, plan_nodes, run_modb, scratch_database
-from modb.connection import connect
-from modb.graphs import list_graphs
+from modb.database.connection import connect
+from modb.synthesis.graphs import list_graphs
 
 
 @pytest.fixture(scope="module")
@@ -399,8 +399,8 @@ def test_mirrored_snippets_are_placed_where_the_database_says(cmu):
     """The client mirrors a clip's frames itself (source_frames.py); the database measured the mirrored
     snippets' travel and turn when it built them. A strip that starts on a mirrored snippet (CMU 131, 120 fps)
     must end each snippet where the chain's arithmetic on those stored figures puts it."""
-    from modb.avatar import Settings
-    from modb.synth import synthesize
+    from modb.synthesis.avatar import Settings
+    from modb.synthesis.synth import synthesize
 
     with connect(cmu) as conn:
         start = conn.execute("SELECT min(id) FROM modb.snippets WHERE mirrored AND first_frame = 120").fetchone()[0]

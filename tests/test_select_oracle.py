@@ -9,7 +9,7 @@ import psycopg
 import pytest
 
 from conftest import mocap, plan_nodes, run_modb, scratch_database
-from modb.connection import connect
+from modb.database.connection import connect
 from snippet_oracle import (KNOBS, cost_to_go, level0_ratios, load_snippet_space, resolve_profile, select,
                             strong_components)
 

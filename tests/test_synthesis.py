@@ -12,12 +12,12 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from conftest import GRAPH, run_modb
-from modb.avatar import Avatar, Choice, Settings
-from modb.bench_synth import seeded_course
-from modb.connection import connect
-from modb.placement import Placement
-from modb.quality import NaturalSteps, goal_reach, recombined, seam_steps, step_changes
-from modb.synth import format_summary, report, source_motions, synthesize
+from modb.synthesis.avatar import Avatar, Choice, Settings
+from modb.bench.synth import seeded_course
+from modb.database.connection import connect
+from modb.synthesis.placement import Placement
+from modb.synthesis.quality import NaturalSteps, goal_reach, recombined, seam_steps, step_changes
+from modb.synthesis.synth import format_summary, report, source_motions, synthesize
 from oracle import bvhio_world_positions, in_order
 from snippet_oracle import world_transforms
 

@@ -1,4 +1,6 @@
-"""Writing a Motion as BVH, in the skeleton's source units and, for BVH sources, its own channel layout."""
+"""Writing a Motion as BVH, in the skeleton's source units and, for BVH sources, its own channel
+layout."""
+
 from __future__ import annotations
 
 import io
@@ -8,7 +10,7 @@ import numpy as np
 
 from modb_kernel import quaternion
 
-from .motion import Joint, Motion
+from modb.motion import Joint, Motion
 
 # For sources without BVH channels (ASF/AMC). Their stored rotations C M C^-1 turn about any axis
 # even for a one-dof bone, so every rotating joint gets all three channels.
@@ -52,20 +54,29 @@ def write_bvh(motion: Motion, out: io.TextIOBase, precision: int = 6) -> None:
 
     out.write("HIERARCHY\n")
     emit(0, 0)
-    frame_time = motion.meta.get("load_params", {}).get("frame_time") or motion.meta.get("frame_time") or 1.0 / motion.fps
+    frame_time = (
+        motion.meta.get("load_params", {}).get("frame_time")
+        or motion.meta.get("frame_time")
+        or 1.0 / motion.fps
+    )
     out.write(f"MOTION\nFrames: {motion.n_frames}\nFrame Time: {frame_time:.10g}\n")
     columns = []
     for k in visited:
         j = sk.joints[k]
         if not layout[k]:
             continue
-        local = (motion.translations[:, translated.index(k)] if k in translated
-                 else np.broadcast_to(np.array(j.offset), (motion.n_frames, 3))) * scale
+        local = (
+            motion.translations[:, translated.index(k)]
+            if k in translated
+            else np.broadcast_to(np.array(j.offset), (motion.n_frames, 3))
+        ) * scale
         order = "".join(c[0] for c in layout[k] if c.endswith("rotation"))
         angles = np.degrees(quaternion.to_euler(motion.rotations[:, k], order)) if order else None
         for c in layout[k]:
             axis = "XYZ".index(c[0])
-            columns.append(local[:, axis] if c.endswith("position") else angles[:, order.index(c[0])])
+            columns.append(
+                local[:, axis] if c.endswith("position") else angles[:, order.index(c[0])]
+            )
     np.savetxt(out, np.stack(columns, axis=1), fmt=f"%.{precision}f", delimiter=" ")
 
 

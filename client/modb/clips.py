@@ -1,10 +1,11 @@
 """Finding clips by id or name and reading a version back into the shared Motion model."""
+
 from __future__ import annotations
 
 import numpy as np
 import psycopg
 
-from .motion import Motion, Skeleton, Source
+from modb.motion import Motion, Skeleton, Source
 
 
 class ClipNotFound(LookupError):
@@ -12,17 +13,22 @@ class ClipNotFound(LookupError):
 
 
 def resolve_clip(conn: psycopg.Connection, spec: str) -> int:
-    """A clip id from 'id:N', an id, a name, or 'collection/path/name' that matches exactly one clip."""
+    """A clip id from 'id:N', an id, a name, or 'collection/path/name' that matches exactly one
+    clip."""
     if spec.startswith("id:") and spec[3:].isdigit():
         if conn.execute("SELECT 1 FROM modb.clips WHERE id = %s", [int(spec[3:])]).fetchone():
             return int(spec[3:])
         raise ClipNotFound(f"no clip with id {spec[3:]}")
     if spec.isdigit():
         by_id = conn.execute("SELECT 1 FROM modb.clips WHERE id = %s", [int(spec)]).fetchone()
-        named = conn.execute("SELECT count(*) FROM modb.clips WHERE name = %s", [spec]).fetchone()[0]
+        named = conn.execute("SELECT count(*) FROM modb.clips WHERE name = %s", [spec]).fetchone()[
+            0
+        ]
         if by_id and named:
-            raise ClipNotFound(f"{spec!r} is both a clip id and a clip name: write id:{spec} for the id, "
-                               f"or collection/{spec} for the name")
+            raise ClipNotFound(
+                f"{spec!r} is both a clip id and a clip name: write id:{spec} for the id, "
+                f"or collection/{spec} for the name"
+            )
         if by_id:
             return int(spec)
         if not named:
@@ -30,38 +36,67 @@ def resolve_clip(conn: psycopg.Connection, spec: str) -> int:
     collection, _, name = spec.rpartition("/")
     rows = conn.execute(
         "SELECT c.id, modb.collection_path(c.collection_id) || '/' || c.name FROM modb.clips c "
-        "WHERE c.name = %s AND (%s = '' OR modb.collection_path(c.collection_id) = %s) ORDER BY c.id",
-        [name, collection, collection]).fetchall()
+        "WHERE c.name = %s AND (%s = '' OR modb.collection_path(c.collection_id) = %s) ORDER BY "
+        "c.id",
+        [name, collection, collection],
+    ).fetchall()
     if len(rows) == 1:
         return rows[0][0]
     if not rows:
         raise ClipNotFound(f"no clip named {spec!r} (`modb list` shows what is stored)")
     listing = "\n".join(f"  {clip_id}  {path}" for clip_id, path in rows)
-    raise ClipNotFound(f"{len(rows)} clips are named {spec!r}; give an id or collection/name:\n{listing}")
+    raise ClipNotFound(
+        f"{len(rows)} clips are named {spec!r}; give an id or collection/name:\n{listing}"
+    )
 
 
 def read_motion(conn: psycopg.Connection, clip_id: int, version: int | None = None) -> Motion:
     """The given version of a clip (the newest when None) as a Motion (float64 arrays)."""
     with conn.cursor(binary=True) as cur:
         row = cur.execute(
-            "SELECT c.name, v.version, v.fps, v.rotations, v.translations, v.source_file, v.source_sha256, "
+            "SELECT c.name, v.version, v.fps, v.rotations, v.translations, v.source_file, "
+            "v.source_sha256, "
             "       v.load_params, v.meta, s.name, s.hierarchy, s.joint_map, s.mirror_pairs "
             "FROM modb.clips c JOIN modb.clip_versions v ON v.clip_id = c.id "
             "JOIN modb.skeletons s ON s.id = v.skeleton_id "
-            "WHERE c.id = %s AND v.version = coalesce(%s, (SELECT max(version) FROM modb.clip_versions "
+            "WHERE c.id = %s AND v.version = coalesce(%s, (SELECT max(version) FROM "
+            "modb.clip_versions "
             "                                               WHERE clip_id = %s))",
-            [clip_id, version, clip_id]).fetchone()
+            [clip_id, version, clip_id],
+        ).fetchone()
     if row is None:
         which = f"version {version}" if version is not None else "any version"
         raise ClipNotFound(f"clip {clip_id} has no {which}")
-    (name, version, fps, rotations, translations, source_file, sha, load_params, meta,
-     skeleton_name, hierarchy, joint_map, mirror_pairs) = row
+    (
+        name,
+        version,
+        fps,
+        rotations,
+        translations,
+        source_file,
+        sha,
+        load_params,
+        meta,
+        skeleton_name,
+        hierarchy,
+        joint_map,
+        mirror_pairs,
+    ) = row
     skeleton = Skeleton.from_row(hierarchy, joint_map, mirror_pairs, name=skeleton_name)
     n_frames = rotations.shape[0]
-    translations = (np.zeros((n_frames, 0, 3)) if translations is None
-                    else np.asarray(translations, dtype=np.float64))
+    translations = (
+        np.zeros((n_frames, 0, 3))
+        if translations is None
+        else np.asarray(translations, dtype=np.float64)
+    )
     return Motion(
-        skeleton=skeleton, fps=fps, rotations=np.asarray(rotations, dtype=np.float64),
-        translations=translations, name=name,
-        source=Source(path=source_file or "", sha256=sha or "", units_rule=load_params.get("units_rule", "")),
-        meta={"version": version, "load_params": load_params, **meta})
+        skeleton=skeleton,
+        fps=fps,
+        rotations=np.asarray(rotations, dtype=np.float64),
+        translations=translations,
+        name=name,
+        source=Source(
+            path=source_file or "", sha256=sha or "", units_rule=load_params.get("units_rule", "")
+        ),
+        meta={"version": version, "load_params": load_params, **meta},
+    )

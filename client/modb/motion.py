@@ -5,6 +5,7 @@ source's channels kept so a file can be written back in its own layout). A
 `Motion` is one clip version: per frame, a unit quaternion per joint (relative
 to the parent) and a translation for every joint that has position channels.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -28,7 +29,9 @@ class Joint:
     @property
     def has_position(self) -> bool:
         """Position channels: BVH 'Xposition'..., ASF root 'TX'..."""
-        return any(c.lower().endswith("position") or c.lower() in ("tx", "ty", "tz") for c in self.channels)
+        return any(
+            c.lower().endswith("position") or c.lower() in ("tx", "ty", "tz") for c in self.channels
+        )
 
 
 @dataclass
@@ -64,7 +67,8 @@ class Skeleton:
         return kinematics.rest_positions(self.parents, self.offsets)
 
     def hierarchy_json(self) -> dict[str, Any]:
-        """The immutable part, stored in modb.skeletons.hierarchy (its sha256 identifies the skeleton)."""
+        """The immutable part, stored in modb.skeletons.hierarchy (its sha256 identifies the
+        skeleton)."""
         return {
             "format": self.source_format,
             "unit_m": self.unit_m,
@@ -84,8 +88,13 @@ class Skeleton:
         }
 
     @classmethod
-    def from_row(cls, hierarchy: dict[str, Any], joint_map: dict[str, str],
-                 mirror_pairs: list[list[str]], name: str = "") -> Skeleton:
+    def from_row(
+        cls,
+        hierarchy: dict[str, Any],
+        joint_map: dict[str, str],
+        mirror_pairs: list[list[str]],
+        name: str = "",
+    ) -> Skeleton:
         joints = [
             Joint(
                 name=j["name"],
@@ -97,8 +106,14 @@ class Skeleton:
             )
             for j in hierarchy["joints"]
         ]
-        return cls(joints=joints, unit_m=float(hierarchy["unit_m"]), source_format=hierarchy["format"],
-                   joint_map=dict(joint_map), mirror_pairs=[(a, b) for a, b in mirror_pairs], name=name)
+        return cls(
+            joints=joints,
+            unit_m=float(hierarchy["unit_m"]),
+            source_format=hierarchy["format"],
+            joint_map=dict(joint_map),
+            mirror_pairs=[(a, b) for a, b in mirror_pairs],
+            name=name,
+        )
 
 
 @dataclass
@@ -125,5 +140,9 @@ class Motion:
     def world_positions(self) -> np.ndarray:
         """(frames, joints, 3) world positions of every joint, metres."""
         return kinematics.world_positions(
-            self.skeleton.parents, self.skeleton.offsets, self.rotations,
-            self.translations, self.skeleton.translated)
+            self.skeleton.parents,
+            self.skeleton.offsets,
+            self.rotations,
+            self.translations,
+            self.skeleton.translated,
+        )

@@ -3,6 +3,7 @@
 Each function takes a connection and validated arguments and returns what the endpoint sends; unknown ids
 raise NotFound, bad arguments BadRequest, so the app can answer 404 and 400 with the message.
 """
+
 from __future__ import annotations
 
 from dataclasses import replace
@@ -12,7 +13,7 @@ import numpy as np
 import psycopg
 from modb_kernel.joints import STANDARD_JOINTS
 
-from ..clips import ClipNotFound, read_motion
+from modb.clips import ClipNotFound, read_motion
 
 MAX_FRAMES = 20_000  # per request: a clip longer than this is fetched in pages (start, count)
 
@@ -25,7 +26,9 @@ class BadRequest(ValueError):
     pass
 
 
-def _rows(conn: psycopg.Connection, query: str, params: list[Any] | None = None) -> list[dict[str, Any]]:
+def _rows(
+    conn: psycopg.Connection, query: str, params: list[Any] | None = None
+) -> list[dict[str, Any]]:
     with conn.cursor(row_factory=psycopg.rows.dict_row) as cur:
         return cur.execute(query, params or []).fetchall()
 
@@ -39,9 +42,12 @@ def _one(conn: psycopg.Connection, what: str, query: str, ident: int) -> dict[st
 
 def collections(conn: psycopg.Connection) -> list[dict[str, Any]]:
     """Every collection with its path and how many clips it holds directly."""
-    return _rows(conn, "SELECT c.id, c.parent_id, c.name, modb.collection_path(c.id) AS path, "
-                       "       (SELECT count(*) FROM modb.clips k WHERE k.collection_id = c.id) AS clips "
-                       "  FROM modb.collections c ORDER BY path")
+    return _rows(
+        conn,
+        "SELECT c.id, c.parent_id, c.name, modb.collection_path(c.id) AS path, "
+        "       (SELECT count(*) FROM modb.clips k WHERE k.collection_id = c.id) AS clips "
+        "  FROM modb.collections c ORDER BY path",
+    )
 
 
 _CLIP_LIST = """
@@ -56,19 +62,28 @@ def clips(conn: psycopg.Connection, collection_id: int | None) -> list[dict[str,
     """The clips of one collection (all when None), newest versions."""
     if collection_id is not None:
         _one(conn, "collection", "SELECT id FROM modb.collections WHERE id = %s", collection_id)
-    return _rows(conn, _CLIP_LIST + " WHERE %s::bigint IS NULL OR c.collection_id = %s ORDER BY c.name, c.id",
-                 [collection_id, collection_id])
+    return _rows(
+        conn,
+        _CLIP_LIST + " WHERE %s::bigint IS NULL OR c.collection_id = %s ORDER BY c.name, c.id",
+        [collection_id, collection_id],
+    )
 
 
 def clip(conn: psycopg.Connection, clip_id: int) -> dict[str, Any]:
     """One clip: its newest version's shape, every version, and its annotations."""
     out = _one(conn, "clip", _CLIP_LIST + " WHERE c.id = %s", clip_id)
-    out["versions"] = _rows(conn, "SELECT version, n_frames, fps, skeleton_id, source_file, created_at::text, "
-                                  "       meta FROM modb.clip_versions WHERE clip_id = %s ORDER BY version", [clip_id])
+    out["versions"] = _rows(
+        conn,
+        "SELECT version, n_frames, fps, skeleton_id, source_file, created_at::text, "
+        "       meta FROM modb.clip_versions WHERE clip_id = %s ORDER BY version",
+        [clip_id],
+    )
     return out
 
 
-def frames(conn: psycopg.Connection, clip_id: int, version: int | None, start: int, count: int | None) -> dict[str, Any]:
+def frames(
+    conn: psycopg.Connection, clip_id: int, version: int | None, start: int, count: int | None
+) -> dict[str, Any]:
     """Frames start..start+count-1 of a clip version: local rotations (w, x, y, z per joint, skeleton order),
     the translations of the joints that have position channels, and every joint's world position (metres),
     computed here by the shared forward kinematics."""
@@ -84,11 +99,17 @@ def frames(conn: psycopg.Connection, clip_id: int, version: int | None, start: i
     if start >= motion.n_frames:
         raise BadRequest(f"start {start} is past the clip's last frame ({motion.n_frames - 1})")
     stop = min(motion.n_frames, start + (count or MAX_FRAMES))
-    positions = replace(motion, rotations=motion.rotations[start:stop],
-                        translations=motion.translations[start:stop]).world_positions()
+    positions = replace(
+        motion, rotations=motion.rotations[start:stop], translations=motion.translations[start:stop]
+    ).world_positions()
     return {
-        "clip_id": clip_id, "version": motion.meta["version"], "fps": motion.fps, "n_frames": motion.n_frames,
-        "start": start, "count": stop - start, "joints": motion.skeleton.names,
+        "clip_id": clip_id,
+        "version": motion.meta["version"],
+        "fps": motion.fps,
+        "n_frames": motion.n_frames,
+        "start": start,
+        "count": stop - start,
+        "joints": motion.skeleton.names,
         "translated": motion.skeleton.translated,
         "rotations": np.round(motion.rotations[start:stop], 7).tolist(),
         "translations": np.round(motion.translations[start:stop], 6).tolist(),
@@ -97,16 +118,24 @@ def frames(conn: psycopg.Connection, clip_id: int, version: int | None, start: i
 
 
 def skeletons(conn: psycopg.Connection) -> list[dict[str, Any]]:
-    return _rows(conn, "SELECT s.id, s.name, s.hierarchy->>'format' AS format, "
-                       "       jsonb_array_length(s.hierarchy->'joints') AS joints, "
-                       "       (SELECT count(*) FROM modb.clip_versions v WHERE v.skeleton_id = s.id) AS clip_versions "
-                       "  FROM modb.skeletons s ORDER BY s.id")
+    return _rows(
+        conn,
+        "SELECT s.id, s.name, s.hierarchy->>'format' AS format, "
+        "       jsonb_array_length(s.hierarchy->'joints') AS joints, "
+        "       (SELECT count(*) FROM modb.clip_versions v WHERE v.skeleton_id = s.id) AS clip_versions "
+        "  FROM modb.skeletons s ORDER BY s.id",
+    )
 
 
 def skeleton(conn: psycopg.Connection, skeleton_id: int) -> dict[str, Any]:
     """The hierarchy (offsets in metres, channels, rest positions), joint map and mirror pairs."""
-    return _one(conn, "skeleton", "SELECT id, name, hierarchy, joint_map, mirror_pairs, meta "
-                                  "  FROM modb.skeletons WHERE id = %s", skeleton_id)
+    return _one(
+        conn,
+        "skeleton",
+        "SELECT id, name, hierarchy, joint_map, mirror_pairs, meta "
+        "  FROM modb.skeletons WHERE id = %s",
+        skeleton_id,
+    )
 
 
 def _named_table(table: str) -> tuple[str, str]:
@@ -126,7 +155,11 @@ def model(conn: psycopg.Connection, model_id: int) -> dict[str, Any]:
 def graphs(conn: psycopg.Connection) -> list[dict[str, Any]]:
     """Motion and transition graphs; transition graphs with how many snippets they keep."""
     rows = _rows(conn, _named_table("graphs")[0])
-    kept = dict(conn.execute("SELECT graph_id, count(*) FROM modb.graph_snippets GROUP BY graph_id").fetchall())
+    kept = dict(
+        conn.execute(
+            "SELECT graph_id, count(*) FROM modb.graph_snippets GROUP BY graph_id"
+        ).fetchall()
+    )
     for r in rows:
         r["kept_snippets"] = kept.get(r["id"], 0)
     return rows
@@ -134,19 +167,31 @@ def graphs(conn: psycopg.Connection) -> list[dict[str, Any]]:
 
 def graph(conn: psycopg.Connection, graph_id: int) -> dict[str, Any]:
     out = _one(conn, "graph", _named_table("graphs")[1], graph_id)
-    out["kept_snippets"] = conn.execute("SELECT count(*) FROM modb.graph_snippets WHERE graph_id = %s",
-                                   [graph_id]).fetchone()[0]
+    out["kept_snippets"] = conn.execute(
+        "SELECT count(*) FROM modb.graph_snippets WHERE graph_id = %s", [graph_id]
+    ).fetchone()[0]
     return out
 
 
 def profiles(conn: psycopg.Connection) -> list[dict[str, Any]]:
     """The match profiles select_next_snippet takes, with their settings (the avatar panel's starting values)."""
-    return _rows(conn, "SELECT name, settings, comment, shipped FROM modb.match_profiles ORDER BY name")
+    return _rows(
+        conn, "SELECT name, settings, comment, shipped FROM modb.match_profiles ORDER BY name"
+    )
 
 
 def avatar_choices(conn: psycopg.Connection) -> dict[str, Any]:
     """What the avatar panel offers: profiles, transition graphs (newest first), collections, joints."""
-    graphs = [r[0] for r in conn.execute("SELECT name FROM modb.graphs WHERE kind = 'transitions' "
-                                         "ORDER BY created_at DESC, id DESC")]
-    return {"profiles": profiles(conn), "graphs": graphs, "collections": [c["path"] for c in collections(conn)],
-            "joints": list(STANDARD_JOINTS)}
+    graphs = [
+        r[0]
+        for r in conn.execute(
+            "SELECT name FROM modb.graphs WHERE kind = 'transitions' "
+            "ORDER BY created_at DESC, id DESC"
+        )
+    ]
+    return {
+        "profiles": profiles(conn),
+        "graphs": graphs,
+        "collections": [c["path"] for c in collections(conn)],
+        "joints": list(STANDARD_JOINTS),
+    }

@@ -3,6 +3,7 @@
 Read-only: its pooled connections run with default_transaction_read_only, and the database role it is given
 (modb_reader is enough) bounds what it can see. Every request passes the Host/Origin guard.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -21,15 +22,17 @@ from starlette.responses import FileResponse, JSONResponse
 from starlette.routing import Mount, Route, WebSocketRoute
 from starlette.staticfiles import StaticFiles
 
-from .. import pgarray
-from ..connection import connect
+from modb.database import pgarray
+from modb.database.connection import connect
 from . import api
 from .avatar_socket import avatar_endpoint
 from .guard import HostOriginGuard, allowed_hosts
 
 HERE = Path(__file__).parent
 STATIC = HERE / "static"
-THREE = HERE / "node_modules" / "three"  # npm ci (make setup) installs the version package.json pins
+THREE = (
+    HERE / "node_modules" / "three"
+)  # npm ci (make setup) installs the version package.json pins
 log = logging.getLogger("modb.web")
 
 
@@ -40,7 +43,9 @@ class ThreeMissing(RuntimeError):
 def _int(name: str, value: str | None, default: int | None = None) -> int | None:
     if value is None:
         return default
-    if not re.fullmatch(r"-?[0-9]{1,18}", value):  # ASCII digits only: int() would take "1_0", "+1", "٣"
+    if not re.fullmatch(
+        r"-?[0-9]{1,18}", value
+    ):  # ASCII digits only: int() would take "1_0", "+1", "٣"
         raise api.BadRequest(f"{name} must be an integer, got {value!r}")
     return int(value)
 
@@ -60,6 +65,7 @@ def _endpoint(pool: ConnectionPool, view: Callable[[psycopg.Connection, Request]
     def endpoint(request: Request) -> JSONResponse:  # sync: Starlette runs it in its thread pool
         with pool.connection() as conn:
             return JSONResponse(view(conn, request))
+
     return endpoint
 
 
@@ -73,21 +79,32 @@ def _clips(conn: psycopg.Connection, r: Request) -> Any:
 
 def _frames(conn: psycopg.Connection, r: Request) -> Any:
     q = _query(r, "version", "start", "count")
-    return api.frames(conn, _path_id(r, "clip"), _int("version", q.get("version")),
-                      _int("start", q.get("start"), 0), _int("count", q.get("count")))
+    return api.frames(
+        conn,
+        _path_id(r, "clip"),
+        _int("version", q.get("version")),
+        _int("start", q.get("start"), 0),
+        _int("count", q.get("count")),
+    )
 
 
-def _listing(view: Callable[[psycopg.Connection], Any]) -> Callable[[psycopg.Connection, Request], Any]:
+def _listing(
+    view: Callable[[psycopg.Connection], Any],
+) -> Callable[[psycopg.Connection, Request], Any]:
     def answer(conn: psycopg.Connection, r: Request) -> Any:
         _query(r)
         return view(conn)
+
     return answer
 
 
-def _by_id(view: Callable[[psycopg.Connection, int], Any], what: str) -> Callable[[psycopg.Connection, Request], Any]:
+def _by_id(
+    view: Callable[[psycopg.Connection, int], Any], what: str
+) -> Callable[[psycopg.Connection, Request], Any]:
     def answer(conn: psycopg.Connection, r: Request) -> Any:
         _query(r)
         return view(conn, _path_id(r, what))
+
     return answer
 
 
@@ -109,17 +126,24 @@ VIEWS: dict[str, Callable[[psycopg.Connection, Request], Any]] = {
 def _error(status: int) -> Callable:
     async def handler(request: Request, exc: Exception) -> JSONResponse:
         return JSONResponse({"error": str(exc)}, status_code=status)
+
     return handler
 
 
 async def _http_error(request: Request, exc: HTTPException) -> JSONResponse:
     message = f"no such page: {request.url.path}" if exc.status_code == 404 else exc.detail
-    return JSONResponse({"error": message}, status_code=exc.status_code, headers=exc.headers)  # 405 keeps Allow
+    return JSONResponse(
+        {"error": message}, status_code=exc.status_code, headers=exc.headers
+    )  # 405 keeps Allow
 
 
 async def _internal_error(request: Request, exc: Exception) -> JSONResponse:
-    log.exception("while answering %s", request.url.path)  # the details go to the server's log, not the page
-    return JSONResponse({"error": "internal error: the server's log says what went wrong"}, status_code=500)
+    log.exception(
+        "while answering %s", request.url.path
+    )  # the details go to the server's log, not the page
+    return JSONResponse(
+        {"error": "internal error: the server's log says what went wrong"}, status_code=500
+    )
 
 
 def _configure(conn: psycopg.Connection) -> None:
@@ -128,13 +152,24 @@ def _configure(conn: psycopg.Connection) -> None:
     pgarray.register(conn)
 
 
-def create_app(conninfo: str, host: str = "127.0.0.1", port: int = 8765,
-               allow_hosts: tuple[str, ...] = ()) -> HostOriginGuard:
+def create_app(
+    conninfo: str, host: str = "127.0.0.1", port: int = 8765, allow_hosts: tuple[str, ...] = ()
+) -> HostOriginGuard:
     if not (THREE / "build" / "three.module.js").exists():
-        raise ThreeMissing(f"three.js is not installed in {THREE.parent}: run `make setup` (npm ci there)")
-    connect(conninfo).close()  # fails now, saying what to do, when the database has no modb extension
-    pool = ConnectionPool(conninfo, min_size=1, max_size=4, configure=_configure, open=False,
-                          check=ConnectionPool.check_connection)  # a restarted server costs no failed request
+        raise ThreeMissing(
+            f"three.js is not installed in {THREE.parent}: run `make setup` (npm ci there)"
+        )
+    connect(
+        conninfo
+    ).close()  # fails now, saying what to do, when the database has no modb extension
+    pool = ConnectionPool(
+        conninfo,
+        min_size=1,
+        max_size=4,
+        configure=_configure,
+        open=False,
+        check=ConnectionPool.check_connection,
+    )  # a restarted server costs no failed request
 
     @contextlib.asynccontextmanager
     async def lifespan(app: Starlette):
@@ -142,13 +177,22 @@ def create_app(conninfo: str, host: str = "127.0.0.1", port: int = 8765,
         yield
         pool.close()
 
-    routes = [Route("/", lambda request: FileResponse(STATIC / "index.html")),
-              *(Route(path, _endpoint(pool, view)) for path, view in VIEWS.items()),
-              Route("/avatar", lambda request: FileResponse(STATIC / "avatar.html")),
-              WebSocketRoute("/ws/avatar", avatar_endpoint(conninfo, pool)),
-              Mount("/static", StaticFiles(directory=STATIC)),
-              Mount("/vendor/three", StaticFiles(directory=THREE))]
-    app = Starlette(routes=routes, lifespan=lifespan, exception_handlers={
-        api.NotFound: _error(404), api.BadRequest: _error(400), HTTPException: _http_error,
-        Exception: _internal_error})
+    routes = [
+        Route("/", lambda request: FileResponse(STATIC / "index.html")),
+        *(Route(path, _endpoint(pool, view)) for path, view in VIEWS.items()),
+        Route("/avatar", lambda request: FileResponse(STATIC / "avatar.html")),
+        WebSocketRoute("/ws/avatar", avatar_endpoint(conninfo, pool)),
+        Mount("/static", StaticFiles(directory=STATIC)),
+        Mount("/vendor/three", StaticFiles(directory=THREE)),
+    ]
+    app = Starlette(
+        routes=routes,
+        lifespan=lifespan,
+        exception_handlers={
+            api.NotFound: _error(404),
+            api.BadRequest: _error(400),
+            HTTPException: _http_error,
+            Exception: _internal_error,
+        },
+    )
     return HostOriginGuard(app, allowed_hosts(host, port, allow_hosts))

@@ -4,6 +4,7 @@ The Host/Origin guard in front refuses a foreign page before this runs. Each con
 database session; at most MAX_AVATARS walk at once, so that browser tabs cannot exhaust the server's
 connections.
 """
+
 from __future__ import annotations
 
 import asyncio
@@ -17,7 +18,7 @@ from psycopg_pool import ConnectionPool
 from starlette.concurrency import run_in_threadpool
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
-from ..avatar import Settings
+from modb.synthesis.avatar import Settings
 from . import api
 from .avatar_session import AvatarSession, check_settings
 
@@ -46,7 +47,9 @@ def avatar_endpoint(conninfo: str, pool: ConnectionPool) -> Callable:
     async def endpoint(websocket: WebSocket) -> None:
         await websocket.accept()
         if not slots.acquire(blocking=False):
-            await websocket.close(code=1013, reason=f"{MAX_AVATARS} avatars are walking already: try again later")
+            await websocket.close(
+                code=1013, reason=f"{MAX_AVATARS} avatars are walking already: try again later"
+            )
             return
         loop = asyncio.get_running_loop()
 
@@ -63,7 +66,9 @@ def avatar_endpoint(conninfo: str, pool: ConnectionPool) -> Callable:
         try:
             choices = await run_in_threadpool(offered)
             session = AvatarSession(conninfo, send, check, _defaults(choices))
-            await websocket.send_text(json.dumps({"type": "ready", **choices, "settings": session.public_settings()}))
+            await websocket.send_text(
+                json.dumps({"type": "ready", **choices, "settings": session.public_settings()})
+            )
             while True:
                 received = await websocket.receive()
                 if received["type"] == "websocket.disconnect":
@@ -71,7 +76,9 @@ def avatar_endpoint(conninfo: str, pool: ConnectionPool) -> Callable:
                 try:
                     message = json.loads(received.get("text") or "")
                 except json.JSONDecodeError as e:
-                    await websocket.send_text(json.dumps({"type": "refused", "message": f"not JSON text: {e}"}))
+                    await websocket.send_text(
+                        json.dumps({"type": "refused", "message": f"not JSON text: {e}"})
+                    )
                     continue
                 await run_in_threadpool(session.handle, message)
         except WebSocketDisconnect:

@@ -1,4 +1,5 @@
 """The frames a snippet plays, read once per clip version (and mirrored when its snippets are)."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -8,8 +9,8 @@ import psycopg
 
 from modb_kernel import kinematics, mirror
 
-from .clips import read_motion
-from .motion import Motion, Skeleton
+from modb.clips import read_motion
+from modb.motion import Motion, Skeleton
 
 
 class UnplaceableSkeleton(ValueError):
@@ -18,7 +19,9 @@ class UnplaceableSkeleton(ValueError):
 
 @dataclass(frozen=True)
 class SourceFrames:
-    """One clip version as played: parent-relative rotations, translations and the source pelvis path."""
+    """One clip version as played: parent-relative rotations, translations and the source pelvis
+    path."""
+
     motion: Motion
     pelvis: np.ndarray  # (frames, 3) world pelvis positions in the source
     root_track: int  # index of the root joint in motion.translations
@@ -32,15 +35,29 @@ def mirrored_motion(motion: Motion) -> Motion:
     """The clip as if captured in a mirror (the same reflection build_snippets uses)."""
     sk = motion.skeleton
     partner = mirror.partner_index(sk.names, sk.mirror_pairs)
-    rotations, translations = mirror.mirror(sk.parents, sk.offsets, [j.end_site for j in sk.joints], partner,
-                                            motion.rotations, motion.translations, sk.translated)
-    return Motion(skeleton=sk, fps=motion.fps, rotations=np.asarray(rotations, dtype=np.float64),
-                  translations=np.asarray(translations, dtype=np.float64), name=motion.name + " (mirrored)",
-                  source=motion.source, meta=motion.meta)
+    rotations, translations = mirror.mirror(
+        sk.parents,
+        sk.offsets,
+        [j.end_site for j in sk.joints],
+        partner,
+        motion.rotations,
+        motion.translations,
+        sk.translated,
+    )
+    return Motion(
+        skeleton=sk,
+        fps=motion.fps,
+        rotations=np.asarray(rotations, dtype=np.float64),
+        translations=np.asarray(translations, dtype=np.float64),
+        name=motion.name + " (mirrored)",
+        source=motion.source,
+        meta=motion.meta,
+    )
 
 
 class FrameLibrary:
-    """Clip versions fetched on first use and kept: a synthesized strip revisits the same few clips."""
+    """Clip versions fetched on first use and kept: a synthesized strip revisits the same few
+    clips."""
 
     def __init__(self, conn: psycopg.Connection):
         self._conn = conn
@@ -55,9 +72,13 @@ class FrameLibrary:
             sk = motion.skeleton
             if 0 not in sk.translated:
                 raise UnplaceableSkeleton(
-                    f"clip {clip_id}: the root joint {sk.joints[0].name!r} of skeleton {sk.name!r} has no position "
-                    "channels, so the clip cannot be moved in the world; load a file whose root carries position")
-            pelvis = kinematics.world_positions(sk.parents, sk.offsets, motion.rotations, motion.translations,
-                                                sk.translated)[:, sk.index(sk.joint_map["pelvis"])]
+                    f"clip {clip_id}: the root joint {sk.joints[0].name!r} of skeleton {sk.name!r} "
+                    f"has no position "
+                    "channels, so the clip cannot be moved in the world; load a file whose root "
+                    "carries position"
+                )
+            pelvis = kinematics.world_positions(
+                sk.parents, sk.offsets, motion.rotations, motion.translations, sk.translated
+            )[:, sk.index(sk.joint_map["pelvis"])]
             self._cache[key] = SourceFrames(motion, pelvis, sk.translated.index(0))
         return self._cache[key]

@@ -4,6 +4,7 @@ Frames are stored as multi-dimensional real[]; these adapters move them as
 one buffer each way (PostgreSQL's binary array layout: header, then per element
 a 4-byte length and a big-endian float4).
 """
+
 from __future__ import annotations
 
 import struct
@@ -28,7 +29,9 @@ class Float4ArrayDumper(Dumper):
         a = np.asarray(obj, dtype=np.float32)
         if a.size == 0:
             return struct.pack(">iii", 0, 0, FLOAT4_OID)
-        header = struct.pack(">iii", a.ndim, 0, FLOAT4_OID) + b"".join(struct.pack(">ii", n, 1) for n in a.shape)
+        header = struct.pack(">iii", a.ndim, 0, FLOAT4_OID) + b"".join(
+            struct.pack(">ii", n, 1) for n in a.shape
+        )
         body = np.empty(a.size, dtype=_ELEMENT)
         body["length"] = 4
         body["value"] = a.ravel()

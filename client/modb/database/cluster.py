@@ -5,6 +5,7 @@ connections through that socket, and keeps the socket directory closed to
 other users. initdb refuses root, so when run as root the cluster lives in
 /var/lib/modb and is run by the `postgres` OS user.
 """
+
 from __future__ import annotations
 
 import os
@@ -28,12 +29,15 @@ class ClusterError(RuntimeError):
 
 
 def _bindir() -> Path:
-    """PostgreSQL 15's server binaries (Debian's layout first: `pg_config` may point at a newer major)."""
+    """PostgreSQL 15's server binaries (Debian's layout first: `pg_config` may point at a newer
+    major)."""
     debian = Path("/usr/lib/postgresql/15/bin")
     if (debian / "initdb").exists():
         return debian
     try:
-        out = subprocess.run(["pg_config", "--bindir"], capture_output=True, text=True, check=True).stdout.strip()
+        out = subprocess.run(
+            ["pg_config", "--bindir"], capture_output=True, text=True, check=True
+        ).stdout.strip()
         if (Path(out) / "initdb").exists():
             return Path(out)
     except (OSError, subprocess.CalledProcessError):
@@ -47,8 +51,11 @@ def _server_environment() -> dict[str, str]:
     PL/Python must run Debian's python3 with apt's numpy and the extension's own code, never a
     virtualenv's or the user's site-packages (DESIGN.md).
     """
-    env = {k: v for k, v in os.environ.items()
-           if not k.startswith("PYTHON") and k not in ("VIRTUAL_ENV", "CONDA_PREFIX")}
+    env = {
+        k: v
+        for k, v in os.environ.items()
+        if not k.startswith("PYTHON") and k not in ("VIRTUAL_ENV", "CONDA_PREFIX")
+    }
     env["PYTHONNOUSERSITE"] = "1"
     return env
 
@@ -95,8 +102,10 @@ class Cluster:
             cmd = ["runuser", "-u", "postgres", "--", *cmd]
         result = subprocess.run(cmd, capture_output=True, text=True, env=_server_environment())
         if check and result.returncode != 0:
-            raise ClusterError(f"{Path(str(args[0])).name} failed: {(result.stderr or result.stdout).strip()}"
-                               f" (log: {self.logfile})")
+            raise ClusterError(
+                f"{Path(str(args[0])).name} failed: {(result.stderr or result.stdout).strip()}"
+                f" (log: {self.logfile})"
+            )
         return result
 
     def is_initialized(self) -> bool:
@@ -105,7 +114,10 @@ class Cluster:
     def is_running(self) -> bool:
         if not self.is_initialized():
             return False
-        return self._run(_bindir() / "pg_ctl", "status", "-D", self.datadir, check=False).returncode == 0
+        return (
+            self._run(_bindir() / "pg_ctl", "status", "-D", self.datadir, check=False).returncode
+            == 0
+        )
 
     def init(self) -> None:
         for d in (self.home, self.socket_dir):
@@ -114,10 +126,21 @@ class Cluster:
             if os.geteuid() == 0:
                 shutil.chown(d, "postgres", "postgres")
         if os.geteuid() == 0 and self._run("test", "-w", self.home, check=False).returncode != 0:
-            raise ClusterError(f"the postgres OS user, which runs the cluster, cannot reach {self.home}: a parent "
-                               f"directory is closed to it; choose a MODB_HOME it can reach (default /var/lib/modb)")
-        self._run(_bindir() / "initdb", "-D", self.datadir, "-U", self.os_user, "--auth=trust",
-                  "--encoding=UTF8", "--locale=C.UTF-8")
+            raise ClusterError(
+                f"the postgres OS user, which runs the cluster, cannot reach {self.home}: a parent "
+                f"directory is closed to it; choose a MODB_HOME it can reach (default "
+                f"/var/lib/modb)"
+            )
+        self._run(
+            _bindir() / "initdb",
+            "-D",
+            self.datadir,
+            "-U",
+            self.os_user,
+            "--auth=trust",
+            "--encoding=UTF8",
+            "--locale=C.UTF-8",
+        )
         with open(self.datadir / "postgresql.auto.conf", "a") as conf:
             conf.write(
                 "# written by modb: private cluster, unix socket only\n"
@@ -125,12 +148,15 @@ class Cluster:
                 f"unix_socket_directories = '{self.socket_dir}'\n"
                 "unix_socket_permissions = 0700\n"
                 f"port = {PORT}\n"
-                # The selection reads the feature index at random: it should stay in shared buffers (a million
+                # The selection reads the feature index at random: it should stay in shared buffers
+                # (a million
                 # snippets: an 800 MB index). A quarter of the memory, PostgreSQL's usual advice.
-                f"shared_buffers = {_shared_buffers_mb()}MB\n")
+                f"shared_buffers = {_shared_buffers_mb()}MB\n"
+            )
 
     def start(self) -> None:
-        """Create the cluster if needed, start it, and make sure database `modb` has the extension."""
+        """Create the cluster if needed, start it, and make sure database `modb` has the
+        extension."""
         if not self.is_initialized():
             self.init()
         if not self.is_running():
@@ -141,15 +167,21 @@ class Cluster:
         import psycopg
 
         with psycopg.connect(self.dsn("postgres"), autocommit=True) as conn:
-            if not conn.execute("SELECT 1 FROM pg_database WHERE datname = %s", [dbname]).fetchone():
+            if not conn.execute(
+                "SELECT 1 FROM pg_database WHERE datname = %s", [dbname]
+            ).fetchone():
                 conn.execute(f'CREATE DATABASE "{dbname}"')
         with psycopg.connect(self.dsn(dbname), autocommit=True) as conn:
             conn.execute("CREATE EXTENSION IF NOT EXISTS modb CASCADE")
-            version = "SELECT string_to_array(extversion, '.')::int[] FROM pg_extension WHERE extname = 'modb'"
+            version = (
+                "SELECT string_to_array(extversion, '.')::int[] FROM pg_extension "
+                "WHERE extname = 'modb'"
+            )
             before = conn.execute(version).fetchone()[0]
             conn.execute("ALTER EXTENSION modb UPDATE")
             if before < [0, 8, 0] <= conn.execute(version).fetchone()[0]:
-                # 0.8.0 rewrote every feature cube; its upgrade script cannot VACUUM, so the index is rebuilt here
+                # 0.8.0 rewrote every feature cube; its upgrade script cannot VACUUM, so the index
+                # is rebuilt here
                 conn.execute("VACUUM ANALYZE modb.snippets, modb.terminators")
                 conn.execute("REINDEX INDEX modb.snippets_begin_features_idx")
 

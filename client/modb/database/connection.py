@@ -1,4 +1,5 @@
 """Opening a connection that knows modb's types, with errors that say what to do."""
+
 from __future__ import annotations
 
 import psycopg
@@ -6,16 +7,22 @@ import psycopg
 from . import pgarray
 
 
-# Selection's plan does not depend on its arguments' values, and planning it can cost more than executing it
-# (about 140 ms a call on the locomotion data, BENCHMARKS.md): a generic plan, planned once; and no JIT, whose
+# Selection's plan does not depend on its arguments' values, and planning it can cost more than
+# executing it
+# (about 140 ms a call on the locomotion data, BENCHMARKS.md): a generic plan, planned once; and no
+# JIT, whose
 # threshold the generic plan's estimate passes.
 SELECTION_SETTINGS = {"plan_cache_mode": "force_generic_plan", "jit": "off"}
 
 
 def configure_for_selection(conn: psycopg.Connection) -> None:
-    """Sets SELECTION_SETTINGS for the session of a connection that calls select_next_snippet repeatedly."""
-    conn.execute("SELECT set_config(name, value, false) FROM unnest(%s::text[], %s::text[]) AS s(name, value)",
-                 [list(SELECTION_SETTINGS), list(SELECTION_SETTINGS.values())])
+    """Sets SELECTION_SETTINGS for the session of a connection that calls select_next_snippet
+    repeatedly."""
+    conn.execute(
+        "SELECT set_config(name, value, false) FROM unnest(%s::text[], %s::text[]) AS s(name, "
+        "value)",
+        [list(SELECTION_SETTINGS), list(SELECTION_SETTINGS.values())],
+    )
 
 
 def selection_pgoptions() -> str:
@@ -35,6 +42,8 @@ def connect(conninfo: str) -> psycopg.Connection:
         db = conn.info.dbname
         conn.close()
         raise NotInstalledError(
-            f"database {db!r} has no modb extension: run `CREATE EXTENSION modb CASCADE` there as a superuser "
-            f"(after `make setup` installed it into the server)")
+            f"database {db!r} has no modb extension: run `CREATE EXTENSION modb CASCADE` there as "
+            f"a superuser "
+            f"(after `make setup` installed it into the server)"
+        )
     return conn

@@ -1,4 +1,6 @@
-"""Which database modb talks to: --dsn, else MODB_DSN, else libpq's environment, else the embedded cluster."""
+"""Which database modb talks to: --dsn, else MODB_DSN, else libpq's environment, else the embedded
+cluster."""
+
 from __future__ import annotations
 
 import os
@@ -13,7 +15,9 @@ def resolve(dsn: str | None) -> tuple[str, str]:
     if os.environ.get("MODB_DSN"):
         return os.environ["MODB_DSN"], "MODB_DSN"
     if any(os.environ.get(v) for v in LIBPQ_VARIABLES):
-        return "", "libpq environment (" + ", ".join(v for v in LIBPQ_VARIABLES if os.environ.get(v)) + ")"
+        return "", "libpq environment (" + ", ".join(
+            v for v in LIBPQ_VARIABLES if os.environ.get(v)
+        ) + ")"
     from .cluster import Cluster
 
     cluster = Cluster.default()

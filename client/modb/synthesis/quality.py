@@ -1,12 +1,14 @@
 """How good a synthesized strip is: seam roughness against natural steps, recombination, goal reach,
 relaxation and query latency (README "Synthesis quality" defines each figure and its aim).
 
-Roughness of a frame-to-frame step: r = the largest, over the standard joints, of the joint's rotation
-change divided by that joint's 99th percentile of change between consecutive frames of the source
-clips (the pelvis measured in the world, every other joint relative to its parent), with one more term:
-the change of the pelvis velocity from the previous step over its own 99th percentile. A seam is the step
-from one snippet's last frame to the next snippet's second (its first stands in for the last).
+Roughness of a frame-to-frame step: r = the largest, over the standard joints, of the joint's
+rotation change divided by that joint's 99th percentile of change between consecutive frames of the
+source clips (the pelvis measured in the world, every other joint relative to its parent), with one
+more term: the change of the pelvis velocity from the previous step over its own 99th percentile. A
+seam is the step from one snippet's last frame to the next snippet's second (its first stands in for
+the last).
 """
+
 from __future__ import annotations
 
 import math
@@ -18,11 +20,13 @@ import numpy as np
 from modb_kernel import kinematics, quaternion
 from modb_kernel.joints import STANDARD_JOINTS
 
-from .avatar import Choice
-from .motion import Motion
+from .chain import Choice
+from modb.motion import Motion
 from .placement import ground_distance
 
-LAST_LEVEL = 4  # select_next_snippets' last relaxation level: the nearest start configuration, any ratio
+LAST_LEVEL = (
+    4  # select_next_snippets' last relaxation level: the nearest start configuration, any ratio
+)
 AIM_SEAM_SHARE_FACTOR = 2.0  # seams with r > 1: at most this times the share of natural steps
 AIM_RECOMBINATION = 0.20
 AIM_REACH_RATIO = 2.0  # time to a goal >= 5 m away / straight line at the median walking speed
@@ -31,13 +35,14 @@ AIM_LAST_LEVEL_SHARE = 0.01
 
 
 def step_changes(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
-    """Per step t (frame t to t+1): rotation change of each standard joint (steps, 19), and the change of
-    the pelvis velocity from step t-1 to step t (steps,; 0 for the first step)."""
+    """Per step t (frame t to t+1): rotation change of each standard joint (steps, 19), and the
+    change of the pelvis velocity from step t-1 to step t (steps,; 0 for the first step)."""
     sk = motion.skeleton
     columns = [sk.index(sk.joint_map[s]) for s in STANDARD_JOINTS]
     pelvis = sk.index(sk.joint_map["pelvis"])
-    positions, orientations = kinematics.world_transforms(sk.parents, sk.offsets, motion.rotations,
-                                                          motion.translations, sk.translated)
+    positions, orientations = kinematics.world_transforms(
+        sk.parents, sk.offsets, motion.rotations, motion.translations, sk.translated
+    )
     rotations = motion.rotations[:, columns].copy()
     rotations[:, STANDARD_JOINTS.index("pelvis")] = orientations[:, pelvis]
     angles = quaternion.angle_between(rotations[:-1], rotations[1:])
@@ -50,6 +55,7 @@ def step_changes(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
 @dataclass(frozen=True)
 class NaturalSteps:
     """The scale of roughness, from every frame-to-frame step of the source clips."""
+
     joint_p99: np.ndarray  # (19,) radians per step
     velocity_change_p99: float  # m/s, change of the pelvis velocity from one step to the next
     share_over_one: float  # natural steps with r > 1
@@ -60,29 +66,38 @@ class NaturalSteps:
     def of(cls, motions: Sequence[Motion]) -> NaturalSteps:
         changes = [step_changes(m) for m in motions if m.n_frames > 2]
         if not changes:
-            raise ValueError("no source clip of three frames or more to measure natural steps against")
+            raise ValueError(
+                "no source clip of three frames or more to measure natural steps against"
+            )
         angles = np.concatenate([a for a, _ in changes])
-        velocity = np.concatenate([v[1:] for _, v in changes])  # a clip's first step has no predecessor
+        velocity = np.concatenate(
+            [v[1:] for _, v in changes]
+        )  # a clip's first step has no predecessor
         joint_p99 = np.maximum(np.percentile(angles, 99, axis=0), 1e-9)
         velocity_p99 = max(float(np.percentile(velocity, 99)), 1e-9)
         r = np.concatenate([roughness(a[1:], v[1:], joint_p99, velocity_p99) for a, v in changes])
-        return cls(joint_p99, velocity_p99, float(np.mean(r > 1.0)), float(np.percentile(r, 99.9)), len(r))
+        return cls(
+            joint_p99, velocity_p99, float(np.mean(r > 1.0)), float(np.percentile(r, 99.9)), len(r)
+        )
 
 
-def roughness(angles: np.ndarray, velocity_change: np.ndarray, joint_p99: np.ndarray,
-              velocity_p99: float) -> np.ndarray:
+def roughness(
+    angles: np.ndarray, velocity_change: np.ndarray, joint_p99: np.ndarray, velocity_p99: float
+) -> np.ndarray:
     return np.maximum(np.max(angles / joint_p99, axis=-1), velocity_change / velocity_p99)
 
 
 def seam_steps(chain: Sequence[Choice]) -> list[int]:
-    """Strip step index of every seam: from a snippet's last frame to the next one's first played frame."""
+    """Strip step index of every seam: from a snippet's last frame to the next one's first played
+    frame."""
     return [c.end_frame for c in chain[:-1]]
 
 
 def recombined(chain: Sequence[Choice], window_seconds: float = 2.0) -> list[bool]:
-    """Per seam: does it go to another clip, or jump at least one snippet within the same clip without
-    replaying frames played in the last window_seconds? A clip's mirror image is the same clip here: its
-    frames are the same capture. Playing on from where the previous snippet ended is not recombination."""
+    """Per seam: does it go to another clip, or jump at least one snippet within the same clip
+    without replaying frames played in the last window_seconds? A clip's mirror image is the same
+    clip here: its frames are the same capture. Playing on from where the previous snippet ended is
+    not recombination."""
     out = []
     for k in range(1, len(chain)):
         a, b = chain[k - 1], chain[k]
@@ -90,10 +105,17 @@ def recombined(chain: Sequence[Choice], window_seconds: float = 2.0) -> list[boo
             out.append(True)
             continue
         jump = abs(b.first_frame - (a.first_frame + a.n_frames - 1))
-        recent = [c for c in chain[:k] if (c.clip_id, c.version) == (b.clip_id, b.version)
-                  and (a.end_frame - c.end_frame) < window_seconds * a.fps]
-        overlaps = any(c.first_frame + 1 <= b.first_frame + b.n_frames - 1 and b.first_frame + 1 <= c.first_frame
-                       + c.n_frames - 1 for c in recent)
+        recent = [
+            c
+            for c in chain[:k]
+            if (c.clip_id, c.version) == (b.clip_id, b.version)
+            and (a.end_frame - c.end_frame) < window_seconds * a.fps
+        ]
+        overlaps = any(
+            c.first_frame + 1 <= b.first_frame + b.n_frames - 1
+            and b.first_frame + 1 <= c.first_frame + c.n_frames - 1
+            for c in recent
+        )
         out.append(jump >= a.n_frames - 1 and not overlaps)
     return out
 
@@ -108,38 +130,70 @@ class GoalReach:
     seconds: float | None
     straight_seconds: float  # the straight line at the median walking speed
     ratio: float | None
-    current_seconds: float = 0.0  # how long it was the current goal (to the strip's end when not reached)
+    current_seconds: float = (
+        0.0  # how long it was the current goal (to the strip's end when not reached)
+    )
 
     @property
     def counts_for_aim(self) -> bool:
-        """The issue's reach aim covers goals at least 5 m away and not behind; the others are reported.
-        A goal still unreached when the strip ended counts only once it has had its 2x straight line."""
-        pending = not self.reached and self.current_seconds < AIM_REACH_RATIO * self.straight_seconds
+        """The issue's reach aim covers goals at least 5 m away and not behind; the others are
+        reported. A goal still unreached when the strip ended counts only once it has had its 2x
+        straight line."""
+        pending = (
+            not self.reached and self.current_seconds < AIM_REACH_RATIO * self.straight_seconds
+        )
         return self.distance_m >= REACH_MIN_DISTANCE and not self.behind and not pending
 
 
-def goal_reach(chain: Sequence[Choice], goals: Sequence[tuple[float, ...]], walking_speed: float) -> list[GoalReach]:
-    """Every goal of the course; one that never became current is reported as not reached, measured from
-    where the strip ended."""
+def goal_reach(
+    chain: Sequence[Choice], goals: Sequence[tuple[float, ...]], walking_speed: float
+) -> list[GoalReach]:
+    """Every goal of the course; one that never became current is reported as not reached, measured
+    from where the strip ended."""
     out = []
     for goal, target in enumerate(goals, start=1):
         served = [c for c in chain if c.goal == goal]
         if not served:
             end = chain[-1].end
             distance = ground_distance(end.position, target)
-            out.append(GoalReach(goal, tuple(target), distance, False, False, None, distance / walking_speed, None))
+            out.append(
+                GoalReach(
+                    goal,
+                    tuple(target),
+                    distance,
+                    False,
+                    False,
+                    None,
+                    distance / walking_speed,
+                    None,
+                )
+            )
             continue
         first = served[0]
         done = next((c for c in served if c.reached), None)
         distance = ground_distance(first.placement.position, first.target)
-        dx, dz = first.target[0] - first.placement.position[0], first.target[-1] - first.placement.position[2]
+        dx, dz = (
+            first.target[0] - first.placement.position[0],
+            first.target[-1] - first.placement.position[2],
+        )
         facing = (math.sin(first.placement.heading), math.cos(first.placement.heading))
         behind = dx * facing[0] + dz * facing[1] < 0
         seconds = None if done is None else (done.end_frame - first.start_frame) / first.fps
         current = (served[-1].end_frame - first.start_frame) / first.fps
         straight = distance / walking_speed
-        out.append(GoalReach(goal, first.target, distance, behind, done is not None, seconds, straight,
-                             None if seconds is None or straight == 0 else seconds / straight, current))
+        out.append(
+            GoalReach(
+                goal,
+                first.target,
+                distance,
+                behind,
+                done is not None,
+                seconds,
+                straight,
+                None if seconds is None or straight == 0 else seconds / straight,
+                current,
+            )
+        )
     return out
 
 
@@ -163,14 +217,19 @@ class Report:
 
     @property
     def aims(self) -> dict[str, bool | None]:
-        """Which aims are met; None where the strip gives nothing to measure (no goal counts for reach)."""
+        """Which aims are met; None where the strip gives nothing to measure (no goal counts for
+        reach)."""
         counted = [g for g in self.goals if g.counts_for_aim]
         return {
-            "seam share r>1 <= 2x natural": self.seam_share_over_one <= AIM_SEAM_SHARE_FACTOR * self.natural_share_over_one,
+            "seam share r>1 <= 2x natural": self.seam_share_over_one
+            <= AIM_SEAM_SHARE_FACTOR * self.natural_share_over_one,
             "seam r p99 <= natural r p99.9": self.seam_r_p99 <= self.natural_r_p999,
             "recombination >= 20%": self.recombination >= AIM_RECOMBINATION,
             "goals >= 5 m reached within 2x straight line": all(
-                g.ratio is not None and g.ratio <= AIM_REACH_RATIO for g in counted) if counted else None,
+                g.ratio is not None and g.ratio <= AIM_REACH_RATIO for g in counted
+            )
+            if counted
+            else None,
             "last relaxation level < 1%": self.last_level_share < AIM_LAST_LEVEL_SHARE,
         }
 
@@ -180,13 +239,22 @@ class Report:
         return out
 
 
-def measure(strip: Motion, chain: Sequence[Choice], goals: Sequence[tuple[float, ...]], natural: NaturalSteps,
-            walking_speed: float) -> Report:
+def measure(
+    strip: Motion,
+    chain: Sequence[Choice],
+    goals: Sequence[tuple[float, ...]],
+    natural: NaturalSteps,
+    walking_speed: float,
+) -> Report:
     angles, velocity_change = step_changes(strip)
     r = roughness(angles, velocity_change, natural.joint_p99, natural.velocity_change_p99)
     at = np.array(seam_steps(chain), dtype=int)
     after = np.minimum(at + 1, len(r) - 1)
-    seams = np.maximum(r[at], velocity_change[after] / natural.velocity_change_p99) if len(at) else np.zeros(0)
+    seams = (
+        np.maximum(r[at], velocity_change[after] / natural.velocity_change_p99)
+        if len(at)
+        else np.zeros(0)
+    )
     levels: dict[int, int] = {}
     for c in chain:
         if c.relax_level is not None:
@@ -194,12 +262,19 @@ def measure(strip: Motion, chain: Sequence[Choice], goals: Sequence[tuple[float,
     latencies = [c.latency_ms for c in chain if c.latency_ms is not None]
     mixes = recombined(chain)
     return Report(
-        seconds=(strip.n_frames - 1) / strip.fps, snippets=len(chain), natural_steps=natural.steps,
-        natural_share_over_one=natural.share_over_one, natural_r_p999=natural.r_p999,
-        seams=len(seams), seam_share_over_one=float(np.mean(seams > 1.0)) if len(seams) else 0.0,
+        seconds=(strip.n_frames - 1) / strip.fps,
+        snippets=len(chain),
+        natural_steps=natural.steps,
+        natural_share_over_one=natural.share_over_one,
+        natural_r_p999=natural.r_p999,
+        seams=len(seams),
+        seam_share_over_one=float(np.mean(seams > 1.0)) if len(seams) else 0.0,
         seam_r_p99=float(np.percentile(seams, 99)) if len(seams) else 0.0,
-        recombination=float(np.mean(mixes)) if mixes else 0.0, levels=dict(sorted(levels.items())),
+        recombination=float(np.mean(mixes)) if mixes else 0.0,
+        levels=dict(sorted(levels.items())),
         last_level_share=levels.get(LAST_LEVEL, 0) / max(sum(levels.values()), 1),
         latency_ms_p50=float(np.median(latencies)) if latencies else None,
         latency_ms_p99=float(np.percentile(latencies, 99)) if latencies else None,
-        walking_speed=walking_speed, goals=goal_reach(chain, goals, walking_speed))
+        walking_speed=walking_speed,
+        goals=goal_reach(chain, goals, walking_speed),
+    )

@@ -1,8 +1,10 @@
-"""`modb bench synth`: a seeded course of goals 1-20 m apart, synthesized for N seconds, with its report.
+"""`modb bench synth`: a seeded course of goals 1-20 m apart, synthesized for N seconds, with its
+report.
 
-The issue's relaxation aim is stated on such a course (10 minutes on Bandai dataset 2 locomotion with the
-shipped default profile); this makes it reproducible: same seed, same goals, same chain.
+The issue's relaxation aim is stated on such a course (10 minutes on Bandai dataset 2 locomotion
+with the shipped default profile); this makes it reproducible: same seed, same goals, same chain.
 """
+
 from __future__ import annotations
 
 import math
@@ -12,8 +14,8 @@ from pathlib import Path
 import numpy as np
 import psycopg
 
-from .cluster import Cluster
-from .demo_data import locomotion_files
+from modb.database.cluster import Cluster
+from modb.demo.data import locomotion_files
 
 DATABASE = "modb_bench_synth"
 
@@ -36,11 +38,13 @@ GRAPH = "locomotion"  # the transition graph locomotion_database builds
 
 
 def locomotion_database(folder: Path, modb: Callable[[Sequence[str]], int]) -> str:
-    """A fresh database on the embedded cluster holding the locomotion clips of a Bandai dataset 2 folder,
-    and their transition graph GRAPH (default profile)."""
+    """A fresh database on the embedded cluster holding the locomotion clips of a Bandai dataset 2
+    folder, and their transition graph GRAPH (default profile)."""
     files = [str(f) for f in locomotion_files(folder)]
     if not files:
-        raise RuntimeError(f"no Bandai dataset 2 locomotion files (dataset-2_walk_*.bvh, ...) in {folder}")
+        raise RuntimeError(
+            f"no Bandai dataset 2 locomotion files (dataset-2_walk_*.bvh, ...) in {folder}"
+        )
     cluster = Cluster.default()
     cluster.start()
     with psycopg.connect(cluster.dsn("postgres"), autocommit=True) as admin:
@@ -48,8 +52,35 @@ def locomotion_database(folder: Path, modb: Callable[[Sequence[str]], int]) -> s
         admin.execute(f'CREATE DATABASE "{DATABASE}"')
     with psycopg.connect(cluster.dsn(DATABASE), autocommit=True) as conn:
         conn.execute("CREATE EXTENSION modb CASCADE")
-    if modb(["--dsn", cluster.dsn(DATABASE), "load", *files, "--collection", "locomotion", "--quiet"]) != 0:
+    if (
+        modb(
+            [
+                "--dsn",
+                cluster.dsn(DATABASE),
+                "load",
+                *files,
+                "--collection",
+                "locomotion",
+                "--quiet",
+            ]
+        )
+        != 0
+    ):
         raise RuntimeError(f"loading {folder} failed")
-    if modb(["--dsn", cluster.dsn(DATABASE), "graph", "build", GRAPH, "--collection", "locomotion", "--quiet"]) != 0:
+    if (
+        modb(
+            [
+                "--dsn",
+                cluster.dsn(DATABASE),
+                "graph",
+                "build",
+                GRAPH,
+                "--collection",
+                "locomotion",
+                "--quiet",
+            ]
+        )
+        != 0
+    ):
         raise RuntimeError(f"building the transition graph of {folder} failed")
     return cluster.dsn(DATABASE)

@@ -1,5 +1,6 @@
-"""`modb demo`: the job a user came for, in one command: real capture in, snippets built, a minute of
-motion synthesized through goals with turns, written as BVH, and the quality report printed."""
+"""`modb demo`: the job a user came for, in one command: real capture in, snippets built, a minute
+of motion synthesized through goals with turns, written as BVH, and the quality report printed."""
+
 from __future__ import annotations
 
 import argparse
@@ -9,12 +10,12 @@ from pathlib import Path
 
 import psycopg
 
-from .avatar import NoContinuation, Settings
-from .bvh_export import write_bvh_file
-from .demo_data import DemoDataError, cmu_01_01, locomotion_files
-from .graphs import describe, ensure_graph
-from .source_frames import UnplaceableSkeleton
-from .synth import clip_names, format_report, report, synthesize
+from modb.synthesis.avatar import NoContinuation, Settings
+from modb.bvh_export import write_bvh_file
+from .data import DemoDataError, cmu_01_01, locomotion_files
+from modb.synthesis.graphs import describe, ensure_graph
+from modb.synthesis.source_frames import UnplaceableSkeleton
+from modb.synthesis.synth import clip_names, format_report, report, synthesize
 
 # From the origin facing +Z: ahead, a right turn of 90 degrees, another, a third, then goals behind
 # and to the side (turns of 135 degrees and more).
@@ -26,8 +27,14 @@ def _loads(data: Path | None, cache: Path) -> tuple[list[list[str]], str]:
     """The `modb load` calls to make, and the collection to synthesize from."""
     if data is not None and (data / "cmu").is_dir():
         print(f"demo: real capture from {data}")
-        loads = [[str(data / "cmu" / "01" / "01_01.amc"), "--collection", "demo/cmu/01"],
-                 [*map(str, sorted((data / "cmu" / "131").glob("*.amc"))), "--collection", "demo/cmu/131"]]
+        loads = [
+            [str(data / "cmu" / "01" / "01_01.amc"), "--collection", "demo/cmu/01"],
+            [
+                *map(str, sorted((data / "cmu" / "131").glob("*.amc"))),
+                "--collection",
+                "demo/cmu/131",
+            ],
+        ]
         walks = locomotion_files(data / "bandai-2-dev" / "data")
         if walks:
             loads.append([*map(str, walks), "--collection", "demo/bandai-2/locomotion"])
@@ -41,8 +48,10 @@ def _loads(data: Path | None, cache: Path) -> tuple[list[list[str]], str]:
 
 def _print_contents(conn: psycopg.Connection) -> None:
     rows = conn.execute(
-        "SELECT collection, count(*), sum(n_frames), sum(seconds), string_agg(DISTINCT fps::text, ', ') "
-        "FROM modb.current_clips GROUP BY collection ORDER BY 1").fetchall()
+        "SELECT collection, count(*), sum(n_frames), sum(seconds), string_agg(DISTINCT fps::text, "
+        "', ') "
+        "FROM modb.current_clips GROUP BY collection ORDER BY 1"
+    ).fetchall()
     (skeletons,) = conn.execute("SELECT count(*) FROM modb.skeletons").fetchone()
     (snippets,) = conn.execute("SELECT count(*) FROM modb.snippets").fetchone()
     print(f"\nIn the database ({skeletons} skeletons, {snippets:,} snippets):")
@@ -51,8 +60,11 @@ def _print_contents(conn: psycopg.Connection) -> None:
         print(f"{clips:>6}  {frames:>8,}  {seconds:>8.1f}  {rates:>8}  {collection}")
 
 
-def run_demo(args: argparse.Namespace, load: Callable[[Sequence[str]], int],
-             connect: Callable[[], psycopg.Connection]) -> int:
+def run_demo(
+    args: argparse.Namespace,
+    load: Callable[[Sequence[str]], int],
+    connect: Callable[[], psycopg.Connection],
+) -> int:
     cache = Path(args.cache)
     try:
         loads, collection = _loads(Path(args.data) if args.data else None, cache)
@@ -67,23 +79,39 @@ def run_demo(args: argparse.Namespace, load: Callable[[Sequence[str]], int],
     with connect() as conn:
         _print_contents(conn)
         try:
-            print(f"\nTransition graph of {collection} (kept from one run of the demo to the next)...")
-            graph = ensure_graph(conn, "demo", collection=collection, progress=lambda text: print(f"  {text}"))
+            print(
+                f"\nTransition graph of {collection} (kept from one run of the demo to the next)..."
+            )
+            graph = ensure_graph(
+                conn, "demo", collection=collection, progress=lambda text: print(f"  {text}")
+            )
             print(f"  {describe(graph)}")
             goals = ", ".join(f"({x:g}, {z:g})" for x, z in COURSE)
-            print(f"\nSynthesizing {SECONDS:g} s from {collection} through the goals {goals} (metres; the avatar "
-                  f"starts at the origin facing +Z)...")
+            print(
+                f"\nSynthesizing {SECONDS:g} s from {collection} through the goals {goals} "
+                f"(metres; the avatar "
+                f"starts at the origin facing +Z)..."
+            )
             if not graph.kept:  # e.g. one short clip: no part of it leads back into itself
                 print("  it keeps no snippet: synthesizing without it")
             settings = Settings(collection=collection, graph=graph.name if graph.kept else None)
             result = synthesize(conn, COURSE, SECONDS, settings)
             out.parent.mkdir(parents=True, exist_ok=True)
             write_bvh_file(result.strip, out)
-            print(format_report(result, report(conn, result, collection), clip_names(conn, result.chain)))
+            print(
+                format_report(
+                    result, report(conn, result, collection), clip_names(conn, result.chain)
+                )
+            )
         except (NoContinuation, UnplaceableSkeleton, ValueError, OSError, psycopg.Error) as e:
             print(f"modb demo: synthesis failed: {e}", file=sys.stderr)
             return 1
-    print(f"\nwrote {out}: {result.strip.n_frames} frames at {result.strip.fps:g} fps. Next: `modb synth --to X,Z "
-          f"... --seconds N --out walk.bvh --report`, `modb list`, `modb export CLIP --out clip.bvh`, or "
-          f"`modb serve` and open http://127.0.0.1:8765/avatar to click goals for the avatar (README \"Avatar mode\").")
+    print(
+        f"\nwrote {out}: {result.strip.n_frames} frames at {result.strip.fps:g} fps. Next: `modb "
+        f"synth --to X,Z "
+        f"... --seconds N --out walk.bvh --report`, `modb list`, `modb export CLIP --out "
+        f"clip.bvh`, or "
+        f"`modb serve` and open http://127.0.0.1:8765/avatar to click goals for the avatar (README "
+        f'"Avatar mode").'
+    )
     return 0

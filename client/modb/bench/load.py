@@ -1,8 +1,10 @@
-"""`modb bench load`: BVH parse speed beside bvhio's readAsBvh, and durable load speed, on real files.
+"""`modb bench load`: BVH parse speed beside bvhio's readAsBvh, and durable load speed, on real
+files.
 
 Every figure is measured in the same run as its baseline (the machine is shared and noisy): parsers
 alternate file by file over several rounds, and the ratio is taken per round.
 """
+
 from __future__ import annotations
 
 import statistics
@@ -12,10 +14,10 @@ from pathlib import Path
 import numpy as np
 import psycopg
 
-from .connection import connect
-from .loader.ingest import load_files
-from .loader.jobs import find_jobs
-from .loader.reading import ReadOptions
+from modb.database.connection import connect
+from modb.loader.ingest import load_files
+from modb.loader.jobs import find_jobs
+from modb.loader.reading import ReadOptions
 
 
 def _percentiles(values: list[float]) -> tuple[float, float]:
@@ -23,16 +25,17 @@ def _percentiles(values: list[float]) -> tuple[float, float]:
 
 
 def _motion_lines_only(path: str) -> np.ndarray:
-    """The ceiling for any numpy-based reader: the frame lines through loadtxt, no hierarchy, checks or hash."""
+    """The ceiling for any numpy-based reader: the frame lines through loadtxt, no hierarchy, checks
+    or hash."""
     with open(path) as f:
         text = f.read()
-    return np.loadtxt(text[text.index("Frame Time:"):].splitlines()[1:], ndmin=2)
+    return np.loadtxt(text[text.index("Frame Time:") :].splitlines()[1:], ndmin=2)
 
 
 def bench_parse(files: list[Path], rounds: int) -> dict:
     import bvhio
 
-    from .loader.bvh import read_bvh
+    from modb.loader.bvh import read_bvh
 
     frames = {f: read_bvh(str(f)).n_frames for f in files}  # warm the page cache and imports
     total = sum(frames.values())
@@ -51,8 +54,14 @@ def bench_parse(files: list[Path], rounds: int) -> dict:
         for name in spent:
             rates[name].append(total / spent[name])
     ratios = {name: [m / b for m, b in zip(rates[name], rates["bvhio"])] for name in parsers}
-    return {"files": len(files), "frames": total, "rounds": rounds, "rates": rates, "ratios": ratios,
-            "per_file_ms": {k: _percentiles(v) for k, v in per_file.items()}}
+    return {
+        "files": len(files),
+        "frames": total,
+        "rounds": rounds,
+        "rates": rates,
+        "ratios": ratios,
+        "per_file_ms": {k: _percentiles(v) for k, v in per_file.items()},
+    }
 
 
 def bench_load(files: list[Path], rounds: int, admin_dsn: str, make_dsn) -> dict:
@@ -77,7 +86,9 @@ def bench_load(files: list[Path], rounds: int, admin_dsn: str, make_dsn) -> dict
                     times.append((now - last[0]) * 1000)
                     last[0] = now
 
-                summary = load_files(conn, jobs, ReadOptions(), keep_going=False, progress=tick, snippets=False)
+                summary = load_files(
+                    conn, jobs, ReadOptions(), keep_going=False, progress=tick, snippets=False
+                )
                 assert not summary.failed, summary.failed[0].message
                 rates.append(summary.frames / summary.elapsed)
                 per_file.extend(times)
@@ -93,19 +104,27 @@ def report(folder: Path, parse: dict, load: dict) -> str:
 
     def parse_row(label: str, name: str) -> str:
         p50, p99 = parse["per_file_ms"][name]
-        return (f"| {label} | {statistics.median(parse['rates'][name]):,.0f} | {p50:.2f} / {p99:.2f} | "
-                f"{statistics.median(parse['ratios'][name]):.2f}x |")
+        return (
+            f"| {label} | {statistics.median(parse['rates'][name]):,.0f} | {p50:.2f} / {p99:.2f} | "
+            f"{statistics.median(parse['ratios'][name]):.2f}x |"
+        )
 
     lines = [
-        f"Data: {folder} ({parse['files']} files, {parse['frames']:,} frames), {parse['rounds']} rounds.",
+        f"Data: {folder} ({parse['files']} files, {parse['frames']:,} frames), {parse['rounds']} "
+        f"rounds.",
         "",
         "| what | frames/s (median of rounds) | per file ms p50 / p99 | vs bvhio (median ratio) |",
         "|---|---|---|---|",
-        f"| parse: bvhio readAsBvh (baseline) | {statistics.median(b):,.0f} | {pb[0]:.2f} / {pb[1]:.2f} | 1.00x |",
+        f"| parse: bvhio readAsBvh (baseline) | {statistics.median(b):,.0f} | {pb[0]:.2f} / "
+        f"{pb[1]:.2f} | 1.00x |",
         parse_row("parse: modb read_bvh", "modb"),
-        parse_row("parse: numpy loadtxt of the frame lines alone (ceiling, not a reader)", "loadtxt"),
-        f"| load: parse + store, one committed transaction per file (synchronous_commit={load['synchronous_commit']}) "
-        f"| {statistics.median(load['rates']):,.0f} | {load['per_file_ms'][0]:.2f} / {load['per_file_ms'][1]:.2f} | "
+        parse_row(
+            "parse: numpy loadtxt of the frame lines alone (ceiling, not a reader)", "loadtxt"
+        ),
+        f"| load: parse + store, one committed transaction per file "
+        f"(synchronous_commit={load['synchronous_commit']}) "
+        f"| {statistics.median(load['rates']):,.0f} | {load['per_file_ms'][0]:.2f} / "
+        f"{load['per_file_ms'][1]:.2f} | "
         f"{statistics.median(load['rates']) / statistics.median(b):.2f}x |",
     ]
     return "\n".join(lines)

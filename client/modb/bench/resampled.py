@@ -1,0 +1,105 @@
+"""The benchmark's largest database: the real clips again at other playback speeds (slerped
+rotations, interpolated translations), stored as clips of their own under `resampled-x<speed>/`,
+until there are as many snippets as asked. Reported as such: these are not new captures, only denser
+coverage of the same motions."""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import replace
+
+import numpy as np
+import psycopg
+
+from modb.loader.ingest import store_motion
+
+from modb.clips import read_motion
+from modb.motion import Motion
+
+# Around 1x, alternating slower and faster, so each step adds gaits a little off the captured ones.
+SPEEDS = (0.8, 1.25, 0.9, 1.1, 0.85, 1.15, 0.95, 1.05)
+COLLECTION_PREFIX = (
+    "resampled-x"  # the copies' collections: resampled-x<speed>/<the original's path>
+)
+
+
+def at_speed(motion: Motion, speed: float) -> Motion:
+    """The motion played `speed` times as fast at the same frame rate: frame k shows time k x speed
+    / fps of the original (rotations slerped joint by joint, translations interpolated linearly)."""
+    from scipy.spatial.transform import Rotation, Slerp
+
+    if not speed > 0:
+        raise ValueError(f"speed must be positive, got {speed}")
+    original = np.arange(motion.n_frames, dtype=np.float64)
+    last = motion.n_frames - 1
+    times = np.minimum(
+        np.arange(int(last / speed + 1e-9) + 1) * speed, last
+    )  # never past the end by rounding
+    rotations = np.empty((len(times), motion.rotations.shape[1], 4))
+    for j in range(motion.rotations.shape[1]):
+        xyzw = Slerp(original, Rotation.from_quat(motion.rotations[:, j, [1, 2, 3, 0]]))(
+            times
+        ).as_quat()
+        rotations[:, j] = xyzw[:, [3, 0, 1, 2]]
+    rotations[rotations[:, :, 0] < 0] *= -1  # the model's sign convention: w >= 0
+    translations = (
+        np.stack(
+            [
+                np.stack(
+                    [np.interp(times, original, motion.translations[:, t, c]) for c in range(3)],
+                    axis=-1,
+                )
+                for t in range(motion.translations.shape[1])
+            ],
+            axis=1,
+        )
+        if motion.translations.shape[1]
+        else np.zeros((len(times), 0, 3))
+    )
+    return replace(motion, rotations=rotations, translations=translations)
+
+
+def resampled_snippets(conn: psycopg.Connection) -> int:
+    """How many of the database's snippets are speed-resampled copies."""
+    return conn.execute(
+        "SELECT count(*) FROM modb.snippets s JOIN modb.clips c ON c.id = s.clip_id "
+        "WHERE modb.collection_path(c.collection_id) LIKE %s",
+        [COLLECTION_PREFIX + "%"],
+    ).fetchone()[0]
+
+
+def add_resampled_clips(conn: psycopg.Connection, size: int, seed: int, progress=None) -> int:
+    """Adds speed-resampled copies of the database's clips (each mirrored when the original is)
+    until it holds at least `size` snippets; one transaction per clip. The snippet count
+    afterwards."""
+    from tqdm import tqdm
+
+    total = conn.execute("SELECT count(*) FROM modb.snippets").fetchone()[0]
+    originals = conn.execute(
+        "SELECT c.id, modb.collection_path(c.collection_id), bool_or(s.mirrored) FROM modb.clips c "
+        "JOIN modb.snippets s ON s.clip_id = c.id "
+        "WHERE modb.collection_path(c.collection_id) NOT LIKE %s GROUP BY c.id ORDER BY c.id",
+        [COLLECTION_PREFIX + "%"],
+    ).fetchall()
+    order = np.random.default_rng(seed).permutation(len(originals))
+    with tqdm(
+        total=size, initial=total, unit=" snippets", file=sys.stderr, disable=progress is None
+    ) as bar:
+        for speed in SPEEDS:
+            for k in order:
+                if total >= size:
+                    return total
+                clip_id, path, mirrored = originals[k]
+                motion = at_speed(read_motion(conn, clip_id), speed)
+                motion.meta = {"resampled_from": {"clip": clip_id, "speed": speed}}
+                _, _, added = store_motion(
+                    conn,
+                    motion,
+                    f"{COLLECTION_PREFIX}{speed:.2f}/{path}",
+                    f"speed {speed}",
+                    snippets=True,
+                    mirrored=mirrored,
+                )
+                total += added
+                bar.update(added)
+    return total

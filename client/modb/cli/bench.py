@@ -1,0 +1,193 @@
+"""`modb bench`: one subcommand per benchmark, each with its own options (results go in
+BENCHMARKS.md). The benchmarks themselves are modules of modb.bench."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import psycopg
+
+from .common import connect
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    bench = sub.add_parser("bench", help="benchmarks (results go in BENCHMARKS.md)")
+    benchmarks = bench.add_subparsers(dest="benchmark", required=True, metavar="BENCHMARK")
+
+    load = benchmarks.add_parser(
+        "load", help="parse and load speed on real BVH files, beside bvhio"
+    )
+    load.add_argument("--data", help="folder of .bvh files (default ../shared/mocap/bandai-1)")
+    load.add_argument("--rounds", type=int, default=3, help="rounds (default 3)")
+    load.set_defaults(func=run_load)
+
+    select = benchmarks.add_parser(
+        "select",
+        help="selection latency on the database beside a sequential scan of the same query",
+    )
+    select.add_argument(
+        "--queries", type=int, default=200, help="number of seeded queries (default 200)"
+    )
+    select.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
+    select.add_argument("--profile", default="default", help="match profile (default: default)")
+    select.add_argument(
+        "--graph",
+        help="time level 0 from this transition graph's stored transitions against the box",
+    )
+    select.set_defaults(func=run_select)
+
+    synth = benchmarks.add_parser(
+        "synth", help="a seeded course of goals 1-20 m apart, synthesized, reported"
+    )
+    synth.add_argument(
+        "--seconds", type=float, default=600.0, help="length of the course (default 600)"
+    )
+    synth.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
+    synth.add_argument("--profile", default="default", help="match profile (default: default)")
+    synth.add_argument("--collection", help="draw snippets from this collection")
+    synth.add_argument("--graph", help="choose among this transition graph's snippets only")
+    synth.add_argument(
+        "--data",
+        help="bandai-2-dev/data, whose walks, turns and runs go into a fresh database "
+        '(collection and graph "locomotion")',
+    )
+    synth.set_defaults(func=run_synth)
+
+    scale = benchmarks.add_parser(
+        "scale",
+        help="select_next_snippet at several database sizes beside the flat query, numpy, a k-d "
+        "tree",
+    )
+    scale.add_argument(
+        "--sizes",
+        default="10000,100000,all,1000000",
+        help="snippet counts to measure at, 'all' for the database itself; copies of the "
+        "database (kept for the next run) with whole clips drawn up to a smaller count, or "
+        "speed-resampled copies of its clips added up to a larger one (a million takes about "
+        "half an hour to build, once)",
+    )
+    scale.add_argument(
+        "--queries", type=int, default=200, help="number of seeded queries (default 200)"
+    )
+    scale.add_argument(
+        "--baseline-queries",
+        type=int,
+        default=3,
+        help="how many of the queries the flat sequential query (a) also answers (it takes "
+        "seconds to minutes each; default 3)",
+    )
+    scale.add_argument(
+        "--pgbench-seconds", type=int, default=10, help="length of each pgbench run (default 10)"
+    )
+    scale.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
+    scale.add_argument("--profile", default="default", help="match profile (default: default)")
+    scale.set_defaults(func=run_scale)
+
+
+def run_synth(args: argparse.Namespace) -> int:
+    from modb.bench.synth import locomotion_database, seeded_course
+    from modb.synthesis.chain import Settings
+    from modb.synthesis.synth import format_summary, report, synthesize
+
+    from .main import main
+
+    goals = seeded_course(args.seed, n_goals=int(args.seconds // 5) + 1)
+    if (
+        args.data
+    ):  # a fresh database of the locomotion files in the embedded cluster, graph "locomotion" built
+        args.dsn, args.collection = locomotion_database(Path(args.data), main), "locomotion"
+    with connect(args) as conn:
+        settings = Settings(profile=args.profile, collection=args.collection, graph=args.graph)
+        result = synthesize(conn, goals, args.seconds, settings)
+        summary = format_summary(result, report(conn, result, args.collection))
+    graph = f", graph {args.graph}" if args.graph else ""
+    print(
+        f"seeded course (seed {args.seed}, goals 1-20 m apart), {args.seconds:g} s, "
+        f"profile {args.profile}{graph}:"
+    )
+    print(summary)  # `modb synth --report` also lists every choice
+    return 0
+
+
+def run_scale(args: argparse.Namespace) -> int:
+    from modb.bench.scale import bench_scale
+    from modb.bench.scale import report as scale_report
+    from modb.database.dsn import resolve
+
+    sizes = [None if v == "all" else int(v) for v in args.sizes.split(",")]
+    print(
+        f"modb bench scale: profile {args.profile}, {args.queries} seeded queries (seed "
+        f"{args.seed}); "
+        f"the flat query on the first {args.baseline_queries}",
+        file=sys.stderr,
+    )
+    results = bench_scale(
+        resolve(args.dsn)[0],
+        sizes,
+        args.queries,
+        args.baseline_queries,
+        args.seed,
+        args.profile,
+        args.pgbench_seconds,
+        progress=lambda text: print(text, file=sys.stderr),
+    )
+    print("\n\n".join(scale_report(name, r) for name, r in results))
+    return 0
+
+
+def run_select(args: argparse.Namespace) -> int:
+    from modb.bench.select import bench_select, bench_select_graph, report_graph
+    from modb.bench.select import report as select_report
+
+    with connect(args) as conn:
+        if args.graph:
+            print(
+                report_graph(
+                    bench_select_graph(conn, args.queries, args.seed, args.profile, args.graph),
+                    args.profile,
+                    args.graph,
+                )
+            )
+        else:
+            print(
+                select_report(
+                    bench_select(conn, args.queries, args.seed, args.profile), args.profile
+                )
+            )
+    return 0
+
+
+def run_load(args: argparse.Namespace) -> int:
+    from modb.bench.load import bench_load, bench_parse, report
+    from modb.database.cluster import Cluster
+
+    folder = Path(args.data or "../shared/mocap/bandai-1")
+    files = sorted(folder.rglob("*.bvh"))
+    if not files:
+        print(f"modb bench load: no .bvh files under {folder}", file=sys.stderr)
+        return 2
+    try:
+        import bvhio  # the baseline
+    except ImportError:
+        print(
+            "modb bench load: needs bvhio as the baseline: pip install -e '.[test]' (make setup "
+            "does)",
+            file=sys.stderr,
+        )
+        return 2
+    del bvhio  # only its presence is checked here; modb.bench.load imports it
+    if args.dsn:
+        admin, make_dsn = (
+            args.dsn,
+            lambda name: psycopg.conninfo.make_conninfo(args.dsn, dbname=name),
+        )
+    else:
+        cluster = Cluster.default()
+        cluster.start()
+        admin, make_dsn = cluster.dsn("postgres"), cluster.dsn
+    parse = bench_parse(files, args.rounds)
+    load = bench_load(files, args.rounds, admin, make_dsn)
+    print(report(folder, parse, load))
+    return 0

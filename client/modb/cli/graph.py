@@ -1,0 +1,69 @@
+"""`modb graph`: transition graphs, the snippets a chain can keep moving among."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+import psycopg
+
+from .common import connect
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    graph = sub.add_parser(
+        "graph", help="transition graphs: the snippets a chain can keep moving among"
+    )
+    graph.add_argument("action", choices=["build", "list"])
+    graph.add_argument("name", nargs="?", help="build: the graph's name (rebuilt when it exists)")
+    graph.add_argument(
+        "--profile", default="default", help="build: the match profile whose level 0 is an edge"
+    )
+    graph.add_argument(
+        "--collection", help="build: snippets of this collection (and those below it) only"
+    )
+    graph.add_argument(
+        "--min-turn",
+        type=float,
+        default=45.0,
+        metavar="DEGREES",
+        help="build: keep the largest component whose snippets turn at least this much each way "
+        "(default 45)",
+    )
+    graph.add_argument("-q", "--quiet", action="store_true", help="no progress")
+    graph.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from modb.synthesis.graphs import build_graph, describe, list_graphs
+
+    with connect(args) as conn:
+        if args.action == "list":
+            for g in list_graphs(conn):
+                print(describe(g))
+            return 0
+        if not args.name:
+            print(
+                "modb graph build: name the graph (e.g. modb graph build locomotion --collection "
+                "locomotion)",
+                file=sys.stderr,
+            )
+            return 2
+        try:
+            g = build_graph(
+                conn,
+                args.name,
+                args.profile,
+                args.collection,
+                progress=None if args.quiet else lambda text: print(text, file=sys.stderr),
+                min_turn_degrees=args.min_turn,
+            )
+        except psycopg.Error as e:
+            print(
+                f"modb graph build: {e.diag.message_primary or e}"
+                + (f" ({e.diag.message_hint})" if e.diag.message_hint else ""),
+                file=sys.stderr,
+            )
+            return 1
+        print(describe(g))
+    return 0

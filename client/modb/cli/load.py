@@ -1,0 +1,123 @@
+"""`modb load`: BVH and ASF/AMC files and directories into the database."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from .common import connect
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    load = sub.add_parser("load", help="load BVH and ASF/AMC files and directories (recursively)")
+    load.add_argument("paths", nargs="+", metavar="PATH")
+    load.add_argument(
+        "--collection", help="collection path a/b (default: named after the directory)"
+    )
+    load.add_argument(
+        "--units",
+        default="auto",
+        help="auto | m | cm | mm | in | metres per unit (default auto: judged from the figure's "
+        "size)",
+    )
+    load.add_argument(
+        "--fps", type=float, help="AMC frame rate (AMC files carry none; default 120)"
+    )
+    load.add_argument(
+        "--allow-truncated",
+        action="store_true",
+        help="drop an AMC file's incomplete last frame with a warning instead of refusing the file",
+    )
+    load.add_argument(
+        "--asf", help="the ASF skeleton for every AMC file (default: paired by folder and name)"
+    )
+    load.add_argument(
+        "--no-snippets",
+        action="store_true",
+        help="store the clips only (modb.build_snippets() cuts them later)",
+    )
+    load.add_argument(
+        "--mirror",
+        action="store_true",
+        help="also add each clip's mirror image as snippets (through the skeleton's left/right "
+        "pairs)",
+    )
+    load.add_argument(
+        "--keep-going", action="store_true", help="load the good files, list the bad, exit non-zero"
+    )
+    load.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
+    load.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from modb.loader.errors import MotionFileError
+    from modb.loader.ingest import load_files
+    from modb.loader.jobs import find_jobs
+    from modb.loader.reading import ReadOptions
+    from modb.loader.units import UnitsError, parse_units
+
+    try:
+        units = parse_units(args.units)
+        jobs = find_jobs(args.paths, args.collection, args.asf)
+    except (UnitsError, MotionFileError) as e:
+        print(f"modb load: {e}", file=sys.stderr)
+        return 2
+    if not jobs:
+        print(
+            "modb load: no motion files (.bvh, .amc) found in " + " ".join(args.paths),
+            file=sys.stderr,
+        )
+        return 2
+    if args.fps is not None and not args.fps > 0:
+        print(f"modb load: --fps must be positive, got {args.fps:g}", file=sys.stderr)
+        return 2
+    with (
+        connect(args) as conn,
+        tqdm(
+            total=len(jobs), unit="file", disable=args.quiet or len(jobs) < 2, file=sys.stderr
+        ) as bar,
+    ):
+
+        def progress(result) -> None:
+            bar.update(1)
+            if result.status == "failed":
+                bar.write(f"error: {result.message}", file=sys.stderr)
+
+        options = ReadOptions(
+            units=units,
+            units_text=args.units,
+            fps=args.fps,
+            allow_truncated=args.allow_truncated,
+            warn=lambda message: bar.write(f"warning: {message}", file=sys.stderr),
+        )
+        summary = load_files(
+            conn,
+            jobs,
+            options,
+            args.keep_going,
+            progress,
+            snippets=not args.no_snippets,
+            mirrored=args.mirror,
+        )
+    if not args.quiet:
+        rules = list(dict.fromkeys(r.units_rule for r in summary.results if r.units_rule))
+        for rule in rules[:3]:
+            print(rule, file=sys.stderr)
+        if len(rules) > 3:
+            print(f"... and {len(rules) - 3} more files with their own figures", file=sys.stderr)
+        print(summary.describe())
+    if summary.failed:
+        if args.keep_going:
+            print(f"{len(summary.failed)} file(s) not loaded:", file=sys.stderr)
+            for r in summary.failed:
+                print(f"  {r.message}", file=sys.stderr)
+        elif len(summary.results) < len(jobs):
+            print(
+                f"stopped at the first bad file; {len(jobs) - len(summary.results)} not tried "
+                f"(--keep-going loads the good ones)",
+                file=sys.stderr,
+            )
+        return 1
+    return 0

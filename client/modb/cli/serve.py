@@ -1,0 +1,65 @@
+"""`modb serve`: the web view (three.js) and its JSON endpoints."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+
+def _tcp_port(text: str) -> int:
+    if not text.isascii() or not text.isdigit() or not 1 <= int(text) <= 65535:
+        raise argparse.ArgumentTypeError(f"a port is a number from 1 to 65535, got {text!r}")
+    return int(text)
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    serve = sub.add_parser(
+        "serve", help="browse the database in the web browser (three.js) and JSON endpoints"
+    )
+    serve.add_argument("--port", type=_tcp_port, default=8765, help="port, 1-65535 (default 8765)")
+    serve.add_argument(
+        "--host",
+        default="127.0.0.1",
+        help="address to listen on (default 127.0.0.1: this machine only)",
+    )
+    serve.add_argument(
+        "--allow-host",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="also answer requests that name this server NAME (e.g. the machine's DNS name when "
+        "--host 0.0.0.0); repeatable",
+    )
+    serve.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    import uvicorn
+
+    from modb.database.dsn import resolve
+    from modb.web.app import ThreeMissing, create_app
+    from modb.web.guard import WILDCARD_ADDRESSES, is_loopback
+
+    conninfo, origin = resolve(args.dsn)
+    try:
+        app = create_app(conninfo, args.host, args.port, tuple(args.allow_host))
+    except ThreeMissing as e:
+        print(f"modb serve: {e}", file=sys.stderr)
+        return 2
+    if not is_loopback(args.host):
+        print(
+            f"modb serve: listening on {args.host}, beyond this machine: anyone who can reach it "
+            f"can read the "
+            f"database. It answers requests that name it as 127.0.0.1, localhost"
+            + (f", {args.host}" if args.host not in WILDCARD_ADDRESSES else "")
+            + "".join(f", {h}" for h in args.allow_host)
+            + " (more with --allow-host NAME)",
+            file=sys.stderr,
+        )
+    shown = f"[{args.host}]" if ":" in args.host else args.host
+    print(
+        f"modb serve: http://{shown}:{args.port}/  (database: {origin}; Ctrl-C stops)",
+        file=sys.stderr,
+    )
+    uvicorn.run(app, host=args.host, port=args.port, log_level="warning")
+    return 0

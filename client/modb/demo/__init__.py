@@ -1,0 +1,1 @@
+"""`modb demo`: the run (run) and the real capture it uses (data)."""

@@ -1,0 +1,290 @@
+"""The Avatar: a character that walks toward goals by chaining snippets chosen by
+select_next_snippet.
+
+It keeps its world placement (pelvis ground point and heading), asks the database for the next
+snippet with the goal in world coordinates, places that snippet where the previous one ended and
+yields its frames at the source rate. The next selection is issued `lead_time` seconds before the
+current snippet ends (the paper's latency hiding): the query runs while the last frames play, and
+input that arrives after it started is not seen by that choice. Rules (goals, arrival, exclusion)
+are those of modb.synthesize, so with lead time zero both give the same chain.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Iterator, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+import psycopg
+
+
+from modb.database.connection import configure_for_selection
+from .blend import blend_seam
+from .chain import Choice, Frame, Goal, NoContinuation, Settings, checked_goal
+from .placement import Placement, after, ground_distance, place_root
+from .source_frames import FrameLibrary
+
+
+_SELECT = """
+SELECT n.snippet_id, n.clip_id, n.version, n.mirrored, n.first_frame, n.n_frames, n.relax_level,
+       n.continuity, n.proximity, n.net_translation, n.net_heading, s.fps, b.heading
+  FROM modb.select_next_snippet_world(%(prev)s::bigint, %(position)s::float8[], %(heading)s::float8,
+                                      %(target)s::float8[], %(profile)s, %(collection)s,
+                                      %(exclude)s::bigint[]) n
+  JOIN modb.snippets s ON s.id = n.snippet_id
+  JOIN modb.terminators b ON b.id = s.begin_terminator
+"""
+_START = """
+SELECT s.id, s.clip_id, s.version, s.mirrored, s.first_frame, s.n_frames, NULL::int, NULL::float8,
+       NULL::float8, s.net_translation, s.net_heading, s.fps, b.heading
+  FROM modb.snippets s JOIN modb.terminators b ON b.id = s.begin_terminator
+ WHERE s.id = %s
+"""
+
+
+@dataclass
+class Avatar:
+    conn: psycopg.Connection
+    goals: Sequence[Goal] = ()
+    position: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    heading: float = 0.0
+    start_snippet: int | None = None
+    settings: Settings = field(default_factory=Settings)
+
+    def __post_init__(self) -> None:
+        self._lock = threading.Lock()
+        self._goals: list[Goal] = [checked_goal(g) for g in self.goals]
+        self._goal_index = 0
+        self._goal_reached = (
+            False  # the current goal was reached (the queue moves on when one is added)
+        )
+        self._recent: list[tuple[int, int]] = []  # (snippet id, strip frame where its play ended)
+        self._started = False
+        self.library = FrameLibrary(self.conn)
+        self.choices: list[Choice] = []
+        self._knobs_set: dict[
+            str, str
+        ] = {}  # what this avatar last SET modb.<knob> to on its connection
+        configure_for_selection(self.conn)
+
+    # Goals may change at any time (from another thread too): they apply to the next query issued.
+    def set_goal(self, goal: Goal) -> None:
+        with self._lock:
+            self._goals, self._goal_index, self._goal_reached = [checked_goal(goal)], 0, False
+
+    def add_waypoint(self, goal: Goal) -> None:
+        with self._lock:
+            self._goals.append(checked_goal(goal))
+
+    @property
+    def goal(self) -> Goal | None:
+        with self._lock:
+            return self._goals[self._goal_index] if self._goals else None
+
+    @property
+    def course(self) -> tuple[list[Goal], int, bool]:
+        """The goal queue, the index of the goal being served, and whether it was reached."""
+        with self._lock:
+            return list(self._goals), self._goal_index, self._goal_reached
+
+    @property
+    def placement(self) -> Placement:
+        """Where the avatar stands (pelvis on the ground) and faces at the end of the last chosen
+        snippet."""
+        if self.choices:
+            return self.choices[-1].end
+        return Placement(tuple(float(v) for v in self.position), float(self.heading))
+
+    def frames(self) -> Iterator[Frame]:
+        """Frames of the growing strip, forever (stop consuming to stop). The first snippet plays
+        whole; every later one without its first frame, which stands in for the previous snippet's
+        last. Raises NoContinuation when the database has nothing to play next. An Avatar plays one
+        strip."""
+        if self._started:
+            raise RuntimeError(
+                "an Avatar plays one strip: make a new Avatar (at avatar.placement) to start again"
+            )
+        self._started = True
+        executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="modb-avatar")
+        try:
+            pending: Future | None = executor.submit(self._choose, None, self._request(None))
+            previous_last: Frame | None = None
+            while True:
+                started = time.perf_counter()
+                choice, rotations, translations = pending.result()
+                waited = (time.perf_counter() - started) * 1000.0
+                choice = replace(choice, waited_ms=waited if self.choices else 0.0)
+                self.choices.append(choice)
+                rotations, translations = blend_seam(
+                    previous_last, rotations, translations, self.settings.blend_frames
+                )
+                skip = 0 if choice.step == 0 else 1
+                lead_frames = int(round(self.settings.lead_time * choice.fps))
+                pending = None
+                for k in range(skip, choice.n_frames):
+                    frame = Frame(
+                        choice.start_frame + k, choice.step, rotations[k], translations[k]
+                    )
+                    yield frame
+                    if pending is None and choice.n_frames - 1 - k <= lead_frames:
+                        pending = executor.submit(self._choose, choice, self._request(choice))
+                previous_last = frame
+        finally:
+            executor.shutdown(wait=True, cancel_futures=True)
+
+    def _request(self, previous: Choice | None) -> dict:
+        """The next query's arguments, fixed now: later input is not seen by this choice."""
+        with self._lock:
+            if not self._goals:
+                raise ValueError("the avatar has no goal: call set_goal((x, z)) first")
+            if (
+                previous is not None
+                and previous.reached
+                and self._goals[self._goal_index] == previous.target
+            ):
+                self._goal_reached = True
+            if self._goal_reached and self._goal_index < len(self._goals) - 1:
+                self._goal_index, self._goal_reached = self._goal_index + 1, False
+            goal_index, target = self._goal_index, self._goals[self._goal_index]
+        s = self.settings
+        if previous is None:
+            where = self.placement
+            exclude = None
+        else:
+            where = previous.end
+            window = s.exclude_seconds * previous.fps
+            self._recent = [
+                (i, e)
+                for i, e in self._recent + [(previous.snippet_id, previous.end_frame)]
+                if previous.end_frame - e < window
+            ]
+            exclude = [i for i, _ in self._recent]
+        return {
+            "prev": None if previous is None else previous.snippet_id,
+            "position": list(where.position),
+            "heading": where.heading,
+            "target": list(target),
+            "profile": s.profile,
+            "collection": s.collection,
+            "knobs": s.session_knobs(),
+            "exclude": exclude,
+            "count_candidates": s.count_candidates,
+            "goal": goal_index + 1,
+            "where": where,
+            "start_frame": 0 if previous is None else previous.end_frame,
+            "step": 0 if previous is None else previous.step + 1,
+            "arrival_radius": s.arrival_radius,
+            "fps": None if previous is None else previous.fps,
+        }
+
+    def _choose(
+        self, previous: Choice | None, request: dict
+    ) -> tuple[Choice, np.ndarray, np.ndarray]:
+        """Runs in the worker thread: the selection query, then the chosen snippet's placed
+        frames."""
+        t = time.perf_counter()
+        candidates = None
+        if previous is None and self.start_snippet is not None:
+            row, latency = self.conn.execute(_START, [self.start_snippet]).fetchone(), None
+            if row is None:
+                raise NoContinuation(
+                    f"no snippet {self.start_snippet} (start_snippet is a modb.snippets id)"
+                )
+        else:
+            self._set_knobs(request["knobs"])
+            query = {
+                k: request[k]
+                for k in (
+                    "prev",
+                    "position",
+                    "heading",
+                    "target",
+                    "profile",
+                    "collection",
+                    "exclude",
+                )
+            }
+            row = self.conn.execute(_SELECT, query, prepare=True).fetchone()
+            latency = (time.perf_counter() - t) * 1000.0
+            if row is not None and request["count_candidates"]:
+                candidates = self.conn.execute(
+                    "SELECT modb.candidates_examined(%s, %s, %s)",
+                    [request["prev"], row[6], request["profile"]],
+                ).fetchone()[0]
+            if row is None and previous is None:
+                raise NoContinuation(
+                    "no snippet to start from: the collection (or the database) has no snippets; "
+                    "`modb load` builds them"
+                )
+            if row is None:
+                raise NoContinuation(
+                    f"no snippet can follow snippet {request['prev']}: every candidate was "
+                    f"excluded; "
+                    "lower exclude_seconds or load more data"
+                )
+        (
+            snippet_id,
+            clip_id,
+            version,
+            mirrored,
+            first_frame,
+            n_frames,
+            relax_level,
+            continuity,
+            proximity,
+            net_translation,
+            net_heading,
+            fps,
+            source_heading,
+        ) = row
+        if request["fps"] is not None and fps != request["fps"]:
+            raise RuntimeError(
+                f"snippet {snippet_id} plays at {fps} fps after a {request['fps']} fps snippet"
+            )
+        where = request["where"]
+        end = after(where, tuple(net_translation), net_heading)
+        target = tuple(request["target"])
+        source = self.library.get(clip_id, version, mirrored)
+        window = slice(first_frame, first_frame + n_frames)
+        rotations = source.motion.rotations[window].copy()
+        translations = source.motion.translations[window].copy()
+        ground = source.pelvis[first_frame] * np.array([1.0, 0.0, 1.0])
+        rotations[:, 0], translations[:, source.root_track] = place_root(
+            rotations[:, 0], translations[:, source.root_track], ground, source_heading, where
+        )
+        choice = Choice(
+            step=request["step"],
+            snippet_id=snippet_id,
+            clip_id=clip_id,
+            version=version,
+            mirrored=mirrored,
+            first_frame=first_frame,
+            n_frames=n_frames,
+            fps=fps,
+            start_frame=request["start_frame"],
+            end_frame=request["start_frame"] + n_frames - 1,
+            placement=where,
+            end=end,
+            goal=request["goal"],
+            target=target,
+            reached=ground_distance(end.position, target) <= request["arrival_radius"],
+            relax_level=relax_level,
+            continuity=continuity,
+            proximity=proximity,
+            latency_ms=latency,
+            waited_ms=0.0,
+            candidates=candidates,
+        )
+        return choice, rotations, translations
+
+    def _set_knobs(self, knobs: dict[str, str]) -> None:
+        """The session's SET modb.<knob>, as in psql; a knob no longer given goes back to the
+        profile's."""
+        wanted = {**{k: "" for k in self._knobs_set}, **knobs}
+        for knob, value in wanted.items():
+            if self._knobs_set.get(knob, "") != value:
+                self.conn.execute("SELECT set_config(%s, %s, false)", [f"modb.{knob}", value])
+        self._knobs_set = {k: v for k, v in wanted.items() if v != ""}

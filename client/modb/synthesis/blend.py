@@ -1,0 +1,36 @@
+"""Seam blending (Settings.blend_frames): the jump at a seam spread over the frames after it."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from modb_kernel import quaternion
+
+from .chain import Frame
+
+
+def blend_seam(
+    previous_last: Frame | None, rotations: np.ndarray, translations: np.ndarray, blend_frames: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Optional seam blending: the jump between the previous snippet's last frame and this one's
+    first (which it replaces) is spread over the next blend_frames frames, fading linearly to
+    nothing."""
+    n = min(blend_frames, len(rotations) - 2)  # the last frame stays as placed: the next seam
+    if previous_last is None or n <= 0:
+        return rotations, translations
+    jump = quaternion.multiply(previous_last.rotations, quaternion.conjugate(rotations[0]))
+    shift = previous_last.translations - translations[0]  # the arrays are _choose's own copies
+    for k in range(1, n + 1):
+        weight = 1.0 - k / (n + 1)
+        rotations[k] = quaternion.canonical(quaternion.multiply(_power(jump, weight), rotations[k]))
+        translations[k] = translations[k] + weight * shift
+    return rotations, translations
+
+
+def _power(q: np.ndarray, t: float) -> np.ndarray:
+    """q^t: the same axis, t times the angle (slerp from the identity)."""
+    q = quaternion.canonical(q)
+    s = np.linalg.norm(q[..., 1:], axis=-1, keepdims=True)
+    half = np.arctan2(s, q[..., :1])
+    axis = np.where(s > 1e-12, q[..., 1:] / np.maximum(s, 1e-300), 0.0)
+    return np.concatenate([np.cos(t * half), axis * np.sin(t * half)], axis=-1)
