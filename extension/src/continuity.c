@@ -14,7 +14,7 @@
 #include "utils/array.h"
 #include "utils/builtins.h"
 
-#define N_JOINTS 19
+#include "modb.h"
 
 PG_FUNCTION_INFO_V1(modb_continuity_ratio);
 

@@ -1,8 +1,7 @@
 /*
  * Misspelt session knobs. SET modb.<anything> = ... is accepted by PostgreSQL as a "placeholder" that no
  * SQL view lists (pg_settings hides placeholders), so an unknown knob would be silently ignored; this
- * function finds them for modb.match_plan(), which raises an error naming them. Everything else in modb
- * is SQL and PL/Python.
+ * function finds them for modb.match_plan(), which raises an error naming them.
  */
 #include "postgres.h"
 
@@ -12,8 +11,6 @@
 #include "utils/builtins.h"
 #include "utils/guc.h"
 #include "utils/guc_tables.h"
-
-PG_MODULE_MAGIC;
 
 PG_FUNCTION_INFO_V1(modb_session_settings);
 
