@@ -44,8 +44,8 @@ def _with_dbname(dsn: str, name: str) -> str:
 def sized_database(dsn: str, size: int, seed: int, progress=print) -> str:
     """A copy of the database at `dsn` (made once, kept for the next run) with `size` snippets,
     about; its conninfo. Smaller: whole clips drawn in a seeded order, compacted as after a load of
-    that size. Larger: speed-resampled copies of its clips added (bench_resampled; an interrupted
-    run resumes)."""
+    that size. Larger: speed-resampled copies of its clips added (modb.bench.resampled; an
+    interrupted run resumes)."""
     source = psycopg.conninfo.conninfo_to_dict(dsn).get("dbname") or "modb"
     name = f"{source}_{size}"
     with psycopg.connect(_with_dbname(dsn, "postgres"), autocommit=True) as admin:
@@ -223,7 +223,7 @@ def report(name: str, r: dict) -> str:
             *(
                 [
                     f"{r['resampled']:,} of them are speed-resampled copies of the real clips "
-                    f"(bench_resampled.py).",
+                    "(modb.bench.resampled).",
                     "",
                 ]
                 if r["resampled"]
