@@ -1,24 +1,27 @@
 #!/usr/bin/env python3
-"""Assemble the install script modb--<version>.sql, and upgrade scripts, from sql/*.sql and the kernel.
+"""Assemble modb--<version>.sql and the upgrade scripts from sql/*.sql and the kernel.
 
 The kernel package (plpython/modb_kernel/*.py) is embedded in every PL/Python function: a line
-'#@modb_kernel' in a body becomes a prelude that, on the function's first call in a session, imports the
-embedded sources as package modb_kernel_<version> and keeps it in GD for the version's other functions.
-So the server runs exactly the code of the installed extension version, never files from the repository
-or a virtualenv, and needs no SPI call to get it (SPI would make the functions unusable in parallel
-queries). {{STANDARD_JOINTS}} and {{FEATURES}} become SQL arrays of the kernel's constants, and
---c-header writes the C code's count of standard joints (src/standard_joints.h) from the same list.
+'#@modb_kernel' in a body becomes a prelude that, on the function's first call in a session, imports
+the embedded sources as package modb_kernel_<version> and keeps it in GD for the version's other
+functions. So the server runs exactly the code of the installed extension version, never files from
+the repository or a virtualenv, and needs no SPI call to get it (SPI would make the functions
+unusable in parallel queries). {{STANDARD_JOINTS}} and {{FEATURES}} become SQL arrays of the
+kernel's constants, and --c-header writes the C code's count of standard joints
+(src/standard_joints.h) from the same list.
 
-Upgrade scripts come from sql/upgrades/OLD--NEW.sql: hand-written steps whose '--@include FILE' lines pull
-in files of sql/ (objects new in NEW), and every other PL/Python function re-created (with its COMMENT) with NEW's kernel: at
-a '--@functions' line, so that the steps after it run NEW's code (a data migration), else at the end.
+Upgrade scripts come from sql/upgrades/OLD--NEW.sql: hand-written steps whose '--@include FILE'
+lines pull in files of sql/ (objects new in NEW), and every other PL/Python function re-created
+(with its COMMENT) with NEW's kernel: at a '--@functions' line, so that the steps after it run NEW's
+code (a data migration), else at the end.
 
 Releasing a version freezes its scripts: modb--NEW.sql and modb--OLD--NEW.sql, as built, go into
-sql/released/ under a first line saying they are generated and frozen and the command that made them, and
-sql/upgrades/OLD--NEW.sql is deleted, so later edits of sql/ cannot change a released script (the Makefile
-refuses an upgrade source whose script is released). A released script is what installs; sql/*.sql is the
-working copy of the next version.
+sql/released/ under a first line saying they are generated and frozen and the command that made
+them, and sql/upgrades/OLD--NEW.sql is deleted, so later edits of sql/ cannot change a released
+script (the Makefile refuses an upgrade source whose script is released). A released script is what
+installs; sql/*.sql is the working copy of the next version.
 """
+
 import functools
 import pathlib
 import re
@@ -27,33 +30,41 @@ import sys
 HERE = pathlib.Path(__file__).resolve().parent
 KERNEL = HERE / "plpython" / "modb_kernel"
 
-PRELUDE = '''kernel = GD.get({key!r})
-if kernel is None:
-    import importlib, importlib.abc, importlib.util, sys
-    class EmbeddedKernel(importlib.abc.MetaPathFinder, importlib.abc.Loader):
-        sources = {sources}
-        package = {package!r}
-        def find_spec(self, name, path=None, target=None):
-            key = "modb_kernel" + name[len(self.package):] if name.split(".")[0] == self.package else None
-            if key not in self.sources:
-                return None
-            return importlib.util.spec_from_loader(name, self, is_package=(key == "modb_kernel"))
-        def create_module(self, spec):
-            return None
-        def exec_module(self, module):
-            key = "modb_kernel" + module.__name__[len(self.package):]
-            exec(compile(self.sources[key], "<modb {version}>/" + key.replace(".", "/") + ".py", "exec"),
-                 module.__dict__)
-    if not any(getattr(f, "package", None) == {package!r} for f in sys.meta_path):
-        sys.meta_path.insert(0, EmbeddedKernel())
-    kernel = importlib.import_module({package!r})
-    for module in EmbeddedKernel.sources:
-        if module != "modb_kernel":
-            importlib.import_module({package!r} + module[len("modb_kernel"):])
-    GD[{key!r}] = kernel'''
+# The lines of Python put before a PL/Python function's body (see the docstring), one string.
+PRELUDE = (
+    "kernel = GD.get({key!r})\n"
+    "if kernel is None:\n"
+    "    import importlib, importlib.abc, importlib.util, sys\n"
+    "    class EmbeddedKernel(importlib.abc.MetaPathFinder, importlib.abc.Loader):\n"
+    "        sources = {sources}\n"
+    "        package = {package!r}\n"
+    "        def find_spec(self, name, path=None, target=None):\n"
+    '            key = "modb_kernel" + name[len(self.package):] if'
+    ' name.split(".")[0] == self.package else None\n'
+    "            if key not in self.sources:\n"
+    "                return None\n"
+    "            return importlib.util.spec_from_loader(name, self, is_package=(key"
+    ' == "modb_kernel"))\n'
+    "        def create_module(self, spec):\n"
+    "            return None\n"
+    "        def exec_module(self, module):\n"
+    '            key = "modb_kernel" + module.__name__[len(self.package):]\n'
+    '            exec(compile(self.sources[key], "<modb {version}>/" +'
+    ' key.replace(".", "/") + ".py", "exec"),\n'
+    "                 module.__dict__)\n"
+    '    if not any(getattr(f, "package", None) == {package!r} for f in sys.meta_path):\n'
+    "        sys.meta_path.insert(0, EmbeddedKernel())\n"
+    "    kernel = importlib.import_module({package!r})\n"
+    "    for module in EmbeddedKernel.sources:\n"
+    '        if module != "modb_kernel":\n'
+    '            importlib.import_module({package!r} + module[len("modb_kernel"):])\n'
+    "    GD[{key!r}] = kernel"
+)
 
 # A PL/Python function's definition and the COMMENT right after it (an upgrade re-creates both).
-PLPYTHON_FUNCTION = re.compile(r"^CREATE OR REPLACE FUNCTION .*?^\$py\$;\n(?:COMMENT ON FUNCTION .*?';\n)?", re.S | re.M)
+PLPYTHON_FUNCTION = re.compile(
+    r"^CREATE OR REPLACE FUNCTION .*?^\$py\$;\n(?:COMMENT ON FUNCTION .*?';\n)?", re.S | re.M
+)
 
 
 @functools.cache
@@ -81,20 +92,32 @@ def _sql_array(names) -> str:
 
 def _constants() -> dict:
     joints = kernel_constants()
-    return {"{{STANDARD_JOINTS}}": _sql_array(joints["STANDARD_JOINTS"]),
-            "{{FEATURES}}": _sql_array(joints["FEATURES"])}
+    return {
+        "{{STANDARD_JOINTS}}": _sql_array(joints["STANDARD_JOINTS"]),
+        "{{FEATURES}}": _sql_array(joints["FEATURES"]),
+    }
 
 
 def c_header() -> str:
     """src/standard_joints.h: the C code's count of standard joints, from the kernel's list."""
-    return ("/* Generated by extension/build_sql.py --c-header from plpython/modb_kernel/joints.py; do not edit. */\n"
-            f"#define N_JOINTS {len(kernel_constants()['STANDARD_JOINTS'])}\t/* len(STANDARD_JOINTS) */\n")
+    n_joints = len(kernel_constants()["STANDARD_JOINTS"])
+    return (
+        "/* Generated by extension/build_sql.py --c-header from plpython/modb_kernel/joints.py;"
+        " do not edit. */\n"
+        f"#define N_JOINTS {n_joints}\t/* len(STANDARD_JOINTS) */\n"
+    )
 
 
 def _expand(text: str, version: str) -> str:
-    sources = "{" + "".join(f"\n            {k!r}: {v!r}," for k, v in kernel_sources().items()) + "}"
-    prelude = PRELUDE.format(key=f"modb_kernel {version}", sources=sources,
-                             package="modb_kernel_" + version.replace(".", "_"), version=version)
+    sources = (
+        "{" + "".join(f"\n            {k!r}: {v!r}," for k, v in kernel_sources().items()) + "}"
+    )
+    prelude = PRELUDE.format(
+        key=f"modb_kernel {version}",
+        sources=sources,
+        package="modb_kernel_" + version.replace(".", "_"),
+        version=version,
+    )
     text = text.replace("#@modb_kernel", prelude)
     for placeholder, value in _constants().items():
         text = text.replace(placeholder, value)
@@ -108,7 +131,9 @@ def build(version: str) -> str:
 
 def build_upgrade(source: pathlib.Path) -> str:
     version = source.stem.split("--")[1]
-    parts = [f"\\echo Use \"ALTER EXTENSION modb UPDATE TO '{version}'\" to load this file. \\quit\n"]
+    parts = [
+        f"\\echo Use \"ALTER EXTENSION modb UPDATE TO '{version}'\" to load this file. \\quit\n"
+    ]
     included = set()
     steps = source.read_text().splitlines()
     if "--@functions" not in steps:
@@ -122,7 +147,10 @@ def build_upgrade(source: pathlib.Path) -> str:
             parts.append(f"-- PL/Python functions re-created with the {version} kernel")
             for path in sorted((HERE / "sql").glob("*.sql")):
                 if path.name not in included:
-                    parts.extend(_expand(m.group(0), version) for m in PLPYTHON_FUNCTION.finditer(path.read_text()))
+                    parts.extend(
+                        _expand(m.group(0), version)
+                        for m in PLPYTHON_FUNCTION.finditer(path.read_text())
+                    )
         else:
             parts.append(_expand(line, version))
     return "\n".join(parts)
@@ -136,6 +164,8 @@ if __name__ == "__main__":
     elif len(sys.argv) == 3 and sys.argv[1] == "--upgrade":
         sys.stdout.write(build_upgrade(pathlib.Path(sys.argv[2])))
     else:
-        sys.exit("usage: build_sql.py VERSION > modb--VERSION.sql\n"
-                 "       build_sql.py --upgrade sql/upgrades/OLD--NEW.sql > modb--OLD--NEW.sql\n"
-                 "       build_sql.py --c-header > src/standard_joints.h")
+        sys.exit(
+            "usage: build_sql.py VERSION > modb--VERSION.sql\n"
+            "       build_sql.py --upgrade sql/upgrades/OLD--NEW.sql > modb--OLD--NEW.sql\n"
+            "       build_sql.py --c-header > src/standard_joints.h"
+        )

@@ -1,4 +1,5 @@
 """Forward kinematics: the same code for every source format (BVH and ASF/AMC)."""
+
 import numpy as np
 
 from . import quaternion

@@ -1,25 +1,31 @@
-"""Mirroring a clip through the skeleton's left/right pairing: the same motion as if captured in a mirror.
+"""Mirroring a clip through the skeleton's left/right pairing: the same motion as if captured in a
+mirror.
 
-World positions are reflected by S = diag(-1, 1, 1) (x -> -x) with every paired joint swapped. The mirrored
-joint m(c) takes the world orientation S O_c M_c, where M_c (orthogonal, det -1) says how m(c)'s frame sits
-against c's in the rig. Parent-relative, a joint c with parent j takes M_j R_c M_c (S R_root M_root at the
-root), and a translated joint's translation becomes M_j t (S t at the root). Positions are exact whatever
-M is, as far as the captured skeleton is symmetric; rotations are what the same rig would report for the
-mirrored motion only with the rig's own M, and only then can mirrored snippets follow captured ones.
+World positions are reflected by S = diag(-1, 1, 1) (x -> -x) with every paired joint swapped. The
+mirrored joint m(c) takes the world orientation S O_c M_c, where M_c (orthogonal, det -1) says how
+m(c)'s frame sits against c's in the rig. Parent-relative, a joint c with parent j takes M_j R_c M_c
+(S R_root M_root at the root), and a translated joint's translation becomes M_j t (S t at the root).
+Positions are exact whatever M is, as far as the captured skeleton is symmetric; rotations are what
+the same rig would report for the mirrored motion only with the rig's own M, and only then can
+mirrored snippets follow captured ones.
 
-Finding M_c. Every candidate must map c's child offsets (and end site, and translations that never change)
-onto its partner's: M_c off_k = off_m(k). Rigs use axis-aligned conventions, so candidates are the 24
-signed permutations of determinant -1, allowed 15 degrees of capture asymmetry. Where that leaves a choice
-(a bone's twist is invisible in its offsets):
-- an unpaired joint (pelvis, spine, neck) flips the axis of its frame nearest the body's left-right axis as
-  seen in that frame (the principal axis of the hips' and clavicles' separations over the clip, which no yaw
-  or gesture changes) if it lies within 30 degrees of one; else, as in a joint that does not turn with the
-  body (a root above the pelvis), or a head held turned for a whole clip, it keeps its parent's;
-- a paired joint keeps its parent's M where that fits (a rig whose frames follow its symmetry: CMU's ASF,
-  S everywhere), else -I where that fits (a Maya-style rig mirrors the right side's axes as a whole);
-- anything else takes the candidate whose mirrored rotations come nearest, on average, to the partner's.
+Finding M_c. Every candidate must map c's child offsets (and end site, and translations that never
+change) onto its partner's: M_c off_k = off_m(k). Rigs use axis-aligned conventions, so candidates
+are the 24 signed permutations of determinant -1, allowed 15 degrees of capture asymmetry. Where
+that leaves a choice (a bone's twist is invisible in its offsets):
+- an unpaired joint (pelvis, spine, neck) flips the axis of its frame nearest the body's left-right
+  axis as seen in that frame (the principal axis of the hips' and clavicles' separations over the
+  clip, which no yaw or gesture changes) if it lies within 30 degrees of one; else, as in a joint
+  that does not turn with the body (a root above the pelvis), or a head held turned for a whole
+  clip, it keeps its parent's;
+- a paired joint keeps its parent's M where that fits (a rig whose frames follow its symmetry: CMU's
+  ASF, S everywhere), else -I where that fits (a Maya-style rig mirrors the right side's axes as a
+  whole);
+- anything else takes the candidate whose mirrored rotations come nearest, on average, to the
+  partner's.
 A rig that is not axis-aligned gets the best fit of its offsets instead.
 """
+
 import itertools
 
 import numpy as np
@@ -27,15 +33,17 @@ import numpy as np
 from . import kinematics, quaternion
 
 WORLD_REFLECTION = np.diag([-1.0, 1.0, 1.0])
-# A captured skeleton's two sides differ by a few degrees (CMU 131's neck leans 7 degrees): within this the
-# axis-aligned convention is taken as the rig's, and the difference as capture asymmetry.
+# A captured skeleton's two sides differ by a few degrees (CMU 131's neck leans 7 degrees): within
+# this the axis-aligned convention is taken as the rig's, and the difference as capture asymmetry.
 ALIGNED_COS = np.cos(np.radians(15.0))
 LATERAL_STEADINESS = 0.8  # share of the separations' spread along the axis it takes to be one
-STEADY_TRANSLATION = 1e-3  # relative spread under which a translation channel counts as a fixed offset
+# relative spread under which a translation channel counts as a fixed offset
+STEADY_TRANSLATION = 1e-3
 
 
 def _axis_aligned_reflections():
-    """The 24 signed permutation matrices with determinant -1: every axis-aligned mirror convention."""
+    """The 24 signed permutation matrices with determinant -1: every axis-aligned mirror
+    convention."""
     out = []
     for perm in itertools.permutations(range(3)):
         for signs in itertools.product((1.0, -1.0), repeat=3):
@@ -68,7 +76,8 @@ def _flips_one_axis(m):
 
 
 def _turning(a, b):
-    """The smallest rotation taking unit a onto unit b (a half turn about a perpendicular when opposite)."""
+    """The smallest rotation taking unit a onto unit b (a half turn about a perpendicular when
+    opposite)."""
     axis = np.cross(a, b)
     s, c = np.linalg.norm(axis), float(np.dot(a, b))
     if s < 1e-12:
@@ -81,7 +90,8 @@ def _turning(a, b):
 
 
 def _improper_fit(sources, targets):
-    """The orthogonal matrix of determinant -1 that best maps unit sources onto unit targets (Kabsch)."""
+    """The orthogonal matrix of determinant -1 that best maps unit sources onto unit targets
+    (Kabsch)."""
     u, _, vt = np.linalg.svd(np.asarray(targets).T @ np.asarray(sources))
     return u @ np.diag([1.0, 1.0, -np.linalg.det(u @ vt)]) @ vt
 
@@ -92,12 +102,15 @@ def _fixed_offsets(offsets, translations, translated):
     for k, j in enumerate(translated):
         t = np.asarray(translations, dtype=np.float64)[:, k]
         mean = t.mean(axis=0)
-        offsets[j] = mean if np.abs(t - mean).max() <= STEADY_TRANSLATION * np.linalg.norm(mean) else 0.0
+        offsets[j] = (
+            mean if np.abs(t - mean).max() <= STEADY_TRANSLATION * np.linalg.norm(mean) else 0.0
+        )
     return offsets
 
 
 def _direction_pairs(j, children, offsets, end_sites, partner):
-    """(direction, partner's direction) of j's child offsets and end site, where both are non-zero."""
+    """(direction, partner's direction) of j's child offsets and end site, where both are
+    non-zero."""
     pairs = [(offsets[c], offsets[partner[c]]) for c in children[j]]
     if end_sites[j] is not None and end_sites[partner[j]] is not None:
         pairs.append((end_sites[j], end_sites[partner[j]]))
@@ -106,13 +119,16 @@ def _direction_pairs(j, children, offsets, end_sites, partner):
 
 
 def _lateral_axes(parents, positions, orientations, partner):
-    """Per joint, the body's left-right axis in the joint's own frame: the principal axis of the separations
-    of the pairs hung from one unpaired parent (hips, clavicles; or the first pair below them that is apart),
-    over all frames; zero where no axis holds (a root above the pelvis that does not turn with the body)."""
+    """Per joint, the body's left-right axis in the joint's own frame: the principal axis of the
+    separations of the pairs hung from one unpaired parent (hips, clavicles; or the first pair below
+    them that is apart), over all frames; zero where no axis holds (a root above the pelvis that
+    does not turn with the body)."""
     pairs = []
     for c, m in enumerate(partner):
         if c < m and parents[c] == parents[m] >= 0 and partner[parents[c]] == parents[c]:
-            while np.linalg.norm(positions[:, c] - positions[:, m], axis=-1).mean() < 1e-3:  # CMU's hip joints
+            while (
+                np.linalg.norm(positions[:, c] - positions[:, m], axis=-1).mean() < 1e-3
+            ):  # CMU's hip joints
                 below = [k for k in range(len(parents)) if parents[k] == c]
                 if not below:
                     break
@@ -120,25 +136,33 @@ def _lateral_axes(parents, positions, orientations, partner):
             pairs.append((c, m))
     if not pairs:
         return np.zeros((len(parents), 3))
-    separation = positions[:, [c for c, _ in pairs]] - positions[:, [m for _, m in pairs]]  # (F, P, 3)
+    separation = (
+        positions[:, [c for c, _ in pairs]] - positions[:, [m for _, m in pairs]]
+    )  # (F, P, 3)
     separation /= np.maximum(np.linalg.norm(separation, axis=-1, keepdims=True), 1e-12)
-    local = quaternion.rotate(quaternion.conjugate(orientations)[:, :, None, :], separation[:, None, :, :])
+    local = quaternion.rotate(
+        quaternion.conjugate(orientations)[:, :, None, :], separation[:, None, :, :]
+    )
     values, vectors = np.linalg.eigh(np.einsum("fjpa,fjpb->jab", local, local))  # (J, 3, 3) scatter
     steady = values[:, -1] >= LATERAL_STEADINESS * values.sum(axis=1)
-    turning = np.abs(orientations - orientations[:1]).max(axis=(0, 2)) > 1e-9  # a fixed frame is the world's
+    turning = (
+        np.abs(orientations - orientations[:1]).max(axis=(0, 2)) > 1e-9
+    )  # a fixed frame is the world's
     return vectors[:, :, -1] * (steady & turning)[:, None]
 
 
 def _nearest_flip(candidates, axis):
-    """The single-axis flip whose axis lies within 30 degrees of `axis`, if any (a head held turned for a
-    whole clip is no evidence of its frame)."""
+    """The single-axis flip whose axis lies within 30 degrees of `axis`, if any (a head held turned
+    for a whole clip is no evidence of its frame)."""
     best = max(candidates, key=lambda m: np.linalg.norm((np.eye(3) - m) @ axis))  # 2 |n . axis|
-    return best if np.linalg.norm((np.eye(3) - best) @ axis) >= 2 * np.cos(np.radians(30.0)) else None
+    return (
+        best if np.linalg.norm((np.eye(3) - best) @ axis) >= 2 * np.cos(np.radians(30.0)) else None
+    )
 
 
 def frame_reflections(parents, offsets, end_sites, partner, lateral_axes, mean_rotations):
-    """Per joint, M_j (3 x 3, det -1) as the module docstring finds it. lateral_axes: (J, 3); mean_rotations:
-    (J, 3, 3) averages of the clip's parent-relative rotation matrices."""
+    """Per joint, M_j (3 x 3, det -1) as the module docstring finds it. lateral_axes: (J, 3);
+    mean_rotations: (J, 3, 3) averages of the clip's parent-relative rotation matrices."""
     n_joints = len(parents)
     children = [[c for c in range(n_joints) if parents[c] == j] for j in range(n_joints)]
     out = np.empty((n_joints, 3, 3))
@@ -148,7 +172,9 @@ def frame_reflections(parents, offsets, end_sites, partner, lateral_axes, mean_r
             continue
         above = WORLD_REFLECTION if parents[j] < 0 else out[parents[j]]
         pairs = _direction_pairs(j, children, offsets, end_sites, partner)
-        candidates = [m for m in CANDIDATES if all(np.dot(m @ a, b) > ALIGNED_COS for a, b in pairs)]
+        candidates = [
+            m for m in CANDIDATES if all(np.dot(m @ a, b) > ALIGNED_COS for a, b in pairs)
+        ]
         if partner[j] == j:
             candidates = [m for m in candidates if _flips_one_axis(m)]
         if not candidates:  # not axis-aligned: fit the offsets
@@ -167,22 +193,33 @@ def frame_reflections(parents, offsets, end_sites, partner, lateral_axes, mean_r
             out[j] = -np.eye(3)
         else:
             target = mean_rotations[partner[j]]
-            out[j] = min(candidates, key=lambda m: np.linalg.norm(above @ mean_rotations[j] @ m - target))
+            out[j] = min(
+                candidates, key=lambda m: np.linalg.norm(above @ mean_rotations[j] @ m - target)
+            )
     return out
 
 
 def clip_reflections(parents, offsets, end_sites, partner, rotations, translations, translated):
     """M_j of every joint, found from a clip of the skeleton (see the module docstring)."""
-    positions, orientations = kinematics.world_transforms(parents, offsets, rotations, translations, translated)
-    return frame_reflections(parents, _fixed_offsets(offsets, translations, translated), end_sites, partner,
-                             _lateral_axes(parents, positions, orientations, partner),
-                             quaternion.to_matrix(rotations).mean(axis=0))
+    positions, orientations = kinematics.world_transforms(
+        parents, offsets, rotations, translations, translated
+    )
+    return frame_reflections(
+        parents,
+        _fixed_offsets(offsets, translations, translated),
+        end_sites,
+        partner,
+        _lateral_axes(parents, positions, orientations, partner),
+        quaternion.to_matrix(rotations).mean(axis=0),
+    )
 
 
 def mirror(parents, offsets, end_sites, partner, rotations, translations, translated):
     """Mirrored (rotations (F, J, 4), translations (F, K, 3)) of a clip."""
     rotations = np.asarray(rotations, dtype=np.float64)
-    frames = clip_reflections(parents, offsets, end_sites, partner, rotations, translations, translated)
+    frames = clip_reflections(
+        parents, offsets, end_sites, partner, rotations, translations, translated
+    )
     r = quaternion.to_matrix(rotations)  # (F, J, 3, 3)
     out_rotations = np.empty_like(rotations)
     for c, p in enumerate(parents):

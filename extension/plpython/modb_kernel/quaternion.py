@@ -1,4 +1,5 @@
 """Quaternion and Euler-angle arithmetic on numpy arrays of shape (..., 4), (w, x, y, z)."""
+
 import numpy as np
 
 _AXIS_INDEX = {"X": 0, "Y": 1, "Z": 2}
@@ -42,7 +43,8 @@ def rotate(q, v):
 
 
 def about_axis(axis, angle):
-    """Quaternions for rotations by `angle` (radians, any shape) about the principal axis 'X', 'Y' or 'Z'."""
+    """Quaternions for rotations by `angle` (radians, any shape) about the principal axis 'X', 'Y'
+    or 'Z'."""
     angle = np.asarray(angle, dtype=np.float64)
     q = np.zeros(angle.shape + (4,))
     q[..., 0] = np.cos(angle / 2.0)
@@ -125,7 +127,8 @@ def angle_between(a, b):
     b = np.asarray(b, dtype=np.float64)
     b = np.where(np.sum(a * b, axis=-1, keepdims=True) < 0.0, -b, b)
     # With t the angle between the 4-vectors, |a-b| = 2 sin(t/2) and |a+b| = 2 cos(t/2), and the
-    # rotation angle is 2t: 4*atan2(|a-b|, |a+b|) stays accurate near 0 and pi, where 2*acos(a.b) does not.
+    # rotation angle is 2t: 4*atan2(|a-b|, |a+b|) stays accurate near 0 and pi, where 2*acos(a.b)
+    # does not.
     return 4.0 * np.arctan2(np.linalg.norm(a - b, axis=-1), np.linalg.norm(a + b, axis=-1))
 
 
@@ -133,13 +136,54 @@ def from_matrix(m):
     """Unit quaternions (..., 4) from rotation matrices (..., 3, 3) (Shepperd's method, w >= 0)."""
     m = np.asarray(m, dtype=np.float64)
     t = m[..., 0, 0] + m[..., 1, 1] + m[..., 2, 2]
-    cands = np.stack([
-        np.stack([1 + t, m[..., 2, 1] - m[..., 1, 2], m[..., 0, 2] - m[..., 2, 0], m[..., 1, 0] - m[..., 0, 1]], -1),
-        np.stack([m[..., 2, 1] - m[..., 1, 2], 1 + 2 * m[..., 0, 0] - t, m[..., 0, 1] + m[..., 1, 0], m[..., 0, 2] + m[..., 2, 0]], -1),
-        np.stack([m[..., 0, 2] - m[..., 2, 0], m[..., 0, 1] + m[..., 1, 0], 1 + 2 * m[..., 1, 1] - t, m[..., 1, 2] + m[..., 2, 1]], -1),
-        np.stack([m[..., 1, 0] - m[..., 0, 1], m[..., 0, 2] + m[..., 2, 0], m[..., 1, 2] + m[..., 2, 1], 1 + 2 * m[..., 2, 2] - t], -1),
-    ], axis=-2)
+    cands = np.stack(
+        [
+            np.stack(
+                [
+                    1 + t,
+                    m[..., 2, 1] - m[..., 1, 2],
+                    m[..., 0, 2] - m[..., 2, 0],
+                    m[..., 1, 0] - m[..., 0, 1],
+                ],
+                -1,
+            ),
+            np.stack(
+                [
+                    m[..., 2, 1] - m[..., 1, 2],
+                    1 + 2 * m[..., 0, 0] - t,
+                    m[..., 0, 1] + m[..., 1, 0],
+                    m[..., 0, 2] + m[..., 2, 0],
+                ],
+                -1,
+            ),
+            np.stack(
+                [
+                    m[..., 0, 2] - m[..., 2, 0],
+                    m[..., 0, 1] + m[..., 1, 0],
+                    1 + 2 * m[..., 1, 1] - t,
+                    m[..., 1, 2] + m[..., 2, 1],
+                ],
+                -1,
+            ),
+            np.stack(
+                [
+                    m[..., 1, 0] - m[..., 0, 1],
+                    m[..., 0, 2] + m[..., 2, 0],
+                    m[..., 1, 2] + m[..., 2, 1],
+                    1 + 2 * m[..., 2, 2] - t,
+                ],
+                -1,
+            ),
+        ],
+        axis=-2,
+    )
     # Each row is 4 q_k q (k = w, x, y, z); take the one with the largest |q_k| for accuracy.
-    best = np.argmax(np.stack([1 + t, 1 + 2 * m[..., 0, 0] - t, 1 + 2 * m[..., 1, 1] - t, 1 + 2 * m[..., 2, 2] - t], -1), -1)
+    best = np.argmax(
+        np.stack(
+            [1 + t, 1 + 2 * m[..., 0, 0] - t, 1 + 2 * m[..., 1, 1] - t, 1 + 2 * m[..., 2, 2] - t],
+            -1,
+        ),
+        -1,
+    )
     q = np.take_along_axis(cands, best[..., None, None], axis=-2)[..., 0, :]
     return canonical(q)

@@ -1,20 +1,23 @@
-"""MotionTerminators and snippet descriptors: what the selection query compares, computed once per clip.
+"""MotionTerminators and snippet descriptors: what the selection query compares, computed once per
+clip.
 
 Definitions (README "Snippets and terminators" documents them; tests re-derive them independently):
-- Heading: the forward direction (-l_z, 0, l_x) of the hip axis l = left_hip - right_hip (a character's
-  +X is its left), averaged over a centred window of +-round(HEADING_HALF_WINDOW_S * fps) frames (cut at
-  the clip's ends) because the pelvis yaws with every step; theta = atan2(f_x, f_z).
-- Local heading frame of a frame: origin at the pelvis projected on the ground (y = 0), rotated by theta
-  about +Y. Positions and velocities of the standard joints are expressed in it.
+- Heading: the forward direction (-l_z, 0, l_x) of the hip axis l = left_hip - right_hip (a
+  character's +X is its left), averaged over a centred window of +-round(HEADING_HALF_WINDOW_S *
+  fps) frames (cut at the clip's ends) because the pelvis yaws with every step; theta = atan2(f_x,
+  f_z).
+- Local heading frame of a frame: origin at the pelvis projected on the ground (y = 0), rotated by
+  theta about +Y. Positions and velocities of the standard joints are expressed in it.
 - Rotations: the pelvis's orientation in the heading frame (its tilt and residual yaw); every other
   joint's rotation relative to its parent.
-- Velocities: central differences over the neighbouring frames (one-sided at the clip's ends), in the
-  frame's heading frame. Angular velocity: the pelvis's world angular velocity in the heading frame; other
-  joints' from their parent-relative rotations, in their own frame.
-- Features (the GiST-indexed cube, physical units): pelvis height; head, wrists and ankles positions;
-  pelvis and ankles velocities; the first two columns of the neck's, head's and wrists' rotation matrices
-  (joints.FEATURES lists the 49 dimensions).
+- Velocities: central differences over the neighbouring frames (one-sided at the clip's ends), in
+  the frame's heading frame. Angular velocity: the pelvis's world angular velocity in the heading
+  frame; other joints' from their parent-relative rotations, in their own frame.
+- Features (the GiST-indexed cube, physical units): pelvis height; head, wrists and ankles
+  positions; pelvis and ankles velocities; the first two columns of the neck's, head's and wrists'
+  rotation matrices (joints.FEATURES lists the 49 dimensions).
 """
+
 import numpy as np
 
 from . import kinematics, quaternion
@@ -49,11 +52,16 @@ def _rotvec(q):
 
 
 def rotation_features(rotations):
-    """The rotation part of the features: for each of joints.FEATURE_ROTATIONS, R e_x then R e_y of its
-    rotation (rotations: (..., 19, 4) as stored, standard joint order)."""
+    """The rotation part of the features: for each of joints.FEATURE_ROTATIONS, R e_x then R e_y of
+    its rotation (rotations: (..., 19, 4) as stored, standard joint order)."""
     rotations = np.asarray(rotations, dtype=np.float64)
-    columns = [quaternion.rotate(rotations[..., STANDARD_JOINTS.index(j), :], np.array(axis, dtype=np.float64))
-               for j in FEATURE_ROTATIONS for axis in ((1, 0, 0), (0, 1, 0))]
+    columns = [
+        quaternion.rotate(
+            rotations[..., STANDARD_JOINTS.index(j), :], np.array(axis, dtype=np.float64)
+        )
+        for j in FEATURE_ROTATIONS
+        for axis in ((1, 0, 0), (0, 1, 0))
+    ]
     return np.concatenate(columns, axis=-1)
 
 
@@ -65,13 +73,13 @@ def _neighbours(n):
 
 
 def headings(positions, left_hip, right_hip, fps):
-    l = positions[:, left_hip] - positions[:, right_hip]
-    forward = np.stack([-l[:, 2], np.zeros(len(l)), l[:, 0]], axis=-1)
+    hip_axis = positions[:, left_hip] - positions[:, right_hip]
+    forward = np.stack([-hip_axis[:, 2], np.zeros(len(hip_axis)), hip_axis[:, 0]], axis=-1)
     forward /= np.maximum(np.linalg.norm(forward, axis=-1, keepdims=True), 1e-12)
     half = int(round(HEADING_HALF_WINDOW_S * fps))
     cumulative = np.vstack([np.zeros((1, 3)), np.cumsum(forward, axis=0)])
-    lo = np.clip(np.arange(len(l)) - half, 0, len(l))
-    hi = np.clip(np.arange(len(l)) + half + 1, 0, len(l))
+    lo = np.clip(np.arange(len(hip_axis)) - half, 0, len(hip_axis))
+    hi = np.clip(np.arange(len(hip_axis)) + half + 1, 0, len(hip_axis))
     mean = cumulative[hi] - cumulative[lo]
     return np.arctan2(mean[:, 0], mean[:, 2])
 
@@ -79,10 +87,17 @@ def headings(positions, left_hip, right_hip, fps):
 def compute(parents, offsets, rotations, translations, translated, std, fps):
     """Per-frame terminator data for a whole clip (arrays over frames)."""
     rotations = np.asarray(rotations, dtype=np.float64)
-    positions, orientations = kinematics.world_transforms(parents, offsets, rotations, translations, translated)
+    positions, orientations = kinematics.world_transforms(
+        parents, offsets, rotations, translations, translated
+    )
     n = len(rotations)
     pelvis = std[STANDARD_JOINTS.index("pelvis")]
-    theta = headings(positions, std[STANDARD_JOINTS.index("left_hip")], std[STANDARD_JOINTS.index("right_hip")], fps)
+    theta = headings(
+        positions,
+        std[STANDARD_JOINTS.index("left_hip")],
+        std[STANDARD_JOINTS.index("right_hip")],
+        fps,
+    )
     h_inv = quaternion.conjugate(_about_y(theta))[:, None, :]
     ground = positions[:, pelvis] * np.array([1.0, 0.0, 1.0])
     world = positions[:, std]
@@ -96,8 +111,19 @@ def compute(parents, offsets, rotations, translations, translated, std, fps):
     pelvis_s = STANDARD_JOINTS.index("pelvis")
     pelvis_local = quaternion.canonical(quaternion.multiply(h_inv[:, 0], orientations[:, pelvis]))
     local_rotations[:, pelvis_s] = pelvis_local
-    angular = _rotvec(quaternion.multiply(quaternion.conjugate(rotations[before][:, std]), rotations[after][:, std])) * rate
-    pelvis_world = _rotvec(quaternion.multiply(orientations[after, pelvis], quaternion.conjugate(orientations[before, pelvis])))
+    angular = (
+        _rotvec(
+            quaternion.multiply(
+                quaternion.conjugate(rotations[before][:, std]), rotations[after][:, std]
+            )
+        )
+        * rate
+    )
+    pelvis_world = _rotvec(
+        quaternion.multiply(
+            orientations[after, pelvis], quaternion.conjugate(orientations[before, pelvis])
+        )
+    )
     angular[:, pelvis_s] = quaternion.rotate(h_inv[:, 0], pelvis_world * rate[:, 0])
 
     configuration = canonical.copy()
@@ -111,23 +137,34 @@ def compute(parents, offsets, rotations, translations, translated, std, fps):
     features = np.concatenate(
         [local_positions[:, [pelvis_s], 1]]
         + [local_positions[:, idx[j]] for j in FEATURE_POSITIONS]
-        + [local_velocities[:, idx[j]] for j in FEATURE_VELOCITIES] + [rotation_features(local_rotations)], axis=1)
+        + [local_velocities[:, idx[j]] for j in FEATURE_VELOCITIES]
+        + [rotation_features(local_rotations)],
+        axis=1,
+    )
     return {
-        "heading": theta, "pelvis": positions[:, pelvis], "pelvis_height": positions[:, pelvis, 1],
-        "positions": local_positions, "rotations": local_rotations, "velocities": local_velocities,
-        "angular_velocities": angular, "configuration": configuration, "features": features,
+        "heading": theta,
+        "pelvis": positions[:, pelvis],
+        "pelvis_height": positions[:, pelvis, 1],
+        "positions": local_positions,
+        "rotations": local_rotations,
+        "velocities": local_velocities,
+        "angular_velocities": angular,
+        "configuration": configuration,
+        "features": features,
     }
 
 
 def windows(n_frames, fps, window_s, stride_s):
-    """(first frames, frames per snippet, stride): a snippet advances window_s seconds, starts every stride_s."""
+    """(first frames, frames per snippet, stride): a snippet advances window_s seconds, starts every
+    stride_s."""
     length = int(round(window_s * fps)) + 1
     stride = max(1, int(round(stride_s * fps)))
     return np.arange(0, max(n_frames - length + 1, 0), stride), length, stride
 
 
 def net_motion(terms, first, last):
-    """Net pelvis translation (in the first frame's heading frame) and heading change of frames first..last."""
+    """Net pelvis translation (in the first frame's heading frame) and heading change of frames
+    first..last."""
     theta = terms["heading"]
     h_inv = quaternion.conjugate(_about_y(theta[first]))
     translation = quaternion.rotate(h_inv, terms["pelvis"][last] - terms["pelvis"][first])

@@ -1,17 +1,19 @@
-"""The transition graph of a snippet set: which snippet can follow which at relaxation level 0, and the
-part of it a chain can keep moving and steering in: the largest strongly connected component (as in
-motion graphs) that holds turns both ways.
+"""The transition graph of a snippet set: which snippet can follow which at relaxation level 0, and
+the part of it a chain can keep moving and steering in: the largest strongly connected component (as
+in motion graphs) that holds turns both ways.
 
 Outside it a chain runs into a dead end: a snippet from which the data cannot be left smoothly, or a
-component it cannot leave that never turns (in Bandai dataset 2, the runs: from a run's end only runs
-pass the thresholds, and no run turns more than 14 degrees in 1.5 s). Restricting the choice to the
-steerable component keeps every chain where it can face its next goal.
+component it cannot leave that never turns (in Bandai dataset 2, the runs: from a run's end only
+runs pass the thresholds, and no run turns more than 14 degrees in 1.5 s). Restricting the choice to
+the steerable component keeps every chain where it can face its next goal.
 
 The edge test is select_next_snippets' level 0, computed for all pairs at once: the same search box
-around the end's features, the same per-joint ratio (position by the norm, rotation angle, velocities)
-with the same float4 arithmetic, and the same rule against replaying the previous snippet's frames.
-Needs scipy (the server: Debian's python3-scipy) for the box search and the components.
+around the end's features, the same per-joint ratio (position by the norm, rotation angle,
+velocities) with the same float4 arithmetic, and the same rule against replaying the previous
+snippet's frames. Needs scipy (the server: Debian's python3-scipy) for the box search and the
+components.
 """
+
 import numpy as np
 
 from . import quaternion
@@ -20,8 +22,8 @@ BOX_MARGIN = 1e-4  # match_box's margin: terminators store float4, features floa
 
 
 class Terminators:
-    """Per terminator row i: positions, velocities, angular velocities (n, 19, 3), rotations (n, 19, 4)
-    as stored (float4), and features (n, 25)."""
+    """Per terminator row i: positions, velocities, angular velocities (n, 19, 3), rotations (n, 19,
+    4) as stored (float4), and features (n, 25)."""
 
     def __init__(self, positions, rotations, velocities, angular_velocities, features):
         n = len(features)
@@ -38,20 +40,32 @@ def _norm(a, b, norm):
 
 
 def _joint_terms(term, src, dst, plan, j):
-    """Joint j's continuity terms for pairs (end terminator src[k], begin terminator dst[k]): (difference,
-    threshold) for the rotation angle, the position (the plan's norm) and, with velocity terms, the
-    velocity and angular velocity."""
-    yield quaternion.angle_between(term.rotations[src, j], term.rotations[dst, j]), plan["angle_threshold"][j]
-    yield _norm(term.positions[src, j], term.positions[dst, j], plan["norm"]), plan["position_threshold"][j]
+    """Joint j's continuity terms for pairs (end terminator src[k], begin terminator dst[k]):
+    (difference, threshold) for the rotation angle, the position (the plan's norm) and, with
+    velocity terms, the velocity and angular velocity."""
+    yield (
+        quaternion.angle_between(term.rotations[src, j], term.rotations[dst, j]),
+        plan["angle_threshold"][j],
+    )
+    yield (
+        _norm(term.positions[src, j], term.positions[dst, j], plan["norm"]),
+        plan["position_threshold"][j],
+    )
     if plan["velocity_terms"]:
-        yield _norm(term.velocities[src, j], term.velocities[dst, j], "l2"), plan["velocity_threshold"][j]
-        yield (_norm(term.angular_velocities[src, j], term.angular_velocities[dst, j], "l2"),
-               plan["angular_velocity_threshold"][j])
+        yield (
+            _norm(term.velocities[src, j], term.velocities[dst, j], "l2"),
+            plan["velocity_threshold"][j],
+        )
+        yield (
+            _norm(term.angular_velocities[src, j], term.angular_velocities[dst, j], "l2"),
+            plan["angular_velocity_threshold"][j],
+        )
 
 
 def _within(term, src, dst, plan):
-    """Of the pairs (end terminator src[k], begin terminator dst[k]), those whose continuity ratio is at
-    most 1. Joint by joint, the tightest first, so most pairs are dropped after one or two joints."""
+    """Of the pairs (end terminator src[k], begin terminator dst[k]), those whose continuity ratio
+    is at most 1. Joint by joint, the tightest first, so most pairs are dropped after one or two
+    joints."""
     keep = np.ones(len(src), dtype=bool)
     order = sorted(plan["joints"], key=lambda j: plan["angle_threshold"][j])
     for j in order:
@@ -64,8 +78,9 @@ def _within(term, src, dst, plan):
 
 
 def ratios(term, src, dst, plan):
-    """The continuity ratio of pairs (end terminator src[k], begin terminator dst[k]): the largest over the
-    plan's joints and terms of difference / threshold (select_next_snippets' continuity_ratio)."""
+    """The continuity ratio of pairs (end terminator src[k], begin terminator dst[k]): the largest
+    over the plan's joints and terms of difference / threshold (select_next_snippets'
+    continuity_ratio)."""
     ratio = np.zeros(len(src))
     for j in plan["joints"]:
         for difference, threshold in _joint_terms(term, src, dst, plan, j):
@@ -74,9 +89,9 @@ def ratios(term, src, dst, plan):
 
 
 def edges(term, begin, end, group, clip, first_frame, n_frames, plan, chunk=2000, progress=None):
-    """Level-0 transitions (from snippet index, to snippet index, continuity ratio) among snippets given by
-    their begin and end terminator rows in `term`, their pose/rate group, clip (and version, mirror: one key)
-    and window. progress(done) is called after each chunk of sources."""
+    """Level-0 transitions (from snippet index, to snippet index, continuity ratio) among snippets
+    given by their begin and end terminator rows in `term`, their pose/rate group, clip (and
+    version, mirror: one key) and window. progress(done) is called after each chunk of sources."""
     from scipy.spatial import cKDTree
 
     half = np.asarray(plan["box_half_width"], dtype=np.float64) + BOX_MARGIN
@@ -86,7 +101,7 @@ def edges(term, begin, end, group, clip, first_frame, n_frames, plan, chunk=2000
         members = np.flatnonzero(group == g)
         tree = cKDTree(term.features[begin[members]] / half)
         for lo in range(0, len(members), chunk):
-            sources = members[lo:lo + chunk]
+            sources = members[lo : lo + chunk]
             done += len(sources)
             near = tree.query_ball_point(term.features[end[sources]] / half, r=1.0, p=np.inf)
             counts = np.fromiter((len(c) for c in near), dtype=np.int64, count=len(near))
@@ -95,8 +110,11 @@ def edges(term, begin, end, group, clip, first_frame, n_frames, plan, chunk=2000
             s = np.repeat(sources, counts)
             d = members[np.concatenate([np.asarray(c, dtype=np.int64) for c in near if len(c)])]
             # No replay of the previous snippet's frames (its last frame, the seam, aside).
-            overlap = ((clip[s] == clip[d]) & (first_frame[s] + 1 <= first_frame[d] + n_frames[d] - 1)
-                       & (first_frame[d] + 1 <= first_frame[s] + n_frames[s] - 1))
+            overlap = (
+                (clip[s] == clip[d])
+                & (first_frame[s] + 1 <= first_frame[d] + n_frames[d] - 1)
+                & (first_frame[d] + 1 <= first_frame[s] + n_frames[s] - 1)
+            )
             s, d = s[~overlap], d[~overlap]
             keep = _within(term, end[s], begin[d], plan)
             out_src.append(s[keep])
@@ -110,11 +128,12 @@ def edges(term, begin, end, group, clip, first_frame, n_frames, plan, chunk=2000
 
 
 def steerable(n, src, dst, group, turn, min_turn):
-    """Per snippet: True when it lies in the largest strongly connected component of its pose/rate group
-    among those (of more than one snippet) whose snippets include turns of at least min_turn radians each
-    way (`turn`: the heading change where each one leads). A chain in it can always move on, and can face
-    any goal. (The largest only, as in motion graphs: on Bandai dataset 2, adding the active walks'
-    component to the slow walks' made right-angle courses worse: README "Transition graphs".)"""
+    """Per snippet: True when it lies in the largest strongly connected component of its pose/rate
+    group among those (of more than one snippet) whose snippets include turns of at least min_turn
+    radians each way (`turn`: the heading change where each one leads). A chain in it can always
+    move on, and can face any goal. (The largest only, as in motion graphs: on Bandai dataset 2,
+    adding the active walks' component to the slow walks' made right-angle courses worse: README
+    "Transition graphs".)"""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 

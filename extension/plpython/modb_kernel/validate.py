@@ -1,4 +1,5 @@
 """Checks the database applies to stored frames (used by CHECK constraints)."""
+
 import numpy as np
 
 
@@ -11,7 +12,9 @@ def unit_quaternions_ok(rotations, tolerance):
     if q.size == 0 or q.shape[-1] != 4 or not np.all(np.isfinite(q)):
         return False
     q = q.reshape(-1, 4)
-    return bool(np.all(np.abs(np.linalg.norm(q, axis=1) - 1.0) <= tolerance) and np.all(q[:, 0] >= 0.0))
+    return bool(
+        np.all(np.abs(np.linalg.norm(q, axis=1) - 1.0) <= tolerance) and np.all(q[:, 0] >= 0.0)
+    )
 
 
 def finite_ok(values):
