@@ -1,0 +1,1 @@
+"""Helpers and oracles the tests share, imported as `support.<module>` (tests/ is on pytest's path)."""
