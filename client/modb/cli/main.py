@@ -4,6 +4,7 @@ turns the database errors every command can meet into a message and exit status 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
 
@@ -56,6 +57,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except RuntimeError as e:  # NotInstalledError, ClusterError
         print(f"modb: {e}", file=sys.stderr)
         return 2
+    except BrokenPipeError:
+        # The reader of the output left early (`modb list | head`): not a failure, and no
+        # traceback when Python flushes stdout at exit.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
 
 
 if __name__ == "__main__":

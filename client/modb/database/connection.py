@@ -34,7 +34,13 @@ class NotInstalledError(RuntimeError):
     pass
 
 
-def connect(conninfo: str) -> psycopg.Connection:
+def connect(conninfo: str | None = None) -> psycopg.Connection:
+    """An autocommit connection that reads and writes modb's arrays as numpy. Without a conninfo,
+    the database the `modb` command would use (MODB_DSN, libpq's environment, the embedded one)."""
+    if conninfo is None:
+        from .dsn import resolve
+
+        conninfo, _ = resolve(None)
     conn = psycopg.connect(conninfo, autocommit=True)
     pgarray.register(conn)
     row = conn.execute("SELECT extversion FROM pg_extension WHERE extname = 'modb'").fetchone()
@@ -43,7 +49,6 @@ def connect(conninfo: str) -> psycopg.Connection:
         conn.close()
         raise NotInstalledError(
             f"database {db!r} has no modb extension: run `CREATE EXTENSION modb CASCADE` there as "
-            f"a superuser "
-            f"(after `make setup` installed it into the server)"
+            f"a superuser (after `make setup` installed it into the server)"
         )
     return conn
