@@ -119,9 +119,10 @@ async function firstClip(collections) {
   return null;
 }
 
-// An empty database: how to load data, where the view would be.
+// An empty database: how to load data, where the view and its controls would be.
 function showEmpty() {
   $('view').hidden = true;
+  document.querySelector('main > footer').hidden = true;
   $('empty').hidden = false;
   status('');
 }
