@@ -22,7 +22,7 @@ MOCAP_AS_WRITTEN = "../shared/mocap"  # where the README says the real data is
 
 
 def _environment(home: Path) -> dict[str, str]:
-    """A reader's shell after `make setup`: modb on PATH, no database chosen but the embedded one."""
+    """A reader's shell after `make setup`: modb on PATH, no database chosen: the embedded one."""
     env = {k: v for k, v in os.environ.items() if not k.startswith("PG") and k != "MODB_DSN"}
     env["MODB_HOME"] = str(home)
     env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"
@@ -30,20 +30,19 @@ def _environment(home: Path) -> dict[str, str]:
 
 
 def _as_here(block: readme.Block, mocap: Path) -> readme.Block:
-    """The block with the README's data path replaced by MODB_MOCAP's, when that is elsewhere."""
-    if (REPO / MOCAP_AS_WRITTEN).resolve() == mocap.resolve():
-        return block
-    text = block.text.replace(MOCAP_AS_WRITTEN, str(mocap))
+    """The block with the README's data path (relative to the clone) made absolute: the blocks run
+    in a scratch folder, so that what they write stays out of the clone."""
+    text = block.text.replace(MOCAP_AS_WRITTEN, str(mocap.resolve()))
     return readme.Block(block.line, block.language, text, block.not_run)
 
 
-def test_every_readme_block_runs_in_order():
+def test_every_readme_block_runs_in_order(tmp_path):
     mocap = Path(os.environ.get("MODB_MOCAP", REPO / MOCAP_AS_WRITTEN))
     if not mocap.exists():
         pytest.skip(f"README's examples use the real data, not found at {mocap} (set MODB_MOCAP)")
     home = Path(tempfile.mkdtemp(prefix="modb-readme-"))
     env = _environment(home)
-    runner = readme.Runner(cwd=REPO, env=env, python=sys.executable, dsn=Cluster(home).dsn())
+    runner = readme.Runner(cwd=tmp_path, env=env, python=sys.executable, dsn=Cluster(home).dsn())
     ran = 0
     try:
         for block in readme.blocks(README.read_text()):
@@ -84,7 +83,7 @@ def test_the_reference_tables_are_the_comments_and_the_help(fresh_db):
     assert set(written) == set(expected), "README lacks a reference table"
     for name, table in expected.items():
         assert written[name] == table, (
-            f"README's {name} reference is stale: run tests/support/reference.py (see its docstring)"
+            f"README's {name} table is stale: run tests/support/reference.py (see its docstring)"
         )
 
 
