@@ -1,1 +1,1 @@
-"""Helpers and oracles the tests share, imported as `support.<module>` (tests/ is on pytest's path)."""
+"""Helpers and oracles the tests share, imported as `support.<module>` (tests/ is on the path)."""

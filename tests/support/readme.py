@@ -1,4 +1,4 @@
-"""The README's code blocks, read in order and run the way a reader runs them (tests/test_readme.py).
+"""The README's code blocks, read in order and run the way a reader runs them.
 
 A fenced block tagged `sh`, `sql` or `python` is a command to run; any other tag (`text`, none) is
 output or a layout. A block right after a line `<!-- not run: REASON -->` is skipped, and only the
