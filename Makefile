@@ -58,7 +58,9 @@ $(VENV)/.installed: pyproject.toml extension/modb.control  # the version comes f
 	$(VENV)/bin/pip install -q -e '.[test]'
 	@touch $@
 
+# The linter first (line length 100, pyproject.toml [tool.ruff]), then every test.
 test: setup
+	$(VENV)/bin/ruff check .
 	$(VENV)/bin/pytest
 
 # The embedded database, real capture: $(DATA) when it is there, else CMU 01_01 from PyPI.
