@@ -2,15 +2,16 @@
 
 Conventions of the format, as CMU's files use it:
 - `:units length L`: one length unit is 0.0254 / L metres; `angle deg|rad` for every angle.
-- A bone has a rest `direction` and `length` in world axes, and `axis ax ay az ORDER`, the orientation C
-  of its local frame; AMC values are Euler angles M in that local frame, for the bone's `dof` in the
-  order listed, applied first-listed first (rx ry rz -> M = Rz Ry Rx). The bone's rotation relative to
-  its parent, in world-aligned rest axes, is C M C^-1: this is what we store, so forward kinematics is
-  the same code as for BVH.
-- A bone's FK position is its tip. Our joint for a bone sits at the bone's start (its parent's tip), so
-  the knee is `ltibia`; a joint's offset is the parent bone's vector, and a leaf's own vector is its
-  End Site.
+- A bone has a rest `direction` and `length` in world axes, and `axis ax ay az ORDER`, the
+  orientation C of its local frame; AMC values are Euler angles M in that local frame, for the
+  bone's `dof` in the order listed, applied first-listed first (rx ry rz -> M = Rz Ry Rx). The
+  bone's rotation relative to its parent, in world-aligned rest axes, is C M C^-1: this is what we
+  store, so forward kinematics is the same code as for BVH.
+- A bone's FK position is its tip. Our joint for a bone sits at the bone's start (its parent's
+  tip), so the knee is `ltibia`; a joint's offset is the parent bone's vector, and a leaf's own
+  vector is its End Site.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -75,7 +76,9 @@ def _numbers(path: str, line: int, words: list[str], count: int, what: str) -> n
     try:
         values = np.array([float(w) for w in words[:count]])
     except ValueError:
-        raise MotionFileError(path, line, f"{what} has a value that is not a number: {' '.join(words[:count])!r}")
+        raise MotionFileError(
+            path, line, f"{what} has a value that is not a number: {' '.join(words[:count])!r}"
+        )
     if not np.all(np.isfinite(values)):
         raise MotionFileError(path, line, f"{what} is not finite: {' '.join(words[:count])!r}")
     return values
@@ -122,16 +125,24 @@ def read_asf(path: str, units: str | float = "auto") -> AsfSkeleton:
                 elif words[0] == "angle":
                     angle = words[1].lower() if len(words) > 1 else ""
                     if angle not in ("deg", "rad"):
-                        raise MotionFileError(path, line, f"angle unit {angle!r} is neither deg nor rad")
+                        raise MotionFileError(
+                            path, line, f"angle unit {angle!r} is neither deg nor rad"
+                        )
         elif keyword == ":root":
             for line, words in body:
                 key = words[0].lower()
                 if key == "order":
                     root_order = [w.upper() for w in words[1:]]
-                    unknown = [w for w in root_order if w.lower() not in _ROTATION_DOFS + _TRANSLATION_DOFS]
+                    unknown = [
+                        w for w in root_order if w.lower() not in _ROTATION_DOFS + _TRANSLATION_DOFS
+                    ]
                     if unknown:
-                        raise MotionFileError(path, line, f"unknown root channel {unknown[0]!r}",
-                                              "root order uses TX TY TZ RX RY RZ")
+                        raise MotionFileError(
+                            path,
+                            line,
+                            f"unknown root channel {unknown[0]!r}",
+                            "root order uses TX TY TZ RX RY RZ",
+                        )
                 elif key == "axis":
                     root_axis = _axis_order(path, line, words[1] if len(words) > 1 else "")
                 elif key == "position":
@@ -148,17 +159,23 @@ def read_asf(path: str, units: str | float = "auto") -> AsfSkeleton:
                     if bone is None or not bone.name:
                         raise MotionFileError(path, line, "bone without a name")
                     if bone.name in bones or bone.name == "root":
-                        raise MotionFileError(path, bone.line, f"bone name {bone.name!r} is used twice")
+                        raise MotionFileError(
+                            path, bone.line, f"bone name {bone.name!r} is used twice"
+                        )
                     bones[bone.name] = bone
                     bone = None
                 elif bone is None:
-                    raise MotionFileError(path, line, f"{words[0]!r} outside a begin/end bone block")
+                    raise MotionFileError(
+                        path, line, f"{words[0]!r} outside a begin/end bone block"
+                    )
                 elif key == "name":
                     bone.name = words[1] if len(words) > 1 else ""
                 elif key == "direction":
                     bone.direction = _numbers(path, line, words[1:], 3, f"{bone.name} direction")
                 elif key == "length":
-                    bone.length = float(_numbers(path, line, words[1:], 1, f"{bone.name} length")[0])
+                    bone.length = float(
+                        _numbers(path, line, words[1:], 1, f"{bone.name} length")[0]
+                    )
                 elif key == "axis":
                     bone.axis = _numbers(path, line, words[1:], 3, f"{bone.name} axis")
                     bone.axis_order = _axis_order(path, line, words[4] if len(words) > 4 else "XYZ")
@@ -166,11 +183,21 @@ def read_asf(path: str, units: str | float = "auto") -> AsfSkeleton:
                     bone.dofs = [w.lower() for w in words[1:]]
                     bad = [d for d in bone.dofs if d not in _ROTATION_DOFS]
                     if bad:
-                        hint = ("bone translation and stretch dofs are not supported" if bad[0] in
-                                _TRANSLATION_DOFS + ("l",) else "dofs are rx ry rz")
-                        raise MotionFileError(path, line, f"unsupported dof {bad[0]!r} on bone {bone.name}", hint)
+                        hint = (
+                            "bone translation and stretch dofs are not supported"
+                            if bad[0] in _TRANSLATION_DOFS + ("l",)
+                            else "dofs are rx ry rz"
+                        )
+                        raise MotionFileError(
+                            path, line, f"unsupported dof {bad[0]!r} on bone {bone.name}", hint
+                        )
             if bone is not None:
-                raise MotionFileError(path, len(lines), f"bone {bone.name or '?'} has no 'end'", "the file is truncated")
+                raise MotionFileError(
+                    path,
+                    len(lines),
+                    f"bone {bone.name or '?'} has no 'end'",
+                    "the file is truncated",
+                )
         elif keyword == ":hierarchy":
             for line, words in body:
                 if words[0].lower() in ("begin", "end"):
@@ -178,24 +205,41 @@ def read_asf(path: str, units: str | float = "auto") -> AsfSkeleton:
                 parent, kids = words[0], words[1:]
                 for name in (parent, *kids):
                     if name != "root" and name not in bones:
-                        raise MotionFileError(path, line, f"hierarchy names bone {name!r}, which :bonedata lacks")
+                        raise MotionFileError(
+                            path, line, f"hierarchy names bone {name!r}, which :bonedata lacks"
+                        )
                 children.setdefault(parent, []).extend(kids)
     scale = np.pi / 180.0 if angle == "deg" else 1.0
     for b in bones.values():
         b.axis = b.axis * scale
     if isinstance(units, float):
-        unit_m, rule = units, f"--units {units:g}: {units:g} m per unit (the ASF says length {length_scale:g})"
+        unit_m, rule = (
+            units,
+            f"--units {units:g}: {units:g} m per unit (the ASF says length {length_scale:g})",
+        )
     elif units != "auto":
         from .units import NAMED_UNITS
 
         unit_m, rule = NAMED_UNITS[units], f"--units {units}: {NAMED_UNITS[units]:g} m per unit"
     else:
         unit_m = 0.0254 / length_scale
-        rule = f"ASF :units length {length_scale:g}: one unit is 0.0254/{length_scale:g} = {unit_m:.7g} m"
+        rule = (
+            f"ASF :units length {length_scale:g}: "
+            f"one unit is 0.0254/{length_scale:g} = {unit_m:.7g} m"
+        )
     skeleton = AsfSkeleton(
-        path=path, sha256=hashlib.sha256(raw).hexdigest(), unit_m=unit_m, units_rule=rule, angle_scale=scale,
-        root_order=root_order, root_axis_order=root_axis, root_position=root_position,
-        root_orientation=root_orientation * scale, bones=bones, children=children)
+        path=path,
+        sha256=hashlib.sha256(raw).hexdigest(),
+        unit_m=unit_m,
+        units_rule=rule,
+        angle_scale=scale,
+        root_order=root_order,
+        root_axis_order=root_axis,
+        root_position=root_position,
+        root_orientation=root_orientation * scale,
+        bones=bones,
+        children=children,
+    )
     reachable = set(skeleton.joint_order())
     orphan = next((b for b in bones.values() if b.name not in reachable), None)
     if orphan:
@@ -203,39 +247,67 @@ def read_asf(path: str, units: str | float = "auto") -> AsfSkeleton:
     return skeleton
 
 
-def _local_rotation(c_angles: np.ndarray, c_order: str, m_angles: np.ndarray, m_order: str) -> np.ndarray:
+def _local_rotation(
+    c_angles: np.ndarray, c_order: str, m_angles: np.ndarray, m_order: str
+) -> np.ndarray:
     """C M C^-1 for rest axis C and motion M, both applied first-listed first (XYZ -> Rz Ry Rx)."""
     c = quaternion.from_euler(c_angles[::-1], c_order[::-1])
     if len(m_order):
         m = quaternion.from_euler(m_angles[..., ::-1], m_order[::-1])
     else:
         m = np.tile([1.0, 0.0, 0.0, 0.0], m_angles.shape[:-1] + (1,))
-    return quaternion.canonical(quaternion.multiply(quaternion.multiply(c, m), quaternion.conjugate(c)))
+    return quaternion.canonical(
+        quaternion.multiply(quaternion.multiply(c, m), quaternion.conjugate(c))
+    )
 
 
 def _skeleton(asf: AsfSkeleton, name: str) -> Skeleton:
     order = asf.joint_order()
     index = {n: k for k, n in enumerate(order)}
     parent_of = {kid: parent for parent, kids in asf.children.items() for kid in kids}
-    joints = [Joint(name="root", parent=-1, offset=tuple(asf.root_position * asf.unit_m),
-                    channels=tuple(asf.root_order),
-                    rotation_order="".join(c[1] for c in asf.root_order if c.startswith("R")))]
+    joints = [
+        Joint(
+            name="root",
+            parent=-1,
+            offset=tuple(asf.root_position * asf.unit_m),
+            channels=tuple(asf.root_order),
+            rotation_order="".join(c[1] for c in asf.root_order if c.startswith("R")),
+        )
+    ]
     for n in order[1:]:
         bone = asf.bones[n]
         parent = parent_of[n]
-        offset = (np.zeros(3) if parent == "root"
-                  else asf.bones[parent].direction * asf.bones[parent].length * asf.unit_m)
-        joints.append(Joint(
-            name=n, parent=index[parent], offset=tuple(float(v) for v in offset), channels=tuple(bone.dofs),
-            rotation_order="".join(d[1].upper() for d in bone.dofs),
-            end_site=None if asf.children.get(n) else tuple(float(v) for v in bone.direction * bone.length * asf.unit_m)))
+        offset = (
+            np.zeros(3)
+            if parent == "root"
+            else asf.bones[parent].direction * asf.bones[parent].length * asf.unit_m
+        )
+        joints.append(
+            Joint(
+                name=n,
+                parent=index[parent],
+                offset=tuple(float(v) for v in offset),
+                channels=tuple(bone.dofs),
+                rotation_order="".join(d[1].upper() for d in bone.dofs),
+                end_site=None
+                if asf.children.get(n)
+                else tuple(float(v) for v in bone.direction * bone.length * asf.unit_m),
+            )
+        )
     names = [j.name for j in joints]
-    return Skeleton(joints=joints, unit_m=asf.unit_m, source_format="asf", joint_map=guess_joint_map(names),
-                    mirror_pairs=guess_mirror_pairs(names), name=os.path.splitext(os.path.basename(asf.path))[0])
+    return Skeleton(
+        joints=joints,
+        unit_m=asf.unit_m,
+        source_format="asf",
+        joint_map=guess_joint_map(names),
+        mirror_pairs=guess_mirror_pairs(names),
+        name=os.path.splitext(os.path.basename(asf.path))[0],
+    )
 
 
-def read_amc(path: str, asf: AsfSkeleton, fps: float = DEFAULT_FPS, allow_truncated: bool = False,
-             warn=None) -> Motion:
+def read_amc(
+    path: str, asf: AsfSkeleton, fps: float = DEFAULT_FPS, allow_truncated: bool = False, warn=None
+) -> Motion:
     """Parse an AMC file against its ASF skeleton. Raises MotionFileError naming file and line."""
     raw, lines = read_lines(path)
     angle_scale = asf.angle_scale
@@ -256,40 +328,61 @@ def read_amc(path: str, asf: AsfSkeleton, fps: float = DEFAULT_FPS, allow_trunca
             frame_lines.append(number)
             continue
         if not frames:
-            raise MotionFileError(path, number, f"expected a frame number, found {text.strip()[:40]!r}",
-                                  "an AMC file lists a frame number, then one line per bone")
+            raise MotionFileError(
+                path,
+                number,
+                f"expected a frame number, found {text.strip()[:40]!r}",
+                "an AMC file lists a frame number, then one line per bone",
+            )
         bone = words[0]
         if bone != "root" and bone not in asf.bones:
-            raise MotionFileError(path, number, f"bone {bone!r} is not in the skeleton {asf.path}",
-                                  "is this AMC paired with the right ASF? (--asf FILE)")
+            raise MotionFileError(
+                path,
+                number,
+                f"bone {bone!r} is not in the skeleton {asf.path}",
+                "is this AMC paired with the right ASF? (--asf FILE)",
+            )
         if bone in frames[-1]:
-            raise MotionFileError(path, number, f"bone {bone!r} appears twice in frame {len(frames)}")
+            raise MotionFileError(
+                path, number, f"bone {bone!r} appears twice in frame {len(frames)}"
+            )
         frames[-1][bone] = (number, words[1:])
     if not frames:
         raise MotionFileError(path, 1, "no frames", "expected an AMC motion file")
-    expected = {"root": len(asf.root_order), **{n: len(b.dofs) for n, b in asf.bones.items() if b.dofs}}
+    expected = {
+        "root": len(asf.root_order),
+        **{n: len(b.dofs) for n, b in asf.bones.items() if b.dofs},
+    }
     for k, frame in enumerate(frames):
         missing = [n for n in expected if n not in frame]
         if missing:
             last = k == len(frames) - 1
             if last and allow_truncated and k > 0:
                 if warn:
-                    warn(f"{path}:{frame_lines[k]}: dropped the last frame, cut short "
-                         f"({len(frame)} of {len(expected)} bone lines)")
+                    warn(
+                        f"{path}:{frame_lines[k]}: dropped the last frame, cut short "
+                        f"({len(frame)} of {len(expected)} bone lines)"
+                    )
                 frames.pop()
                 break
             raise MotionFileError(
-                path, frame_lines[k], f"frame {k + 1} lacks {len(missing)} of {len(expected)} bone lines "
+                path,
+                frame_lines[k],
+                f"frame {k + 1} lacks {len(missing)} of {len(expected)} bone lines "
                 f"({', '.join(missing[:4])}{'...' if len(missing) > 4 else ''})",
-                "the file is cut short: --allow-truncated drops an incomplete last frame" if last else
-                "every frame lists every bone with degrees of freedom")
+                "the file is cut short: --allow-truncated drops an incomplete last frame"
+                if last
+                else "every frame lists every bone with degrees of freedom",
+            )
     n_frames = len(frames)
     values: dict[str, np.ndarray] = {}
     for bone, count in expected.items():
         rows = [frame[bone] for frame in frames]
         bad = next(((line, words) for line, words in rows if len(words) != count), None)
         if bad:
-            raise MotionFileError(path, bad[0], f"bone {bone} has {len(bad[1])} values, its dof needs {count}")
+            raise MotionFileError(
+                path, bad[0], f"bone {bone} has {len(bad[1])} values, its dof needs {count}"
+            )
         try:
             values[bone] = np.array([words for _, words in rows], dtype=np.float64)
         except ValueError:
@@ -298,7 +391,9 @@ def read_amc(path: str, asf: AsfSkeleton, fps: float = DEFAULT_FPS, allow_trunca
                     try:
                         float(w)
                     except ValueError:
-                        raise MotionFileError(path, line, f"value {w!r} of bone {bone} is not a number") from None
+                        raise MotionFileError(
+                            path, line, f"value {w!r} of bone {bone} is not a number"
+                        ) from None
         if not np.all(np.isfinite(values[bone])):
             line = rows[int(np.argwhere(~np.isfinite(values[bone]))[0, 0])][0]
             raise MotionFileError(path, line, f"bone {bone} has a value that is not finite")
@@ -313,14 +408,29 @@ def read_amc(path: str, asf: AsfSkeleton, fps: float = DEFAULT_FPS, allow_trunca
             translation[:, axis] = root[:, channel[c]]
     root_rot = [c for c in asf.root_order if c.startswith("R")]
     rotations[:, 0] = _local_rotation(
-        asf.root_orientation, asf.root_axis_order,
-        root[:, [channel[c] for c in root_rot]] * angle_scale, "".join(c[1] for c in root_rot))
+        asf.root_orientation,
+        asf.root_axis_order,
+        root[:, [channel[c] for c in root_rot]] * angle_scale,
+        "".join(c[1] for c in root_rot),
+    )
     for k, joint in enumerate(skeleton.joints[1:], start=1):
         bone = asf.bones[joint.name]
         m = values[joint.name] * angle_scale if bone.dofs else np.zeros((n_frames, 0))
         rotations[:, k] = _local_rotation(bone.axis, bone.axis_order, m, joint.rotation_order)
     return Motion(
-        skeleton=skeleton, fps=fps, rotations=rotations, translations=(translation * asf.unit_m)[:, None, :],
+        skeleton=skeleton,
+        fps=fps,
+        rotations=rotations,
+        translations=(translation * asf.unit_m)[:, None, :],
         name=os.path.splitext(os.path.basename(path))[0],
-        source=Source(path=os.path.abspath(path), sha256=hashlib.sha256(raw).hexdigest(), units_rule=asf.units_rule),
-        meta={"frame_time": 1.0 / fps, "skeleton_file": os.path.abspath(asf.path), "skeleton_sha256": asf.sha256})
+        source=Source(
+            path=os.path.abspath(path),
+            sha256=hashlib.sha256(raw).hexdigest(),
+            units_rule=asf.units_rule,
+        ),
+        meta={
+            "frame_time": 1.0 / fps,
+            "skeleton_file": os.path.abspath(asf.path),
+            "skeleton_sha256": asf.sha256,
+        },
+    )

@@ -5,6 +5,7 @@ position channels on any joint (their values replace the joint's offset, as
 in bvhio and most tools), End Sites, CRLF, tabs, numbers like `.0083333`,
 and colons in joint names. Names may not contain whitespace.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -55,9 +56,12 @@ class _Tokens:
 
     def next(self, what: str) -> tuple[str, int]:
         if self.pos >= len(self.items):
-            raise MotionFileError(self.path, self.items[-1][1] if self.items else 1,
-                                  f"file ends inside the hierarchy, expected {what}",
-                                  "the file is truncated or not a BVH file")
+            raise MotionFileError(
+                self.path,
+                self.items[-1][1] if self.items else 1,
+                f"file ends inside the hierarchy, expected {what}",
+                "the file is truncated or not a BVH file",
+            )
         item = self.items[self.pos]
         self.pos += 1
         return item
@@ -70,7 +74,7 @@ class _Tokens:
         return line
 
     def number(self, what: str, joint: str) -> float:
-        """The next token as a finite number; `what` and `joint` only go into an error (kept cheap)."""
+        """The next token as a finite number; `what` and `joint` only go into an error (cheap)."""
         if self.pos >= len(self.items):
             self.next(f"{joint} {what}")
         token = self.items[self.pos][0]
@@ -86,7 +90,9 @@ class _Tokens:
         return value
 
 
-def _parse_joint(tokens: _Tokens, name: str, parent: int, line: int, joints: list[_RawJoint]) -> None:
+def _parse_joint(
+    tokens: _Tokens, name: str, parent: int, line: int, joints: list[_RawJoint]
+) -> None:
     joint = _RawJoint(name=name, parent=parent, line=line)
     index = len(joints)
     joints.append(joint)
@@ -97,13 +103,17 @@ def _parse_joint(tokens: _Tokens, name: str, parent: int, line: int, joints: lis
     if token == "CHANNELS":
         count = tokens.number("CHANNELS count", name)
         if count != int(count) or not 0 <= count <= 6:
-            raise tokens.error(f"channel count of {name} must be a whole number 0-6, found {count:g}")
+            raise tokens.error(
+                f"channel count of {name} must be a whole number 0-6, found {count:g}"
+            )
         for _ in range(int(count)):
             channel, _ = tokens.next("a channel name")
             if channel not in _CHANNELS:
                 tokens.pos -= 1
-                raise tokens.error(f"unknown channel {channel!r} on joint {name}",
-                                   "channels are Xposition Yposition Zposition Xrotation Yrotation Zrotation")
+                raise tokens.error(
+                    f"unknown channel {channel!r} on joint {name}",
+                    "channels are Xposition Yposition Zposition Xrotation Yrotation Zrotation",
+                )
             if channel in joint.channels:
                 tokens.pos -= 1
                 raise tokens.error(f"channel {channel} appears twice on joint {name}")
@@ -125,11 +135,14 @@ def _parse_joint(tokens: _Tokens, name: str, parent: int, line: int, joints: lis
             tokens.expect("}")
         else:
             tokens.pos -= 1
-            raise tokens.error(f"unexpected {token!r} in joint {name}", "expected JOINT, End Site or '}'")
+            raise tokens.error(
+                f"unexpected {token!r} in joint {name}", "expected JOINT, End Site or '}'"
+            )
 
 
 def _parse_header(path: str, lines: list[str], start: int) -> tuple[int, float, int, int]:
-    """Frames and Frame Time after MOTION: (frames, frame_time, index of the first data line, Frames: line)."""
+    """Frames and Frame Time after MOTION: (frames, frame_time, index of the first data line,
+    Frames: line)."""
     values: dict[str, tuple[str, int]] = {}
     i = start
     for key in ("Frames:", "Frame Time:"):
@@ -137,24 +150,34 @@ def _parse_header(path: str, lines: list[str], start: int) -> tuple[int, float, 
             i += 1
         text = lines[i].strip() if i < len(lines) else ""
         if not text.startswith(key):
-            raise MotionFileError(path, i + 1, f"expected '{key} ...' after MOTION, found {text[:40]!r}")
-        values[key] = (text[len(key):].strip(), i + 1)
+            raise MotionFileError(
+                path, i + 1, f"expected '{key} ...' after MOTION, found {text[:40]!r}"
+            )
+        values[key] = (text[len(key) :].strip(), i + 1)
         i += 1
     frames_text, frames_line = values["Frames:"]
     time_text, time_line = values["Frame Time:"]
     try:
         frames = int(frames_text)
     except ValueError:
-        raise MotionFileError(path, frames_line, f"frame count {frames_text!r} is not a whole number")
+        raise MotionFileError(
+            path, frames_line, f"frame count {frames_text!r} is not a whole number"
+        )
     try:
         frame_time = float(time_text)
     except ValueError:
         raise MotionFileError(path, time_line, f"frame time {time_text!r} is not a number")
     if frames <= 0:
-        raise MotionFileError(path, frames_line, f"the file declares {frames} frames",
-                              "a clip needs at least one frame")
+        raise MotionFileError(
+            path,
+            frames_line,
+            f"the file declares {frames} frames",
+            "a clip needs at least one frame",
+        )
     if not (np.isfinite(frame_time) and frame_time > 0):
-        raise MotionFileError(path, time_line, f"frame time {time_text} must be a positive number of seconds")
+        raise MotionFileError(
+            path, time_line, f"frame time {time_text} must be a positive number of seconds"
+        )
     return frames, frame_time, i, frames_line
 
 
@@ -163,27 +186,41 @@ def _scan_for_bad_line(path: str, rows: list[tuple[int, str]], n_channels: int) 
     for k, (line, text) in enumerate(rows):
         words = text.split()
         if len(words) != n_channels:
-            return MotionFileError(path, line,
-                                   f"frame {k + 1} has {len(words)} values, the hierarchy declares {n_channels} channels",
-                                   "the line is cut short or has extra values")
+            return MotionFileError(
+                path,
+                line,
+                f"frame {k + 1} has {len(words)} values, "
+                f"the hierarchy declares {n_channels} channels",
+                "the line is cut short or has extra values",
+            )
         for column, word in enumerate(words, start=1):
             try:
                 value = float(word)
             except ValueError:
-                return MotionFileError(path, line, f"value {column} of frame {k + 1} is {word!r}, not a number")
+                return MotionFileError(
+                    path, line, f"value {column} of frame {k + 1} is {word!r}, not a number"
+                )
             if not np.isfinite(value):
-                return MotionFileError(path, line, f"value {column} of frame {k + 1} is {word}, not finite")
+                return MotionFileError(
+                    path, line, f"value {column} of frame {k + 1} is {word}, not finite"
+                )
     return MotionFileError(path, rows[0][0] if rows else None, "motion data could not be read")
 
 
-def _read_motion_block(path: str, lines: list[str], first: int, frames: int, frames_line: int,
-                       n_channels: int) -> np.ndarray:
+def _read_motion_block(
+    path: str, lines: list[str], first: int, frames: int, frames_line: int, n_channels: int
+) -> np.ndarray:
     """The frame lines after the header (blank lines skipped) as a (frames, channels) array."""
-    rows = [(number, text) for number, text in enumerate(lines[first:], start=first + 1) if text.strip()]
+    rows = [
+        (number, text) for number, text in enumerate(lines[first:], start=first + 1) if text.strip()
+    ]
     if len(rows) != frames:
-        raise MotionFileError(path, frames_line,
-                              f"the header declares {frames} frames but {len(rows)} frame lines follow",
-                              "fix the 'Frames:' line or restore the missing frames")
+        raise MotionFileError(
+            path,
+            frames_line,
+            f"the header declares {frames} frames but {len(rows)} frame lines follow",
+            "fix the 'Frames:' line or restore the missing frames",
+        )
     if n_channels == 0:
         return np.zeros((frames, 0))
     try:
@@ -200,16 +237,22 @@ def read_bvh(path: str, units: str | float = "auto") -> Motion:
     raw, lines = read_lines(path)
     tokens = _Tokens(path, lines)
     if not tokens.items:
-        raise MotionFileError(path, 1, "the file is empty", "expected a BVH file starting with HIERARCHY")
+        raise MotionFileError(
+            path, 1, "the file is empty", "expected a BVH file starting with HIERARCHY"
+        )
     tokens.expect("HIERARCHY")
     tokens.expect("ROOT")
     root_name, root_line = tokens.next("the root joint's name")
     raw_joints: list[_RawJoint] = []
     _parse_joint(tokens, root_name, -1, root_line, raw_joints)
     if tokens.pos != len(tokens.items):
-        raise tokens.error(f"unexpected {tokens.items[tokens.pos][0]!r} after the hierarchy", "expected MOTION")
+        raise tokens.error(
+            f"unexpected {tokens.items[tokens.pos][0]!r} after the hierarchy", "expected MOTION"
+        )
     if not tokens.motion_line:
-        raise MotionFileError(path, len(lines), "no MOTION section", "the file is truncated or holds only a skeleton")
+        raise MotionFileError(
+            path, len(lines), "no MOTION section", "the file is truncated or holds only a skeleton"
+        )
     names = [j.name for j in raw_joints]
     duplicate = next((j for k, j in enumerate(raw_joints) if j.name in names[:k]), None)
     if duplicate:
@@ -217,7 +260,9 @@ def read_bvh(path: str, units: str | float = "auto") -> Motion:
     for j in raw_joints:
         order = "".join(c[0] for c in j.channels if c.endswith("rotation"))
         if order and not quaternion.is_supported_order(order):
-            raise MotionFileError(path, j.line, f"rotation order {order} of {j.name} is not supported")
+            raise MotionFileError(
+                path, j.line, f"rotation order {order} of {j.name} is not supported"
+            )
 
     frames, frame_time, first_data, frames_line = _parse_header(path, lines, tokens.motion_line)
     n_channels = sum(len(j.channels) for j in raw_joints)
@@ -234,8 +279,12 @@ def read_bvh(path: str, units: str | float = "auto") -> Motion:
     rotations = np.empty((frames, len(raw_joints), 4))
     rotations[:] = (1.0, 0.0, 0.0, 0.0)
     translated: list[int] = []
-    position_columns: list[list[int]] = []  # per translated joint: data column per axis, -1 keeps the offset
-    by_order: dict[str, tuple[list[int], list[list[int]]]] = {}  # one vectorised conversion per order
+    position_columns: list[
+        list[int]
+    ] = []  # per translated joint: data column per axis, -1 keeps the offset
+    by_order: dict[
+        str, tuple[list[int], list[list[int]]]
+    ] = {}  # one vectorised conversion per order
     column = 0
     for k, j in enumerate(raw_joints):
         cols = {c: column + i for i, c in enumerate(j.channels)}
@@ -248,17 +297,29 @@ def read_bvh(path: str, units: str | float = "auto") -> Motion:
         if any(c.endswith("position") for c in j.channels):
             translated.append(k)
             position_columns.append([cols.get(a + "position", -1) for a in "XYZ"])
-        joints.append(Joint(
-            name=j.name, parent=j.parent,
-            offset=tuple(float(v) * unit_m for v in j.offset),
-            channels=tuple(j.channels), rotation_order=order,
-            end_site=None if j.end_site is None else tuple(float(v) * unit_m for v in j.end_site)))
+        joints.append(
+            Joint(
+                name=j.name,
+                parent=j.parent,
+                offset=tuple(float(v) * unit_m for v in j.offset),
+                channels=tuple(j.channels),
+                rotation_order=order,
+                end_site=None
+                if j.end_site is None
+                else tuple(float(v) * unit_m for v in j.end_site),
+            )
+        )
     for order, (members, columns) in by_order.items():
         rotations[:, members] = quaternion.from_euler(np.radians(data[:, columns]), order)
 
-    skeleton = Skeleton(joints=joints, unit_m=unit_m, source_format="bvh",
-                        joint_map=joint_map, mirror_pairs=guess_mirror_pairs(names),
-                        name=os.path.splitext(os.path.basename(path))[0])
+    skeleton = Skeleton(
+        joints=joints,
+        unit_m=unit_m,
+        source_format="bvh",
+        joint_map=joint_map,
+        mirror_pairs=guess_mirror_pairs(names),
+        name=os.path.splitext(os.path.basename(path))[0],
+    )
     translations_array = np.zeros((frames, len(translated), 3))
     if translated:
         columns = np.array(position_columns)
@@ -268,22 +329,28 @@ def read_bvh(path: str, units: str | float = "auto") -> Motion:
         translations_array[:, present] = data[:, columns[present]]
         translations_array *= unit_m
     return Motion(
-        skeleton=skeleton, rotations=rotations, translations=translations_array,
+        skeleton=skeleton,
+        rotations=rotations,
+        translations=translations_array,
         fps=_rate(frame_time),
         name=os.path.splitext(os.path.basename(path))[0],
-        source=Source(path=os.path.abspath(path), sha256=hashlib.sha256(raw).hexdigest(), units_rule=rule),
-        meta={"frame_time": frame_time})
+        source=Source(
+            path=os.path.abspath(path), sha256=hashlib.sha256(raw).hexdigest(), units_rule=rule
+        ),
+        meta={"frame_time": frame_time},
+    )
 
 
 def _rate(frame_time: float) -> float:
-    """Frames per second: '.0083333' or '0.008333' s mean 120 fps, so snap within 0.1% to a whole rate."""
+    """Frames per second: '.0083333' or '0.008333' s mean 120 fps, so snap within 0.1% to a whole
+    rate."""
     fps = 1.0 / frame_time
     whole = round(fps)
     return float(whole) if whole > 0 and abs(fps - whole) <= 1e-3 * whole else round(fps, 3)
 
 
 def _rest_points(joints: list[_RawJoint], top: int) -> np.ndarray:
-    """Rest-pose positions (file units) of the joints and End Sites below `top`, with `top` at the origin.
+    """Rest-pose positions (file units) of the joints and End Sites below `top` (at the origin).
 
     The units rule measures the body from the pelvis down its subtree: a top
     joint's offset to the pelvis can be a displacement (Bandai stores the first

@@ -1,4 +1,5 @@
 """The one error type a malformed input raises: it names the file, the line and what to do."""
+
 from __future__ import annotations
 
 

@@ -1,4 +1,5 @@
 """Loading motion files into the modb schema: one transaction per file, idempotent re-loads."""
+
 from __future__ import annotations
 
 import hashlib
@@ -51,9 +52,12 @@ class LoadSummary:
         rate = self.frames / self.elapsed if self.elapsed > 0 else 0.0
         motion = sum(r.seconds_of_motion for r in self.results if r.status == "loaded")
         snippets = sum(r.snippets for r in self.results)
-        return (f"{len(self.results)} files: {loaded} clip versions loaded ({self.frames:,} frames, "
-                f"{motion:,.1f} s of motion, {snippets:,} snippets), {self.count('unchanged')} unchanged, "
-                f"{len(self.failed)} failed; {self.elapsed:.1f} s, {rate:,.0f} frames/s")
+        return (
+            f"{len(self.results)} files: {loaded} clip versions loaded ({self.frames:,} frames, "
+            f"{motion:,.1f} s of motion, {snippets:,} snippets), "
+            f"{self.count('unchanged')} unchanged, "
+            f"{len(self.failed)} failed; {self.elapsed:.1f} s, {rate:,.0f} frames/s"
+        )
 
 
 def _sha256(path: Path) -> str:
@@ -74,32 +78,47 @@ SELECT v.clip_id, v.version
 """
 
 
-def _unchanged(conn: psycopg.Connection, job: FileJob, name: str, sha256: str, key: str) -> tuple[int, int] | None:
-    """(clip, version) when the newest version of this clip came from the same bytes read the same way."""
-    row = conn.execute(_UNCHANGED_SQL, {"collection": job.collection, "name": name, "sha": sha256,
-                                        "key": key}).fetchone()
+def _unchanged(
+    conn: psycopg.Connection, job: FileJob, name: str, sha256: str, key: str
+) -> tuple[int, int] | None:
+    """(clip, version) when the newest version of this clip came from the same bytes read the same
+    way."""
+    row = conn.execute(
+        _UNCHANGED_SQL, {"collection": job.collection, "name": name, "sha": sha256, "key": key}
+    ).fetchone()
     return (row[0], row[1]) if row else None
 
 
 def _content_key(motion: Motion) -> str:
-    """What the stored motion follows from once the file is read: its bytes, skeleton file and how they were read."""
+    """What the stored motion follows from once the file is read: its bytes, skeleton file and how
+    they were read."""
     src = motion.source
-    parts = (src.sha256 if src else "", str(motion.meta.get("skeleton_sha256", "")), repr(motion.skeleton.unit_m),
-             repr(motion.fps), str(motion.n_frames))
+    parts = (
+        src.sha256 if src else "",
+        str(motion.meta.get("skeleton_sha256", "")),
+        repr(motion.skeleton.unit_m),
+        repr(motion.fps),
+        str(motion.n_frames),
+    )
     return hashlib.sha256("|".join(parts).encode()).hexdigest()
 
 
-def build_snippets(conn: psycopg.Connection, clip_id: int, warn: Callable[[str], None] | None,
-                   mirrored: bool = False) -> int:
-    """Cut the clip's newest version into snippets (and, when asked, its mirror image), inside the caller's
-    transaction; 0 with a warning when the database cannot (e.g. the skeleton's joint map is incomplete):
-    the clip itself stays loaded."""
+def build_snippets(
+    conn: psycopg.Connection,
+    clip_id: int,
+    warn: Callable[[str], None] | None,
+    mirrored: bool = False,
+) -> int:
+    """Cut the clip's newest version into snippets (and, when asked, its mirror image), inside the
+    caller's transaction; 0 with a warning when the database cannot (e.g. the skeleton's joint map
+    is incomplete): the clip itself stays loaded."""
     try:
         with conn.transaction():  # a savepoint
             added = conn.execute("SELECT modb.build_snippets(clip => %s)", [clip_id]).fetchone()[0]
             if mirrored:
-                added += conn.execute("SELECT modb.build_snippets(clip => %s, mirrored => true)",
-                                      [clip_id]).fetchone()[0]
+                added += conn.execute(
+                    "SELECT modb.build_snippets(clip => %s, mirrored => true)", [clip_id]
+                ).fetchone()[0]
             return added
     except psycopg.Error as e:
         if warn:
@@ -108,54 +127,98 @@ def build_snippets(conn: psycopg.Connection, clip_id: int, warn: Callable[[str],
         return 0
 
 
-def store_motion(conn: psycopg.Connection, motion: Motion, collection: str, key: str,
-                 snippets: bool = False, warn: Callable[[str], None] | None = None,
-                 mirrored: bool = False) -> tuple[int, int | None, int]:
+def store_motion(
+    conn: psycopg.Connection,
+    motion: Motion,
+    collection: str,
+    key: str,
+    snippets: bool = False,
+    warn: Callable[[str], None] | None = None,
+    mirrored: bool = False,
+) -> tuple[int, int | None, int]:
     """Store a parsed clip as a new version in one transaction, with its snippets when asked:
     (clip_id, version or None if unchanged, snippets added)."""
     sk = motion.skeleton
     hierarchy = json.dumps(sk.hierarchy_json())
     src = motion.source
     with conn.transaction():
-        (collection_id,) = conn.execute("SELECT modb.ensure_collection(%s)", [collection]).fetchone()
+        (collection_id,) = conn.execute(
+            "SELECT modb.ensure_collection(%s)", [collection]
+        ).fetchone()
         row = conn.execute(
             "INSERT INTO modb.skeletons (name, hierarchy, joint_map, mirror_pairs) "
-            "VALUES (%s, %s::jsonb, %s::jsonb, %s::jsonb) ON CONFLICT (identity_sha256) DO NOTHING RETURNING id",
-            [sk.name, hierarchy, json.dumps(sk.joint_map), json.dumps([list(p) for p in sk.mirror_pairs])],
+            "VALUES (%s, %s::jsonb, %s::jsonb, %s::jsonb) "
+            "ON CONFLICT (identity_sha256) DO NOTHING RETURNING id",
+            [
+                sk.name,
+                hierarchy,
+                json.dumps(sk.joint_map),
+                json.dumps([list(p) for p in sk.mirror_pairs]),
+            ],
         ).fetchone()
-        if row is None:  # the same skeleton is stored already (its joint map may have been edited: keep it;
-            # offsets that position channels replace are the first file's, which changes no pose)
+        # None: the same skeleton is stored already (its joint map may have been edited: keep it;
+        # offsets that position channels replace are the first file's, which changes no pose).
+        if row is None:
             row = conn.execute(
-                "SELECT id FROM modb.skeletons WHERE identity_sha256 = modb.skeleton_identity(%s::jsonb)",
-                [hierarchy]).fetchone()
+                "SELECT id FROM modb.skeletons "
+                "WHERE identity_sha256 = modb.skeleton_identity(%s::jsonb)",
+                [hierarchy],
+            ).fetchone()
         skeleton_id = row[0]
-        conn.execute("INSERT INTO modb.clips (collection_id, name) VALUES (%s, %s) "
-                     "ON CONFLICT (collection_id, name) DO NOTHING", [collection_id, motion.name])
-        (clip_id,) = conn.execute("SELECT id FROM modb.clips WHERE collection_id = %s AND name = %s FOR UPDATE",
-                                  [collection_id, motion.name]).fetchone()
+        conn.execute(
+            "INSERT INTO modb.clips (collection_id, name) VALUES (%s, %s) "
+            "ON CONFLICT (collection_id, name) DO NOTHING",
+            [collection_id, motion.name],
+        )
+        (clip_id,) = conn.execute(
+            "SELECT id FROM modb.clips WHERE collection_id = %s AND name = %s FOR UPDATE",
+            [collection_id, motion.name],
+        ).fetchone()
         content = _content_key(motion)
         latest = conn.execute(
             "SELECT load_params->>'content_key', skeleton_id FROM modb.clip_versions "
-            "WHERE clip_id = %s ORDER BY version DESC LIMIT 1", [clip_id]).fetchone()
+            "WHERE clip_id = %s ORDER BY version DESC LIMIT 1",
+            [clip_id],
+        ).fetchone()
         if latest == (content, skeleton_id):  # e.g. --units auto, then cm: the same motion
             return clip_id, None, 0
-        load_params = {"read_key": key, "content_key": content, "unit_m": sk.unit_m,
-                       "units_rule": src.units_rule if src else "", **motion.meta}
+        load_params = {
+            "read_key": key,
+            "content_key": content,
+            "unit_m": sk.unit_m,
+            "units_rule": src.units_rule if src else "",
+            **motion.meta,
+        }
         translations = motion.translations if motion.translations.shape[1] else None
         (version,) = conn.execute(
-            "INSERT INTO modb.clip_versions (clip_id, skeleton_id, fps, n_frames, rotations, translations, "
-            "source_file, source_sha256, load_params) "
+            "INSERT INTO modb.clip_versions (clip_id, skeleton_id, fps, n_frames, rotations, "
+            "translations, source_file, source_sha256, load_params) "
             "VALUES (%s, %s, %s, %s, %b, %b, %s, %s, %s::jsonb) RETURNING version",
-            [clip_id, skeleton_id, motion.fps, motion.n_frames, motion.rotations, translations,
-             src.path if src else None, src.sha256 if src else None, json.dumps(load_params)],
+            [
+                clip_id,
+                skeleton_id,
+                motion.fps,
+                motion.n_frames,
+                motion.rotations,
+                translations,
+                src.path if src else None,
+                src.sha256 if src else None,
+                json.dumps(load_params),
+            ],
         ).fetchone()
         added = build_snippets(conn, clip_id, warn, mirrored) if snippets else 0
         return clip_id, version, added
 
 
-def load_files(conn: psycopg.Connection, jobs: list[FileJob], options: ReadOptions, keep_going: bool,
-               progress: Callable[[FileResult], None] | None = None, snippets: bool = True,
-               mirrored: bool = False) -> LoadSummary:
+def load_files(
+    conn: psycopg.Connection,
+    jobs: list[FileJob],
+    options: ReadOptions,
+    keep_going: bool,
+    progress: Callable[[FileResult], None] | None = None,
+    snippets: bool = True,
+    mirrored: bool = False,
+) -> LoadSummary:
     """Load each file in its own transaction. Stops at the first bad file unless keep_going."""
     summary = LoadSummary()
     started = time.perf_counter()
@@ -167,15 +230,16 @@ def load_files(conn: psycopg.Connection, jobs: list[FileJob], options: ReadOptio
         if result.status == "failed" and not keep_going:
             break
     if any(r.snippets for r in summary.results):
-        # Fresh statistics once per load, so the planner sees the new snippets at once (autovacuum would
-        # get there later); a role that does not own the tables only gets a warning.
+        # Fresh statistics once per load, so the planner sees the new snippets at once (autovacuum
+        # would get there later); a role that does not own the tables only gets a warning.
         conn.execute("ANALYZE modb.snippets, modb.terminators")
     summary.elapsed = time.perf_counter() - started
     return summary
 
 
-def _load_one(conn: psycopg.Connection, job: FileJob, options: ReadOptions, snippets: bool,
-              mirrored: bool) -> FileResult:
+def _load_one(
+    conn: psycopg.Connection, job: FileJob, options: ReadOptions, snippets: bool, mirrored: bool
+) -> FileResult:
     name = job.path.stem
     try:
         sha = _sha256(job.path)
@@ -185,17 +249,30 @@ def _load_one(conn: psycopg.Connection, job: FileJob, options: ReadOptions, snip
             added = build_snippets(conn, hit[0], options.warn, mirrored) if snippets else 0
             return FileResult(job.path, "unchanged", clip_id=hit[0], version=hit[1], snippets=added)
         motion = read_job(job, options)
-        clip_id, version, added = store_motion(conn, motion, job.collection, key, snippets, options.warn, mirrored)
+        clip_id, version, added = store_motion(
+            conn, motion, job.collection, key, snippets, options.warn, mirrored
+        )
     except MotionFileError as e:
         return FileResult(job.path, "failed", message=str(e))
     except OSError as e:
         return FileResult(job.path, "failed", message=f"{job.path}: cannot read: {e.strerror or e}")
     except psycopg.Error as e:
         diag = e.diag
-        detail = "; ".join(x for x in (diag.message_primary, diag.message_detail, diag.message_hint) if x)
-        return FileResult(job.path, "failed", message=f"{job.path}: the database refused the clip: {detail or e}")
+        detail = "; ".join(
+            x for x in (diag.message_primary, diag.message_detail, diag.message_hint) if x
+        )
+        return FileResult(
+            job.path, "failed", message=f"{job.path}: the database refused the clip: {detail or e}"
+        )
     if version is None:
         return FileResult(job.path, "unchanged", clip_id=clip_id)
-    return FileResult(job.path, "loaded", clip_id=clip_id, version=version, frames=motion.n_frames,
-                      seconds_of_motion=motion.n_frames / motion.fps,
-                      units_rule=motion.source.units_rule if motion.source else "", snippets=added)
+    return FileResult(
+        job.path,
+        "loaded",
+        clip_id=clip_id,
+        version=version,
+        frames=motion.n_frames,
+        seconds_of_motion=motion.n_frames / motion.fps,
+        units_rule=motion.source.units_rule if motion.source else "",
+        snippets=added,
+    )

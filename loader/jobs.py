@@ -1,4 +1,5 @@
-"""Which files a `modb load` call loads, into which collection, and which ASF each AMC file goes with."""
+"""Which files a `modb load` call loads, into which collection, and which ASF goes with each AMC."""
+
 from __future__ import annotations
 
 import os
@@ -27,8 +28,11 @@ def _walk(directory: Path) -> Iterable[Path]:
             yield Path(root) / name
 
 
-def find_jobs(paths: Iterable[str], collection: str | None, asf: str | None = None) -> list[FileJob]:
-    """Motion files under the given files and directories (recursively, sorted), each AMC paired with an ASF.
+def find_jobs(
+    paths: Iterable[str], collection: str | None, asf: str | None = None
+) -> list[FileJob]:
+    """Motion files under the given files and directories (recursively, sorted), each AMC paired
+    with an ASF.
 
     A directory loads into a collection named after it (or --collection), its
     subdirectories into child collections; a single file loads into a collection
@@ -52,17 +56,24 @@ def find_jobs(paths: Iterable[str], collection: str | None, asf: str | None = No
             elif suffix in MOTION_SUFFIXES:
                 jobs.append(FileJob(p, collection or p.resolve().parent.name))
             else:
-                raise MotionFileError(str(p), None, f"unsupported file type {p.suffix!r}",
-                                      "modb load reads .bvh, and .amc with its .asf")
+                raise MotionFileError(
+                    str(p),
+                    None,
+                    f"unsupported file type {p.suffix!r}",
+                    "modb load reads .bvh, and .amc with its .asf",
+                )
         else:
             raise MotionFileError(str(p), None, "no such file or directory")
     seen: dict[tuple[str, str], Path] = {}
     for job in jobs:
         key = (job.collection, job.path.stem)
         if key in seen and seen[key].resolve() != job.path.resolve():
-            raise MotionFileError(str(job.path), None,
-                                  f"{seen[key]} and this file would both become clip {key[0]}/{key[1]}",
-                                  "load them into different collections (--collection)")
+            raise MotionFileError(
+                str(job.path),
+                None,
+                f"{seen[key]} and this file would both become clip {key[0]}/{key[1]}",
+                "load them into different collections (--collection)",
+            )
         seen[key] = job.path
     forced = Path(asf) if asf else None
     if forced is not None and not forced.is_file():
@@ -74,7 +85,7 @@ def find_jobs(paths: Iterable[str], collection: str | None, asf: str | None = No
 
 
 def pair_asf(amc: Path, named: list[Path]) -> Path:
-    """The single .asf beside the AMC, else S.asf for S_NN.amc, else the one .asf named in the call."""
+    """The single .asf beside the AMC, else S.asf for S_NN.amc, else the one .asf in the call."""
     beside = sorted(f for f in amc.parent.iterdir() if f.suffix.lower() == SKELETON_SUFFIX)
     if len(beside) == 1:
         return beside[0]
@@ -87,5 +98,9 @@ def pair_asf(amc: Path, named: list[Path]) -> Path:
         return named[0]
     found = ", ".join(f.name for f in beside) or "none"
     raise MotionFileError(
-        str(amc), None, f"cannot tell which ASF skeleton goes with this AMC (.asf files beside it: {found}; "
-        f"named in the call: {len(named)})", "pass --asf FILE, or name exactly one .asf file with it")
+        str(amc),
+        None,
+        f"cannot tell which ASF skeleton goes with this AMC (.asf files beside it: {found}; "
+        f"named in the call: {len(named)})",
+        "pass --asf FILE, or name exactly one .asf file with it",
+    )

@@ -1,4 +1,5 @@
 """Turning one file job into a Motion, with the options of the `modb load` call."""
+
 from __future__ import annotations
 
 from collections.abc import Callable
@@ -29,15 +30,23 @@ class ReadOptions:
 
 
 def read_key(job: FileJob, options: ReadOptions) -> str:
-    """What decides the stored motion besides the file's bytes: equal keys and bytes mean nothing new."""
+    """What decides the stored motion besides the file's bytes: equal keys and bytes mean nothing
+    new."""
     if job.asf is None:
         return f"units={options.units_text}"
-    return (f"units={options.units_text};fps={options.fps or DEFAULT_FPS:g};"
-            f"truncated={options.allow_truncated};asf={options.asf(job.asf).sha256}")
+    return (
+        f"units={options.units_text};fps={options.fps or DEFAULT_FPS:g};"
+        f"truncated={options.allow_truncated};asf={options.asf(job.asf).sha256}"
+    )
 
 
 def read_job(job: FileJob, options: ReadOptions) -> Motion:
     if job.asf is not None:
-        return read_amc(str(job.path), options.asf(job.asf), options.fps or DEFAULT_FPS,
-                        options.allow_truncated, options.warn)
+        return read_amc(
+            str(job.path),
+            options.asf(job.asf),
+            options.fps or DEFAULT_FPS,
+            options.allow_truncated,
+            options.warn,
+        )
     return read_bvh(str(job.path), options.units)

@@ -3,6 +3,7 @@
 Both are guesses from names that hold for Bandai, CMU ASF, CMU BVH conversions
 and Mixamo-style rigs; they are stored editable in modb.skeletons.
 """
+
 from __future__ import annotations
 
 import re
@@ -49,8 +50,11 @@ def guess_joint_map(names: list[str]) -> dict[str, str]:
         for side in sides:
             standard = f"{side}_{key}" if side else key
             for pattern in patterns:
-                hit = next((by_norm[c] for c in _expand(pattern, side) if c in by_norm), None) if side \
+                hit = (
+                    next((by_norm[c] for c in _expand(pattern, side) if c in by_norm), None)
+                    if side
                     else by_norm.get(pattern)
+                )
                 if hit is not None:
                     result[standard] = hit
                     break
@@ -59,10 +63,14 @@ def guess_joint_map(names: list[str]) -> dict[str, str]:
 
 # (left, right) spellings, tried in order: suffixes first, then prefixes.
 _SWAPS = (
-    (re.compile(r"^(.*[_.\-])L$"), r"\1R"), (re.compile(r"^(.*[_.\-])l$"), r"\1r"),
-    (re.compile(r"^Left(.*)$"), r"Right\1"), (re.compile(r"^left(.*)$"), r"right\1"),
-    (re.compile(r"^(.*)Left$"), r"\1Right"), (re.compile(r"^(.*)_left$"), r"\1_right"),
-    (re.compile(r"^L(.+)$"), r"R\1"), (re.compile(r"^l(.+)$"), r"r\1"),
+    (re.compile(r"^(.*[_.\-])L$"), r"\1R"),
+    (re.compile(r"^(.*[_.\-])l$"), r"\1r"),
+    (re.compile(r"^Left(.*)$"), r"Right\1"),
+    (re.compile(r"^left(.*)$"), r"right\1"),
+    (re.compile(r"^(.*)Left$"), r"\1Right"),
+    (re.compile(r"^(.*)_left$"), r"\1_right"),
+    (re.compile(r"^L(.+)$"), r"R\1"),
+    (re.compile(r"^l(.+)$"), r"r\1"),
 )
 
 

@@ -1,4 +1,5 @@
 """Reading a motion file's text: its bytes (for the sha256) and its lines, whatever the encoding."""
+
 from __future__ import annotations
 
 

@@ -1,4 +1,6 @@
-"""Length units of a source file: an explicit choice, or a stated rule applied to the figure's size."""
+"""Length units of a source file: an explicit choice, or a stated rule applied to the figure's
+size."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -22,7 +24,9 @@ def parse_units(value: str) -> str | float:
     try:
         factor = float(value)
     except ValueError:
-        raise UnitsError(f"unknown units {value!r}: use auto, m, cm, mm, in or metres per unit (e.g. 0.0564444)")
+        raise UnitsError(
+            f"unknown units {value!r}: use auto, m, cm, mm, in or metres per unit (e.g. 0.0564444)"
+        )
     if not factor > 0 or not np.isfinite(factor):
         raise UnitsError(f"units must be a positive number of metres per unit, got {value!r}")
     return factor
@@ -42,8 +46,10 @@ def resolve_units(units: str | float, rest_points: np.ndarray) -> tuple[float, s
         if lo <= extent <= hi:
             return NAMED_UNITS[name], (
                 f"units auto: rest pose spans {extent:.4g} units, within {lo:g}-{hi:g} -> {name} "
-                f"({NAMED_UNITS[name]:g} m per unit)")
+                f"({NAMED_UNITS[name]:g} m per unit)"
+            )
     raise UnitsError(
         f"cannot infer units: the rest pose spans {extent:.4g} units, outside every range "
         f"(m 0.5-3, cm 50-300, mm 500-3000); pass --units (m, cm, mm, in, or metres per unit; "
-        f"CMU's ASF-derived files use 0.0254/0.45 = 0.0564444)")
+        f"CMU's ASF-derived files use 0.0254/0.45 = 0.0564444)"
+    )
