@@ -1,4 +1,5 @@
 """The real `modb serve` and Debian's chromium (through chromium-driver), for the browser tests."""
+
 from __future__ import annotations
 
 import contextlib
@@ -38,8 +39,11 @@ def serving(dsn: str):
     """The real `modb serve` on a free port; yields its host:port."""
     port = _free_port()
     log = tempfile.TemporaryFile()
-    proc = subprocess.Popen([sys.executable, "-m", "modb.cli", "--dsn", dsn, "serve", "--port", str(port)],
-                            stdout=log, stderr=subprocess.STDOUT)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "modb.cli", "--dsn", dsn, "serve", "--port", str(port)],
+        stdout=log,
+        stderr=subprocess.STDOUT,
+    )
     address = f"127.0.0.1:{port}"
     for _ in range(150):
         try:
@@ -65,17 +69,27 @@ def serving(dsn: str):
 def chromium(size: str = "1280,800"):
     """A headless chromium with a fresh profile (skips, saying why, where it is not installed)."""
     if not (CHROMIUM.exists() and CHROMEDRIVER.exists()):
-        pytest.skip("Debian's chromium and chromium-driver are not installed (`make setup` installs them)")
+        pytest.skip(
+            "Debian's chromium and chromium-driver are not installed (`make setup` installs them)"
+        )
     from selenium import webdriver
     from selenium.webdriver.chrome.service import Service
 
     options = webdriver.ChromeOptions()
     options.binary_location = str(CHROMIUM)
     profile = tempfile.mkdtemp(prefix="modb-chromium-")
-    for flag in ("--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-                 "--disable-component-update", "--no-first-run", "--disable-sync", f"--user-data-dir={profile}",
-                 "--enable-unsafe-swiftshader",  # software WebGL, which headless Chromium needs an opt-in for
-                 f"--window-size={size}"):
+    for flag in (
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--no-first-run",
+        "--disable-sync",
+        f"--user-data-dir={profile}",
+        "--enable-unsafe-swiftshader",  # software WebGL: headless Chromium needs an opt-in for it
+        f"--window-size={size}",
+    ):
         options.add_argument(flag)
     options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
     driver = webdriver.Chrome(service=Service(str(CHROMEDRIVER)), options=options)

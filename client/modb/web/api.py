@@ -1,7 +1,8 @@
 """The read-only JSON views of the motion database (the DFKI data server's browsing role).
 
-Each function takes a connection and validated arguments and returns what the endpoint sends; unknown ids
-raise NotFound, bad arguments BadRequest, so the app can answer 404 and 400 with the message.
+Each function takes a connection and validated arguments and returns what the endpoint sends;
+unknown ids raise NotFound, bad arguments BadRequest, so the app can answer 404 and 400 with the
+message.
 """
 
 from __future__ import annotations
@@ -54,7 +55,8 @@ _CLIP_LIST = """
 SELECT c.id, c.name, c.collection_id, modb.collection_path(c.collection_id) AS collection,
        v.version, v.n_frames, v.fps, v.skeleton_id
   FROM modb.clips c
-  JOIN LATERAL (SELECT * FROM modb.clip_versions v WHERE v.clip_id = c.id ORDER BY v.version DESC LIMIT 1) v ON true
+  JOIN LATERAL (SELECT * FROM modb.clip_versions v WHERE v.clip_id = c.id
+                 ORDER BY v.version DESC LIMIT 1) v ON true
 """
 
 
@@ -84,9 +86,9 @@ def clip(conn: psycopg.Connection, clip_id: int) -> dict[str, Any]:
 def frames(
     conn: psycopg.Connection, clip_id: int, version: int | None, start: int, count: int | None
 ) -> dict[str, Any]:
-    """Frames start..start+count-1 of a clip version: local rotations (w, x, y, z per joint, skeleton order),
-    the translations of the joints that have position channels, and every joint's world position (metres),
-    computed here by the shared forward kinematics."""
+    """Frames start..start+count-1 of a clip version: local rotations (w, x, y, z per joint,
+    skeleton order), the translations of the joints that have position channels, and every joint's
+    world position (metres), computed here by the shared forward kinematics."""
     if start < 0:
         raise BadRequest(f"start must be 0 or more, got {start}")
     if count is not None and not 1 <= count <= MAX_FRAMES:
@@ -122,7 +124,8 @@ def skeletons(conn: psycopg.Connection) -> list[dict[str, Any]]:
         conn,
         "SELECT s.id, s.name, s.hierarchy->>'format' AS format, "
         "       jsonb_array_length(s.hierarchy->'joints') AS joints, "
-        "       (SELECT count(*) FROM modb.clip_versions v WHERE v.skeleton_id = s.id) AS clip_versions "
+        "       (SELECT count(*) FROM modb.clip_versions v WHERE v.skeleton_id = s.id) "
+        "         AS clip_versions "
         "  FROM modb.skeletons s ORDER BY s.id",
     )
 
@@ -139,8 +142,14 @@ def skeleton(conn: psycopg.Connection, skeleton_id: int) -> dict[str, Any]:
 
 
 def _named_table(table: str) -> tuple[str, str]:
-    listing = f"SELECT id, name, kind, skeleton_id, meta, created_at::text FROM modb.{table} ORDER BY name, kind"
-    one = f"SELECT id, name, kind, skeleton_id, data, meta, created_at::text FROM modb.{table} WHERE id = %s"
+    listing = (
+        f"SELECT id, name, kind, skeleton_id, meta, created_at::text FROM modb.{table} "
+        "ORDER BY name, kind"
+    )
+    one = (
+        f"SELECT id, name, kind, skeleton_id, data, meta, created_at::text FROM modb.{table} "
+        "WHERE id = %s"
+    )
     return listing, one
 
 
@@ -174,14 +183,16 @@ def graph(conn: psycopg.Connection, graph_id: int) -> dict[str, Any]:
 
 
 def profiles(conn: psycopg.Connection) -> list[dict[str, Any]]:
-    """The match profiles select_next_snippet takes, with their settings (the avatar panel's starting values)."""
+    """The match profiles select_next_snippet takes, with their settings (the avatar panel's
+    starting values)."""
     return _rows(
         conn, "SELECT name, settings, comment, shipped FROM modb.match_profiles ORDER BY name"
     )
 
 
 def avatar_choices(conn: psycopg.Connection) -> dict[str, Any]:
-    """What the avatar panel offers: profiles, transition graphs (newest first), collections, joints."""
+    """What the avatar panel offers: profiles, transition graphs (newest first), collections,
+    joints."""
     graphs = [
         r[0]
         for r in conn.execute(

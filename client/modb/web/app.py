@@ -1,7 +1,7 @@
 """`modb serve`: the browser view of the motion database (Starlette, served by uvicorn).
 
-Read-only: its pooled connections run with default_transaction_read_only, and the database role it is given
-(modb_reader is enough) bounds what it can see. Every request passes the Host/Origin guard.
+Read-only: its pooled connections run with default_transaction_read_only, and the database role it
+is given (modb_reader is enough) bounds what it can see. Every request passes the Host/Origin guard.
 """
 
 from __future__ import annotations
@@ -30,9 +30,8 @@ from .guard import HostOriginGuard, allowed_hosts
 
 HERE = Path(__file__).parent
 STATIC = HERE / "static"
-THREE = (
-    HERE / "node_modules" / "three"
-)  # npm ci (make setup) installs the version package.json pins
+# npm ci (make setup) installs the version package.json pins.
+THREE = HERE / "node_modules" / "three"
 log = logging.getLogger("modb.web")
 
 
@@ -43,9 +42,8 @@ class ThreeMissing(RuntimeError):
 def _int(name: str, value: str | None, default: int | None = None) -> int | None:
     if value is None:
         return default
-    if not re.fullmatch(
-        r"-?[0-9]{1,18}", value
-    ):  # ASCII digits only: int() would take "1_0", "+1", "٣"
+    # ASCII digits only: int() would take "1_0", "+1", "٣".
+    if not re.fullmatch(r"-?[0-9]{1,18}", value):
         raise api.BadRequest(f"{name} must be an integer, got {value!r}")
     return int(value)
 
@@ -132,15 +130,13 @@ def _error(status: int) -> Callable:
 
 async def _http_error(request: Request, exc: HTTPException) -> JSONResponse:
     message = f"no such page: {request.url.path}" if exc.status_code == 404 else exc.detail
-    return JSONResponse(
-        {"error": message}, status_code=exc.status_code, headers=exc.headers
-    )  # 405 keeps Allow
+    # The headers: a 405 keeps its Allow.
+    return JSONResponse({"error": message}, status_code=exc.status_code, headers=exc.headers)
 
 
 async def _internal_error(request: Request, exc: Exception) -> JSONResponse:
-    log.exception(
-        "while answering %s", request.url.path
-    )  # the details go to the server's log, not the page
+    # The details go to the server's log, not the page.
+    log.exception("while answering %s", request.url.path)
     return JSONResponse(
         {"error": "internal error: the server's log says what went wrong"}, status_code=500
     )
@@ -159,17 +155,16 @@ def create_app(
         raise ThreeMissing(
             f"three.js is not installed in {THREE.parent}: run `make setup` (npm ci there)"
         )
-    connect(
-        conninfo
-    ).close()  # fails now, saying what to do, when the database has no modb extension
+    # Fails now, saying what to do, when the database has no modb extension.
+    connect(conninfo).close()
     pool = ConnectionPool(
         conninfo,
         min_size=1,
         max_size=4,
         configure=_configure,
         open=False,
-        check=ConnectionPool.check_connection,
-    )  # a restarted server costs no failed request
+        check=ConnectionPool.check_connection,  # a restarted server costs no failed request
+    )
 
     @contextlib.asynccontextmanager
     async def lifespan(app: Starlette):

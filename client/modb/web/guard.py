@@ -1,9 +1,11 @@
 """Host and Origin checks for every request (HTTP and WebSocket) to the local web app.
 
-The app serves the user's database to their own browser. Another web site open in that browser can still
-send it requests: by pointing its own DNS name at 127.0.0.1 (the Host header then names that site), or by
-posting or opening a WebSocket from its page (the Origin header names that site). Both are refused.
+The app serves the user's database to their own browser. Another web site open in that browser can
+still send it requests: by pointing its own DNS name at 127.0.0.1 (the Host header then names that
+site), or by posting or opening a WebSocket from its page (the Origin header names that site). Both
+are refused.
 """
+
 from __future__ import annotations
 
 import json
@@ -23,19 +25,23 @@ def is_loopback(host: str) -> bool:
 
 
 def allowed_hosts(host: str, port: int, extra_names: Iterable[str] = ()) -> frozenset[str]:
-    """Host header values that name this server: the loopback names, the address it binds to (unless a
-    wildcard such as 0.0.0.0, which names nothing), and the names the user allowed (NAME, with this port, or
-    NAME:PORT as a proxy in front would show it)."""
-    given_port = {n.lower() for n in extra_names if re.fullmatch(r"[^:\[\]]+:[0-9]+|\[.+\]:[0-9]+", n)}
+    """Host header values that name this server: the loopback names, the address it binds to
+    (unless a wildcard such as 0.0.0.0, which names nothing), and the names the user allowed (NAME,
+    with this port, or NAME:PORT as a proxy in front would show it)."""
+    given_port = {
+        n.lower() for n in extra_names if re.fullmatch(r"[^:\[\]]+:[0-9]+|\[.+\]:[0-9]+", n)
+    }
     names = {*LOOPBACK_NAMES, *(n for n in extra_names if n.lower() not in given_port)}
     if host not in WILDCARD_ADDRESSES:
         names.add(host if ":" not in host else f"[{host}]")
-    bare = {name.lower() for name in names} if port == 80 else set()  # browsers leave out the default port
+    # Browsers leave out the default port.
+    bare = {name.lower() for name in names} if port == 80 else set()
     return frozenset(f"{name.lower()}:{port}" for name in names) | bare | given_port
 
 
 class HostOriginGuard:
-    """ASGI middleware: 403 for a Host this server does not answer to, or an Origin other than its own."""
+    """ASGI middleware: 403 for a Host this server does not answer to, or an Origin other than its
+    own."""
 
     def __init__(self, app: ASGIApp, hosts: Iterable[str]) -> None:
         self.app = app
@@ -48,8 +54,13 @@ class HostOriginGuard:
             return f"Host {host!r} is not this server: open it as http://{sorted(self.hosts)[0]}/"
         origin = headers.get("origin")
         page = urlsplit(origin) if origin is not None else None
-        if page is not None and (page.scheme not in ("http", "https") or page.netloc.lower() not in self.hosts):
-            return f"requests from the page of {origin!r} are refused: only this server's own pages may call it"
+        if page is not None and (
+            page.scheme not in ("http", "https") or page.netloc.lower() not in self.hosts
+        ):
+            return (
+                f"requests from the page of {origin!r} are refused: "
+                "only this server's own pages may call it"
+            )
         return None
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
@@ -63,6 +74,14 @@ class HostOriginGuard:
             await send({"type": "websocket.close", "code": 1008, "reason": reason[:120]})
         else:
             body = json.dumps({"error": reason}).encode()
-            await send({"type": "http.response.start", "status": 403,
-                        "headers": [(b"content-type", b"application/json"), (b"content-length", str(len(body)).encode())]})
+            await send(
+                {
+                    "type": "http.response.start",
+                    "status": 403,
+                    "headers": [
+                        (b"content-type", b"application/json"),
+                        (b"content-length", str(len(body)).encode()),
+                    ],
+                }
+            )
             await send({"type": "http.response.body", "body": body})

@@ -1,0 +1,68 @@
+"""Avatar mode's messages to the page: a frame to show, a selection with the panel's readouts."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from modb.synthesis.avatar import Choice, Frame
+
+RECENT = 50  # the readouts summarise the last this many selections
+
+
+def readout(choices: list[Choice]) -> dict[str, Any]:
+    """The panel's live figures over the last RECENT selections (the start, chosen without a seam,
+    aside)."""
+    recent = [c for c in choices[-RECENT:] if c.latency_ms is not None]
+    latency = np.array([c.latency_ms for c in recent])
+    seams = np.array([c.continuity for c in recent if c.continuity is not None])
+    last = choices[-1]
+    return {
+        "selections": len(recent),
+        "latency_p50_ms": float(np.percentile(latency, 50)) if len(latency) else None,
+        "latency_p99_ms": float(np.percentile(latency, 99)) if len(latency) else None,
+        "candidates": last.candidates,
+        "relax_level": last.relax_level,
+        "relaxed_share": float(np.mean([c.relax_level > 0 for c in recent])) if recent else None,
+        "seam_ratio_median": float(np.median(seams)) if len(seams) else None,
+        "seam_ratio_max": float(seams.max()) if len(seams) else None,
+        # r > 1: past the thresholds
+        "seam_rough_share": float(np.mean(seams > 1.0)) if len(seams) else None,
+    }
+
+
+def choice_message(
+    choice: Choice, course: tuple[list, int, bool], choices: list[Choice]
+) -> dict[str, Any]:
+    return {
+        "type": "choice",
+        "step": choice.step,
+        "snippet_id": choice.snippet_id,
+        "clip_id": choice.clip_id,
+        "mirrored": choice.mirrored,
+        "fps": choice.fps,
+        "start_frame": choice.start_frame,
+        "end_frame": choice.end_frame,
+        "target": choice.target,
+        "reached": choice.reached,
+        "relax_level": choice.relax_level,
+        "continuity": choice.continuity,
+        "latency_ms": choice.latency_ms,
+        "waited_ms": choice.waited_ms,
+        "candidates": choice.candidates,
+        "end": {"position": choice.end.position, "heading": choice.end.heading},
+        "goals": course[0],
+        "goal_index": course[1],
+        "readout": readout(choices),
+    }
+
+
+def frame_message(frame: Frame) -> dict[str, Any]:
+    return {
+        "type": "frame",
+        "index": frame.index,
+        "step": frame.step,
+        "rotations": np.round(frame.rotations, 6).tolist(),
+        "translations": np.round(frame.translations, 5).tolist(),
+    }

@@ -1,0 +1,95 @@
+"""Avatar mode's settings: what a page may ask for (profile, graph, collection, lead time, arrival
+radius, the tunable knobs), read from its message and checked by the database before any avatar
+uses them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from typing import Any
+
+import psycopg
+
+from modb.synthesis.avatar import Settings
+
+# The knobs the panel tunes (a subset of modb.match_knobs(); modb.graph is its own setting).
+TUNABLE_KNOBS = (
+    "position_threshold",
+    "angle_threshold",
+    "velocity_threshold",
+    "angular_velocity_threshold",
+    "norm",
+    "joints",
+    "velocity_terms",
+)
+# Seconds: longer than any snippet, the next query would start before this one plays.
+MAX_LEAD_TIME = 2.0
+
+
+class SettingsRefused(ValueError):
+    pass
+
+
+def settings_from(message: dict[str, Any], current: Settings) -> Settings:
+    """The settings a page asked for, from a {"type": "settings", ...} message (missing keys keep
+    theirs)."""
+    unknown = sorted(
+        set(message)
+        - {"type", "profile", "graph", "collection", "lead_time", "arrival_radius", "knobs"}
+    )
+    if unknown:
+        raise SettingsRefused(f"unknown setting {unknown[0]!r}")
+    asked = message.get("knobs") or {}
+    if not isinstance(asked, dict):
+        raise SettingsRefused(f"knobs is an object of knob: value, got {asked!r}")
+    knobs = dict(current.knobs)
+    for knob, value in asked.items():
+        if knob not in TUNABLE_KNOBS:
+            raise SettingsRefused(
+                f"unknown knob {knob!r}: the panel tunes {', '.join(TUNABLE_KNOBS)}"
+            )
+        if value is None or value == "":
+            knobs.pop(knob, None)  # back to the profile's
+        elif isinstance(value, (str, int, float)) and not isinstance(value, bool):
+            knobs[knob] = str(value)
+        else:
+            raise SettingsRefused(f"knob {knob} takes a text or number, got {value!r}")
+    changes: dict[str, Any] = {"knobs": knobs}
+    for name in ("profile", "graph", "collection"):
+        if name in message:
+            value = message[name]
+            if value is not None and not isinstance(value, str):
+                raise SettingsRefused(f"{name} is a name, got {value!r}")
+            changes[name] = value or (None if name != "profile" else "default")
+    for name, unit, least, most in (
+        ("lead_time", "seconds", 0.0, MAX_LEAD_TIME),
+        ("arrival_radius", "metres", 0.01, 10.0),
+    ):
+        if name in message:
+            value = message[name]
+            number = (
+                not isinstance(value, bool)
+                and isinstance(value, (int, float))
+                and math.isfinite(value)
+            )
+            if not number or not least <= value <= most:
+                raise SettingsRefused(f"{name} must be {least:g}-{most:g} {unit}, got {value!r}")
+            changes[name] = float(value)
+    return replace(current, **changes)
+
+
+def check_settings(conn: psycopg.Connection, settings: Settings) -> None:
+    """Resolves the settings as a selection would (modb.match_plan, the collection) in a transaction
+    of its own, so that the database says what is wrong before any avatar uses them."""
+    try:
+        with conn.transaction():
+            for knob, value in settings.session_knobs().items():
+                conn.execute("SELECT set_config(%s, %s, true)", [f"modb.{knob}", value])
+            conn.execute(
+                "SELECT modb.match_plan(%s), modb.check_request(NULL, '{0,1}', 1, %s)",
+                [settings.profile, settings.collection],
+            )
+    except psycopg.Error as e:
+        hint = f" ({e.diag.message_hint})" if e.diag.message_hint else ""
+        raise SettingsRefused(f"{e.diag.message_primary or e}{hint}") from None
