@@ -31,9 +31,8 @@ def nodes(plan: dict):
 def main(dsn: str, queries: int, profile: str) -> None:
     with psycopg.connect(dsn, autocommit=True) as conn:
         conn.execute("SET jit = off")
-        conn.execute(
-            "SET enable_seqscan = off"
-        )  # a wide box might otherwise be read by a sequential scan
+        # A wide box might otherwise be read by a sequential scan.
+        conn.execute("SET enable_seqscan = off")
         ids = [r[0] for r in conn.execute("SELECT id FROM modb.snippets ORDER BY id")]
         index_pages = conn.execute(
             "SELECT pg_relation_size('modb.snippets_begin_features_idx') / 8192"

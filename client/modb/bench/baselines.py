@@ -201,9 +201,8 @@ class Snapshot:
         members, tree = self.trees[self.group[prev]]
         half = np.asarray(self.plan["box_half_width"], dtype=np.float64)
         point = self.term.features[self.end[prev]]
-        for level, scale in enumerate(
-            LEVELS
-        ):  # the tree's scale includes the box margin: a superset of the box
+        # The tree's scale includes the box margin: a superset of the box.
+        for level, scale in enumerate(LEVELS):
             ball = tree.query_ball_point(point / (half + transitions.BOX_MARGIN), r=scale, p=np.inf)
             best = (
                 self._best(prev, members[np.asarray(ball, dtype=np.int64)], target)

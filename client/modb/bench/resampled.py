@@ -18,9 +18,8 @@ from modb.motion import Motion
 
 # Around 1x, alternating slower and faster, so each step adds gaits a little off the captured ones.
 SPEEDS = (0.8, 1.25, 0.9, 1.1, 0.85, 1.15, 0.95, 1.05)
-COLLECTION_PREFIX = (
-    "resampled-x"  # the copies' collections: resampled-x<speed>/<the original's path>
-)
+# the copies' collections: resampled-x<speed>/<the original's path>
+COLLECTION_PREFIX = "resampled-x"
 
 
 def at_speed(motion: Motion, speed: float) -> Motion:
@@ -32,9 +31,8 @@ def at_speed(motion: Motion, speed: float) -> Motion:
         raise ValueError(f"speed must be positive, got {speed}")
     original = np.arange(motion.n_frames, dtype=np.float64)
     last = motion.n_frames - 1
-    times = np.minimum(
-        np.arange(int(last / speed + 1e-9) + 1) * speed, last
-    )  # never past the end by rounding
+    # Never past the end by rounding.
+    times = np.minimum(np.arange(int(last / speed + 1e-9) + 1) * speed, last)
     rotations = np.empty((len(times), motion.rotations.shape[1], 4))
     for j in range(motion.rotations.shape[1]):
         xyzw = Slerp(original, Rotation.from_quat(motion.rotations[:, j, [1, 2, 3, 0]]))(

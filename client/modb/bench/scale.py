@@ -53,16 +53,14 @@ def sized_database(dsn: str, size: int, seed: int, progress=print) -> str:
             admin.execute("SELECT 1 FROM pg_database WHERE datname = %s", [name]).fetchone() is None
         )
         if made:
-            admin.execute(
-                f'CREATE DATABASE "{name}" TEMPLATE "{source}"'
-            )  # needs no other session on the source
+            # Needs no other session on the source.
+            admin.execute(f'CREATE DATABASE "{name}" TEMPLATE "{source}"')
     with connect(_with_dbname(dsn, name)) as conn:
         clips = conn.execute(
             "SELECT clip_id, count(*) FROM modb.snippets GROUP BY clip_id ORDER BY clip_id"
         ).fetchall()
-        if size > sum(n for _, n in clips) and (
-            made or resampled_snippets(conn)
-        ):  # made now, or an interrupted run's
+        # Resample into a database made now, or an interrupted run's.
+        if size > sum(n for _, n in clips) and (made or resampled_snippets(conn)):
             progress(f"  adding speed-resampled copies of the clips up to {size:,} snippets (once)")
             add_resampled_clips(conn, size, seed, progress)
             conn.execute("VACUUM ANALYZE modb.snippets, modb.terminators")

@@ -94,9 +94,8 @@ def run_synth(args: argparse.Namespace) -> int:
     from .main import main
 
     goals = seeded_course(args.seed, n_goals=int(args.seconds // 5) + 1)
-    if (
-        args.data
-    ):  # a fresh database of the locomotion files in the embedded cluster, graph "locomotion" built
+    # A fresh database of the locomotion files in the embedded cluster, graph "locomotion" built.
+    if args.data:
         args.dsn, args.collection = locomotion_database(Path(args.data), main), "locomotion"
     with connect(args) as conn:
         settings = Settings(profile=args.profile, collection=args.collection, graph=args.graph)

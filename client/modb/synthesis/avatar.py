@@ -58,16 +58,14 @@ class Avatar:
         self._lock = threading.Lock()
         self._goals: list[Goal] = [checked_goal(g) for g in self.goals]
         self._goal_index = 0
-        self._goal_reached = (
-            False  # the current goal was reached (the queue moves on when one is added)
-        )
+        # the current goal was reached (the queue moves on when one is added)
+        self._goal_reached = False
         self._recent: list[tuple[int, int]] = []  # (snippet id, strip frame where its play ended)
         self._started = False
         self.library = FrameLibrary(self.conn)
         self.choices: list[Choice] = []
-        self._knobs_set: dict[
-            str, str
-        ] = {}  # what this avatar last SET modb.<knob> to on its connection
+        # What this avatar last SET modb.<knob> to on its connection.
+        self._knobs_set: dict[str, str] = {}
         configure_for_selection(self.conn)
 
     # Goals may change at any time (from another thread too): they apply to the next query issued.

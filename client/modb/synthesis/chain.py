@@ -23,19 +23,16 @@ class Settings:
 
     profile: str = "default"
     collection: str | None = None
-    graph: str | None = (
-        None  # a transition graph (modb.build_transition_graph): choose among its snippets only
-    )
+    # a transition graph (modb.build_transition_graph): choose among its snippets only
+    graph: str | None = None
     arrival_radius: float = 0.5  # metres, pelvis to goal on the ground, checked at snippet ends
     exclude_seconds: float = 2.0  # snippets played this recently are passed as `exclude`
     lead_time: float = 0.0  # seconds before a snippet ends at which the next query is issued
     blend_frames: int = 0  # seam blending over this many frames; 0 plays the snippets as captured
-    knobs: dict[str, str] = field(
-        default_factory=dict
-    )  # SET modb.<knob> for this avatar's session (modb.match_knobs())
-    count_candidates: bool = (
-        False  # report each choice's modb.candidates_examined (one more query, after it)
-    )
+    # SET modb.<knob> for this avatar's session (modb.match_knobs())
+    knobs: dict[str, str] = field(default_factory=dict)
+    # report each choice's modb.candidates_examined (one more query, after it)
+    count_candidates: bool = False
 
     def session_knobs(self) -> dict[str, str]:
         """What SET modb.<knob> a session selecting with these settings has ('' goes back to the
@@ -73,9 +70,8 @@ class Choice:
     continuity: float | None
     proximity: float | None
     latency_ms: float | None  # the selection query, as seen by the client
-    waited_ms: (
-        float  # how long playback stalled waiting for it (0 when the lead time hid the query)
-    )
+    # how long playback stalled waiting for it (0 when the lead time hid the query)
+    waited_ms: float
     candidates: int | None = None  # modb.candidates_examined, with Settings.count_candidates
 
 

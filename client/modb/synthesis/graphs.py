@@ -25,9 +25,8 @@ class GraphSummary:
     kept: int
     edges: int
     dead_ends: int
-    current: (
-        bool  # transitions stored, and no snippet of its scope added or removed since it was built
-    )
+    # transitions stored, and no snippet of its scope added or removed since it was built
+    current: bool
 
 
 def build_graph(

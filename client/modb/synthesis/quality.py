@@ -24,9 +24,8 @@ from .chain import Choice
 from modb.motion import Motion
 from .placement import ground_distance
 
-LAST_LEVEL = (
-    4  # select_next_snippets' last relaxation level: the nearest start configuration, any ratio
-)
+# select_next_snippets' last relaxation level: the nearest start configuration, any ratio
+LAST_LEVEL = 4
 AIM_SEAM_SHARE_FACTOR = 2.0  # seams with r > 1: at most this times the share of natural steps
 AIM_RECOMBINATION = 0.20
 AIM_REACH_RATIO = 2.0  # time to a goal >= 5 m away / straight line at the median walking speed
@@ -70,9 +69,8 @@ class NaturalSteps:
                 "no source clip of three frames or more to measure natural steps against"
             )
         angles = np.concatenate([a for a, _ in changes])
-        velocity = np.concatenate(
-            [v[1:] for _, v in changes]
-        )  # a clip's first step has no predecessor
+        # A clip's first step has no predecessor.
+        velocity = np.concatenate([v[1:] for _, v in changes])
         joint_p99 = np.maximum(np.percentile(angles, 99, axis=0), 1e-9)
         velocity_p99 = max(float(np.percentile(velocity, 99)), 1e-9)
         r = np.concatenate([roughness(a[1:], v[1:], joint_p99, velocity_p99) for a, v in changes])
@@ -130,9 +128,8 @@ class GoalReach:
     seconds: float | None
     straight_seconds: float  # the straight line at the median walking speed
     ratio: float | None
-    current_seconds: float = (
-        0.0  # how long it was the current goal (to the strip's end when not reached)
-    )
+    # how long it was the current goal (to the strip's end when not reached)
+    current_seconds: float = 0.0
 
     @property
     def counts_for_aim(self) -> bool:

@@ -123,9 +123,8 @@ def cost_to_go(grid: Grid, net_x, net_z, heading, duration, src, dst, seam, prog
     values[:, ring0] = 0
     change = np.inf
     for iteration in range(1, MAX_ITERATIONS + 1):
-        through = (
-            duration + (values.ravel()[index] * weight).sum(-1) + beyond
-        )  # via each snippet as the next
+        # Via each snippet as the next.
+        through = duration + (values.ravel()[index] * weight).sum(-1) + beyond
         new = np.full_like(values, np.inf)
         for lo in range(0, len(starts), EDGE_CHUNK):
             first = starts[lo : lo + EDGE_CHUNK]

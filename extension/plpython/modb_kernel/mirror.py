@@ -126,9 +126,8 @@ def _lateral_axes(parents, positions, orientations, partner):
     pairs = []
     for c, m in enumerate(partner):
         if c < m and parents[c] == parents[m] >= 0 and partner[parents[c]] == parents[c]:
-            while (
-                np.linalg.norm(positions[:, c] - positions[:, m], axis=-1).mean() < 1e-3
-            ):  # CMU's hip joints
+            # CMU's hip joints
+            while np.linalg.norm(positions[:, c] - positions[:, m], axis=-1).mean() < 1e-3:
                 below = [k for k in range(len(parents)) if parents[k] == c]
                 if not below:
                     break
@@ -136,18 +135,16 @@ def _lateral_axes(parents, positions, orientations, partner):
             pairs.append((c, m))
     if not pairs:
         return np.zeros((len(parents), 3))
-    separation = (
-        positions[:, [c for c, _ in pairs]] - positions[:, [m for _, m in pairs]]
-    )  # (F, P, 3)
+    # (F, P, 3)
+    separation = positions[:, [c for c, _ in pairs]] - positions[:, [m for _, m in pairs]]
     separation /= np.maximum(np.linalg.norm(separation, axis=-1, keepdims=True), 1e-12)
     local = quaternion.rotate(
         quaternion.conjugate(orientations)[:, :, None, :], separation[:, None, :, :]
     )
     values, vectors = np.linalg.eigh(np.einsum("fjpa,fjpb->jab", local, local))  # (J, 3, 3) scatter
     steady = values[:, -1] >= LATERAL_STEADINESS * values.sum(axis=1)
-    turning = (
-        np.abs(orientations - orientations[:1]).max(axis=(0, 2)) > 1e-9
-    )  # a fixed frame is the world's
+    # A fixed frame is the world's.
+    turning = np.abs(orientations - orientations[:1]).max(axis=(0, 2)) > 1e-9
     return vectors[:, :, -1] * (steady & turning)[:, None]
 
 
