@@ -1,33 +1,23 @@
-"""Shared fixtures: a throwaway PostgreSQL cluster per test session, fresh databases, the real data."""
+"""Shared fixtures: a throwaway PostgreSQL cluster per test session, fresh databases, the real
+data."""
+
 from __future__ import annotations
 
-import contextlib
 import itertools
 import os
 import shutil
-import subprocess
-import sys
 import tempfile
 from pathlib import Path
 
 import psycopg
 import pytest
+from support.commands import run_modb
+from support.data import mocap
+from support.databases import GRAPH, scratch_database
 
 from modb.database.cluster import Cluster
 from modb.database.connection import connect
 from modb.demo.data import locomotion_files
-
-REPO = Path(__file__).resolve().parents[1]
-MOCAP = Path(os.environ.get("MODB_MOCAP", REPO.parent / "shared" / "mocap"))
-CMU_UNITS = 0.0254 / 0.45  # metres per CMU ASF length unit (:units length 0.45)
-
-
-def mocap(*parts: str) -> Path:
-    """A path in the shared real data; the test is skipped, saying why, when it is absent."""
-    p = MOCAP.joinpath(*parts)
-    if not p.exists():
-        pytest.skip(f"real motion data not found at {p} (set MODB_MOCAP to the mocap folder)")
-    return p
 
 
 @pytest.fixture(scope="session")
@@ -64,45 +54,12 @@ def db(fresh_db):
         yield conn
 
 
-@contextlib.contextmanager
-def scratch_database(cluster, name: str):
-    """A database with the extension for a whole test module (dropped at the end)."""
-    with psycopg.connect(cluster.dsn("postgres"), autocommit=True) as admin:
-        admin.execute(f'DROP DATABASE IF EXISTS "{name}"')
-        admin.execute(f'CREATE DATABASE "{name}"')
-    with psycopg.connect(cluster.dsn(name), autocommit=True) as conn:
-        conn.execute("CREATE EXTENSION modb CASCADE")
-    try:
-        yield cluster.dsn(name)
-    finally:
-        with psycopg.connect(cluster.dsn("postgres"), autocommit=True) as admin:
-            admin.execute(f'DROP DATABASE "{name}" WITH (FORCE)')
-
-
-def run_modb(dsn: str, *args: str) -> subprocess.CompletedProcess:
-    """The real command line, as a user runs it."""
-    return subprocess.run([sys.executable, "-m", "modb.cli", "--dsn", dsn, *map(str, args)],
-                          capture_output=True, text=True)
-
-
-def plan_nodes(conn: psycopg.Connection, sql: str, params=()) -> list[dict]:
-    """Every node of the plan EXPLAIN (ANALYZE, FORMAT JSON) shows for a query, depth first."""
-    nodes, todo = [], [conn.execute("EXPLAIN (ANALYZE, FORMAT JSON) " + sql, params).fetchone()[0][0]["Plan"]]
-    while todo:
-        node = todo.pop()
-        nodes.append(node)
-        todo.extend(reversed(node.get("Plans", [])))
-    return nodes
-
-
-GRAPH = "locomotion"  # the locomotion fixture's transition graph
-
-
 @pytest.fixture(scope="session")
 def locomotion(cluster, tmp_path_factory):
-    """Every locomotion clip of ../shared/mocap/bandai-2-dev (419 files), with snippets and the transition
-    graph GRAPH (shared by the synthesis and avatar tests, which only read it)."""
-    if os.environ.get("MODB_TEST_LOCOMOTION_DSN"):  # development: a database this fixture filled before
+    """Every locomotion clip of ../shared/mocap/bandai-2-dev (419 files), with snippets and the
+    transition graph GRAPH (shared by the synthesis and avatar tests, which only read it)."""
+    # development: a database this fixture filled before
+    if os.environ.get("MODB_TEST_LOCOMOTION_DSN"):
         yield os.environ["MODB_TEST_LOCOMOTION_DSN"]
         return
     data = mocap("bandai-2-dev", "data")
@@ -113,5 +70,22 @@ def locomotion(cluster, tmp_path_factory):
         r = run_modb(dsn, "load", folder, "--collection", "bandai-2/locomotion", "-q")
         assert r.returncode == 0, r.stderr
         r = run_modb(dsn, "graph", "build", GRAPH, "-q")
+        assert r.returncode == 0, r.stderr
+        yield dsn
+
+
+@pytest.fixture(scope="session")
+def cmu(cluster):
+    """CMU 131 (14 ASF/AMC trials, 120 fps) with snippets and their mirror images (shared by the
+    selection, roles and mirror tests, which only read it)."""
+    with scratch_database(cluster, f"behaviour_{os.getpid()}") as dsn:
+        r = run_modb(
+            dsn,
+            "load",
+            *sorted(mocap("cmu", "131").glob("*.amc")),
+            "--collection",
+            "cmu/131",
+            "--mirror",
+        )
         assert r.returncode == 0, r.stderr
         yield dsn

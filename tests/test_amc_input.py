@@ -1,12 +1,14 @@
-"""ASF/AMC input: pairing, quirks of real files, and every malformed case refused with file and line."""
+"""ASF/AMC input: pairing, quirks of real files, and every malformed case refused with file and
+line."""
+
 from __future__ import annotations
 
 import shutil
 
 import pytest
-
-from conftest import mocap, run_modb
-from test_load_cli import counts
+from support.commands import run_modb
+from support.data import mocap
+from support.databases import counts
 
 
 @pytest.fixture
@@ -32,31 +34,53 @@ def _line_of(path, prefix: str, nth: int = 0) -> int:
 
 def test_real_quirks_comment_lines_exponents_and_truncation(fresh_db, db):
     quirks = mocap("cmu", "quirks")
-    r = run_modb(fresh_db, "load", quirks / "11_01.amc")  # a comment line inside the motion; paired as S.asf
+    # a comment line inside the motion; paired as S.asf
+    r = run_modb(fresh_db, "load", quirks / "11_01.amc")
     assert r.returncode == 0, r.stderr
     golf = quirks / "golf_01.amc"  # last frame cut short: 19 of 29 bone lines; values like e-014
     r = run_modb(fresh_db, "load", golf)
     assert r.returncode == 1
-    assert f"{golf}:" in r.stderr and "lacks 10 of 29 bone lines" in r.stderr and "--allow-truncated" in r.stderr
+    assert (
+        f"{golf}:" in r.stderr
+        and "lacks 10 of 29 bone lines" in r.stderr
+        and "--allow-truncated" in r.stderr
+    )
     assert counts(db)[3] == 1
     r = run_modb(fresh_db, "load", golf, "--allow-truncated")
     assert r.returncode == 0, r.stderr
     assert "warning:" in r.stderr and "dropped the last frame" in r.stderr
     frame_numbers = sum(1 for line in golf.read_text().splitlines() if line.strip().isdigit())
     n_complete = frame_numbers - 1  # all but the cut one
-    (stored,) = db.execute("SELECT n_frames FROM modb.current_clips WHERE name = 'golf_01'").fetchone()
+    (stored,) = db.execute(
+        "SELECT n_frames FROM modb.current_clips WHERE name = 'golf_01'"
+    ).fetchone()
     assert stored == n_complete
 
 
 def test_fps_default_and_option(fresh_db, db, trial):
     assert run_modb(fresh_db, "load", trial / "131_01.amc").returncode == 0
-    assert run_modb(fresh_db, "load", trial / "131_01.amc", "--fps", "60", "--collection", "slow").returncode == 0
+    assert (
+        run_modb(
+            fresh_db, "load", trial / "131_01.amc", "--fps", "60", "--collection", "slow"
+        ).returncode
+        == 0
+    )
     rates = dict(db.execute("SELECT collection, fps FROM modb.current_clips").fetchall())
     assert rates == {"131": 120.0, "slow": 60.0}
 
 
-@pytest.mark.parametrize("case", ["wrong_count", "unknown_bone", "not_a_number", "empty", "not_motion", "bad_dof",
-                                  "truncated_middle"])
+@pytest.mark.parametrize(
+    "case",
+    [
+        "wrong_count",
+        "unknown_bone",
+        "not_a_number",
+        "empty",
+        "not_motion",
+        "bad_dof",
+        "truncated_middle",
+    ],
+)
 def test_bad_amc_or_asf_names_file_and_line_and_stores_nothing(fresh_db, db, trial, case):
     amc, asf = trial / "131_01.amc", trial / "131.asf"
     bad, expect = amc, None
@@ -101,7 +125,8 @@ def test_pairing_rules(fresh_db, db, tmp_path):
     shutil.copy(quirks / "11_01.amc", a / "take.amc")
     shutil.copy(quirks / "11.asf", a / "11.asf")
     shutil.copy(quirks / "golf.asf", a / "golf.asf")
-    r = run_modb(fresh_db, "load", a / "take.amc")  # two skeletons beside it, no S_NN name: refuse, say how
+    # two skeletons beside it, no S_NN name: refuse, say how
+    r = run_modb(fresh_db, "load", a / "take.amc")
     assert r.returncode == 2 and "cannot tell which ASF" in r.stderr and "--asf FILE" in r.stderr
     r = run_modb(fresh_db, "load", a / "take.amc", a / "11.asf")  # the one .asf named in the call
     assert r.returncode == 0, r.stderr
@@ -119,7 +144,8 @@ def test_pairing_rules(fresh_db, db, tmp_path):
 
 def test_keep_going_mixes_formats(fresh_db, db, trial):
     shutil.copy(mocap("bandai-1", "data", "dataset-1_walk_active_001.bvh"), trial / "walk.bvh")
-    shutil.copy(mocap("cmu", "quirks", "golf_01.amc"), trial / "131_99.amc")  # its last frame is cut short
+    # its last frame is cut short
+    shutil.copy(mocap("cmu", "quirks", "golf_01.amc"), trial / "131_99.amc")
     r = run_modb(fresh_db, "load", trial, "--keep-going")
     assert r.returncode == 1
     assert "131_99.amc" in r.stderr and "1 file(s) not loaded" in r.stderr

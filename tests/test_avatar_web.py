@@ -1,6 +1,8 @@
-"""Avatar mode in a real browser (Debian's chromium), against the real `modb serve` and database with every
-locomotion clip of ../shared/mocap/bandai-2-dev and its transition graph: clicks set goals the avatar walks
-to, the panel tunes this connection's selections, and the WebSocket keeps other origins out."""
+"""Avatar mode in a real browser (Debian's chromium), against the real `modb serve` and database
+with every locomotion clip of ../shared/mocap/bandai-2-dev and its transition graph: clicks set
+goals the avatar walks to, the panel tunes this connection's selections, and the WebSocket keeps
+other origins out."""
+
 from __future__ import annotations
 
 import contextlib
@@ -10,11 +12,11 @@ import time
 import numpy as np
 import psycopg
 import pytest
+from support.browser import chromium, serving, severe_console_entries
+from support.data import REPO
+from support.snippet_oracle import resolve_profile
 
-from browser import chromium, serving, severe_console_entries
-from conftest import REPO
 from modb_kernel.joints import STANDARD_JOINTS
-from snippet_oracle import resolve_profile
 
 ARRIVAL_RADIUS = 0.5  # the page's default, metres
 ARTIFACTS = REPO / "tests" / "artifacts"
@@ -33,21 +35,24 @@ def browser():
 
 
 def open_avatar(driver, address: str) -> None:
-    """The page, connected; its view stays where the test puts it (a view that follows the avatar would move
-    between reading where a point shows and the click)."""
+    """The page, connected; its view stays where the test puts it (a view that follows the avatar
+    would move between reading where a point shows and the click)."""
     from selenium.webdriver.common.by import By
 
     driver.get(f"http://{address}/avatar")
     ready = driver.execute_async_script(
-        "const done = arguments[0]; window.modbAvatar.ready.then(done, (e) => done(String(e)))")
+        "const done = arguments[0]; window.modbAvatar.ready.then(done, (e) => done(String(e)))"
+    )
     assert ready is True, ready
     driver.find_element(By.ID, "follow").click()
 
 
 def page_state(driver) -> dict:
-    return driver.execute_script("const s = window.modbAvatar.state; return {goals: s.goals, goalIndex: s.goalIndex, "
-                                 "frames: s.frames, frame: s.frame, choices: s.choices, messages: s.messages, "
-                                 "trail: window.modbAvatar.trail()}")
+    return driver.execute_script(
+        "const s = window.modbAvatar.state; return {goals: s.goals, goalIndex: s.goalIndex, "
+        "frames: s.frames, frame: s.frame, choices: s.choices, messages: s.messages, "
+        "trail: window.modbAvatar.trail()}"
+    )
 
 
 def wait_until(driver, condition, timeout: float, what: str) -> dict:
@@ -58,21 +63,28 @@ def wait_until(driver, condition, timeout: float, what: str) -> dict:
         if condition(state):
             return state
         if time.monotonic() > deadline:
-            raise AssertionError(f"{what}: not within {timeout} s; the page has {len(state['choices'])} selections, "
-                                 f"goals {state['goals']}, last messages {state['messages'][-3:]}")
+            raise AssertionError(
+                f"{what}: not within {timeout} s; the page has {len(state['choices'])} selections, "
+                f"goals {state['goals']}, last messages {state['messages'][-3:]}"
+            )
         time.sleep(0.2)
 
 
 def click_ground(driver, x: float, z: float, waypoint: bool = False) -> None:
-    """A real pointer click (WebDriver actions) where the ground point (x, z) shows on the canvas."""
+    """A real pointer click (WebDriver actions) where the ground point (x, z) shows on the
+    canvas."""
     from selenium.webdriver.common.action_chains import ActionChains
     from selenium.webdriver.common.by import By
     from selenium.webdriver.common.keys import Keys
 
-    offset = driver.execute_script("return window.modbAvatar.offsetOf(arguments[0], arguments[1])", x, z)
+    offset = driver.execute_script(
+        "return window.modbAvatar.offsetOf(arguments[0], arguments[1])", x, z
+    )
     assert offset["visible"], f"({x}, {z}) is not on the canvas: {offset}"
     canvas = driver.find_element(By.CSS_SELECTOR, "#view canvas")
-    actions = ActionChains(driver).move_to_element_with_offset(canvas, round(offset["x"]), round(offset["y"]))
+    actions = ActionChains(driver).move_to_element_with_offset(
+        canvas, round(offset["x"]), round(offset["y"])
+    )
     if waypoint:
         actions = actions.key_down(Keys.SHIFT).click().key_up(Keys.SHIFT)
     else:
@@ -82,16 +94,26 @@ def click_ground(driver, x: float, z: float, waypoint: bool = False) -> None:
 
 def look_at(driver, x: float, z: float) -> None:
     """Turns the view (as a user dragging it would) to look down on the ground point (x, z)."""
-    driver.execute_script("window.modbAvatar.stage.look([arguments[0], 12, arguments[1] - 6], "
-                          "[arguments[0], 0, arguments[1]])", x, z)
+    driver.execute_script(
+        "window.modbAvatar.stage.look([arguments[0], 12, arguments[1] - 6], "
+        "[arguments[0], 0, arguments[1]])",
+        x,
+        z,
+    )
 
 
 def closest_approach(trail: list, goal: tuple[float, float]) -> float:
     points = np.asarray(trail, dtype=float)
-    return float(np.hypot(points[:, 0] - goal[0], points[:, 1] - goal[1]).min()) if len(points) else np.inf
+    return (
+        float(np.hypot(points[:, 0] - goal[0], points[:, 1] - goal[1]).min())
+        if len(points)
+        else np.inf
+    )
 
 
-def test_a_click_sets_a_goal_the_avatar_reaches_and_one_behind_it_turns_it_around(avatar_server, browser):
+def test_a_click_sets_a_goal_the_avatar_reaches_and_one_behind_it_turns_it_around(
+    avatar_server, browser
+):
     from selenium.webdriver.common.by import By
 
     address = avatar_server[0]
@@ -99,13 +121,18 @@ def test_a_click_sets_a_goal_the_avatar_reaches_and_one_behind_it_turns_it_aroun
     first = (1.0, 4.0)
     click_ground(browser, *first)
     state = wait_until(browser, lambda s: len(s["goals"]) == 1, 10, "the clicked goal")
-    assert np.hypot(*np.subtract(state["goals"][0], first)) < 0.1, state["goals"]  # the pointer's ground point
+    # the pointer's ground point
+    assert np.hypot(*np.subtract(state["goals"][0], first)) < 0.1, state["goals"]
     first = tuple(state["goals"][0])
     look_at(browser, *first)
-    state = wait_until(browser, lambda s: closest_approach(s["trail"], first) <= ARRIVAL_RADIUS, 60,
-                       "the pelvis within the arrival radius of the first goal")
-    # Streamed at the capture's rate (30 fps here), by this test's clock: never ahead; behind only by the
-    # queries that playback waits for (lead time 0) and a loaded machine.
+    state = wait_until(
+        browser,
+        lambda s: closest_approach(s["trail"], first) <= ARRIVAL_RADIUS,
+        60,
+        "the pelvis within the arrival radius of the first goal",
+    )
+    # Streamed at the capture's rate (30 fps here), by this test's clock: never ahead; behind only
+    # by the queries that playback waits for (lead time 0) and a loaded machine.
     before, t0 = page_state(browser)["frames"], time.monotonic()
     time.sleep(3)
     after, t1 = page_state(browser)["frames"], time.monotonic()
@@ -120,53 +147,78 @@ def test_a_click_sets_a_goal_the_avatar_reaches_and_one_behind_it_turns_it_aroun
     behind = tuple(here - 4.0 * direction)
     look_at(browser, *(here + np.array(behind)) / 2)
     click_ground(browser, *behind)
-    state = wait_until(browser, lambda s: len(s["goals"]) == 1 and np.hypot(*np.subtract(s["goals"][0], behind)) < 0.1,
-                       10, "the second goal")
+    state = wait_until(
+        browser,
+        lambda s: len(s["goals"]) == 1 and np.hypot(*np.subtract(s["goals"][0], behind)) < 0.1,
+        10,
+        "the second goal",
+    )
     second = tuple(state["goals"][0])
     start = len(state["trail"])
-    state = wait_until(browser, lambda s: closest_approach(s["trail"][start:], second) <= ARRIVAL_RADIUS, 90,
-                       "the pelvis within the arrival radius of the goal behind it")
+    state = wait_until(
+        browser,
+        lambda s: closest_approach(s["trail"][start:], second) <= ARRIVAL_RADIUS,
+        90,
+        "the pelvis within the arrival radius of the goal behind it",
+    )
     walked = np.asarray(state["trail"][start:])
-    assert np.dot(walked[-1] - walked[0], direction) < -2.0  # it turned: it went back the way it had come
-    # The streamed frames put the pelvis, as the page's own kinematics computes it, where each selection
-    # said its snippet would end (the server's placement arithmetic).
+    # it turned: it went back the way it had come
+    assert np.dot(walked[-1] - walked[0], direction) < -2.0
+    # The streamed frames put the pelvis, as the page's own kinematics computes it, where each
+    # selection said its snippet would end (the server's placement arithmetic).
     pelvis_at = browser.execute_script("return window.modbAvatar.state.pelvisAt")
-    ends = [(m["end_frame"], m["end"]["position"]) for m in state["messages"] if m["type"] == "choice"]
+    ends = [
+        (m["end_frame"], m["end"]["position"]) for m in state["messages"] if m["type"] == "choice"
+    ]
     checked = [(str(f), p) for f, p in ends if str(f) in pelvis_at]
     assert len(checked) >= 10
     for frame, end in checked:
         assert np.hypot(pelvis_at[frame][0] - end[0], pelvis_at[frame][2] - end[2]) < 0.01, frame
     ARTIFACTS.mkdir(exist_ok=True)
     middle = (np.asarray(first) + np.asarray(second)) / 2
-    browser.execute_script("window.modbAvatar.stage.look([arguments[0] + 2, 6, arguments[1] - 6], "
-                           "[arguments[0], 0, arguments[1]])", *middle)
+    browser.execute_script(
+        "window.modbAvatar.stage.look([arguments[0] + 2, 6, arguments[1] - 6], "
+        "[arguments[0], 0, arguments[1]])",
+        *middle,
+    )
     browser.find_element(By.ID, "follow").click()  # as the page starts: the view follows the avatar
     time.sleep(0.5)
-    browser.save_screenshot(str(ARTIFACTS / "avatar-mode.png"))  # the README's picture (docs/avatar-mode.png)
+    # the README's picture (docs/avatar-mode.png)
+    browser.save_screenshot(str(ARTIFACTS / "avatar-mode.png"))
     assert severe_console_entries(browser) == []
 
 
-# --- candidate counts, against a brute-force count over the stored features -----------------------------
+# --- candidate counts, against a brute-force count over the stored features -----------------------
+
 
 @pytest.fixture(scope="module")
 def features(locomotion) -> dict:
-    """Every snippet's begin and end feature point (as stored), pose key and rate; the profiles; the names."""
+    """Every snippet's begin and end feature point (as stored), pose key and rate; the profiles; the
+    names."""
     with psycopg.connect(locomotion) as conn:
-        rows = conn.execute("SELECT s.id, s.pose_key, s.fps, b.features::text, e.features::text "
-                            "FROM modb.snippets s JOIN modb.terminators b ON b.id = s.begin_terminator "
-                            "JOIN modb.terminators e ON e.id = s.end_terminator ORDER BY s.id").fetchall()
+        rows = conn.execute(
+            "SELECT s.id, s.pose_key, s.fps, b.features::text, e.features::text "
+            "FROM modb.snippets s JOIN modb.terminators b ON b.id = s.begin_terminator "
+            "JOIN modb.terminators e ON e.id = s.end_terminator ORDER BY s.id"
+        ).fetchall()
         names = conn.execute("SELECT modb.feature_names()").fetchone()[0]
         profiles = dict(conn.execute("SELECT name, settings FROM modb.match_profiles").fetchall())
     point = lambda text: [float(v) for v in text.strip("()").split(",")]  # noqa: E731
-    return {"index": {r[0]: k for k, r in enumerate(rows)}, "pose": np.array([r[1] for r in rows]),
-            "fps": np.array([r[2] for r in rows]), "begin": np.array([point(r[3]) for r in rows]),
-            "end": np.array([point(r[4]) for r in rows]), "names": names, "profiles": profiles}
+    return {
+        "index": {r[0]: k for k, r in enumerate(rows)},
+        "pose": np.array([r[1] for r in rows]),
+        "fps": np.array([r[2] for r in rows]),
+        "begin": np.array([point(r[3]) for r in rows]),
+        "end": np.array([point(r[4]) for r in rows]),
+        "names": names,
+        "profiles": profiles,
+    }
 
 
 def half_widths(features: dict, knobs: dict[str, str]) -> np.ndarray:
-    """The box of the default profile with these knobs: a position feature of an included joint gets that
-    joint's position threshold, a velocity one its velocity threshold (with velocity terms on), a
-    rotation-matrix entry the chord of its angle threshold; the rest are unbounded."""
+    """The box of the default profile with these knobs: a position feature of an included joint gets
+    that joint's position threshold, a velocity one its velocity threshold (with velocity terms on),
+    a rotation-matrix entry the chord of its angle threshold; the rest are unbounded."""
     plan = resolve_profile(features["profiles"]["default"], knobs)
     included = [STANDARD_JOINTS[j] for j in plan["joints"]]
     out = []
@@ -183,8 +235,8 @@ def half_widths(features: dict, knobs: dict[str, str]) -> np.ndarray:
 
 
 def brute_force_count(features: dict, prev: int, level: int, knobs: dict[str, str]) -> int:
-    """What select_next_snippet scores without a graph's stored transitions: the snippets of prev's pose and
-    rate in the box of each level up to `level` (all of them at level 4), summed."""
+    """What select_next_snippet scores without a graph's stored transitions: the snippets of prev's
+    pose and rate in the box of each level up to `level` (all of them at level 4), summed."""
     p = features["index"][prev]
     same = (features["pose"] == features["pose"][p]) & (features["fps"] == features["fps"][p])
     hw, f, c = half_widths(features, knobs), features["end"][p], features["begin"]
@@ -193,15 +245,19 @@ def brute_force_count(features: dict, prev: int, level: int, knobs: dict[str, st
         if lvl == 4:
             total += int(same.sum())
         else:
-            scale = 2.0 ** lvl
+            scale = 2.0**lvl
             inside = ((c >= f - scale * hw - 1e-4) & (c <= f + scale * hw + 1e-4)).all(axis=1)
             total += int((inside & same).sum())
     return total
 
 
 def settings_changed(driver, since: int) -> dict:
-    return wait_until(driver, lambda s: any(m["type"] in ("settings", "refused") for m in s["messages"][since:]), 10,
-                      "the server's answer to the settings")
+    return wait_until(
+        driver,
+        lambda s: any(m["type"] in ("settings", "refused") for m in s["messages"][since:]),
+        10,
+        "the server's answer to the settings",
+    )
 
 
 def set_in_panel(driver, element_id: str, value: str) -> None:
@@ -224,12 +280,16 @@ def walk_without_graph(driver, address: str, goal: tuple[float, float]) -> None:
     since = len(page_state(driver)["messages"])
     set_in_panel(driver, "graph", "")
     state = settings_changed(driver, since)
-    assert state["messages"][-1]["type"] == "settings" and state["messages"][-1]["settings"]["graph"] is None
+    assert (
+        state["messages"][-1]["type"] == "settings"
+        and state["messages"][-1]["settings"]["graph"] is None
+    )
     click_ground(driver, *goal)
 
 
 def counted(state: dict, after_message: int = 0) -> list[tuple[int, int, int]]:
-    """(previous snippet, relax level, candidates reported) of the selections reported after a message."""
+    """(previous snippet, relax level, candidates reported) of the selections reported after a
+    message."""
     out, previous = [], None
     for k, m in enumerate(state["messages"]):
         if m["type"] == "choice":
@@ -240,7 +300,8 @@ def counted(state: dict, after_message: int = 0) -> list[tuple[int, int, int]]:
 
 
 def test_a_threshold_changed_in_the_panel_changes_the_candidate_counts_of_the_next_queries(
-        avatar_server, browser, features):
+    avatar_server, browser, features
+):
     address = avatar_server[0]
     walk_without_graph(browser, address, (0.0, 5.0))
     state = wait_until(browser, lambda s: len(counted(s)) >= 4, 30, "four selections")
@@ -250,25 +311,34 @@ def test_a_threshold_changed_in_the_panel_changes_the_candidate_counts_of_the_ne
     set_in_panel(browser, "position_threshold", "0.05")
     state = settings_changed(browser, since)
     answer = next(m for m in state["messages"][since:] if m["type"] in ("settings", "refused"))
-    assert answer["type"] == "settings" and answer["settings"]["knobs"] == {"position_threshold": "0.05"}, answer
+    assert answer["type"] == "settings" and answer["settings"]["knobs"] == {
+        "position_threshold": "0.05"
+    }, answer
     changed_at = state["messages"].index(answer)
-    # The selection in flight when the change arrived may still use the old thresholds: the ones after it.
-    state = wait_until(browser, lambda s: len(counted(s, changed_at)) >= 5, 30, "five selections after the change")
+    # The selection in flight when the change arrived may still use the old thresholds: the ones
+    # after it.
+    state = wait_until(
+        browser, lambda s: len(counted(s, changed_at)) >= 5, 30, "five selections after the change"
+    )
     after = counted(state, changed_at)[1:]
     new = {"position_threshold": "0.05"}
     for prev, level, reported in after:
         assert reported == brute_force_count(features, prev, level, new), (prev, level)
-    assert any(reported != brute_force_count(features, prev, level, {}) for prev, level, reported in after)
+    assert any(
+        reported != brute_force_count(features, prev, level, {}) for prev, level, reported in after
+    )
     assert_readouts_summarise_the_last_selections(browser)
     assert severe_console_entries(browser) == []
 
 
 def assert_readouts_summarise_the_last_selections(driver) -> None:
-    """The panel shows figures over the last 50 selections: recomputed here from the selections reported,
-    and read from the page in the same step as the cells it shows."""
+    """The panel shows figures over the last 50 selections: recomputed here from the selections
+    reported, and read from the page in the same step as the cells it shows."""
     messages, cells = driver.execute_script(
-        "return [window.modbAvatar.state.messages, Object.fromEntries(['latency', 'selections', 'candidates', "
-        "'relax', 'seams'].map((id) => [id, document.getElementById(id).textContent]))]")
+        "return [window.modbAvatar.state.messages, Object.fromEntries(['latency', 'selections', "
+        "'candidates', "
+        "'relax', 'seams'].map((id) => [id, document.getElementById(id).textContent]))]"
+    )
     choices = [m for m in messages if m["type"] == "choice"]
     last, window = choices[-1], choices[-50:]
     latencies = [c["latency_ms"] for c in window]
@@ -278,17 +348,26 @@ def assert_readouts_summarise_the_last_selections(driver) -> None:
     assert r["selections"] == len(window)
     assert r["latency_p50_ms"] == pytest.approx(np.median(latencies))
     assert r["latency_p99_ms"] == pytest.approx(np.percentile(latencies, 99))
-    assert r["seam_ratio_median"] == pytest.approx(np.median(seams)) and r["seam_ratio_max"] == pytest.approx(seams.max())
-    assert r["seam_rough_share"] == pytest.approx(np.mean(seams > 1)) and r["candidates"] == last["candidates"]
+    assert r["seam_ratio_median"] == pytest.approx(np.median(seams))
+    assert r["seam_ratio_max"] == pytest.approx(seams.max())
+    assert (
+        r["seam_rough_share"] == pytest.approx(np.mean(seams > 1))
+        and r["candidates"] == last["candidates"]
+    )
     assert r["relaxed_share"] == pytest.approx(relaxed)
     assert cells == {
         "latency": f"{np.median(latencies):.1f} / {np.percentile(latencies, 99):.1f} ms",
-        "selections": str(len(window)), "candidates": str(last["candidates"]),
+        "selections": str(len(window)),
+        "candidates": str(last["candidates"]),
         "relax": f"{last['relax_level']} (relaxed {100 * relaxed:.0f}%)",
-        "seams": f"r median {np.median(seams):.2f}, max {seams.max():.2f}; {100 * np.mean(seams > 1):.0f}% over 1"}
+        "seams": f"r median {np.median(seams):.2f}, max {seams.max():.2f}; "
+        f"{100 * np.mean(seams > 1):.0f}% over 1",
+    }
 
 
-def test_two_browser_connections_with_different_settings_do_not_affect_each_other(avatar_server, browser, features):
+def test_two_browser_connections_with_different_settings_do_not_affect_each_other(
+    avatar_server, browser, features
+):
     from selenium.webdriver.common.by import By
 
     address = avatar_server[0]
@@ -298,56 +377,98 @@ def test_two_browser_connections_with_different_settings_do_not_affect_each_othe
         since = len(page_state(browser)["messages"])
         set_in_panel(browser, "position_threshold", "0.08")
         set_in_panel(browser, "velocity_terms", "off")  # the box no longer bounds velocities
-        state = wait_until(browser, lambda s: sum(m["type"] == "settings" for m in s["messages"][since:]) >= 2, 10,
-                           "both settings answered")
+        state = wait_until(
+            browser,
+            lambda s: sum(m["type"] == "settings" for m in s["messages"][since:]) >= 2,
+            10,
+            "both settings answered",
+        )
         mine = {"position_threshold": "0.08", "velocity_terms": "off"}
-        assert [m for m in state["messages"] if m["type"] == "settings"][-1]["settings"]["knobs"] == mine
+        assert [m for m in state["messages"] if m["type"] == "settings"][-1]["settings"][
+            "knobs"
+        ] == mine
         changed_at = len(state["messages"])
-        # The other page leaves the wrists out of the comparison (their features are then unbounded).
+        # The other page leaves the wrists out of the comparison (their features are then
+        # unbounded).
         other_since = len(page_state(other)["messages"])
         for wrist in ("left_wrist", "right_wrist"):
             other.find_element(By.CSS_SELECTOR, f"input[name=joint][value={wrist}]").click()
-        theirs_state = wait_until(other, lambda s: sum(m["type"] == "settings" for m in s["messages"][other_since:]) >= 2,
-                                  10, "the other page's settings answered")
+        theirs_state = wait_until(
+            other,
+            lambda s: sum(m["type"] == "settings" for m in s["messages"][other_since:]) >= 2,
+            10,
+            "the other page's settings answered",
+        )
         without_wrists = [j for j in STANDARD_JOINTS if j not in ("left_wrist", "right_wrist")]
         theirs_knobs = {"joints": ",".join(without_wrists)}
-        assert [m for m in theirs_state["messages"] if m["type"] == "settings"][-1]["settings"]["knobs"] == theirs_knobs
+        assert [m for m in theirs_state["messages"] if m["type"] == "settings"][-1]["settings"][
+            "knobs"
+        ] == theirs_knobs
         other_changed_at = len(theirs_state["messages"])
-        wait_until(browser, lambda s: len(counted(s, changed_at)) >= 4, 30, "selections after the change")
-        theirs = wait_until(other, lambda s: len(counted(s, other_changed_at)) >= 4, 30, "the other page's selections")
+        wait_until(
+            browser, lambda s: len(counted(s, changed_at)) >= 4, 30, "selections after the change"
+        )
+        theirs = wait_until(
+            other,
+            lambda s: len(counted(s, other_changed_at)) >= 4,
+            30,
+            "the other page's selections",
+        )
         ours = page_state(browser)
         # Each page's selections count by its own settings, never the other's.
-        assert [m["settings"]["knobs"] for m in ours["messages"] if m["type"] == "settings"][-1] == mine
+        assert [m["settings"]["knobs"] for m in ours["messages"] if m["type"] == "settings"][
+            -1
+        ] == mine
         for prev, level, reported in counted(theirs, other_changed_at)[1:]:
             assert reported == brute_force_count(features, prev, level, theirs_knobs), (prev, level)
-        assert any(reported != brute_force_count(features, prev, level, mine)
-                   for prev, level, reported in counted(theirs, other_changed_at)[1:])
+        assert any(
+            reported != brute_force_count(features, prev, level, mine)
+            for prev, level, reported in counted(theirs, other_changed_at)[1:]
+        )
         for prev, level, reported in counted(ours, changed_at)[1:]:
             assert reported == brute_force_count(features, prev, level, mine), (prev, level)
-        assert any(reported != brute_force_count(features, prev, level, {})
-                   for prev, level, reported in counted(ours, changed_at)[1:])
+        assert any(
+            reported != brute_force_count(features, prev, level, {})
+            for prev, level, reported in counted(ours, changed_at)[1:]
+        )
         assert severe_console_entries(other) == []
 
 
-def test_shift_click_adds_waypoints_served_in_order_and_the_goals_are_marked(avatar_server, browser):
+def test_shift_click_adds_waypoints_served_in_order_and_the_goals_are_marked(
+    avatar_server, browser
+):
     open_avatar(browser, avatar_server[0])
     look_at(browser, 1.0, 4.0)
     click_ground(browser, 0.0, 3.0)
     click_ground(browser, 2.5, 5.5, waypoint=True)
     state = wait_until(browser, lambda s: len(s["goals"]) == 2, 10, "the goal and its waypoint")
     goals = [tuple(g) for g in state["goals"]]
-    assert np.hypot(*np.subtract(goals[0], (0.0, 3.0))) < 0.1 and np.hypot(*np.subtract(goals[1], (2.5, 5.5))) < 0.1
-    marks = browser.execute_script("const c = window.modbAvatar.course; return [c.current.visible, "
-                                   "c.current.position.toArray(), c.waypoints.map((w) => w.position.toArray())]")
+    assert (
+        np.hypot(*np.subtract(goals[0], (0.0, 3.0))) < 0.1
+        and np.hypot(*np.subtract(goals[1], (2.5, 5.5))) < 0.1
+    )
+    marks = browser.execute_script(
+        "const c = window.modbAvatar.course; return [c.current.visible, "
+        "c.current.position.toArray(), c.waypoints.map((w) => w.position.toArray())]"
+    )
     assert marks[0] and np.hypot(marks[1][0] - goals[0][0], marks[1][2] - goals[0][1]) < 1e-6
-    assert len(marks[2]) == 1 and np.hypot(marks[2][0][0] - goals[1][0], marks[2][0][2] - goals[1][1]) < 1e-6
-    state = wait_until(browser, lambda s: closest_approach(s["trail"], goals[1]) <= ARRIVAL_RADIUS, 90,
-                       "the pelvis within the arrival radius of the waypoint")
+    assert (
+        len(marks[2]) == 1
+        and np.hypot(marks[2][0][0] - goals[1][0], marks[2][0][2] - goals[1][1]) < 1e-6
+    )
+    state = wait_until(
+        browser,
+        lambda s: closest_approach(s["trail"], goals[1]) <= ARRIVAL_RADIUS,
+        90,
+        "the pelvis within the arrival radius of the waypoint",
+    )
     trail = np.asarray(state["trail"])
     near = [np.flatnonzero(np.hypot(*(trail - g).T) <= ARRIVAL_RADIUS) for g in goals]
     assert len(near[0]) and near[0][0] < near[1][0]  # the goal first, then the waypoint
     # The marker moved on to the waypoint once the goal was served.
-    wait_until(browser, lambda s: s["goalIndex"] == 1, 10, "the waypoint marked as the goal being served")
+    wait_until(
+        browser, lambda s: s["goalIndex"] == 1, 10, "the waypoint marked as the goal being served"
+    )
     current = browser.execute_script("return window.modbAvatar.course.current.position.toArray()")
     assert np.hypot(current[0] - goals[1][0], current[2] - goals[1][1]) < 1e-6
 
@@ -363,31 +484,55 @@ def test_every_panel_control_reaches_this_connections_settings(avatar_server, br
             browser.find_element(By.CSS_SELECTOR, click).click()
         else:
             set_in_panel(browser, element_id, value)
-        return next(m for m in settings_changed(browser, since)["messages"][since:] if m["type"] in ("settings", "refused"))
+        return next(
+            m
+            for m in settings_changed(browser, since)["messages"][since:]
+            if m["type"] in ("settings", "refused")
+        )
 
     locomotion_joints = features["profiles"]["locomotion"]["joints"]
     settings = answer("profile", "locomotion")["settings"]
-    assert settings["profile"] == "locomotion" and settings["knobs"] == {}  # its own joints: no knob
-    shown = [e.get_attribute("value") for e in browser.find_elements(By.CSS_SELECTOR, "input[name=joint]:checked")]
+    # its own joints: no knob
+    assert settings["profile"] == "locomotion" and settings["knobs"] == {}
+    shown = [
+        e.get_attribute("value")
+        for e in browser.find_elements(By.CSS_SELECTOR, "input[name=joint]:checked")
+    ]
     assert sorted(shown) == sorted(locomotion_joints)
     settings = answer(None, None, click="input[name=joint][value=pelvis]")["settings"]
-    assert settings["knobs"] == {"joints": ",".join(j for j in STANDARD_JOINTS if j in locomotion_joints and j != "pelvis")}
+    assert settings["knobs"] == {
+        "joints": ",".join(j for j in STANDARD_JOINTS if j in locomotion_joints and j != "pelvis")
+    }
     assert answer("norm", "l1")["settings"]["knobs"]["norm"] == "l1"
     assert answer("velocity_terms", "off")["settings"]["knobs"]["velocity_terms"] == "off"
-    assert answer("angular_velocity_threshold", "3.5")["settings"]["knobs"]["angular_velocity_threshold"] == "3.5"
+    assert (
+        answer("angular_velocity_threshold", "3.5")["settings"]["knobs"][
+            "angular_velocity_threshold"
+        ]
+        == "3.5"
+    )
     assert answer("lead_time", "0.3")["settings"]["lead_time"] == 0.3
     assert answer("arrival_radius", "1")["settings"]["arrival_radius"] == 1.0
-    assert answer("collection", "bandai-2/locomotion")["settings"]["collection"] == "bandai-2/locomotion"
+    assert (
+        answer("collection", "bandai-2/locomotion")["settings"]["collection"]
+        == "bandai-2/locomotion"
+    )
     assert answer("graph", "")["settings"]["graph"] is None
     refused = answer("position_threshold", "-1")
     assert refused["type"] == "refused" and "thresholds must be positive" in refused["message"]
     assert browser.find_element(By.ID, "status").text == refused["message"]
-    assert browser.find_element(By.ID, "position_threshold").get_attribute("value") == ""  # back to what is in force
-    assert refused["settings"]["knobs"] == {"joints": settings["knobs"]["joints"], "norm": "l1", "velocity_terms": "off",
-                                            "angular_velocity_threshold": "3.5"}
+    # back to what is in force
+    assert browser.find_element(By.ID, "position_threshold").get_attribute("value") == ""
+    assert refused["settings"]["knobs"] == {
+        "joints": settings["knobs"]["joints"],
+        "norm": "l1",
+        "velocity_terms": "off",
+        "angular_velocity_threshold": "3.5",
+    }
 
 
-# --- the WebSocket itself --------------------------------------------------------------------------------
+# --- the WebSocket itself -------------------------------------------------------------------------
+
 
 @contextlib.contextmanager
 def socket_to(address: str, origin: str | None):
@@ -430,4 +575,3 @@ def test_bad_settings_are_refused_with_the_reason_and_the_walk_goes_on(avatar_se
         while "frame" not in kinds and time.monotonic() < deadline:
             kinds.add(json.loads(ws.recv(10))["type"])
         assert {"goals", "skeleton", "choice", "frame"} <= kinds
-

@@ -1,13 +1,14 @@
-"""The benchmark's speed-resampled clips (modb.bench.resampled.at_speed) on a real capture: whole steps keep the
-captured frames, half steps lie halfway between them (rotation angles by scipy, positions by bvhio-checked
-forward kinematics)."""
+"""The benchmark's speed-resampled clips (modb.bench.resampled.at_speed) on a real capture: whole
+steps keep the captured frames, half steps lie halfway between them (rotation angles by scipy,
+positions by bvhio-checked forward kinematics)."""
+
 from __future__ import annotations
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
+from support.data import mocap
 
-from conftest import mocap
 from modb.bench.resampled import at_speed
 from modb.loader.bvh import read_bvh
 
@@ -31,13 +32,16 @@ def test_twice_as_fast_keeps_every_other_frame(walk):
 def test_half_speed_puts_a_frame_halfway_between_each_pair(walk):
     slow = at_speed(walk, 0.5)
     assert slow.n_frames == 2 * walk.n_frames - 1
-    between, before, after = (_rotations(q) for q in (slow.rotations[1::2], walk.rotations[:-1], walk.rotations[1:]))
+    between, before, after = (
+        _rotations(q) for q in (slow.rotations[1::2], walk.rotations[:-1], walk.rotations[1:])
+    )
     apart = (before.inv() * after).magnitude()
     assert np.abs((before.inv() * between).magnitude() - apart / 2).max() < 1e-6
     assert np.abs((between.inv() * after).magnitude() - apart / 2).max() < 1e-6
     assert np.all(slow.rotations[..., 0] >= 0)  # the model's sign convention
     mid = (walk.world_positions()[:-1] + walk.world_positions()[1:]) / 2
-    assert np.abs(slow.world_positions()[1::2] - mid).max() < 0.01  # 1 cm: rotations do not interpolate linearly
+    # 1 cm: rotations do not interpolate linearly
+    assert np.abs(slow.world_positions()[1::2] - mid).max() < 0.01
 
 
 def test_a_speed_must_be_positive(walk):

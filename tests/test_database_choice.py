@@ -1,4 +1,5 @@
 """Which database modb uses, and the embedded cluster's lifecycle through `modb db`."""
+
 from __future__ import annotations
 
 import os
@@ -8,7 +9,6 @@ import sys
 import tempfile
 from pathlib import Path
 
-import pytest
 
 from modb.database import dsn
 
@@ -30,13 +30,16 @@ def _modb(home: Path, *args: str) -> subprocess.CompletedProcess:
     env["MODB_HOME"] = str(home)
     # A user's Python environment must not reach the server's PL/Python (it runs apt's numpy).
     env["PYTHONPATH"] = os.pathsep.join(p for p in sys.path if "site-packages" in p)
-    return subprocess.run([sys.executable, "-m", "modb.cli", *args], capture_output=True, text=True, env=env)
+    return subprocess.run(
+        [sys.executable, "-m", "modb.cli", *args], capture_output=True, text=True, env=env
+    )
 
 
 def test_embedded_cluster_lifecycle():
     home = Path(tempfile.mkdtemp(prefix="modb-embedded-")) / "home"
     try:
-        if os.geteuid() == 0:  # the postgres OS user must reach MODB_HOME: first see the error that says so
+        # the postgres OS user must reach MODB_HOME: first see the error that says so
+        if os.geteuid() == 0:
             r = _modb(home, "db", "start")
             assert r.returncode == 1 and "cannot reach" in r.stderr, r.stderr
             shutil.rmtree(home)
@@ -50,7 +53,8 @@ def test_embedded_cluster_lifecycle():
         url = _modb(home, "db", "url").stdout.strip()
         assert f"host={home / 'run'}" in url and "dbname=modb" in url
         assert (home / "run" / ".s.PGSQL.5432").exists()
-        assert oct((home / "run").stat().st_mode & 0o777) == "0o700"  # other users cannot reach the socket
+        # other users cannot reach the socket
+        assert oct((home / "run").stat().st_mode & 0o777) == "0o700"
         conf = (home / "pgdata" / "postgresql.auto.conf").read_text()
         assert "listen_addresses = ''" in conf  # no TCP
         if os.geteuid() == 0:
@@ -58,12 +62,19 @@ def test_embedded_cluster_lifecycle():
         import psycopg
 
         with psycopg.connect(url, autocommit=True) as conn:
-            conn.execute("CREATE FUNCTION pg_temp.numpy_file() RETURNS text LANGUAGE plpython3u "
-                         "AS $$ import numpy; return numpy.__file__ $$")
+            conn.execute(
+                "CREATE FUNCTION pg_temp.numpy_file() RETURNS text LANGUAGE plpython3u "
+                "AS $$ import numpy; return numpy.__file__ $$"
+            )
             numpy_file = conn.execute("SELECT pg_temp.numpy_file()").fetchone()[0]
-            shared_mb = conn.execute("SELECT setting::bigint * 8 / 1024 FROM pg_settings WHERE name = 'shared_buffers'").fetchone()[0]
-        memory_kb = int(next(line.split()[1] for line in open("/proc/meminfo") if line.startswith("MemTotal:")))
-        assert shared_mb == max(128, min(8192, memory_kb // 4 // 1024)), shared_mb  # a quarter of the memory
+            shared_mb = conn.execute(
+                "SELECT setting::bigint * 8 / 1024 FROM pg_settings WHERE name = 'shared_buffers'"
+            ).fetchone()[0]
+        memory_kb = int(
+            next(line.split()[1] for line in open("/proc/meminfo") if line.startswith("MemTotal:"))
+        )
+        # a quarter of the memory
+        assert shared_mb == max(128, min(8192, memory_kb // 4 // 1024)), shared_mb
         assert numpy_file.startswith("/usr/lib/python3/dist-packages/"), numpy_file
         assert _modb(home, "db", "stop").returncode == 0
         r = _modb(home, "db", "status")

@@ -1,4 +1,5 @@
 """The shared quaternion code against scipy's independent implementation."""
+
 import itertools
 
 import numpy as np
@@ -80,7 +81,11 @@ def test_validate_rejects_bad_quaternions():
 @pytest.mark.parametrize("middle", [90.0, -90.0, 89.9999999, -89.99999999])
 def test_to_euler_at_gimbal_lock(order, middle):
     rng = np.random.default_rng(9)
-    angles = np.radians(np.column_stack([rng.uniform(-180, 180, 50), np.full(50, middle), rng.uniform(-180, 180, 50)]))
+    angles = np.radians(
+        np.column_stack(
+            [rng.uniform(-180, 180, 50), np.full(50, middle), rng.uniform(-180, 180, 50)]
+        )
+    )
     q = quaternion.from_euler(angles, order)
     back = quaternion.from_euler(quaternion.to_euler(q, order), order)
     assert np.allclose(quaternion.angle_between(back, q), 0.0, atol=1e-6)

@@ -1,21 +1,20 @@
-"""`modb load`: summaries, idempotent re-loads, versions, and bad files that leave nothing behind."""
+"""`modb load`: summaries, idempotent re-loads, versions, and bad files that leave nothing
+behind."""
+
 from __future__ import annotations
 
 import shutil
 
 import numpy as np
 import pytest
+from support.bvh_oracle import bvhio_world_positions, in_order
+from support.commands import run_modb
+from support.data import mocap
+from support.databases import counts
 
-from conftest import mocap, run_modb
 from modb.loader.bvh import read_bvh
-from oracle import bvhio_world_positions, in_order
 
 WALK = ("bandai-1", "data", "dataset-1_walk_active_001.bvh")
-
-
-def counts(db) -> tuple[int, ...]:
-    return tuple(db.execute(f"SELECT count(*) FROM modb.{t}").fetchone()[0]
-                 for t in ("collections", "skeletons", "clips", "clip_versions"))
 
 
 def test_directory_load_summary_and_idempotent_reload(fresh_db, db):
@@ -27,7 +26,12 @@ def test_directory_load_summary_and_idempotent_reload(fresh_db, db):
     assert "frames/s" in r.stdout
     before = counts(db)
     assert before == (1, 1, 3, 3)  # one collection named after the folder, one shared skeleton
-    assert db.execute("SELECT modb.collection_path(collection_id) FROM modb.clips LIMIT 1").fetchone()[0] == "bvh"
+    assert (
+        db.execute("SELECT modb.collection_path(collection_id) FROM modb.clips LIMIT 1").fetchone()[
+            0
+        ]
+        == "bvh"
+    )
     r = run_modb(fresh_db, "load", src, "--units", "0.0564444")
     assert r.returncode == 0 and "0 clip versions loaded" in r.stdout and "3 unchanged" in r.stdout
     assert counts(db) == before
@@ -65,25 +69,51 @@ def _cut_value(k: int):
 
 
 def _replace_value(k: int, word: str):
-    return lambda L: L.__setitem__(k, " ".join(word if n == 4 else w for n, w in enumerate(L[k].split())))
+    return lambda L: L.__setitem__(
+        k, " ".join(word if n == 4 else w for n, w in enumerate(L[k].split()))
+    )
 
 
 # (edit of the lines, expected message, expected 1-based line) given the 0-based index of 'MOTION'.
 BAD_BVH = {
-    "short_line": lambda m: (_cut_value(m + 10), "frame 8 has 131 values, the hierarchy declares 132", m + 11),
-    "not_a_number": lambda m: (_replace_value(m + 5, "abc"), "value 5 of frame 3 is 'abc', not a number", m + 6),
-    "frame_count": lambda m: (lambda L: L.__setitem__(m + 1, "Frames: 500"), "declares 500 frames", m + 2),
-    "channel": lambda m: (lambda L: L.__setitem__(4, L[4].replace("Zrotation", "Qrotation")),
-                          "unknown channel 'Qrotation'", 5),
-    "truncated_hierarchy": lambda m: (lambda L: L.__delitem__(slice(40, None)), "file ends inside the hierarchy", 40),
-    "blank_line_inside": lambda m: (lambda L: L.insert(m + 20, ""), "declares 146 frames but 145 frame lines", m + 2),
+    "short_line": lambda m: (
+        _cut_value(m + 10),
+        "frame 8 has 131 values, the hierarchy declares 132",
+        m + 11,
+    ),
+    "not_a_number": lambda m: (
+        _replace_value(m + 5, "abc"),
+        "value 5 of frame 3 is 'abc', not a number",
+        m + 6,
+    ),
+    "frame_count": lambda m: (
+        lambda L: L.__setitem__(m + 1, "Frames: 500"),
+        "declares 500 frames",
+        m + 2,
+    ),
+    "channel": lambda m: (
+        lambda L: L.__setitem__(4, L[4].replace("Zrotation", "Qrotation")),
+        "unknown channel 'Qrotation'",
+        5,
+    ),
+    "truncated_hierarchy": lambda m: (
+        lambda L: L.__delitem__(slice(40, None)),
+        "file ends inside the hierarchy",
+        40,
+    ),
+    "blank_line_inside": lambda m: (
+        lambda L: L.insert(m + 20, ""),
+        "declares 146 frames but 145 frame lines",
+        m + 2,
+    ),
 }
 
 
 @pytest.mark.parametrize("case", BAD_BVH)
 def test_bad_file_names_file_and_line_and_stores_nothing(fresh_db, db, tmp_path, case):
     edit, expect, line = BAD_BVH[case](_motion_at())
-    if case == "blank_line_inside":  # a blank line is skipped, so drop a frame to make the count wrong
+    # a blank line is skipped, so drop a frame to make the count wrong
+    if case == "blank_line_inside":
         edit = (lambda e: lambda L: (e(L), L.pop()))(edit)
     bad = _corrupt(tmp_path, f"{case}.bvh", edit)
     r = run_modb(fresh_db, "load", bad)
@@ -112,28 +142,41 @@ def test_keep_going_loads_the_good_and_lists_the_bad(fresh_db, db, tmp_path):
     r = run_modb(fresh_db, "load", folder, "--keep-going")
     assert r.returncode == 1
     assert "1 file(s) not loaded" in r.stderr and str(bad) in r.stderr
-    assert "1 clip versions loaded" in r.stdout and "1 unchanged" in r.stdout and "1 failed" in r.stdout
+    assert (
+        "1 clip versions loaded" in r.stdout
+        and "1 unchanged" in r.stdout
+        and "1 failed" in r.stdout
+    )
     assert counts(db)[3] == 2
 
 
 def test_one_transaction_per_file(fresh_db, db):
-    """A refusal at the last step (the version row) leaves no collection, skeleton or clip behind."""
+    """A refusal at the last step (the version row) leaves no collection, skeleton or clip
+    behind."""
     db.execute("""CREATE FUNCTION public.refuse() RETURNS trigger LANGUAGE plpgsql AS
                   $$ BEGIN RAISE EXCEPTION 'refused by test'; END $$""")
-    db.execute("CREATE TRIGGER refuse BEFORE INSERT ON modb.clip_versions FOR EACH ROW EXECUTE FUNCTION public.refuse()")
+    db.execute(
+        "CREATE TRIGGER refuse BEFORE INSERT ON modb.clip_versions FOR EACH ROW EXECUTE FUNCTION "
+        "public.refuse()"
+    )
     r = run_modb(fresh_db, "load", mocap(*WALK))
     assert r.returncode == 1 and "refused by test" in r.stderr
     assert counts(db) == (0, 0, 0, 0)
 
 
 def test_real_world_bvh_quirks(tmp_path):
-    """CRLF, tabs, '.5'-style numbers, colons in names, mixed rotation orders, position channels anywhere."""
+    """CRLF, tabs, '.5'-style numbers, colons in names, mixed rotation orders, position channels
+    anywhere."""
     src = mocap(*WALK)
     text = src.read_text()
-    names = [line.split()[1] for line in text.splitlines() if line.split()[:1] in (["ROOT"], ["JOINT"])]
+    names = [
+        line.split()[1] for line in text.splitlines() if line.split()[:1] in (["ROOT"], ["JOINT"])
+    ]
     quirky = text
     for n in sorted(names, key=len, reverse=True):
-        quirky = quirky.replace(f"JOINT {n}\n", f"JOINT rig:{n}\n").replace(f"ROOT {n}\n", f"ROOT rig:{n}\n")
+        quirky = quirky.replace(f"JOINT {n}\n", f"JOINT rig:{n}\n").replace(
+            f"ROOT {n}\n", f"ROOT rig:{n}\n"
+        )
     quirky = quirky.replace("  ", "\t").replace("0.0333333", ".0333333").replace("\n", "\r\n")
     p = tmp_path / "quirky.bvh"
     p.write_bytes(quirky.encode())
@@ -153,18 +196,24 @@ def test_rotation_orders_and_partial_channels(tmp_path):
     """A hand-written file with XYZ, YXZ and single-axis joints, checked against bvhio."""
     p = tmp_path / "orders.bvh"
     p.write_text(
-        "HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Yposition Zposition Xrotation Yrotation Zrotation\n"
+        "HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Yposition Zposition "
+        "Xrotation Yrotation Zrotation\n"
         " JOINT Spine\n {\n  OFFSET 0 10 0\n  CHANNELS 3 Yrotation Xrotation Zrotation\n"
         "  JOINT Neck\n  {\n   OFFSET 0 12 1\n   CHANNELS 2 Yposition Zrotation\n"
         "   End Site\n   {\n    OFFSET 0 8 0\n   }\n  }\n }\n"
-        " JOINT Leg\n {\n  OFFSET 9 -5 0\n  CHANNELS 1 Xrotation\n  End Site\n  {\n   OFFSET 0 -40 0\n  }\n }\n}\n"
+        " JOINT Leg\n {\n  OFFSET 9 -5 0\n  CHANNELS 1 Xrotation\n  End Site\n  {\n   OFFSET 0 -40 "
+        "0\n  }\n }\n}\n"
         "MOTION\nFrames: 3\nFrame Time: .5\n"
         "1 90 2 10 20 30 5 -40 60 15 45 -30\n"
         "2 91 3 -80 60 -170 120 5 -10 14 -90 100\n"
-        "-3 92 .5 0 0 0 0 0 0 12 0 175\n")
+        "-3 92 .5 0 0 0 0 0 0 12 0 175\n"
+    )
     motion = read_bvh(str(p), "cm")
     names, expected = bvhio_world_positions(str(p), 0.01)
-    assert np.abs(in_order(motion.skeleton.names, names, motion.world_positions()) - expected).max() < 1e-6  # bvhio computes in float32
+    assert (
+        np.abs(in_order(motion.skeleton.names, names, motion.world_positions()) - expected).max()
+        < 1e-6
+    )  # bvhio computes in float32
     assert [j.rotation_order for j in motion.skeleton.joints] == ["XYZ", "YXZ", "Z", "X"]
 
 
@@ -184,9 +233,48 @@ def test_collection_keeps_subfolders_and_refuses_collisions(fresh_db, db, tmp_pa
         shutil.copy(mocap(*src), tmp_path / "coll" / sub / "x.bvh")
     r = run_modb(fresh_db, "load", tmp_path / "coll", "--collection", "flat")
     assert r.returncode == 0, r.stderr
-    assert sorted(db.execute("SELECT collection || '/' || name FROM modb.current_clips").fetchall()) == \
-        [("flat/s1/x",), ("flat/s2/x",)]
-    r = run_modb(fresh_db, "load", tmp_path / "coll" / "s1" / "x.bvh", tmp_path / "coll" / "s2" / "x.bvh",
-                 "--collection", "one")
+    assert sorted(
+        db.execute("SELECT collection || '/' || name FROM modb.current_clips").fetchall()
+    ) == [("flat/s1/x",), ("flat/s2/x",)]
+    r = run_modb(
+        fresh_db,
+        "load",
+        tmp_path / "coll" / "s1" / "x.bvh",
+        tmp_path / "coll" / "s2" / "x.bvh",
+        "--collection",
+        "one",
+    )
     assert r.returncode == 2 and "would both become clip one/x" in r.stderr
     assert counts(db)[3] == 2
+
+
+def test_new_versions_replace_their_snippets_and_other_ids_stay(fresh_db, db, tmp_path):
+    walk = mocap("bandai-1", "data", "dataset-1_walk_active_001.bvh")
+    run = mocap("bandai-1", "data", "dataset-1_run_active_001.bvh")
+    assert run_modb(fresh_db, "load", walk, run, "--collection", "c").returncode == 0
+    snippets = (
+        "SELECT c.name, s.version, array_agg(s.id ORDER BY s.id) FROM modb.snippets s "
+        "JOIN modb.clips c ON c.id = s.clip_id GROUP BY 1, 2 ORDER BY 1, 2"
+    )
+    before = {(n, v): ids for n, v, ids in db.execute(snippets).fetchall()}
+    assert run_modb(fresh_db, "load", walk, run, "--collection", "c").returncode == 0  # nothing new
+    assert db.execute("SELECT modb.build_snippets()").fetchone()[0] == 0
+    assert {(n, v): ids for n, v, ids in db.execute(snippets).fetchall()} == before
+    changed = tmp_path / walk.name
+    lines = walk.read_text().splitlines()
+    lines[lines.index("MOTION") + 3] = " ".join(
+        "0" for _ in lines[lines.index("MOTION") + 3].split()
+    )
+    changed.write_text("\n".join(lines) + "\n")
+    r = run_modb(fresh_db, "load", changed, "--collection", "c")
+    assert r.returncode == 0 and "1 clip versions loaded" in r.stdout
+    after = {(n, v): ids for n, v, ids in db.execute(snippets).fetchall()}
+    run_key = ("dataset-1_run_active_001", 1)
+    assert after[run_key] == before[run_key]  # other clips keep their snippet ids
+    assert ("dataset-1_walk_active_001", 1) not in after and (
+        "dataset-1_walk_active_001",
+        2,
+    ) in after
+    assert len(after[("dataset-1_walk_active_001", 2)]) == len(
+        before[("dataset-1_walk_active_001", 1)]
+    )

@@ -1,9 +1,14 @@
-"""Least privilege as a user meets it: a login in modb_loader loads; a login in modb_reader only reads."""
+"""Least privilege as a user meets it: a login in modb_loader loads; a login in modb_reader only
+reads."""
+
 from __future__ import annotations
 
 import psycopg
+import pytest
+from support.commands import run_modb
+from support.data import mocap
 
-from conftest import mocap, run_modb
+from modb.database.connection import connect
 
 
 def test_loader_and_reader_logins(cluster, fresh_db, db, tmp_path):
@@ -28,3 +33,22 @@ def test_loader_and_reader_logins(cluster, fresh_db, db, tmp_path):
         db.execute("DROP OWNED BY test_ingest, test_animator")
         db.execute("DROP ROLE test_ingest")
         db.execute("DROP ROLE test_animator")
+
+
+def test_reader_selects_loader_builds(cmu):
+    with connect(cmu) as conn:
+        conn.execute("DROP ROLE IF EXISTS t_reader")
+        conn.execute("CREATE ROLE t_reader LOGIN IN ROLE modb_reader")
+    try:
+        with psycopg.connect(psycopg.conninfo.make_conninfo(cmu, user="t_reader")) as conn:
+            assert (
+                conn.execute(
+                    "SELECT count(*) FROM modb.select_next_snippet(NULL, '{0,1}')"
+                ).fetchone()[0]
+                == 1
+            )
+            with pytest.raises(psycopg.errors.InsufficientPrivilege):
+                conn.execute("SELECT modb.build_snippets()")
+    finally:
+        with connect(cmu) as conn:
+            conn.execute("DROP ROLE t_reader")

@@ -1,25 +1,47 @@
-"""Joint maps and left/right pairings filled automatically, checked against anatomy and structure."""
+"""Joint maps and left/right pairings filled automatically, checked against anatomy and
+structure."""
+
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from support.data import CMU_UNITS, mocap
 
-from conftest import CMU_UNITS, mocap
 from modb.loader.bvh import read_bvh
 from modb.motion import STANDARD_JOINTS
 
 CASES = {
     # The Bandai skeleton as the data README lists it: 8 sided pairs.
-    "bandai": (("bandai-1", "data", "dataset-1_walk_active_001.bvh"), "auto",
-               {"Shoulder", "UpperArm", "LowerArm", "Hand", "UpperLeg", "LowerLeg", "Foot", "Toes"}),
+    "bandai": (
+        ("bandai-1", "data", "dataset-1_walk_active_001.bvh"),
+        "auto",
+        {"Shoulder", "UpperArm", "LowerArm", "Hand", "UpperLeg", "LowerLeg", "Foot", "Toes"},
+    ),
     # CMU's BVH conversion: 12 pairs, clavicles, hip joints, hands, fingers and thumbs included.
-    "cmu-bvh": (("cmu", "131", "bvh", "131_01.bvh"), CMU_UNITS,
-                {"HipJoint", "Hip", "Knee", "Ankle", "Toe", "Collar", "Shoulder", "Elbow", "Wrist", "hand",
-                 "Fingers", "Thumb"}),
+    "cmu-bvh": (
+        ("cmu", "131", "bvh", "131_01.bvh"),
+        CMU_UNITS,
+        {
+            "HipJoint",
+            "Hip",
+            "Knee",
+            "Ankle",
+            "Toe",
+            "Collar",
+            "Shoulder",
+            "Elbow",
+            "Wrist",
+            "hand",
+            "Fingers",
+            "Thumb",
+        },
+    ),
 }
-CHAINS = [("pelvis", "spine", "chest", "neck", "head"),
-          *[(f"{s}_hip", f"{s}_knee", f"{s}_ankle", f"{s}_toe") for s in ("left", "right")],
-          *[(f"{s}_shoulder", f"{s}_elbow", f"{s}_wrist") for s in ("left", "right")]]
+CHAINS = [
+    ("pelvis", "spine", "chest", "neck", "head"),
+    *[(f"{s}_hip", f"{s}_knee", f"{s}_ankle", f"{s}_toe") for s in ("left", "right")],
+    *[(f"{s}_shoulder", f"{s}_elbow", f"{s}_wrist") for s in ("left", "right")],
+]
 
 
 def _load(case):
@@ -44,7 +66,8 @@ def test_joint_map_is_complete_and_anatomical(case):
     for chain in CHAINS:  # each standard joint lies below the previous one in the hierarchy
         for upper, lower in zip(chain, chain[1:]):
             assert index[upper] in _ancestors(sk, index[lower]), (upper, lower)
-    for chain in CHAINS[1:]:  # along a limb the joints are consecutive bones (CMU's lhand is not the wrist)
+    # along a limb the joints are consecutive bones (CMU's lhand is not the wrist)
+    for chain in CHAINS[1:]:
         for upper, lower in zip(chain, chain[1:]):
             assert sk.joints[index[lower]].parent == index[upper], (upper, lower)
     p = motion.world_positions()
@@ -77,10 +100,17 @@ def test_mirror_pairs_cover_every_sided_joint(case):
     for j in sk.joints:
         if j.name in paired or offsets[j.name] < 0.01:
             continue
-        twins = [k.name for k in sk.joints if k.name != j.name and abs(offsets[k.name] - offsets[j.name]) < 0.002
-                 and parent[k.name] is not None and parent[k.name] == parent[j.name]]
+        twins = [
+            k.name
+            for k in sk.joints
+            if k.name != j.name
+            and abs(offsets[k.name] - offsets[j.name]) < 0.002
+            and parent[k.name] is not None
+            and parent[k.name] == parent[j.name]
+        ]
         assert not twins, (j.name, twins)
-    # Side by position: in the first frame each left joint is on the other side of the body from its partner.
+    # Side by position: in the first frame each left joint is on the other side of the body from its
+    # partner.
     p = motion.world_positions()[0]
     lr = p[sk.index(sk.joint_map["left_hip"])] - p[sk.index(sk.joint_map["right_hip"])]
     for left, right in pairs:

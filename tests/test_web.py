@@ -15,11 +15,12 @@ from pathlib import Path
 import numpy as np
 import psycopg
 import pytest
-
-from asf_oracle import bone_tips, parse_amc, parse_asf
-from browser import chromium, get, serving, severe_console_entries
-from conftest import CMU_UNITS, REPO, mocap, run_modb, scratch_database
-from oracle import bvhio_world_positions, in_order
+from support.asf_oracle import bone_tips, parse_amc, parse_asf
+from support.browser import chromium, get, serving, severe_console_entries
+from support.bvh_oracle import bvhio_world_positions, in_order
+from support.commands import run_modb
+from support.data import CMU_UNITS, REPO, mocap
+from support.databases import scratch_database
 
 TOLERANCE_M = 0.01  # the bar for the page against the server
 ARTIFACTS = REPO / "tests" / "artifacts"

@@ -1,9 +1,10 @@
-"""A second ASF/AMC forward kinematics, written independently of modb.loader: own parsing, scipy rotations.
+"""A second ASF/AMC forward kinematics, written independently of modb.loader: own parsing, scipy
+rotations.
 
-Follows the Acclaim convention directly on bone tips: L = C M C^-1 with C from the bone's `axis` and M
-from the AMC values (extrinsic, first dof first), world rotation R = R_parent L, tip = parent tip +
-R (direction * length).
-"""
+Follows the Acclaim convention directly on bone tips: L = C M C^-1 with C from the bone's `axis` and
+M from the AMC values (extrinsic, first dof first), world rotation R = R_parent L, tip = parent tip
++ R (direction * length)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -49,7 +50,13 @@ def parse_asf(path):
         elif section == ":hierarchy" and w[0] not in ("begin", "end"):
             for child in w[1:]:
                 hierarchy[child] = w[0]
-    return {"bones": bones, "parent": hierarchy, "root": root, "unit_m": 0.0254 / length, "degrees": degrees}
+    return {
+        "bones": bones,
+        "parent": hierarchy,
+        "root": root,
+        "unit_m": 0.0254 / length,
+        "degrees": degrees,
+    }
 
 
 def parse_amc(path):
@@ -69,14 +76,19 @@ def bone_tips(asf, frames):
     """{bone: (frames, 3) tip positions in metres}, plus 'root': the root position."""
     deg = asf["degrees"]
     order = asf["root"]["order"]
-    root_c = Rotation.from_euler(asf["root"]["axis"].lower(), asf["root"]["orientation"], degrees=deg)
+    root_c = Rotation.from_euler(
+        asf["root"]["axis"].lower(), asf["root"]["orientation"], degrees=deg
+    )
     tips = {}
     world = {}
     values = np.array([f["root"] for f in frames])
     t = values[:, [order.index(c) for c in ("TX", "TY", "TZ")]]
     rot_cols = [c for c in order if c.startswith("R")]
-    m = Rotation.from_euler("".join(c[1].lower() for c in rot_cols),
-                            values[:, [order.index(c) for c in rot_cols]], degrees=deg)
+    m = Rotation.from_euler(
+        "".join(c[1].lower() for c in rot_cols),
+        values[:, [order.index(c) for c in rot_cols]],
+        degrees=deg,
+    )
     world["root"] = root_c * m * root_c.inv()
     tips["root"] = t * asf["unit_m"]
     pending = list(asf["parent"].items())
@@ -90,10 +102,16 @@ def bone_tips(asf, frames):
             c = Rotation.from_euler(b["axis"][1].lower(), b["axis"][0], degrees=deg)
             if b["dof"]:
                 angles = np.array([f[bone] for f in frames])
-                local = c * Rotation.from_euler("".join(d[1] for d in b["dof"]), angles, degrees=deg) * c.inv()
+                local = (
+                    c
+                    * Rotation.from_euler("".join(d[1] for d in b["dof"]), angles, degrees=deg)
+                    * c.inv()
+                )
             else:
                 local = Rotation.identity(len(frames))
             world[bone] = world[parent] * local
-            tips[bone] = tips[parent] + world[bone].apply(b["direction"] * b["length"] * asf["unit_m"])
+            tips[bone] = tips[parent] + world[bone].apply(
+                b["direction"] * b["length"] * asf["unit_m"]
+            )
         pending = rest
     return tips, asf["parent"]

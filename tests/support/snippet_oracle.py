@@ -1,9 +1,10 @@
 """A brute-force select_next_snippet, written independently of the extension and modb_kernel.
 
-It reads only the stored frames (clip_versions), the skeletons and the profile settings; recomputes every
-terminator with its own forward kinematics (scipy rotations), heading, velocities and features following
-the definitions in the README; and scores every snippet window against the previous snippet's end.
-"""
+It reads only the stored frames (clip_versions), the skeletons and the profile settings; recomputes
+every terminator with its own forward kinematics (scipy rotations), heading, velocities and features
+following the definitions in the README; and scores every snippet window against the previous
+snippet's end."""
+
 from __future__ import annotations
 
 import json
@@ -13,20 +14,51 @@ import numpy as np
 from scipy.interpolate import RegularGridInterpolator
 from scipy.spatial.transform import Rotation
 
-STANDARD = ["pelvis", "spine", "chest", "neck", "head",
-            "left_hip", "left_knee", "left_ankle", "left_toe", "left_shoulder", "left_elbow", "left_wrist",
-            "right_hip", "right_knee", "right_ankle", "right_toe", "right_shoulder", "right_elbow", "right_wrist"]
+STANDARD = [
+    "pelvis",
+    "spine",
+    "chest",
+    "neck",
+    "head",
+    "left_hip",
+    "left_knee",
+    "left_ankle",
+    "left_toe",
+    "left_shoulder",
+    "left_elbow",
+    "left_wrist",
+    "right_hip",
+    "right_knee",
+    "right_ankle",
+    "right_toe",
+    "right_shoulder",
+    "right_elbow",
+    "right_wrist",
+]
 FEATURE_POS = ["head", "left_wrist", "right_wrist", "left_ankle", "right_ankle"]
 FEATURE_VEL = ["pelvis", "left_ankle", "right_ankle"]
 FEATURE_ROT = ["neck", "head", "left_wrist", "right_wrist"]  # rotation-matrix columns x, y
-KNOBS = ("joints", "norm", "position_threshold", "angle_threshold", "velocity_threshold",
-         "angular_velocity_threshold", "velocity_terms", "heading_weight", "continuity_weight",
-         "lookahead_distance", "graph", "graph_lookahead", "graph_cost_to_go")
+KNOBS = (
+    "joints",
+    "norm",
+    "position_threshold",
+    "angle_threshold",
+    "velocity_threshold",
+    "angular_velocity_threshold",
+    "velocity_terms",
+    "heading_weight",
+    "continuity_weight",
+    "lookahead_distance",
+    "graph",
+    "graph_lookahead",
+    "graph_cost_to_go",
+)
 
 
 def _rot(q: np.ndarray) -> Rotation:
     q = np.asarray(q, dtype=np.float64)
-    return Rotation.from_quat(np.concatenate([q[..., 1:], q[..., :1]], axis=-1))  # scipy: scalar last
+    # scipy: scalar last
+    return Rotation.from_quat(np.concatenate([q[..., 1:], q[..., :1]], axis=-1))
 
 
 def _wxyz(r: Rotation) -> np.ndarray:
@@ -50,8 +82,11 @@ class ClipTerms:
     heading: np.ndarray
 
 
-def world_transforms(parents, offsets, translated, rotations, translations) -> tuple[np.ndarray, list[Rotation]]:
-    """Forward kinematics with scipy: world positions (F, J, 3) and orientations (one Rotation per joint)."""
+def world_transforms(
+    parents, offsets, translated, rotations, translations
+) -> tuple[np.ndarray, list[Rotation]]:
+    """Forward kinematics with scipy: world positions (F, J, 3) and orientations (one Rotation per
+    joint)."""
     n, J = rotations.shape[:2]
     local = np.tile(np.asarray(offsets, dtype=np.float64), (n, 1, 1))
     if len(translated):
@@ -68,12 +103,19 @@ def world_transforms(parents, offsets, translated, rotations, translations) -> t
     return world_p, world_r
 
 
-def clip_terms(hierarchy: dict, joint_map: dict, rotations: np.ndarray, translations, fps: float) -> ClipTerms:
+def clip_terms(
+    hierarchy: dict, joint_map: dict, rotations: np.ndarray, translations, fps: float
+) -> ClipTerms:
     joints = hierarchy["joints"]
     names = [j["name"] for j in joints]
     n = rotations.shape[0]
-    world_p, world_r = world_transforms([j["parent"] for j in joints], [j["offset"] for j in joints],
-                                        hierarchy["translated"], rotations, translations)
+    world_p, world_r = world_transforms(
+        [j["parent"] for j in joints],
+        [j["offset"] for j in joints],
+        hierarchy["translated"],
+        rotations,
+        translations,
+    )
     idx = [names.index(joint_map[s]) for s in STANDARD]
     pel = idx[0]
     lhip, rhip = idx[STANDARD.index("left_hip")], idx[STANDARD.index("right_hip")]
@@ -81,7 +123,7 @@ def clip_terms(hierarchy: dict, joint_map: dict, rotations: np.ndarray, translat
     fwd = np.stack([-axis[:, 2], np.zeros(n), axis[:, 0]], axis=1)
     fwd /= np.linalg.norm(fwd, axis=1, keepdims=True)
     half = int(round(0.25 * fps))
-    mean = np.array([fwd[max(0, t - half):min(n, t + half + 1)].sum(axis=0) for t in range(n)])
+    mean = np.array([fwd[max(0, t - half) : min(n, t + half + 1)].sum(axis=0) for t in range(n)])
     theta = np.arctan2(mean[:, 0], mean[:, 2])
     to_local = _yaw(theta).inv()
     ground = world_p[:, pel] * [1, 0, 1]
@@ -89,8 +131,13 @@ def clip_terms(hierarchy: dict, joint_map: dict, rotations: np.ndarray, translat
     before = np.maximum(np.arange(n) - 1, 0)
     after = np.minimum(np.arange(n) + 1, n - 1)
     dt = np.maximum(after - before, 1) / fps
-    vel = np.stack([to_local.apply((world_p[after, k] - world_p[before, k]) / dt[:, None]) for k in idx], axis=1)
-    rot = np.stack([_wxyz(to_local * world_r[pel])] + [_wxyz(_rot(rotations[:, k])) for k in idx[1:]], axis=1)
+    vel = np.stack(
+        [to_local.apply((world_p[after, k] - world_p[before, k]) / dt[:, None]) for k in idx],
+        axis=1,
+    )
+    rot = np.stack(
+        [_wxyz(to_local * world_r[pel])] + [_wxyz(_rot(rotations[:, k])) for k in idx[1:]], axis=1
+    )
     pelvis_w = (world_r[pel][after] * world_r[pel][before].inv()).as_rotvec() / dt[:, None]
     angvel = [to_local.apply(pelvis_w)]
     for k in idx[1:]:
@@ -99,8 +146,13 @@ def clip_terms(hierarchy: dict, joint_map: dict, rotations: np.ndarray, translat
     angvel = np.stack(angvel, axis=1)
     s = {name: i for i, name in enumerate(STANDARD)}
     matrices = {j: _rot(rot[:, s[j]]).as_matrix() for j in FEATURE_ROT}
-    feat = np.concatenate([pos[:, [0], 1]] + [pos[:, s[j]] for j in FEATURE_POS] + [vel[:, s[j]] for j in FEATURE_VEL]
-                          + [matrices[j][:, :, column] for j in FEATURE_ROT for column in (0, 1)], axis=1)
+    feat = np.concatenate(
+        [pos[:, [0], 1]]
+        + [pos[:, s[j]] for j in FEATURE_POS]
+        + [vel[:, s[j]] for j in FEATURE_VEL]
+        + [matrices[j][:, :, column] for j in FEATURE_ROT for column in (0, 1)],
+        axis=1,
+    )
     return ClipTerms(pos, rot, vel, angvel, feat, world_p[:, pel], theta)
 
 
@@ -125,14 +177,25 @@ def resolve_profile(settings: dict, knobs: dict) -> dict:
 
     included = [STANDARD.index(j) for j in settings["joints"]]
     return {
-        "joints": included, "norm": settings.get("norm", "l2"),
-        "velocity_terms": settings.get("velocity_terms", True), "heading_weight": float(settings.get("heading_weight", 0)),
+        "joints": included,
+        "norm": settings.get("norm", "l2"),
+        "velocity_terms": settings.get("velocity_terms", True),
+        "heading_weight": float(settings.get("heading_weight", 0)),
         "continuity_weight": float(settings.get("continuity_weight", 0)),
-        "lookahead_distance": None if settings.get("lookahead_distance") is None else float(settings["lookahead_distance"]),
+        "lookahead_distance": None
+        if settings.get("lookahead_distance") is None
+        else float(settings["lookahead_distance"]),
         "graph_lookahead": bool(settings.get("graph_lookahead", False)),
         "graph_cost_to_go": bool(settings.get("graph_cost_to_go", True)),
-        **{k: np.array([per_joint(settings[k], STANDARD[j]) for j in included])
-           for k in ("position_threshold", "angle_threshold", "velocity_threshold", "angular_velocity_threshold")},
+        **{
+            k: np.array([per_joint(settings[k], STANDARD[j]) for j in included])
+            for k in (
+                "position_threshold",
+                "angle_threshold",
+                "velocity_threshold",
+                "angular_velocity_threshold",
+            )
+        },
     }
 
 
@@ -142,23 +205,34 @@ def quat_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def ratios(prev: dict, cand: dict, plan: dict) -> np.ndarray:
-    """prev: arrays of one terminator; cand: arrays over candidates. Largest difference/threshold."""
+    """prev: arrays of one terminator; cand: arrays over candidates. Largest
+    difference/threshold."""
     j = plan["joints"]
     dp = cand["pos"][:, j] - prev["pos"][j]
     dist = np.abs(dp).sum(axis=-1) if plan["norm"] == "l1" else np.linalg.norm(dp, axis=-1)
-    terms = [dist / plan["position_threshold"], quat_angle(cand["rot"][:, j], prev["rot"][j]) / plan["angle_threshold"]]
+    terms = [
+        dist / plan["position_threshold"],
+        quat_angle(cand["rot"][:, j], prev["rot"][j]) / plan["angle_threshold"],
+    ]
     if plan["velocity_terms"]:
-        terms.append(np.linalg.norm(cand["vel"][:, j] - prev["vel"][j], axis=-1) / plan["velocity_threshold"])
-        terms.append(np.linalg.norm(cand["angvel"][:, j] - prev["angvel"][j], axis=-1) / plan["angular_velocity_threshold"])
+        terms.append(
+            np.linalg.norm(cand["vel"][:, j] - prev["vel"][j], axis=-1) / plan["velocity_threshold"]
+        )
+        terms.append(
+            np.linalg.norm(cand["angvel"][:, j] - prev["angvel"][j], axis=-1)
+            / plan["angular_velocity_threshold"]
+        )
     return np.max(np.concatenate(terms, axis=1), axis=1)
 
 
-def target_cost(net: np.ndarray, turn: np.ndarray, target, heading_weight: float,
-                lookahead: float | None = None) -> np.ndarray:
+def target_cost(
+    net: np.ndarray, turn: np.ndarray, target, heading_weight: float, lookahead: float | None = None
+) -> np.ndarray:
     t = np.asarray(target, dtype=np.float64)
     ground = np.array([0, -1]) if len(t) == 2 else np.array([0, 2])
     reach = np.hypot(*t[ground])
-    if lookahead is not None and reach > lookahead:  # score against the point that far toward the target
+    # score against the point that far toward the target
+    if lookahead is not None and reach > lookahead:
         t[ground] *= lookahead / reach
     if len(t) == 3:
         d = np.linalg.norm(net - t, axis=1)
@@ -169,24 +243,34 @@ def target_cost(net: np.ndarray, turn: np.ndarray, target, heading_weight: float
     return d + heading_weight * np.abs(wrapped)
 
 
-def level0_ratios(space: dict, members: np.ndarray, plan: dict) -> dict[int, tuple[np.ndarray, np.ndarray]]:
-    """For each snippet index p of `members`: (indices of the members that may follow it, their ratios),
-    before the ratio test: same poses and rate, no replay of p's frames (the seam aside)."""
+def level0_ratios(
+    space: dict, members: np.ndarray, plan: dict
+) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """For each snippet index p of `members`: (indices of the members that may follow it, their
+    ratios), before the ratio test: same poses and rate, no replay of p's frames (the seam aside).
+    """
     out = {}
     cand = {k: space[k][members] for k in ("pos", "rot", "vel", "angvel")}
     pose = np.array(space["pose"])[members]
     for p in members:
         ok = (pose == space["pose"][p]) & (space["fps"][members] == space["fps"][p])
-        same = (space["clip"][members] == space["clip"][p]) & (space["version"][members] == space["version"][p])
+        same = (space["clip"][members] == space["clip"][p]) & (
+            space["version"][members] == space["version"][p]
+        )
         lo, hi = space["first"][members] + 1, space["first"][members] + space["n"][members] - 1
-        ok &= ~(same & (space["first"][p] + 1 <= hi) & (lo <= space["first"][p] + space["n"][p] - 1))
-        out[int(p)] = (members[ok], ratios(space["end"][p], {k: v[ok] for k, v in cand.items()}, plan))
+        ok &= ~(
+            same & (space["first"][p] + 1 <= hi) & (lo <= space["first"][p] + space["n"][p] - 1)
+        )
+        out[int(p)] = (
+            members[ok],
+            ratios(space["end"][p], {k: v[ok] for k, v in cand.items()}, plan),
+        )
     return out
 
 
 def strong_components(nodes, successors: dict) -> list[set]:
-    """The sets of nodes that all reach each other: for each node not yet placed, the nodes it reaches
-    that also reach it (two breadth-first searches)."""
+    """The sets of nodes that all reach each other: for each node not yet placed, the nodes it
+    reaches that also reach it (two breadth-first searches)."""
     predecessors: dict = {n: [] for n in nodes}
     for n in nodes:
         for m in successors[n]:
@@ -221,36 +305,100 @@ def load_snippet_space(conn) -> dict:
 
     rows = conn.execute(
         "SELECT s.id, s.clip_id, s.version, s.first_frame, s.n_frames, s.collection_id, s.fps, "
-        "       v.skeleton_id FROM modb.snippets s JOIN modb.clip_versions v USING (clip_id, version) "
-        "WHERE NOT s.mirrored ORDER BY s.id").fetchall()
-    skeletons = {sid: (h, m) for sid, h, m in conn.execute("SELECT id, hierarchy, joint_map FROM modb.skeletons")}
+        "       v.skeleton_id FROM modb.snippets s JOIN modb.clip_versions v USING (clip_id, "
+        "version) "
+        "WHERE NOT s.mirrored ORDER BY s.id"
+    ).fetchall()
+    skeletons = {
+        sid: (h, m)
+        for sid, h, m in conn.execute("SELECT id, hierarchy, joint_map FROM modb.skeletons")
+    }
     cache: dict = {}
-    out = {k: [] for k in ("id", "clip", "version", "first", "n", "collection", "fps", "pose", "pos", "rot", "vel",
-                           "angvel", "feat", "net", "net_turn", "future", "future_turn", "end")}
+    out = {
+        k: []
+        for k in (
+            "id",
+            "clip",
+            "version",
+            "first",
+            "n",
+            "collection",
+            "fps",
+            "pose",
+            "pos",
+            "rot",
+            "vel",
+            "angvel",
+            "feat",
+            "net",
+            "net_turn",
+            "future",
+            "future_turn",
+            "end",
+        )
+    }
     starts = {(clip, version, first) for _, clip, version, first, *_ in rows}
     for sid, clip, version, first, n_frames, collection, fps, skeleton in rows:
         if (clip, version) not in cache:
             motion = read_motion(conn, clip, version)
             h, jm = skeletons[skeleton]
-            cache[(clip, version)] = clip_terms(h, jm, motion.rotations.astype(np.float32).astype(np.float64),
-                                                motion.translations.astype(np.float32).astype(np.float64), fps)
+            cache[(clip, version)] = clip_terms(
+                h,
+                jm,
+                motion.rotations.astype(np.float32).astype(np.float64),
+                motion.translations.astype(np.float32).astype(np.float64),
+                fps,
+            )
         t = cache[(clip, version)]
         h = skeletons[skeleton][0]
-        pose = json.dumps([(j["name"], j["parent"], j["channels"],
-                            None if {"Xposition", "Yposition", "Zposition"} <= set(j["channels"])
-                            or {"TX", "TY", "TZ"} <= set(j["channels"]) else j["offset"]) for j in h["joints"]])
+        pose = json.dumps(
+            [
+                (
+                    j["name"],
+                    j["parent"],
+                    j["channels"],
+                    None
+                    if {"Xposition", "Yposition", "Zposition"} <= set(j["channels"])
+                    or {"TX", "TY", "TZ"} <= set(j["channels"])
+                    else j["offset"],
+                )
+                for j in h["joints"]
+            ]
+        )
         last = first + n_frames - 1
-        for key, value in (("id", sid), ("clip", clip), ("version", version), ("first", first), ("n", n_frames),
-                           ("collection", collection), ("fps", fps), ("pose", pose)):
+        for key, value in (
+            ("id", sid),
+            ("clip", clip),
+            ("version", version),
+            ("first", first),
+            ("n", n_frames),
+            ("collection", collection),
+            ("fps", fps),
+            ("pose", pose),
+        ):
             out[key].append(value)
-        for key, arr in (("pos", t.pos), ("rot", t.rot), ("vel", t.vel), ("angvel", t.angvel), ("feat", t.feat)):
+        for key, arr in (
+            ("pos", t.pos),
+            ("rot", t.rot),
+            ("vel", t.vel),
+            ("angvel", t.angvel),
+            ("feat", t.feat),
+        ):
             out[key].append(arr[first])
-        out["end"].append({"pos": t.pos[last], "rot": t.rot[last], "vel": t.vel[last], "angvel": t.angvel[last],
-                           "feat": t.feat[last]})
+        out["end"].append(
+            {
+                "pos": t.pos[last],
+                "rot": t.rot[last],
+                "vel": t.vel[last],
+                "angvel": t.angvel[last],
+                "feat": t.feat[last],
+            }
+        )
         to_local = _yaw([t.heading[first]]).inv()
         out["net"].append(to_local.apply(t.pelvis[last] - t.pelvis[first])[0])
         out["net_turn"].append(np.angle(np.exp(1j * (t.heading[last] - t.heading[first]))))
-        # Where playing on leads: this window and up to two more, each starting on the last one's end.
+        # Where playing on leads: this window and up to two more, each starting on the last one's
+        # end.
         end = last
         for _ in range(2):
             if (clip, version, end) not in starts:
@@ -262,17 +410,34 @@ def load_snippet_space(conn) -> dict:
 
 
 def two_step_cost(space: dict, i: int, nexts: np.ndarray, target, plan: dict) -> float:
-    """The best objective among the snippets that may follow snippet i, each placed where i ends: the
-    target seen from there (i's end point, turned by i's heading change)."""
+    """The best objective among the snippets that may follow snippet i, each placed where i ends:
+    the target seen from there (i's end point, turned by i's heading change)."""
     if not len(nexts):
         return np.inf
     t = np.asarray(target, dtype=np.float64)
     world = np.array([t[0], 0.0, t[-1]]) if len(t) == 2 else t.copy()
-    seen = _yaw([space["net_turn"][i]]).inv().apply(world - space["net"][i] * [1, 0 if len(t) == 2 else 1, 1])[0]
+    seen = (
+        _yaw([space["net_turn"][i]])
+        .inv()
+        .apply(world - space["net"][i] * [1, 0 if len(t) == 2 else 1, 1])[0]
+    )
     local = [seen[0], seen[2]] if len(t) == 2 else list(seen)
-    return float(min(np.minimum(*(target_cost(space[at][nexts], space["future_turn"][nexts], local,
-                                               plan["heading_weight"], plan["lookahead_distance"])
-                                   for at in ("net", "future")))))
+    return float(
+        min(
+            np.minimum(
+                *(
+                    target_cost(
+                        space[at][nexts],
+                        space["future_turn"][nexts],
+                        local,
+                        plan["heading_weight"],
+                        plan["lookahead_distance"],
+                    )
+                    for at in ("net", "future")
+                )
+            )
+        )
+    )
 
 
 def duration_of(space: dict, i: int) -> float:
@@ -288,30 +453,47 @@ def _seen_from_end(space: dict, i: int, points) -> np.ndarray:
 
 
 def read_cost(table: np.ndarray, grid: dict, xz: np.ndarray) -> np.ndarray:
-    """A cost-to-go table (angles x rings) read at goals (x, z): linear in (angle, log radius) by scipy,
-    0 within the inner radius, the outer ring plus the distance beyond it at the grid's speed."""
-    angles, rings, inner, outer = grid["angles"], grid["rings"], grid["inner_radius"], grid["outer_radius"]
+    """A cost-to-go table (angles x rings) read at goals (x, z): linear in (angle, log radius) by
+    scipy, 0 within the inner radius, the outer ring plus the distance beyond it at the grid's
+    speed."""
+    angles, rings, inner, outer = (
+        grid["angles"],
+        grid["rings"],
+        grid["inner_radius"],
+        grid["outer_radius"],
+    )
     r = np.hypot(xz[:, 0], xz[:, 1])
-    u = np.clip(np.log(np.maximum(r, 1e-12) / inner) / np.log(outer / inner) * (rings - 1), 0, rings - 1)
+    u = np.clip(
+        np.log(np.maximum(r, 1e-12) / inner) / np.log(outer / inner) * (rings - 1), 0, rings - 1
+    )
     a = np.mod(np.arctan2(xz[:, 0], xz[:, 1]), 2 * np.pi) / (2 * np.pi / angles)
     wrapped = np.vstack([table, table[:1]])  # angle A is angle 0 again
-    value = RegularGridInterpolator((np.arange(angles + 1), np.arange(rings)), wrapped)(np.stack([a, u], axis=1))
+    value = RegularGridInterpolator((np.arange(angles + 1), np.arange(rings)), wrapped)(
+        np.stack([a, u], axis=1)
+    )
     return np.where(r <= inner, 0.0, value + np.maximum(r - outer, 0) / grid["speed"])
 
 
-def cost_to_go(space: dict, successors: dict, seam: dict, grid: dict, tolerance: float = 1e-6) -> dict:
-    """Value iteration from zero: snippet index -> (angles x rings) least seconds (snippet durations, plus
-    seam[(from, to)] per transition) until a chain through the graph (successors: index -> indices) ends
-    within the inner radius of a goal at each grid point."""
+def cost_to_go(
+    space: dict, successors: dict, seam: dict, grid: dict, tolerance: float = 1e-6
+) -> dict:
+    """Value iteration from zero: snippet index -> (angles x rings) least seconds (snippet
+    durations, plus seam[(from, to)] per transition) until a chain through the graph (successors:
+    index -> indices) ends within the inner radius of a goal at each grid point."""
     angles, rings = grid["angles"], grid["rings"]
     theta = np.arange(angles) * 2 * np.pi / angles
     radii = np.geomspace(grid["inner_radius"], grid["outer_radius"], rings)
-    points = np.stack([np.outer(np.sin(theta), radii).ravel(), np.outer(np.cos(theta), radii).ravel()], axis=1)
+    points = np.stack(
+        [np.outer(np.sin(theta), radii).ravel(), np.outer(np.cos(theta), radii).ravel()], axis=1
+    )
     seen = {i: _seen_from_end(space, i, points) for i in successors}
     duration = {i: duration_of(space, i) for i in successors}
     values = {i: np.zeros((angles, rings)) for i in successors}
     while True:
-        through = {i: duration[i] + read_cost(values[i], grid, seen[i]).reshape(angles, rings) for i in successors}
+        through = {
+            i: duration[i] + read_cost(values[i], grid, seen[i]).reshape(angles, rings)
+            for i in successors
+        }
         new = {}
         for i, nexts in successors.items():
             new[i] = np.min([through[int(t)] + seam[i, int(t)] for t in nexts], axis=0)
@@ -322,27 +504,50 @@ def cost_to_go(space: dict, successors: dict, seam: dict, grid: dict, tolerance:
             return values
 
 
-def select(space: dict, prev_id, target, plan: dict, collections=None, exclude=(),
-           graph=None, successors=None, costs=None, grid=None) -> list[tuple[int, float, int, float]]:
-    """Every eligible snippet as (level, order key, id, continuity ratio), best first. graph: the snippet ids
-    of a transition graph, the only ones eligible; successors: its level-0 transitions (snippet index ->
-    indices of those that may follow it), for graph_lookahead when prev lies in it; costs and grid: its
-    cost-to-go tables (snippet index -> angles x rings) and their grid, which rank level 0 when prev lies in it."""
+def select(
+    space: dict,
+    prev_id,
+    target,
+    plan: dict,
+    collections=None,
+    exclude=(),
+    graph=None,
+    successors=None,
+    costs=None,
+    grid=None,
+) -> list[tuple[int, float, int, float]]:
+    """Every eligible snippet as (level, order key, id, continuity ratio), best first. graph: the
+    snippet ids of a transition graph, the only ones eligible; successors: its level-0 transitions
+    (snippet index -> indices of those that may follow it), for graph_lookahead when prev lies in
+    it; costs and grid: its cost-to-go tables (snippet index -> angles x rings) and their grid,
+    which rank level 0 when prev lies in it."""
     ids = space["id"]
     ok = np.ones(len(ids), dtype=bool)
     if graph is not None:
         ok &= np.isin(ids, list(graph))
     if collections is not None:
         ok &= np.isin(space["collection"], list(collections))
-    for x in set(exclude) | ({prev_id} if prev_id is not None else set()):  # prev's own frames: no replay
+    # prev's own frames: no replay
+    for x in set(exclude) | ({prev_id} if prev_id is not None else set()):
         k = int(np.flatnonzero(ids == x)[0])
         same = (space["clip"] == space["clip"][k]) & (space["version"] == space["version"][k])
         cand_lo, cand_hi = space["first"] + 1, space["first"] + space["n"] - 1
         ex_lo, ex_hi = space["first"][k] + 1, space["first"][k] + space["n"][k] - 1
         ok &= ~(same & (ex_lo <= cand_hi) & (cand_lo <= ex_hi))
-    # The nearer of the snippet's end and where playing on leads (the heading term is the same for both).
-    cost = np.minimum(*(target_cost(space[at], space["future_turn"], target, plan["heading_weight"],
-                                    plan["lookahead_distance"]) for at in ("net", "future")))
+    # The nearer of the snippet's end and where playing on leads (the heading term is the same for
+    # both).
+    cost = np.minimum(
+        *(
+            target_cost(
+                space[at],
+                space["future_turn"],
+                target,
+                plan["heading_weight"],
+                plan["lookahead_distance"],
+            )
+            for at in ("net", "future")
+        )
+    )
     if prev_id is None:
         level = np.zeros(len(ids), dtype=int)
         order_key = cost
@@ -356,12 +561,21 @@ def select(space: dict, prev_id, target, plan: dict, collections=None, exclude=(
         level = levels(ratio)
         if plan["graph_cost_to_go"] and costs is not None and p in successors:
             for i in np.flatnonzero(ok & (level == 0)):
-                seconds = duration_of(space, i) + read_cost(costs[i], grid, _seen_from_end(space, i, target))[0]
+                seconds = (
+                    duration_of(space, i)
+                    + read_cost(costs[i], grid, _seen_from_end(space, i, target))[0]
+                )
                 cost[i] = grid["speed"] * seconds
         elif plan["graph_lookahead"] and successors is not None and p in successors:
             for i in np.flatnonzero(ok & (level == 0)):
                 cost[i] = min(cost[i], two_step_cost(space, i, successors[i], target, plan))
-        order_key = np.where(level == 4, np.linalg.norm(space["feat"] - prev["feat"], axis=1),
-                             cost + plan["continuity_weight"] * ratio)
-    rows = [(int(level[i]), float(order_key[i]), int(ids[i]), float(ratio[i])) for i in np.flatnonzero(ok)]
+        order_key = np.where(
+            level == 4,
+            np.linalg.norm(space["feat"] - prev["feat"], axis=1),
+            cost + plan["continuity_weight"] * ratio,
+        )
+    rows = [
+        (int(level[i]), float(order_key[i]), int(ids[i]), float(ratio[i]))
+        for i in np.flatnonzero(ok)
+    ]
     return sorted(rows)

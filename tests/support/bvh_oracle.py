@@ -1,4 +1,5 @@
 """Independent reference readings of real files (bvhio from PyPI), for comparison with ours."""
+
 from __future__ import annotations
 
 from functools import lru_cache
@@ -21,6 +22,8 @@ def bvhio_world_positions(path: str, unit_m: float) -> tuple[tuple[str, ...], np
     return tuple(j.Name for j, _, _ in layout), out * unit_m
 
 
-def in_order(names: list[str], reference_names: tuple[str, ...], positions: np.ndarray) -> np.ndarray:
+def in_order(
+    names: list[str], reference_names: tuple[str, ...], positions: np.ndarray
+) -> np.ndarray:
     """Our positions re-ordered to the reference's joint order."""
     return positions[:, [names.index(n) for n in reference_names]]

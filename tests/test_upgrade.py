@@ -1,0 +1,206 @@
+"""ALTER EXTENSION modb UPDATE from every released 0.x.0: the data, the snippets, the graphs and the
+user's profiles stay, and the updated catalogue is what a fresh install of today's version has."""
+
+from __future__ import annotations
+
+import numpy as np
+import psycopg
+import pytest
+from support.commands import run_modb
+from support.data import mocap
+
+from modb.synthesis.graphs import list_graphs
+
+
+SNIPPET_ROWS = (
+    "SELECT id, clip_id, first_frame, begin_terminator, net_heading FROM modb.snippets "
+    "WHERE NOT mirrored ORDER BY id"
+)
+
+FEATURES = (
+    "SELECT c.name, t.mirrored || '/' || t.frame, "
+    "       (SELECT array_agg(cube_ll_coord(t.features, i) ORDER BY i) FROM generate_series(1, "
+    "cube_dim(t.features)) i) "
+    "FROM modb.terminators t JOIN modb.clips c ON c.id = t.clip_id ORDER BY 1, 2"
+)
+
+MIRRORED_TERMINATORS = (
+    "SELECT c.name, t.frame, md5(t.rotations::text), md5(t.positions::text) FROM modb.terminators "
+    "t "
+    "JOIN modb.clips c ON c.id = t.clip_id WHERE t.mirrored ORDER BY 1, 2"
+)
+
+
+@pytest.mark.parametrize("old", ["0.1.0", "0.2.0", "0.3.0", "0.4.0", "0.5.0", "0.6.0", "0.7.0"])
+def test_update_keeps_the_data(cluster, fresh_db, db, old):
+    current = db.execute(
+        "SELECT default_version FROM pg_available_extensions WHERE name = 'modb'"
+    ).fetchone()[0]
+    db.execute("DROP EXTENSION modb")
+    db.execute(f"CREATE EXTENSION modb VERSION '{old}'")
+    with_snippets = old != "0.1.0"  # snippets (and mirror images) came with 0.2.0
+    files = [mocap("cmu", "131", "131_01.amc"), mocap("cmu", "131", "131_02.amc")]
+    r = run_modb(fresh_db, "load", *files, *(["--mirror"] if with_snippets else ["--no-snippets"]))
+    assert r.returncode == 0, r.stderr
+    db.execute('UPDATE modb.clip_versions SET meta = \'{"tags": ["kept"]}\'')
+    before = db.execute(
+        "SELECT clip_id, version, n_frames, meta, md5(rotations::text) FROM modb.clip_versions "
+        "ORDER BY 1"
+    ).fetchall()
+    positions = db.execute("SELECT sum(x + 2 * y + 3 * z) FROM modb.world_positions(1)").fetchone()[
+        0
+    ]
+    snippets = db.execute(SNIPPET_ROWS).fetchall() if with_snippets else []
+    old_mirrored = db.execute(MIRRORED_TERMINATORS).fetchall() if with_snippets else []
+    if with_snippets:
+        db.execute(
+            "INSERT INTO modb.match_profiles (name, settings) "
+            "SELECT 'mine', settings FROM modb.match_profiles WHERE name = 'default'"
+        )
+        mine = db.execute(
+            "SELECT settings FROM modb.match_profiles WHERE name = 'mine'"
+        ).fetchone()[0]
+    # A graph built before 0.5.0 stored no transitions: it keeps working through the box. One built
+    # by 0.5.0 has no cost-to-go: it keeps ranking by where the candidates lead. One built by 0.6.0
+    # or later keeps its costs (0.8.0's wider feature cube changes no transition).
+    if old in ("0.4.0", "0.5.0", "0.6.0", "0.7.0"):
+        db.execute("SELECT modb.build_transition_graph('old', 'locomotion', NULL, 0)")
+    db.execute("ALTER EXTENSION modb UPDATE")
+    if old in ("0.4.0", "0.5.0", "0.6.0", "0.7.0"):
+        stored, costs = db.execute(
+            "SELECT count(*), count(cost_to_go) FROM modb.graph_transitions"
+        ).fetchone()
+        assert (stored > 0) == (old != "0.4.0") and costs == (stored if old >= "0.6.0" else 0), (
+            stored,
+            costs,
+        )
+        db.execute("SET modb.graph = 'old'")
+        chosen, in_graph = db.execute(
+            "SELECT count(*), count(g.snippet_id) FROM modb.synthesize('{{0,3}}', 4) s "
+            "LEFT JOIN modb.graph_snippets g USING (snippet_id)"
+        ).fetchone()
+        assert chosen == 4 and in_graph == chosen
+        db.execute("RESET modb.graph")
+        # else rebuild it
+        assert next(g for g in list_graphs(db) if g.name == "old").current == (old >= "0.6.0")
+    assert (
+        db.execute("SELECT extversion FROM pg_extension WHERE extname = 'modb'").fetchone()[0]
+        == current
+    )
+    assert (
+        db.execute(
+            "SELECT clip_id, version, n_frames, meta, md5(rotations::text) FROM modb.clip_versions "
+            "ORDER BY 1"
+        ).fetchall()
+        == before
+    )
+    assert (
+        db.execute("SELECT sum(x + 2 * y + 3 * z) FROM modb.world_positions(1)").fetchone()[0]
+        == positions
+    )
+    if with_snippets:
+        assert db.execute(SNIPPET_ROWS).fetchall() == snippets
+        # 0.2.0's mirror images had rotations in other joint frames: the update rebuilt them, as a
+        # fresh install's load would (compared after the reinstall below).
+        updated_mirrored = db.execute(MIRRORED_TERMINATORS).fetchall()
+        updated_features = db.execute(FEATURES).fetchall()
+        assert len(updated_mirrored) == len(old_mirrored)
+        assert (updated_mirrored != old_mirrored) == (old == "0.2.0")
+        assert db.execute("SELECT count(*) FROM modb.snippets WHERE mirrored").fetchone()[0] > 0
+        assert (
+            db.execute(
+                "SELECT count(*) FROM modb.snippets WHERE future_translation IS NULL"
+            ).fetchone()[0]
+            == 0
+        )
+        assert (
+            db.execute("SELECT settings FROM modb.match_profiles WHERE name = 'mine'").fetchone()[0]
+            == mine
+        )
+        # 0.3.0 retuned the shipped default; the copy the user made keeps 0.2.0's
+        if old == "0.2.0":
+            assert (
+                mine
+                != db.execute(
+                    "SELECT settings FROM modb.match_profiles WHERE name = 'default'"
+                ).fetchone()[0]
+            )
+    else:
+        (added,) = db.execute("SELECT modb.build_snippets()").fetchone()
+        assert added > 0
+    assert (
+        db.execute("SELECT count(*) FROM modb.select_next_snippet(NULL, '{0,2}')").fetchone()[0]
+        == 1
+    )
+    assert db.execute("SELECT count(*) FROM modb.synthesize('{{0,3}}', 4)").fetchone()[0] == 4
+    # Lower body, no turn asked for: under the default profile (tuned at 30 fps) these two 120 fps
+    # clips have no component that turns 45 degrees each way.
+    db.execute("SELECT modb.build_transition_graph('g', 'locomotion', NULL, 0)")
+    stored, costs = db.execute(
+        "SELECT count(*), count(e.cost_to_go) FROM modb.graph_transitions e "
+        "JOIN modb.graphs g ON g.id = e.graph_id WHERE g.name = 'g'"
+    ).fetchone()
+    assert stored > 0 and costs == stored
+    assert next(g for g in list_graphs(db) if g.name == "g").current
+    db.execute("SET modb.graph = 'g'")
+    chosen, in_graph = db.execute(
+        "SELECT count(*), count(g.snippet_id) FROM modb.synthesize('{{0,3}}', 4) s "
+        "LEFT JOIN modb.graph_snippets g USING (snippet_id)"
+    ).fetchone()
+    assert chosen > 0 and in_graph == chosen
+    db.execute("RESET modb.graph")
+    # What a fresh install of the current version has, the updated one has: same objects, same
+    # definitions.
+    objects = (
+        "SELECT pg_describe_object(classid, objid, 0) FROM pg_depend WHERE refobjid = "
+        "(SELECT oid FROM pg_extension WHERE extname = 'modb') AND deptype = 'e' ORDER BY 1"
+    )
+    updated = [r[0] for r in db.execute(objects).fetchall()]
+    functions = (
+        "SELECT p.oid::regprocedure::text, md5(pg_get_functiondef(p.oid)), obj_description(p.oid, "
+        "'pg_proc') FROM pg_proc p "
+        "WHERE pronamespace = 'modb'::regnamespace AND prokind = 'f' ORDER BY 1"
+    )
+    updated_functions = db.execute(functions).fetchall()
+    acls = (
+        "SELECT c.relname, c.relacl::text FROM pg_class c "
+        "WHERE relnamespace = 'modb'::regnamespace ORDER BY 1"
+    )
+    grants = (
+        "SELECT p.oid::regprocedure::text, p.proacl::text FROM pg_proc p "
+        "WHERE pronamespace = 'modb'::regnamespace ORDER BY 1"
+    )
+    updated_acls, updated_grants = db.execute(acls).fetchall(), db.execute(grants).fetchall()
+    db.execute("DROP ROLE IF EXISTS t_updated_reader")
+    db.execute("CREATE ROLE t_updated_reader LOGIN IN ROLE modb_reader")
+    try:
+        with psycopg.connect(
+            psycopg.conninfo.make_conninfo(fresh_db, user="t_updated_reader")
+        ) as reader:
+            assert (
+                reader.execute(
+                    "SELECT count(*) FROM modb.select_next_snippet(NULL, '{0,2}')"
+                ).fetchone()[0]
+                == 1
+            )
+    finally:
+        db.execute("DROP ROLE t_updated_reader")
+    db.execute("DROP EXTENSION modb CASCADE")
+    db.execute("CREATE EXTENSION modb")
+    assert [r[0] for r in db.execute(objects).fetchall()] == updated
+    assert db.execute(functions).fetchall() == updated_functions
+    assert (
+        db.execute(acls).fetchall() == updated_acls
+        and db.execute(grants).fetchall() == updated_grants
+    )
+    if with_snippets:
+        assert run_modb(fresh_db, "load", *files, "--mirror").returncode == 0
+        assert db.execute(MIRRORED_TERMINATORS).fetchall() == updated_mirrored
+        # 0.8.0's update computes the new feature dimensions in SQL from the stored rotations; a
+        # load computes them in the kernel from float8: the same cube, to float4 rounding.
+        fresh = db.execute(FEATURES).fetchall()
+        assert [r[:2] for r in fresh] == [r[:2] for r in updated_features]
+        difference = np.abs(
+            np.array([r[2] for r in fresh]) - np.array([r[2] for r in updated_features])
+        )
+        assert difference.shape[1] == 49 and difference.max() < 1e-6, difference.max(axis=0)
