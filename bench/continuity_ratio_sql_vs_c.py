@@ -1,7 +1,8 @@
-"""select_next_snippet with 0.6.0's continuity ratio (the SQL expression, from the frozen install
-script, put in place inside a transaction that is rolled back) against 0.7.0's (C), on the same
-seeded queries in one session, alternating query by query; each timed call follows one that plans
-it.
+"""select_next_snippet with 0.6.0's continuity ratio (SQL) against 0.7.0's (C), on the same queries.
+
+0.6.0's SQL expression, from the frozen install script, is put in place inside a transaction that
+is rolled back. Both run the same seeded queries in one session, alternating query by query; each
+timed call follows one that plans it.
 
     .venv/bin/python bench/continuity_ratio_sql_vs_c.py "host=... dbname=..." 30
 """

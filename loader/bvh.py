@@ -141,8 +141,10 @@ def _parse_joint(
 
 
 def _parse_header(path: str, lines: list[str], start: int) -> tuple[int, float, int, int]:
-    """Frames and Frame Time after MOTION: (frames, frame_time, index of the first data line,
-    Frames: line)."""
+    """Frames and Frame Time after MOTION.
+
+    Returns (frames, frame_time, index of the first data line, line number of Frames:).
+    """
     values: dict[str, tuple[str, int]] = {}
     i = start
     for key in ("Frames:", "Frame Time:"):
@@ -342,8 +344,10 @@ def read_bvh(path: str, units: str | float = "auto") -> Motion:
 
 
 def _rate(frame_time: float) -> float:
-    """Frames per second: '.0083333' or '0.008333' s mean 120 fps, so snap within 0.1% to a whole
-    rate."""
+    """Frames per second, snapped to a whole rate when within 0.1% of one.
+
+    A Frame Time of '.0083333' or '0.008333' s means 120 fps.
+    """
     fps = 1.0 / frame_time
     whole = round(fps)
     return float(whole) if whole > 0 and abs(fps - whole) <= 1e-3 * whole else round(fps, 3)

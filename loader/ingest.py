@@ -81,8 +81,7 @@ SELECT v.clip_id, v.version
 def _unchanged(
     conn: psycopg.Connection, job: FileJob, name: str, sha256: str, key: str
 ) -> tuple[int, int] | None:
-    """(clip, version) when the newest version of this clip came from the same bytes read the same
-    way."""
+    """(clip, version) when this clip's newest version is from the same bytes read the same way."""
     row = conn.execute(
         _UNCHANGED_SQL, {"collection": job.collection, "name": name, "sha": sha256, "key": key}
     ).fetchone()
@@ -90,8 +89,10 @@ def _unchanged(
 
 
 def _content_key(motion: Motion) -> str:
-    """What the stored motion follows from once the file is read: its bytes, skeleton file and how
-    they were read."""
+    """What the stored motion follows from once the file is read.
+
+    The file's bytes, its skeleton file and how they were read.
+    """
     src = motion.source
     parts = (
         src.sha256 if src else "",

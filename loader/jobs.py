@@ -31,8 +31,7 @@ def _walk(directory: Path) -> Iterable[Path]:
 def find_jobs(
     paths: Iterable[str], collection: str | None, asf: str | None = None
 ) -> list[FileJob]:
-    """Motion files under the given files and directories (recursively, sorted), each AMC paired
-    with an ASF.
+    """Motion files under the given paths (recursively, sorted), each AMC paired with an ASF.
 
     A directory loads into a collection named after it (or --collection), its
     subdirectories into child collections; a single file loads into a collection

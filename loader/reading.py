@@ -30,8 +30,10 @@ class ReadOptions:
 
 
 def read_key(job: FileJob, options: ReadOptions) -> str:
-    """What decides the stored motion besides the file's bytes: equal keys and bytes mean nothing
-    new."""
+    """What decides the stored motion besides the file's bytes.
+
+    Equal keys and equal bytes mean there is nothing new.
+    """
     if job.asf is None:
         return f"units={options.units_text}"
     return (

@@ -1,5 +1,4 @@
-"""Length units of a source file: an explicit choice, or a stated rule applied to the figure's
-size."""
+"""Length units of a source file: an explicit choice, or a stated rule on the figure's size."""
 
 from __future__ import annotations
 

@@ -1,5 +1,4 @@
-"""Writing a Motion as BVH, in the skeleton's source units and, for BVH sources, its own channel
-layout."""
+"""Writing a Motion as BVH in its skeleton's source units and, for BVH sources, channel layout."""
 
 from __future__ import annotations
 

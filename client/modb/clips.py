@@ -13,8 +13,7 @@ class ClipNotFound(LookupError):
 
 
 def resolve_clip(conn: psycopg.Connection, spec: str) -> int:
-    """A clip id from 'id:N', an id, a name, or 'collection/path/name' that matches exactly one
-    clip."""
+    """A clip id from 'id:N', an id, a name, or 'collection/path/name' matching exactly one clip."""
     if spec.startswith("id:") and spec[3:].isdigit():
         if conn.execute("SELECT 1 FROM modb.clips WHERE id = %s", [int(spec[3:])]).fetchone():
             return int(spec[3:])

@@ -67,8 +67,7 @@ class Skeleton:
         return kinematics.rest_positions(self.parents, self.offsets)
 
     def hierarchy_json(self) -> dict[str, Any]:
-        """The immutable part, stored in modb.skeletons.hierarchy (its sha256 identifies the
-        skeleton)."""
+        """The immutable part, in modb.skeletons.hierarchy; its sha256 identifies the skeleton."""
         return {
             "format": self.source_format,
             "unit_m": self.unit_m,

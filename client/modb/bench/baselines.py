@@ -1,6 +1,8 @@
-"""The baselines `modb bench scale` sets beside select_next_snippet (see modb.bench.scale): (a) the
-paper's flat query (FLAT), and (b) a numpy brute force and (c) a k-d tree in this process, over a
-Snapshot of the stored terminators."""
+"""The baselines `modb bench scale` sets beside select_next_snippet (see modb.bench.scale).
+
+(a) the paper's flat query (FLAT); (b) a numpy brute force and (c) a k-d tree in this process, over
+a Snapshot of the stored terminators.
+"""
 
 from __future__ import annotations
 
@@ -44,8 +46,7 @@ SELECT c.id, l.level
 
 
 def _chunks(conn: psycopg.Connection, query: str, size: int = 20000):
-    """The rows of `query` in chunks (a server-side cursor), so a million snippets never sit in
-    Python lists."""
+    """Rows of `query` in chunks (a server-side cursor): a million snippets never sit in lists."""
     with conn.transaction(), conn.cursor(name="snapshot", binary=True) as cur:
         cur.execute(query)
         while rows := cur.fetchmany(size):
@@ -128,8 +129,7 @@ class Snapshot:
         )
 
     def _objective(self, rows: np.ndarray, target: list[float], ratio: np.ndarray) -> np.ndarray:
-        """approach_cost + continuity_weight x ratio, as select_next_snippets computes it ({x, z}
-        targets)."""
+        """approach_cost + continuity_weight x ratio as in select_next_snippets ({x, z} targets)."""
         p = self.plan
         t = np.asarray(target, dtype=np.float64)
         reach = np.hypot(t[0], t[-1])
@@ -148,8 +148,7 @@ class Snapshot:
     def _best(
         self, prev: int, candidates: np.ndarray, target: list[float]
     ) -> tuple[int, int] | None:
-        """The function's choice among candidates (snippet rows): lowest level, then objective, then
-        id."""
+        """The function's pick among snippet rows: lowest level, then objective, then id."""
         overlap = (
             (self.clip[candidates] == self.clip[prev])
             & (self.first[prev] + 1 <= self.first[candidates] + self.n_frames[candidates] - 1)

@@ -1,5 +1,4 @@
-"""`modb bench load`: BVH parse speed beside bvhio's readAsBvh, and durable load speed, on real
-files.
+"""`modb bench load`: on real files, parse speed beside bvhio's readAsBvh, and durable load speed.
 
 Every figure is measured in the same run as its baseline (the machine is shared and noisy): parsers
 alternate file by file over several rounds, and the ratio is taken per round.
@@ -25,8 +24,7 @@ def _percentiles(values: list[float]) -> tuple[float, float]:
 
 
 def _motion_lines_only(path: str) -> np.ndarray:
-    """The ceiling for any numpy-based reader: the frame lines through loadtxt, no hierarchy, checks
-    or hash."""
+    """Ceiling for numpy readers: frame lines through loadtxt, no hierarchy, checks or hash."""
     with open(path) as f:
         text = f.read()
     return np.loadtxt(text[text.index("Frame Time:") :].splitlines()[1:], ndmin=2)

@@ -1,7 +1,9 @@
-"""The benchmark's largest database: the real clips again at other playback speeds (slerped
-rotations, interpolated translations), stored as clips of their own under `resampled-x<speed>/`,
-until there are as many snippets as asked. Reported as such: these are not new captures, only denser
-coverage of the same motions."""
+"""The benchmark's largest database: the real clips again at other playback speeds.
+
+Rotations are slerped and translations interpolated; the copies are stored as clips of their own
+under `resampled-x<speed>/` until there are as many snippets as asked. Reported as such: these are
+not new captures, only denser coverage of the same motions.
+"""
 
 from __future__ import annotations
 
@@ -67,9 +69,10 @@ def resampled_snippets(conn: psycopg.Connection) -> int:
 
 
 def add_resampled_clips(conn: psycopg.Connection, size: int, seed: int, progress=None) -> int:
-    """Adds speed-resampled copies of the database's clips (each mirrored when the original is)
-    until it holds at least `size` snippets; one transaction per clip. The snippet count
-    afterwards."""
+    """Adds speed-resampled copies of the clips until there are at least `size` snippets.
+
+    A copy is mirrored when its original is; one transaction per clip. Returns the snippet count.
+    """
     from tqdm import tqdm
 
     total = conn.execute("SELECT count(*) FROM modb.snippets").fetchone()[0]

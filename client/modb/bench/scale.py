@@ -42,10 +42,11 @@ def _with_dbname(dsn: str, name: str) -> str:
 
 
 def sized_database(dsn: str, size: int, seed: int, progress=print) -> str:
-    """A copy of the database at `dsn` (made once, kept for the next run) with `size` snippets,
-    about; its conninfo. Smaller: whole clips drawn in a seeded order, compacted as after a load of
-    that size. Larger: speed-resampled copies of its clips added (modb.bench.resampled; an
-    interrupted run resumes)."""
+    """A copy of the database at `dsn` with about `size` snippets, made once and kept; its conninfo.
+
+    Smaller: whole clips drawn in a seeded order, compacted as after a load of that size. Larger:
+    speed-resampled copies of its clips added (modb.bench.resampled; an interrupted run resumes).
+    """
     source = psycopg.conninfo.conninfo_to_dict(dsn).get("dbname") or "modb"
     name = f"{source}_{size}"
     with psycopg.connect(_with_dbname(dsn, "postgres"), autocommit=True) as admin:
@@ -78,8 +79,10 @@ def sized_database(dsn: str, size: int, seed: int, progress=print) -> str:
 
 
 def pgbench(dsn: str, clients: int, seconds: int) -> float:
-    """Selections per second: the shipped script (a random prev and target per call), prepared,
-    generic plans, no JIT."""
+    """Selections per second: the shipped script, prepared, with generic plans and no JIT.
+
+    Each call draws a random prev and target.
+    """
     with psycopg.connect(dsn) as conn:
         low, high = conn.execute("SELECT min(id), max(id) FROM modb.snippets").fetchone()
     env = {**os.environ, "PGOPTIONS": selection_pgoptions()}

@@ -1,5 +1,4 @@
-"""`modb bench select`: latency of select_next_snippet on the stored snippets, beside a sequential
-scan.
+"""`modb bench select`: select_next_snippet's latency on stored snippets, beside a sequential scan.
 
 Both run the same seeded queries in the same session, alternating query by query; the sequential
 scan is the same function with index scans switched off, so both must return the same snippet. With
@@ -36,9 +35,11 @@ Timed = Callable[[list], tuple[float, tuple]]
 def _alternate(
     ids: list[int], queries: int, seed: int, profile: str, first: Timed, second: Timed
 ) -> tuple[list[float], list[float], list[int], int]:
-    """Seeded queries (a random prev among ids, a target within 5 m), each run by `first` then
-    `second`: their times, the levels `first` chose, and how often the two chose different
-    snippets."""
+    """Seeded queries, each run by `first` then `second`: their times and how their choices compare.
+
+    A query is a random prev among ids and a target within 5 m. Returned: the times of each, the
+    levels `first` chose, and how often the two chose different snippets.
+    """
     rng = np.random.default_rng(seed)
     first_ms, second_ms, levels, mismatches = [], [], [], 0
     for _ in range(queries):

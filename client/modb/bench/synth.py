@@ -1,5 +1,4 @@
-"""`modb bench synth`: a seeded course of goals 1-20 m apart, synthesized for N seconds, with its
-report.
+"""`modb bench synth`: a seeded course of goals 1-20 m apart, synthesized for N s, and its report.
 
 The issue's relaxation aim is stated on such a course (10 minutes on Bandai dataset 2 locomotion
 with the shipped default profile); this makes it reproducible: same seed, same goals, same chain.

@@ -20,8 +20,7 @@ def connect(args: argparse.Namespace) -> psycopg.Connection:
 
 
 def write_bvh_file(command: str, motion, path: str) -> bool:
-    """Writes `motion` to `path`; False, with the reason on stderr, when the file cannot be
-    written."""
+    """Writes `motion` to `path`; if it cannot, False, with the reason on stderr."""
     from modb.bvh_export import write_bvh_file
 
     try:

@@ -1,5 +1,4 @@
-"""`modb demo`: real capture loaded, a minute of motion synthesized through goals, the report
-printed."""
+"""`modb demo`: load real capture, synthesize a minute of motion through goals, print the report."""
 
 from __future__ import annotations
 
@@ -24,8 +23,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Load real capture (the shared data when present, else CMU 01_01 from PyPI), synthesize,
-    report."""
+    """Load real capture (shared data if present, else CMU 01_01 from PyPI), synthesize, report."""
     from modb.demo.run import run_demo
 
     from .main import main

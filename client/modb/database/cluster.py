@@ -29,8 +29,7 @@ class ClusterError(RuntimeError):
 
 
 def _bindir() -> Path:
-    """PostgreSQL 15's server binaries (Debian's layout first: `pg_config` may point at a newer
-    major)."""
+    """PostgreSQL 15's server binaries, Debian's layout first: `pg_config` may be a newer major."""
     debian = Path("/usr/lib/postgresql/15/bin")
     if (debian / "initdb").exists():
         return debian
@@ -155,8 +154,7 @@ class Cluster:
             )
 
     def start(self) -> None:
-        """Create the cluster if needed, start it, and make sure database `modb` has the
-        extension."""
+        """Create the cluster if needed, start it, and ensure database `modb` has the extension."""
         if not self.is_initialized():
             self.init()
         if not self.is_running():
@@ -180,8 +178,8 @@ class Cluster:
             before = conn.execute(version).fetchone()[0]
             conn.execute("ALTER EXTENSION modb UPDATE")
             if before < [0, 8, 0] <= conn.execute(version).fetchone()[0]:
-                # 0.8.0 rewrote every feature cube; its upgrade script cannot VACUUM, so the index
-                # is rebuilt here
+                # 0.8.0 rewrote every feature cube. Its upgrade script cannot VACUUM, so the
+                # tables are vacuumed and the index rebuilt here.
                 conn.execute("VACUUM ANALYZE modb.snippets, modb.terminators")
                 conn.execute("REINDEX INDEX modb.snippets_begin_features_idx")
 

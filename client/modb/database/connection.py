@@ -16,8 +16,7 @@ SELECTION_SETTINGS = {"plan_cache_mode": "force_generic_plan", "jit": "off"}
 
 
 def configure_for_selection(conn: psycopg.Connection) -> None:
-    """Sets SELECTION_SETTINGS for the session of a connection that calls select_next_snippet
-    repeatedly."""
+    """Sets SELECTION_SETTINGS for a session that calls select_next_snippet repeatedly."""
     conn.execute(
         "SELECT set_config(name, value, false) FROM unnest(%s::text[], %s::text[]) AS s(name, "
         "value)",

@@ -1,5 +1,7 @@
-"""Which database modb talks to: --dsn, else MODB_DSN, else libpq's environment, else the embedded
-cluster."""
+"""Which database modb talks to.
+
+--dsn, else MODB_DSN, else libpq's environment, else the embedded cluster.
+"""
 
 from __future__ import annotations
 

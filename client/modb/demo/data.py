@@ -30,8 +30,10 @@ LOCOMOTION = ("walk", "walk-turn-left", "walk-turn-right", "run")
 
 
 def locomotion_files(folder: Path) -> list[Path]:
-    """Bandai dataset 2's walks, turns and runs (dataset-2_<content>_<style>_<n>.bvh) in a folder,
-    sorted."""
+    """Bandai dataset 2's walks, turns and runs in a folder, sorted.
+
+    Their file names are dataset-2_<content>_<style>_<n>.bvh.
+    """
     return sorted(f for f in folder.glob("dataset-2_*.bvh") if f.name.split("_")[1] in LOCOMOTION)
 
 

@@ -1,5 +1,4 @@
-"""The Avatar: a character that walks toward goals by chaining snippets chosen by
-select_next_snippet.
+"""The Avatar: a character walking toward goals by chaining snippets select_next_snippet chooses.
 
 It keeps its world placement (pelvis ground point and heading), asks the database for the next
 snippet with the goal in world coordinates, places that snippet where the previous one ended and
@@ -90,17 +89,17 @@ class Avatar:
 
     @property
     def placement(self) -> Placement:
-        """Where the avatar stands (pelvis on the ground) and faces at the end of the last chosen
-        snippet."""
+        """The avatar's placement (pelvis ground point, heading) after the last chosen snippet."""
         if self.choices:
             return self.choices[-1].end
         return Placement(tuple(float(v) for v in self.position), float(self.heading))
 
     def frames(self) -> Iterator[Frame]:
-        """Frames of the growing strip, forever (stop consuming to stop). The first snippet plays
-        whole; every later one without its first frame, which stands in for the previous snippet's
-        last. Raises NoContinuation when the database has nothing to play next. An Avatar plays one
-        strip."""
+        """Frames of the growing strip, forever (stop consuming to stop); an Avatar plays one strip.
+
+        The first snippet plays whole, every later one without its first frame (it stands in for the
+        previous snippet's last). Raises NoContinuation when the database finds no next snippet.
+        """
         if self._started:
             raise RuntimeError(
                 "an Avatar plays one strip: make a new Avatar (at avatar.placement) to start again"
@@ -181,8 +180,7 @@ class Avatar:
     def _choose(
         self, previous: Choice | None, request: dict
     ) -> tuple[Choice, np.ndarray, np.ndarray]:
-        """Runs in the worker thread: the selection query, then the chosen snippet's placed
-        frames."""
+        """In the worker thread: the selection query, then the chosen snippet's placed frames."""
         t = time.perf_counter()
         candidates = None
         if previous is None and self.start_snippet is not None:
@@ -279,8 +277,7 @@ class Avatar:
         return choice, rotations, translations
 
     def _set_knobs(self, knobs: dict[str, str]) -> None:
-        """The session's SET modb.<knob>, as in psql; a knob no longer given goes back to the
-        profile's."""
+        """The session's SET modb.<knob>, as in psql; a knob left out goes back to the profile's."""
         wanted = {**{k: "" for k in self._knobs_set}, **knobs}
         for knob, value in wanted.items():
             if self._knobs_set.get(knob, "") != value:

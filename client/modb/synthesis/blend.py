@@ -12,9 +12,10 @@ from .chain import Frame
 def blend_seam(
     previous_last: Frame | None, rotations: np.ndarray, translations: np.ndarray, blend_frames: int
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Optional seam blending: the jump between the previous snippet's last frame and this one's
-    first (which it replaces) is spread over the next blend_frames frames, fading linearly to
-    nothing."""
+    """Optional seam blending: the jump fades out linearly over the next blend_frames frames.
+
+    The jump is between the previous snippet's last frame and this one's first (which it replaces).
+    """
     n = min(blend_frames, len(rotations) - 2)  # the last frame stays as placed: the next seam
     if previous_last is None or n <= 0:
         return rotations, translations

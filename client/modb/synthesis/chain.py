@@ -13,8 +13,7 @@ Goal = tuple[float, ...]  # world {x, z} or {x, y, z}, metres
 
 
 class NoContinuation(RuntimeError):
-    """The database found no snippet to play next (every candidate excluded, or an empty
-    collection)."""
+    """The database found nothing to play next (all candidates excluded, or an empty collection)."""
 
 
 @dataclass
@@ -35,8 +34,7 @@ class Settings:
     count_candidates: bool = False
 
     def session_knobs(self) -> dict[str, str]:
-        """What SET modb.<knob> a session selecting with these settings has ('' goes back to the
-        profile's)."""
+        """The SET modb.<knob> of a session selecting with these settings ('' is the profile's)."""
         return {**self.knobs, "graph": self.graph or ""}
 
     def __post_init__(self) -> None:

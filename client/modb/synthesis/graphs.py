@@ -2,8 +2,7 @@
 
 A graph keeps the snippets a chain can keep moving among; `modb synth --graph NAME` (or SET
 modb.graph) makes select_next_snippet choose among them only. Building reads every snippet's
-terminators, so it takes minutes for tens of thousands of snippets; the server's progress NOTICEs
-are passed on.
+terminators (minutes for tens of thousands of snippets) and passes on the server's progress NOTICEs.
 """
 
 from __future__ import annotations

@@ -4,9 +4,8 @@ relaxation and query latency (README "Synthesis quality" defines each figure and
 Roughness of a frame-to-frame step: r = the largest, over the standard joints, of the joint's
 rotation change divided by that joint's 99th percentile of change between consecutive frames of the
 source clips (the pelvis measured in the world, every other joint relative to its parent), with one
-more term: the change of the pelvis velocity from the previous step over its own 99th percentile. A
-seam is the step from one snippet's last frame to the next snippet's second (its first stands in for
-the last).
+more term: the change of the pelvis velocity from the previous step over its own 99th percentile.
+A seam: from a snippet's last frame to the next's second, whose first stands in for the last.
 """
 
 from __future__ import annotations
@@ -86,16 +85,17 @@ def roughness(
 
 
 def seam_steps(chain: Sequence[Choice]) -> list[int]:
-    """Strip step index of every seam: from a snippet's last frame to the next one's first played
-    frame."""
+    """Strip step index of each seam: a snippet's last frame to the next's first played frame."""
     return [c.end_frame for c in chain[:-1]]
 
 
 def recombined(chain: Sequence[Choice], window_seconds: float = 2.0) -> list[bool]:
-    """Per seam: does it go to another clip, or jump at least one snippet within the same clip
-    without replaying frames played in the last window_seconds? A clip's mirror image is the same
-    clip here: its frames are the same capture. Playing on from where the previous snippet ended is
-    not recombination."""
+    """Per seam: does it go to another clip, or jump within the same clip without replaying?
+
+    A jump within the clip skips at least one snippet and replays no frame played in the last
+    window_seconds; playing on from where the previous snippet ended is not recombination. A clip's
+    mirror image is the same clip here: its frames are the same capture.
+    """
     out = []
     for k in range(1, len(chain)):
         a, b = chain[k - 1], chain[k]
@@ -133,9 +133,11 @@ class GoalReach:
 
     @property
     def counts_for_aim(self) -> bool:
-        """The issue's reach aim covers goals at least 5 m away and not behind; the others are
-        reported. A goal still unreached when the strip ended counts only once it has had its 2x
-        straight line."""
+        """Whether the issue's reach aim covers this goal: at least 5 m away and not behind.
+
+        Other goals are only reported. A goal still unreached when the strip ended counts only once
+        it has had its 2x straight line.
+        """
         pending = (
             not self.reached and self.current_seconds < AIM_REACH_RATIO * self.straight_seconds
         )
@@ -145,8 +147,10 @@ class GoalReach:
 def goal_reach(
     chain: Sequence[Choice], goals: Sequence[tuple[float, ...]], walking_speed: float
 ) -> list[GoalReach]:
-    """Every goal of the course; one that never became current is reported as not reached, measured
-    from where the strip ended."""
+    """Every goal of the course.
+
+    One that never became current is reported as not reached, measured from where the strip ended.
+    """
     out = []
     for goal, target in enumerate(goals, start=1):
         served = [c for c in chain if c.goal == goal]
@@ -214,8 +218,7 @@ class Report:
 
     @property
     def aims(self) -> dict[str, bool | None]:
-        """Which aims are met; None where the strip gives nothing to measure (no goal counts for
-        reach)."""
+        """Which aims are met; None for reach when no goal counts for it (nothing to measure)."""
         counted = [g for g in self.goals if g.counts_for_aim]
         return {
             "seam share r>1 <= 2x natural": self.seam_share_over_one

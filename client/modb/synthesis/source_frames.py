@@ -19,8 +19,7 @@ class UnplaceableSkeleton(ValueError):
 
 @dataclass(frozen=True)
 class SourceFrames:
-    """One clip version as played: parent-relative rotations, translations and the source pelvis
-    path."""
+    """A clip version as played: parent-relative rotations, translations and source pelvis path."""
 
     motion: Motion
     pelvis: np.ndarray  # (frames, 3) world pelvis positions in the source
@@ -56,8 +55,7 @@ def mirrored_motion(motion: Motion) -> Motion:
 
 
 class FrameLibrary:
-    """Clip versions fetched on first use and kept: a synthesized strip revisits the same few
-    clips."""
+    """Clip versions fetched on first use and kept: a strip revisits the same few clips."""
 
     def __init__(self, conn: psycopg.Connection):
         self._conn = conn

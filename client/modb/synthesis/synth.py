@@ -29,8 +29,7 @@ class Synthesis:
 
 
 def strip_motion(frames: Sequence[Frame], template: Motion, name: str) -> Motion:
-    """The frames as one Motion on the first snippet's skeleton and rate (a chain never mixes
-    them)."""
+    """The frames as a Motion on the first snippet's skeleton and rate (chains never mix them)."""
     return Motion(
         skeleton=template.skeleton,
         fps=template.fps,
@@ -49,9 +48,10 @@ def synthesize(
     start_snippet: int | None = None,
     progress: Callable[[float], None] | None = None,
 ) -> Synthesis:
-    """Frames until the strip lasts at least `seconds` (whole snippets). The strip ends early,
-    saying why, when the database has nothing to play next (modb.synthesize's chain ends there
-    too)."""
+    """Frames until the strip lasts at least `seconds` (whole snippets).
+
+    It ends early, saying why, when the database has nothing to play next (as modb.synthesize does).
+    """
     avatar = Avatar(conn, goals=goals, start_snippet=start_snippet, settings=settings)
     frames: list[Frame] = []
     stopped = None
@@ -77,8 +77,7 @@ def synthesize(
 
 
 def _scope(collection: str | None) -> tuple[str, list]:
-    """SQL condition on snippets s: the same poses and rate as the chain's first snippet, in the
-    collection."""
+    """SQL condition on snippets s: in the collection, same poses and rate as the chain's first."""
     return (
         "s.pose_key = f.pose_key AND s.fps = f.fps AND NOT s.mirrored"
         " AND (%s::text IS NULL OR s.collection_id = ANY (modb.collection_subtree(%s)))",

@@ -1,8 +1,7 @@
 """The read-only JSON views of the motion database (the DFKI data server's browsing role).
 
 Each function takes a connection and validated arguments and returns what the endpoint sends;
-unknown ids raise NotFound, bad arguments BadRequest, so the app can answer 404 and 400 with the
-message.
+unknown ids raise NotFound and bad arguments BadRequest (the app's 404 and 400, with the message).
 """
 
 from __future__ import annotations
@@ -183,16 +182,14 @@ def graph(conn: psycopg.Connection, graph_id: int) -> dict[str, Any]:
 
 
 def profiles(conn: psycopg.Connection) -> list[dict[str, Any]]:
-    """The match profiles select_next_snippet takes, with their settings (the avatar panel's
-    starting values)."""
+    """select_next_snippet's match profiles and settings: the avatar panel's starting values."""
     return _rows(
         conn, "SELECT name, settings, comment, shipped FROM modb.match_profiles ORDER BY name"
     )
 
 
 def avatar_choices(conn: psycopg.Connection) -> dict[str, Any]:
-    """What the avatar panel offers: profiles, transition graphs (newest first), collections,
-    joints."""
+    """The avatar panel's choices: profiles, transition graphs newest first, collections, joints."""
     graphs = [
         r[0]
         for r in conn.execute(

@@ -12,8 +12,7 @@ RECENT = 50  # the readouts summarise the last this many selections
 
 
 def readout(choices: list[Choice]) -> dict[str, Any]:
-    """The panel's live figures over the last RECENT selections (the start, chosen without a seam,
-    aside)."""
+    """The panel's live figures over the last RECENT selections (not the start: it has no seam)."""
     recent = [c for c in choices[-RECENT:] if c.latency_ms is not None]
     latency = np.array([c.latency_ms for c in recent])
     seams = np.array([c.continuity for c in recent if c.continuity is not None])

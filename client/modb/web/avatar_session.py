@@ -34,8 +34,7 @@ Check = Callable[[Settings], None]
 
 
 class AvatarSession:
-    """The avatar of one browser connection. handle() takes the page's messages; a thread plays the
-    frames."""
+    """A browser connection's avatar: handle() takes the page's messages; a thread plays frames."""
 
     def __init__(self, conninfo: str, send: Send, check: Check, settings: Settings) -> None:
         self._conninfo = conninfo
@@ -96,8 +95,7 @@ class AvatarSession:
             self._avatar.add_waypoint(goal)
         elif running:
             self._avatar.set_goal(goal)
-        else:  # the first goal, or after the walk stopped on an error: a new avatar where the last
-            # one stood
+        else:  # first goal, or the walk stopped on an error: a new avatar where the last one stood
             if self._avatar is not None:
                 self._placement = self._avatar.placement
             try:
@@ -179,8 +177,7 @@ class AvatarSession:
             avatar.conn.close()
 
     def _skeleton(self, avatar: Avatar, choice: Choice) -> None:
-        """The skeleton the page poses, when it changes (sent once per avatar for one-skeleton
-        data)."""
+        """The skeleton the page poses, when it changes: once per avatar for one-skeleton data."""
         key = (choice.clip_id, choice.version)
         if key not in self._skeleton_of:
             self._skeleton_of[key] = avatar.conn.execute(

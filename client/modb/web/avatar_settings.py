@@ -1,6 +1,7 @@
-"""Avatar mode's settings: what a page may ask for (profile, graph, collection, lead time, arrival
-radius, the tunable knobs), read from its message and checked by the database before any avatar
-uses them.
+"""Avatar mode's settings: what a page may ask for, read from its message and checked in advance.
+
+A page may ask for a profile, graph, collection, lead time, arrival radius and the tunable knobs;
+the database checks them before any avatar uses them.
 """
 
 from __future__ import annotations
@@ -32,8 +33,7 @@ class SettingsRefused(ValueError):
 
 
 def settings_from(message: dict[str, Any], current: Settings) -> Settings:
-    """The settings a page asked for, from a {"type": "settings", ...} message (missing keys keep
-    theirs)."""
+    """The settings a {"type": "settings", ...} message asks for; missing keys keep `current`'s."""
     unknown = sorted(
         set(message)
         - {"type", "profile", "graph", "collection", "lead_time", "arrival_radius", "knobs"}

@@ -1,9 +1,7 @@
-"""The WebSocket /ws/avatar: the asyncio side of avatar mode (AvatarSession does the work in
-threads).
+"""The WebSocket /ws/avatar: avatar mode's asyncio side (AvatarSession does the work in threads).
 
 The Host/Origin guard in front refuses a foreign page before this runs. Each connection gets its own
-database session; at most MAX_AVATARS walk at once, so that browser tabs cannot exhaust the server's
-connections.
+database session; at most MAX_AVATARS walk at once, so tabs cannot exhaust the server's connections.
 """
 
 from __future__ import annotations
@@ -31,8 +29,7 @@ SEND_TIMEOUT_S = 30  # a page that reads nothing for this long stops its avatar
 
 def _defaults(choices: dict[str, Any]) -> Settings:
     # The newest transition graph: the aims of synthesis (README "Synthesis quality") need one.
-    # A lead time of 0.1 s hides a selection (~20-30 ms with a graph) behind the snippet's last
-    # frames.
+    # A lead time of 0.1 s hides a selection (~20-30 ms with a graph) behind the last frames.
     return Settings(graph=choices["graphs"][0] if choices["graphs"] else None, lead_time=0.1)
 
 

@@ -1,9 +1,9 @@
 """Host and Origin checks for every request (HTTP and WebSocket) to the local web app.
 
 The app serves the user's database to their own browser. Another web site open in that browser can
-still send it requests: by pointing its own DNS name at 127.0.0.1 (the Host header then names that
-site), or by posting or opening a WebSocket from its page (the Origin header names that site). Both
-are refused.
+still send it requests, which are refused: by pointing its own DNS name at 127.0.0.1 (the Host
+header then names that site) or by posting or opening a WebSocket from its page (the Origin header
+then names that site).
 """
 
 from __future__ import annotations
@@ -40,8 +40,7 @@ def allowed_hosts(host: str, port: int, extra_names: Iterable[str] = ()) -> froz
 
 
 class HostOriginGuard:
-    """ASGI middleware: 403 for a Host this server does not answer to, or an Origin other than its
-    own."""
+    """ASGI middleware: 403 for a Host this server does not answer to or an Origin not its own."""
 
     def __init__(self, app: ASGIApp, hosts: Iterable[str]) -> None:
         self.app = app
