@@ -15,7 +15,7 @@ from scipy.spatial.transform import Rotation
 from support.bvh_oracle import bvhio_world_positions, in_order
 from support.commands import run_modb
 from support.databases import GRAPH
-from support.snippet_oracle import world_transforms
+from support.snippet_oracle import STANDARD, world_transforms
 
 from modb.synthesis.avatar import Avatar, Choice, Settings
 from modb.bench.synth import seeded_course
@@ -254,28 +254,7 @@ def test_roughness_matches_an_independent_computation(locomotion):
     angles, velocity_change = step_changes(result.strip)
     sk = result.strip.skeleton
     positions, world = independent_world(result.strip)
-    std = [
-        "pelvis",
-        "spine",
-        "chest",
-        "neck",
-        "head",
-        "left_hip",
-        "left_knee",
-        "left_ankle",
-        "left_toe",
-        "left_shoulder",
-        "left_elbow",
-        "left_wrist",
-        "right_hip",
-        "right_knee",
-        "right_ankle",
-        "right_toe",
-        "right_shoulder",
-        "right_elbow",
-        "right_wrist",
-    ]
-    for column, name in enumerate(std):
+    for column, name in enumerate(STANDARD):
         k = sk.index(sk.joint_map[name])
         r = (
             world[k]
