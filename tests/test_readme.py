@@ -95,3 +95,9 @@ def test_the_knob_table_names_every_knob(fresh_db):
     with psycopg.connect(fresh_db) as conn:
         (knobs,) = conn.execute("SELECT modb.match_knobs()").fetchone()
     assert written == {f"modb.{k}" for k in knobs}
+
+
+def test_the_readme_states_the_version_once():
+    import modb
+
+    assert README.read_text().count(f"This is modb {modb.__version__} ") == 1
