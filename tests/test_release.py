@@ -26,11 +26,13 @@ from pathlib import Path
 import psycopg
 import pytest
 
+from modb.database.cluster import _bindir
+from modb.version import __version__ as VERSION
+
 REPO = Path(__file__).resolve().parents[1]
 EXTENSION = REPO / "extension"
 RELEASED = EXTENSION / "sql" / "released"
 KERNEL = EXTENSION / "plpython" / "modb_kernel"
-VERSION = re.search(r"default_version\s*=\s*'([^']+)'", (EXTENSION / "modb.control").read_text())[1]
 FROZEN = RELEASED / f"modb--{VERSION}.sql"
 
 pytestmark = pytest.mark.skipif(
@@ -42,16 +44,6 @@ pytestmark = pytest.mark.skipif(
 EMBEDDED = re.compile(r"^( +)sources = (\{(?:\n +'modb_kernel[\w.]*': .*,)*\})$", re.M)
 CONFIG_DUMP = re.compile(r"^SELECT pg_catalog\.pg_extension_config_dump\((.*)\);\n", re.M)
 GUARD = re.compile(r"^\\echo Use .* \\quit\n", re.M)
-
-
-def _bindir() -> Path:
-    pg_config = Path("/usr/lib/postgresql/15/bin/pg_config")
-    command = str(pg_config) if pg_config.exists() else "pg_config"
-    return Path(
-        subprocess.run(
-            [command, "--bindir"], capture_output=True, text=True, check=True
-        ).stdout.strip()
-    )
 
 
 def built_script() -> str:
