@@ -1,0 +1,2 @@
+-- 0.9.0: hardening. Snippets are built in bounded memory and a loader role can build them; the loader
+-- role gets only what loading needs; selection refuses thresholds and targets it cannot honour.
