@@ -31,7 +31,7 @@ MIRRORED_TERMINATORS = (
 )
 
 
-@pytest.mark.parametrize("old", ["0.1.0", "0.2.0", "0.3.0", "0.4.0", "0.5.0", "0.6.0", "0.7.0"])
+@pytest.mark.parametrize("old", ["0.1.0", "0.2.0", "0.3.0", "0.4.0", "0.5.0", "0.6.0", "0.7.0", "0.8.0"])
 def test_update_keeps_the_data(cluster, fresh_db, db, old):
     current = db.execute(
         "SELECT default_version FROM pg_available_extensions WHERE name = 'modb'"
@@ -63,10 +63,10 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
     # A graph built before 0.5.0 stored no transitions: it keeps working through the box. One built
     # by 0.5.0 has no cost-to-go: it keeps ranking by where the candidates lead. One built by 0.6.0
     # or later keeps its costs (0.8.0's wider feature cube changes no transition).
-    if old in ("0.4.0", "0.5.0", "0.6.0", "0.7.0"):
+    if old in ("0.4.0", "0.5.0", "0.6.0", "0.7.0", "0.8.0"):
         db.execute("SELECT modb.build_transition_graph('old', 'locomotion', NULL, 0)")
     db.execute("ALTER EXTENSION modb UPDATE")
-    if old in ("0.4.0", "0.5.0", "0.6.0", "0.7.0"):
+    if old in ("0.4.0", "0.5.0", "0.6.0", "0.7.0", "0.8.0"):
         stored, costs = db.execute(
             "SELECT count(*), count(cost_to_go) FROM modb.graph_transitions"
         ).fetchone()
@@ -166,11 +166,17 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
         "SELECT c.relname, c.relacl::text FROM pg_class c "
         "WHERE relnamespace = 'modb'::regnamespace ORDER BY 1"
     )
+    column_acls = (
+        "SELECT a.attrelid::regclass::text, a.attname, a.attacl::text FROM pg_attribute a "
+        "JOIN pg_class c ON c.oid = a.attrelid "
+        "WHERE c.relnamespace = 'modb'::regnamespace AND a.attacl IS NOT NULL ORDER BY 1, 2"
+    )
     grants = (
         "SELECT p.oid::regprocedure::text, p.proacl::text FROM pg_proc p "
         "WHERE pronamespace = 'modb'::regnamespace ORDER BY 1"
     )
     updated_acls, updated_grants = db.execute(acls).fetchall(), db.execute(grants).fetchall()
+    updated_column_acls = db.execute(column_acls).fetchall()
     db.execute("DROP ROLE IF EXISTS t_updated_reader")
     db.execute("CREATE ROLE t_updated_reader LOGIN IN ROLE modb_reader")
     try:
@@ -192,6 +198,7 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
     assert (
         db.execute(acls).fetchall() == updated_acls
         and db.execute(grants).fetchall() == updated_grants
+        and db.execute(column_acls).fetchall() == updated_column_acls
     )
     if with_snippets:
         assert run_modb(fresh_db, "load", *files, "--mirror").returncode == 0
