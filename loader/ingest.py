@@ -104,28 +104,29 @@ def _content_key(motion: Motion) -> str:
     return hashlib.sha256("|".join(parts).encode()).hexdigest()
 
 
-def build_snippets(
-    conn: psycopg.Connection,
-    clip_id: int,
-    warn: Callable[[str], None] | None,
-    mirrored: bool = False,
-) -> int:
+class SnippetsError(Exception):
+    """The database could not cut a stored clip into snippets: the file fails, none of it stays."""
+
+
+def build_snippets(conn: psycopg.Connection, clip_id: int, mirrored: bool = False) -> int:
     """Cut the clip's newest version into snippets (and, when asked, its mirror image), inside the
-    caller's transaction; 0 with a warning when the database cannot (e.g. the skeleton's joint map
-    is incomplete): the clip itself stays loaded."""
+    caller's transaction. A clip that cannot be cut (e.g. its skeleton's joint map is incomplete)
+    raises SnippetsError: a clip loaded without its snippets would be lost to the selection."""
     try:
-        with conn.transaction():  # a savepoint
-            added = conn.execute("SELECT modb.build_snippets(clip => %s)", [clip_id]).fetchone()[0]
-            if mirrored:
-                added += conn.execute(
-                    "SELECT modb.build_snippets(clip => %s, mirrored => true)", [clip_id]
-                ).fetchone()[0]
-            return added
+        added = conn.execute("SELECT modb.build_snippets(clip => %s)", [clip_id]).fetchone()[0]
+        if mirrored:
+            added += conn.execute(
+                "SELECT modb.build_snippets(clip => %s, mirrored => true)", [clip_id]
+            ).fetchone()[0]
+        return added
+    except psycopg.OperationalError:
+        raise  # the connection, not the clip
     except psycopg.Error as e:
-        if warn:
-            hint = f" ({e.diag.message_hint})" if e.diag.message_hint else ""
-            warn(f"clip {clip_id} loaded without snippets: {e.diag.message_primary or e}{hint}")
-        return 0
+        hint = f" ({e.diag.message_hint})" if e.diag.message_hint else ""
+        raise SnippetsError(
+            f"its snippets could not be built: {e.diag.message_primary or e}{hint}; nothing of it "
+            "was stored (--no-snippets stores the clip alone)"
+        ) from e
 
 
 def store_motion(
@@ -134,7 +135,6 @@ def store_motion(
     collection: str,
     key: str,
     snippets: bool = False,
-    warn: Callable[[str], None] | None = None,
     mirrored: bool = False,
 ) -> tuple[int, int | None, int]:
     """Store a parsed clip as a new version in one transaction, with its snippets when asked:
@@ -207,7 +207,7 @@ def store_motion(
                 json.dumps(load_params),
             ],
         ).fetchone()
-        added = build_snippets(conn, clip_id, warn, mirrored) if snippets else 0
+        added = build_snippets(conn, clip_id, mirrored) if snippets else 0
         return clip_id, version, added
 
 
@@ -220,22 +220,44 @@ def load_files(
     snippets: bool = True,
     mirrored: bool = False,
 ) -> LoadSummary:
-    """Load each file in its own transaction. Stops at the first bad file unless keep_going."""
+    """Load each file in its own transaction. Stops at the first bad file unless keep_going; with
+    it, every file is tried and reported, whatever goes wrong with one (once the connection is lost,
+    each remaining file says so)."""
     summary = LoadSummary()
     started = time.perf_counter()
     for job in jobs:
-        result = _load_one(conn, job, options, snippets, mirrored)
+        if conn.closed:
+            result = FileResult(
+                job.path, "failed", message=f"{job.path}: not loaded: the connection was lost"
+            )
+        else:
+            result = _load_one(conn, job, options, snippets, mirrored)
         summary.results.append(result)
         if progress:
             progress(result)
         if result.status == "failed" and not keep_going:
             break
-    if any(r.snippets for r in summary.results):
-        # Fresh statistics once per load, so the planner sees the new snippets at once (autovacuum
-        # would get there later); a role that does not own the tables only gets a warning.
-        conn.execute("ANALYZE modb.snippets, modb.terminators")
+    if any(r.snippets for r in summary.results) and not conn.closed:
+        _analyze(conn)
     summary.elapsed = time.perf_counter() - started
     return summary
+
+
+def _analyze(conn: psycopg.Connection) -> None:
+    """Fresh statistics once per load, so the planner sees the new snippets at once (autovacuum gets
+    there later). Only the tables' owner may; a loader role leaves it to autovacuum."""
+    (owner,) = conn.execute(
+        "SELECT pg_has_role(relowner, 'USAGE') FROM pg_class WHERE oid = 'modb.snippets'::regclass"
+    ).fetchone()
+    if owner:
+        conn.execute("ANALYZE modb.snippets, modb.terminators")
+
+
+def _refused(job: FileJob, e: psycopg.Error) -> str:
+    diag = e.diag
+    parts = (diag.message_primary, diag.message_detail, diag.message_hint)
+    detail = "; ".join(x for x in parts if x)
+    return f"{job.path}: the database refused the clip: {detail or e}"
 
 
 def _load_one(
@@ -247,23 +269,33 @@ def _load_one(
         key = read_key(job, options)
         hit = _unchanged(conn, job, name, sha, key)
         if hit:  # cut it now if an earlier load skipped the snippets
-            added = build_snippets(conn, hit[0], options.warn, mirrored) if snippets else 0
+            with conn.transaction():
+                added = build_snippets(conn, hit[0], mirrored) if snippets else 0
             return FileResult(job.path, "unchanged", clip_id=hit[0], version=hit[1], snippets=added)
         motion = read_job(job, options)
         clip_id, version, added = store_motion(
-            conn, motion, job.collection, key, snippets, options.warn, mirrored
+            conn, motion, job.collection, key, snippets, mirrored
         )
     except MotionFileError as e:
         return FileResult(job.path, "failed", message=str(e))
+    except SnippetsError as e:
+        return FileResult(job.path, "failed", message=f"{job.path}: {e}")
     except OSError as e:
         return FileResult(job.path, "failed", message=f"{job.path}: cannot read: {e.strerror or e}")
+    except psycopg.OperationalError as e:
+        if conn.closed:
+            return FileResult(
+                job.path, "failed", message=f"{job.path}: not loaded: the connection was lost ({e})"
+            )
+        return FileResult(job.path, "failed", message=_refused(job, e))
     except psycopg.Error as e:
-        diag = e.diag
-        detail = "; ".join(
-            x for x in (diag.message_primary, diag.message_detail, diag.message_hint) if x
-        )
+        return FileResult(job.path, "failed", message=_refused(job, e))
+    except Exception as e:  # a bug: this file fails with what went wrong, the batch goes on
         return FileResult(
-            job.path, "failed", message=f"{job.path}: the database refused the clip: {detail or e}"
+            job.path,
+            "failed",
+            message=f"{job.path}: not loaded: {type(e).__name__}: {e} (a modb bug: please report "
+            "it with this file)",
         )
     if version is None:
         return FileResult(job.path, "unchanged", clip_id=clip_id)

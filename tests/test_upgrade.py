@@ -31,7 +31,10 @@ MIRRORED_TERMINATORS = (
 )
 
 
-@pytest.mark.parametrize("old", ["0.1.0", "0.2.0", "0.3.0", "0.4.0", "0.5.0", "0.6.0", "0.7.0", "0.8.0"])
+OLD_VERSIONS = ["0.1.0", "0.2.0", "0.3.0", "0.4.0", "0.5.0", "0.6.0", "0.7.0", "0.8.0"]
+
+
+@pytest.mark.parametrize("old", OLD_VERSIONS)
 def test_update_keeps_the_data(cluster, fresh_db, db, old):
     current = db.execute(
         "SELECT default_version FROM pg_available_extensions WHERE name = 'modb'"

@@ -1,22 +1,17 @@
--- Checks used by table constraints. The frame checks are numpy (one call per clip version).
+-- Checks used by table constraints. The frame checks are C (src/frame_checks.c): constant memory whatever
+-- the clip's length.
 
 CREATE OR REPLACE FUNCTION modb.unit_quaternions_ok(rotations real[], tolerance float8 DEFAULT 1e-5)
 RETURNS boolean
-LANGUAGE plpython3u IMMUTABLE STRICT PARALLEL SAFE
-AS $py$
-#@modb_kernel
-return kernel.validate.unit_quaternions_ok(rotations, tolerance)
-$py$;
+LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE
+AS 'MODULE_PATHNAME', 'modb_unit_quaternions_ok';
 COMMENT ON FUNCTION modb.unit_quaternions_ok(real[], float8) IS
     'True when every (w,x,y,z) quaternion in the array (last dimension 4) has unit length within tolerance and w >= 0';
 
 CREATE OR REPLACE FUNCTION modb.finite_ok(elements real[])
 RETURNS boolean
-LANGUAGE plpython3u IMMUTABLE STRICT PARALLEL SAFE
-AS $py$
-#@modb_kernel
-return kernel.validate.finite_ok(elements)
-$py$;
+LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE
+AS 'MODULE_PATHNAME', 'modb_finite_ok';
 COMMENT ON FUNCTION modb.finite_ok(real[]) IS 'True when the array holds no NULL, NaN or infinite element';
 
 CREATE FUNCTION modb.skeleton_joint_names(hierarchy jsonb)

@@ -102,5 +102,10 @@ SELECT pg_catalog.pg_extension_config_dump('modb.snippets', '');
 SELECT pg_catalog.pg_extension_config_dump('modb.snippets_id_seq', '');
 
 GRANT SELECT ON modb.snippet_sources, modb.terminators, modb.snippets TO modb_reader;
-GRANT INSERT, DELETE ON modb.snippet_sources, modb.terminators, modb.snippets TO modb_loader;
+-- The loader adds snippets and fills their futures; an old version's snippets and terminators go with its
+-- snippet_sources row (ON DELETE CASCADE runs as the tables' owner). No table-level DELETE or UPDATE on
+-- the tables the selection reads: either would also let the role LOCK them against every reader.
+GRANT INSERT ON modb.snippet_sources, modb.terminators, modb.snippets TO modb_loader;
+GRANT DELETE ON modb.snippet_sources TO modb_loader;
+GRANT UPDATE (future_translation, future_heading) ON modb.snippets TO modb_loader;
 GRANT USAGE ON modb.terminators_id_seq, modb.snippets_id_seq TO modb_loader;

@@ -17,7 +17,7 @@ if collection is not None:
     if not collections:
         plpy.error(f'no collection "{collection}"', hint="modb.collection_path(id) names the stored ones")
 todo = plpy.cursor(plpy.prepare(
-    """SELECT v.clip_id, v.version, v.fps, v.rotations, v.translations, s.id AS skeleton_id, s.hierarchy,
+    """SELECT v.clip_id, v.version, v.fps, v.n_frames, s.id AS skeleton_id, s.hierarchy,
               s.joint_map, s.mirror_pairs, c.collection_id, c.name, modb.skeleton_pose_key(s.hierarchy) AS pose_key
          FROM modb.clip_versions v
          JOIN modb.clips c ON c.id = v.clip_id
@@ -28,6 +28,11 @@ todo = plpy.cursor(plpy.prepare(
           AND NOT EXISTS (SELECT FROM modb.snippet_sources ss
                            WHERE ss.clip_id = v.clip_id AND ss.version = v.version AND ss.mirrored = $3)
         ORDER BY v.clip_id""", ["bigint[]", "bigint", "boolean"]), [collections, clip, bool(mirrored)])
+# Frames are read a slice at a time (and the clip cut chunk by chunk): memory stays bounded whatever
+# the clip's length, and no jsonb argument approaches its size limit.
+read_frames = plpy.prepare(
+    "SELECT rotations[$3:$4] AS rotations, translations[$3:$4] AS translations "
+    "FROM modb.clip_versions WHERE clip_id = $1 AND version = $2", ["bigint", "int", "int", "int"])
 drop_old = plpy.prepare(
     "DELETE FROM modb.snippet_sources WHERE clip_id = $1 AND version < $2 RETURNING mirrored", ["bigint", "int"])
 built = plpy.prepare("SELECT mirrored FROM modb.snippet_sources WHERE clip_id = $1 AND version = $2",
@@ -58,6 +63,12 @@ add_snippets = plpy.prepare(
 def flat(a):
     return np.asarray(a, dtype=np.float64).reshape(len(a), -1).tolist()
 
+def frames(row, lo, hi):
+    """Rotations and translations (None when no joint has position channels) of frames lo..hi-1."""
+    r = plpy.execute(read_frames, [row["clip_id"], row["version"], lo + 1, hi])[0]
+    return (np.asarray(r["rotations"], dtype=np.float64),
+            None if r["translations"] is None else np.asarray(r["translations"], dtype=np.float64))
+
 added = 0
 while True:
     rows = todo.fetch(1)
@@ -71,8 +82,8 @@ while True:
     except T.SkeletonMapError as e:
         plpy.error(f'clip {row["clip_id"]} ({row["name"]}): skeleton {row["skeleton_id"]}: {e}',
                    hint="complete modb.skeletons.joint_map for it, then call modb.build_snippets again")
-    captured = np.asarray(row["rotations"], dtype=np.float64)
-    firsts, length, stride = T.windows(len(captured), row["fps"], window_seconds, stride_seconds)
+    n_frames = row["n_frames"]
+    firsts, length, stride = T.windows(n_frames, row["fps"], window_seconds, stride_seconds)
     # A new version replaces the old versions' snippets, and keeps their mirror images if they had them.
     old_flags = {r["mirrored"] for r in plpy.execute(drop_old, [row["clip_id"], row["version"]])}
     existing = {r["mirrored"] for r in plpy.execute(built, [row["clip_id"], row["version"]])}
@@ -82,36 +93,46 @@ while True:
         plpy.execute(add_source, [row["clip_id"], row["version"], length, stride, flag])
         if len(firsts) == 0:
             continue  # shorter than one snippet: recorded as built, nothing to add
-        rotations, translations = captured, row["translations"]
         if flag:
             pairs = json.loads(row["mirror_pairs"])
             if not pairs:
                 plpy.error(f'clip {row["clip_id"]} ({row["name"]}): skeleton {row["skeleton_id"]} has no mirror pairs',
                            hint="fill modb.skeletons.mirror_pairs with its [left, right] joints")
-            rotations, translations = kernel.mirror.mirror(
-                parents, offsets, [j["end_site"] for j in h["joints"]], kernel.mirror.partner_index(names, pairs),
-                rotations, translations, h["translated"])
-        terms = T.compute(parents, offsets, rotations, translations, h["translated"], std, row["fps"])
-        frames = sorted(set(firsts.tolist()) | set((firsts + length - 1).tolist()))
-        pick = {k: flat(terms[k][frames]) for k in ("positions", "rotations", "velocities", "angular_velocities", "features")}
-        configuration = terms["configuration"][frames].tolist()
-        records = [{"frame": f, "heading": float(terms["heading"][f]), "pelvis_height": float(terms["pelvis_height"][f]),
-                    "positions": pick["positions"][i], "rotations": pick["rotations"][i],
-                    "velocities": pick["velocities"][i], "angular_velocities": pick["angular_velocities"][i],
-                    "configuration": configuration[i], "features": pick["features"][i]}
-                   for i, f in enumerate(frames)]
-        ids = {r["frame"]: r["id"] for r in plpy.execute(add_terminators, [row["clip_id"], row["version"],
-                                                                          json.dumps(records), flag])}
-        snippets = []
-        for first in firsts.tolist():
-            last = first + length - 1
-            translation, turn, rotation = T.net_motion(terms, first, last)
-            snippets.append({"first_frame": first, "begin_terminator": ids[first], "end_terminator": ids[last],
-                             "net_translation": translation.tolist(), "net_heading": float(turn),
-                             "net_rotation": rotation.tolist()})
-        plpy.execute(add_snippets, [row["clip_id"], row["version"], length, row["collection_id"], row["pose_key"],
-                                    row["fps"], json.dumps(snippets), flag])
-        added += len(snippets)
+            partner = kernel.mirror.partner_index(names, pairs)
+            statistics = kernel.mirror.ClipStatistics(parents, offsets, partner, h["translated"])
+            for lo in range(0, n_frames, T.CHUNK_FRAMES):
+                statistics.add(*frames(row, lo, min(n_frames, lo + T.CHUNK_FRAMES)))
+            reflections = statistics.reflections([j["end_site"] for j in h["joints"]])
+        ids = {}  # terminator id by frame, for the snippets still to come
+        for lo, hi, starts in T.chunks(n_frames, row["fps"], firsts, length):
+            rotations, translations = frames(row, lo, hi)
+            if flag:
+                rotations, translations = kernel.mirror.reflect(reflections, parents, partner, rotations,
+                                                                translations, h["translated"])
+            terms = T.compute(parents, offsets, rotations, translations, h["translated"], std, row["fps"])
+            ids = {f: i for f, i in ids.items() if f >= starts[0]}
+            wanted = sorted((set(starts.tolist()) | set((starts + length - 1).tolist())) - set(ids))
+            local = [f - lo for f in wanted]
+            pick = {k: flat(terms[k][local]) for k in ("positions", "rotations", "velocities", "angular_velocities", "features")}
+            configuration = terms["configuration"][local].tolist()
+            records = [{"frame": f, "heading": float(terms["heading"][f - lo]),
+                        "pelvis_height": float(terms["pelvis_height"][f - lo]),
+                        "positions": pick["positions"][i], "rotations": pick["rotations"][i],
+                        "velocities": pick["velocities"][i], "angular_velocities": pick["angular_velocities"][i],
+                        "configuration": configuration[i], "features": pick["features"][i]}
+                       for i, f in enumerate(wanted)]
+            ids.update({r["frame"]: r["id"] for r in plpy.execute(add_terminators, [row["clip_id"], row["version"],
+                                                                                   json.dumps(records), flag])})
+            snippets = []
+            for first in starts.tolist():
+                last = first + length - 1
+                translation, turn, rotation = T.net_motion(terms, first - lo, last - lo)
+                snippets.append({"first_frame": first, "begin_terminator": ids[first], "end_terminator": ids[last],
+                                 "net_translation": translation.tolist(), "net_heading": float(turn),
+                                 "net_rotation": rotation.tolist()})
+            plpy.execute(add_snippets, [row["clip_id"], row["version"], length, row["collection_id"], row["pose_key"],
+                                        row["fps"], json.dumps(snippets), flag])
+            added += len(snippets)
 plpy.execute("SELECT modb.fill_futures()")  # after every clip's snippets exist: futures chain through them
 return added
 $py$;

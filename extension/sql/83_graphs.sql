@@ -77,6 +77,10 @@ inside = keep[src] & keep[dst]
 # The cost-to-go among the kept snippets (modb_kernel/cost_to_go.py), priced beyond its grid at their median speed.
 C = kernel.cost_to_go
 kept = np.flatnonzero(keep)
+if not len(kept):
+    plpy.error(f'transition graph "{name}": no set of these {n} snippets can keep walking and turn '
+               f'{min_turn_degrees:g} degrees each way',
+               hint="load more varied motion (turns, both ways), or pass a smaller min_turn_degrees")
 position = np.full(n, -1)
 position[kept] = np.arange(len(kept))
 net_x, net_z, heading, duration = (np.array(column(c), dtype=np.float64)[kept] for c in ("net_x", "net_z", "net_heading", "duration"))

@@ -96,16 +96,116 @@ def _improper_fit(sources, targets):
     return u @ np.diag([1.0, 1.0, -np.linalg.det(u @ vt)]) @ vt
 
 
-def _fixed_offsets(offsets, translations, translated):
-    """Offsets, with those of translated joints whose translation never changes taken from it."""
-    offsets = np.array(offsets, dtype=np.float64)
-    for k, j in enumerate(translated):
-        t = np.asarray(translations, dtype=np.float64)[:, k]
-        mean = t.mean(axis=0)
-        offsets[j] = (
-            mean if np.abs(t - mean).max() <= STEADY_TRANSLATION * np.linalg.norm(mean) else 0.0
+def _chains(parents, partner):
+    """The pairs _lateral_axes may take, per starting pair: the pairs hung from one unpaired parent
+    (hips, clavicles), each followed down its first children (CMU's hip joints sit on the pelvis,
+    their children are apart)."""
+    n = len(parents)
+    children = [[k for k in range(n) if parents[k] == j] for j in range(n)]
+    chains = []
+    for c, m in enumerate(partner):
+        if c < m and parents[c] == parents[m] >= 0 and partner[parents[c]] == parents[c]:
+            chain = [(c, m)]
+            while children[c]:
+                c = children[c][0]
+                chain.append((c, partner[c]))
+            chains.append(chain)
+    return chains
+
+
+class ClipStatistics:
+    """What finding M needs from a clip's frames, summed chunk by chunk so that a clip of any length
+    is mirrored in bounded memory: mean parent-relative rotation matrices, the translations' mean
+    and range, the pairs' mean separations and the scatter of their directions in every joint's
+    frame, and whether each joint turns."""
+
+    def __init__(self, parents, offsets, partner, translated):
+        n = len(parents)
+        self.parents, self.offsets, self.partner = parents, offsets, partner
+        self.translated = list(translated)
+        self.chains = _chains(parents, partner)
+        self.pairs = sorted({p for chain in self.chains for p in chain})
+        self.frames = 0
+        self.rotation_sum = np.zeros((n, 3, 3))
+        k = len(self.translated)
+        self.translation_sum = np.zeros((k, 3))
+        self.translation_min = np.full((k, 3), np.inf)
+        self.translation_max = np.full((k, 3), -np.inf)
+        self.distance_sum = np.zeros(len(self.pairs))
+        self.scatter = np.zeros((len(self.pairs), n, 3, 3))
+        self.first_orientation = None
+        self.turn = np.zeros(n)
+
+    def add(self, rotations, translations):
+        """Adds frames (rotations (F, J, 4), translations (F, K, 3) or None) in clip order."""
+        rotations = np.asarray(rotations, dtype=np.float64)
+        positions, orientations = kinematics.world_transforms(
+            self.parents, self.offsets, rotations, translations, self.translated
         )
-    return offsets
+        self.frames += len(rotations)
+        self.rotation_sum += quaternion.to_matrix(rotations).sum(axis=0)
+        if self.translated:
+            t = np.asarray(translations, dtype=np.float64)
+            self.translation_sum += t.sum(axis=0)
+            self.translation_min = np.minimum(self.translation_min, t.min(axis=0))
+            self.translation_max = np.maximum(self.translation_max, t.max(axis=0))
+        if self.pairs:
+            c, m = (list(x) for x in zip(*self.pairs))
+            separation = positions[:, c] - positions[:, m]  # (F, P, 3)
+            self.distance_sum += np.linalg.norm(separation, axis=-1).sum(axis=0)
+            separation /= np.maximum(np.linalg.norm(separation, axis=-1, keepdims=True), 1e-12)
+            local = quaternion.rotate(
+                quaternion.conjugate(orientations)[:, :, None, :], separation[:, None, :, :]
+            )  # (F, J, P, 3)
+            self.scatter += np.einsum("fjpa,fjpb->pjab", local, local)
+        if self.first_orientation is None:
+            self.first_orientation = orientations[0]
+        self.turn = np.maximum(
+            self.turn, np.abs(orientations - self.first_orientation).max(axis=(0, 2))
+        )
+
+    def fixed_offsets(self):
+        """Offsets, with those of translated joints whose translation never changes taken from
+        it."""
+        offsets = np.array(self.offsets, dtype=np.float64)
+        for k, j in enumerate(self.translated):
+            mean = self.translation_sum[k] / self.frames
+            spread = max(
+                (self.translation_max[k] - mean).max(), (mean - self.translation_min[k]).max()
+            )
+            offsets[j] = mean if spread <= STEADY_TRANSLATION * np.linalg.norm(mean) else 0.0
+        return offsets
+
+    def lateral_axes(self):
+        """Per joint, the body's left-right axis in the joint's own frame: the principal axis of the
+        separations of the pairs hung from one unpaired parent (hips, clavicles; or the first pair
+        below them that is apart), over all frames; zero where no axis holds (a root above the
+        pelvis that does not turn with the body)."""
+        n = len(self.parents)
+        slot = {p: k for k, p in enumerate(self.pairs)}
+        chosen = []
+        for chain in self.chains:
+            k = 0
+            while k + 1 < len(chain) and self.distance_sum[slot[chain[k]]] / self.frames < 1e-3:
+                k += 1
+            chosen.append(slot[chain[k]])
+        if not chosen:
+            return np.zeros((n, 3))
+        values, vectors = np.linalg.eigh(self.scatter[chosen].sum(axis=0))  # (J, 3, 3)
+        steady = values[:, -1] >= LATERAL_STEADINESS * values.sum(axis=1)
+        turning = self.turn > 1e-9  # a fixed frame is the world's
+        return vectors[:, :, -1] * (steady & turning)[:, None]
+
+    def reflections(self, end_sites):
+        """M_j of every joint (see the module docstring)."""
+        return frame_reflections(
+            self.parents,
+            self.fixed_offsets(),
+            end_sites,
+            self.partner,
+            self.lateral_axes(),
+            self.rotation_sum / self.frames,
+        )
 
 
 def _direction_pairs(j, children, offsets, end_sites, partner):
@@ -116,36 +216,6 @@ def _direction_pairs(j, children, offsets, end_sites, partner):
         pairs.append((end_sites[j], end_sites[partner[j]]))
     units = [(_unit(a), _unit(b)) for a, b in pairs]
     return [(a, b) for a, b in units if a is not None and b is not None]
-
-
-def _lateral_axes(parents, positions, orientations, partner):
-    """Per joint, the body's left-right axis in the joint's own frame: the principal axis of the
-    separations of the pairs hung from one unpaired parent (hips, clavicles; or the first pair below
-    them that is apart), over all frames; zero where no axis holds (a root above the pelvis that
-    does not turn with the body)."""
-    pairs = []
-    for c, m in enumerate(partner):
-        if c < m and parents[c] == parents[m] >= 0 and partner[parents[c]] == parents[c]:
-            # CMU's hip joints
-            while np.linalg.norm(positions[:, c] - positions[:, m], axis=-1).mean() < 1e-3:
-                below = [k for k in range(len(parents)) if parents[k] == c]
-                if not below:
-                    break
-                c, m = below[0], partner[below[0]]
-            pairs.append((c, m))
-    if not pairs:
-        return np.zeros((len(parents), 3))
-    # (F, P, 3)
-    separation = positions[:, [c for c, _ in pairs]] - positions[:, [m for _, m in pairs]]
-    separation /= np.maximum(np.linalg.norm(separation, axis=-1, keepdims=True), 1e-12)
-    local = quaternion.rotate(
-        quaternion.conjugate(orientations)[:, :, None, :], separation[:, None, :, :]
-    )
-    values, vectors = np.linalg.eigh(np.einsum("fjpa,fjpb->jab", local, local))  # (J, 3, 3) scatter
-    steady = values[:, -1] >= LATERAL_STEADINESS * values.sum(axis=1)
-    # A fixed frame is the world's.
-    turning = np.abs(orientations - orientations[:1]).max(axis=(0, 2)) > 1e-9
-    return vectors[:, :, -1] * (steady & turning)[:, None]
 
 
 def _nearest_flip(candidates, axis):
@@ -197,26 +267,16 @@ def frame_reflections(parents, offsets, end_sites, partner, lateral_axes, mean_r
 
 
 def clip_reflections(parents, offsets, end_sites, partner, rotations, translations, translated):
-    """M_j of every joint, found from a clip of the skeleton (see the module docstring)."""
-    positions, orientations = kinematics.world_transforms(
-        parents, offsets, rotations, translations, translated
-    )
-    return frame_reflections(
-        parents,
-        _fixed_offsets(offsets, translations, translated),
-        end_sites,
-        partner,
-        _lateral_axes(parents, positions, orientations, partner),
-        quaternion.to_matrix(rotations).mean(axis=0),
-    )
+    """M_j of every joint, found from a whole clip of the skeleton (see the module docstring)."""
+    statistics = ClipStatistics(parents, offsets, partner, translated)
+    statistics.add(rotations, translations)
+    return statistics.reflections(end_sites)
 
 
-def mirror(parents, offsets, end_sites, partner, rotations, translations, translated):
-    """Mirrored (rotations (F, J, 4), translations (F, K, 3)) of a clip."""
+def reflect(frames, parents, partner, rotations, translations, translated):
+    """Mirrored (rotations (F, J, 4), translations (F, K, 3)) of frames, given the clip's M
+    (clip_reflections, or ClipStatistics for a clip read in chunks): frame by frame."""
     rotations = np.asarray(rotations, dtype=np.float64)
-    frames = clip_reflections(
-        parents, offsets, end_sites, partner, rotations, translations, translated
-    )
     r = quaternion.to_matrix(rotations)  # (F, J, 3, 3)
     out_rotations = np.empty_like(rotations)
     for c, p in enumerate(parents):
@@ -231,3 +291,11 @@ def mirror(parents, offsets, end_sites, partner, rotations, translations, transl
         above = WORLD_REFLECTION if parents[c] < 0 else frames[parents[c]]
         out_translations[:, slot[partner[c]]] = translations[:, k] @ above.T
     return out_rotations, out_translations
+
+
+def mirror(parents, offsets, end_sites, partner, rotations, translations, translated):
+    """Mirrored (rotations (F, J, 4), translations (F, K, 3)) of a whole clip."""
+    frames = clip_reflections(
+        parents, offsets, end_sites, partner, rotations, translations, translated
+    )
+    return reflect(frames, parents, partner, rotations, translations, translated)

@@ -24,6 +24,9 @@ from . import kinematics, quaternion
 from .joints import FEATURE_POSITIONS, FEATURE_ROTATIONS, FEATURE_VELOCITIES, STANDARD_JOINTS
 
 HEADING_HALF_WINDOW_S = 0.25
+# Frames computed at a time when a clip is cut into snippets: memory stays bounded whatever its
+# length.
+CHUNK_FRAMES = 2048
 
 
 class SkeletonMapError(ValueError):
@@ -160,6 +163,23 @@ def windows(n_frames, fps, window_s, stride_s):
     length = int(round(window_s * fps)) + 1
     stride = max(1, int(round(stride_s * fps)))
     return np.arange(0, max(n_frames - length + 1, 0), stride), length, stride
+
+
+def chunks(n_frames, fps, firsts, length, chunk_frames=CHUNK_FRAMES):
+    """Runs of the snippet starts `firsts` (ascending, evenly spaced) whose frames, with the margins
+    the heading's window and the central differences reach, span about chunk_frames: yields (lo, hi,
+    starts). compute() over frames lo..hi-1 gives at every frame of those snippets what it gives
+    over the whole clip (to rounding: the heading's running sums start at lo)."""
+    margin = int(round(HEADING_HALF_WINDOW_S * fps)) + 1
+    stride = int(firsts[1] - firsts[0]) if len(firsts) > 1 else 1
+    per_chunk = max(1, (chunk_frames - length - 2 * margin) // stride + 1)
+    for i in range(0, len(firsts), per_chunk):
+        starts = firsts[i : i + per_chunk]
+        yield (
+            max(0, int(starts[0]) - margin),
+            min(n_frames, int(starts[-1]) + length + margin),
+            starts,
+        )
 
 
 def net_motion(terms, first, last):
