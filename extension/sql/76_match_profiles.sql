@@ -13,32 +13,11 @@ COMMENT ON TABLE modb.match_profiles IS
 -- The shipped profiles: 77_match_profiles_shipped.sql (also run by upgrades, so they follow the release).
 
 GRANT SELECT ON modb.match_profiles TO modb_reader;
--- The loader adds profiles and edits its own; the shipped ones are the extension's (match_profiles_guard).
+-- The loader adds profiles and edits its own.
 -- No DELETE: a table-level DELETE would also let it LOCK the table every selection reads.
 GRANT INSERT (name, settings, comment) ON modb.match_profiles TO modb_loader;
 GRANT UPDATE (settings, comment) ON modb.match_profiles TO modb_loader;
-
-CREATE FUNCTION modb.match_profiles_guard()
-RETURNS trigger
-LANGUAGE plpgsql VOLATILE PARALLEL UNSAFE
-AS $$
-BEGIN
-    -- The table's owner (the extension's scripts, a superuser) replaces shipped profiles on update.
-    IF OLD.shipped AND NOT pg_catalog.pg_has_role(
-            current_user, (SELECT relowner FROM pg_catalog.pg_class WHERE oid = TG_RELID), 'USAGE') THEN
-        RAISE EXCEPTION 'match profile "%" is shipped with modb and read-only', OLD.name
-            USING ERRCODE = 'insufficient_privilege',
-                  HINT = format('edit a copy: INSERT INTO modb.match_profiles (name, settings) '
-                                'SELECT ''mine'', settings FROM modb.match_profiles WHERE name = %L', OLD.name);
-    END IF;
-    RETURN NEW;
-END
-$$;
-COMMENT ON FUNCTION modb.match_profiles_guard() IS
-    'Trigger: shipped match profiles change only with the extension (its owner); users edit their own copies';
-
-CREATE TRIGGER match_profiles_guard BEFORE UPDATE ON modb.match_profiles
-    FOR EACH ROW EXECUTE FUNCTION modb.match_profiles_guard();
+-- Shipped profiles are read-only to it: 91_shipped_profiles_guard.sql.
 
 -- The shipped profiles come with every install (and upgrade); pg_dump keeps the ones users add.
 SELECT pg_catalog.pg_extension_config_dump('modb.match_profiles', 'WHERE NOT shipped');
