@@ -50,6 +50,9 @@ def main() -> None:
     parser.add_argument("--dsn", help="a server on this machine (default: the embedded one)")
     parser.add_argument("--mirror", action="store_true", help="also build the mirror image")
     parser.add_argument("--no-snippets", action="store_true", help="store the clip only")
+    parser.add_argument(
+        "--version", help="install this released version of modb (default: the newest)"
+    )
     args = parser.parse_args()
     admin, _ = resolve(args.dsn)
     admin = psycopg.conninfo.make_conninfo(admin, dbname="postgres")
@@ -59,7 +62,10 @@ def main() -> None:
         conn.execute(f'CREATE DATABASE "{name}"')
     dsn = psycopg.conninfo.make_conninfo(admin, dbname=name)
     with psycopg.connect(dsn, autocommit=True) as conn:
-        conn.execute("CREATE EXTENSION modb CASCADE")
+        if args.version:
+            conn.execute(f"CREATE EXTENSION modb VERSION '{args.version}' CASCADE")
+        else:
+            conn.execute("CREATE EXTENSION modb CASCADE")
     with tempfile.TemporaryDirectory() as tmp:
         clip = repeat_bvh(args.source, Path(tmp) / "long.bvh", args.frames)
         command = [str(REPO / ".venv" / "bin" / "modb"), "--dsn", dsn, "load", str(clip), "-q"]
