@@ -17,7 +17,7 @@ SELECT functions_are('modb', ARRAY[
     'match_knobs', 'session_settings', 'match_plan', '_thresholds', 'continuity_ratio', 'continuity_ratio_native', 'match_box', 'target_cost', 'aim_point', 'approach_cost', 'collection_subtree',
     'check_request', 'build_snippets', 'select_next_snippets', 'select_next_snippet', 'world_to_local', 'select_next_snippet_world',
     'local_to_world', 'synthesis_goal', 'synthesis_step_end', 'check_synthesis', 'synthesize', 'fill_futures', 'build_transition_graph', 'transition_key', 'cost_to_go', 'candidates_examined',
-    'feature_cube_penalty', 'feature_cube_picksplit']);
+    'feature_cube_penalty', 'feature_cube_picksplit', 'match_profiles_guard']);
 SELECT is((SELECT o.opcname::text FROM pg_index i JOIN pg_opclass o ON o.oid = i.indclass[0]
             WHERE i.indexrelid = 'modb.snippets_begin_features_idx'::regclass), 'cube_feature_ops',
           'the feature index uses modb''s operator class');
@@ -57,7 +57,8 @@ SELECT has_role('modb_reader', 'modb_reader outlives DROP EXTENSION');
 SELECT has_role('modb_loader', 'modb_loader outlives DROP EXTENSION');
 CREATE EXTENSION modb CASCADE;
 SELECT has_table('modb', 'clip_versions', 're-install after a drop works');
-SELECT is((SELECT extversion FROM pg_extension WHERE extname = 'modb'), '0.8.0', 're-installed version');
+SELECT is((SELECT extversion FROM pg_extension WHERE extname = 'modb'),
+          (SELECT default_version FROM pg_available_extensions WHERE name = 'modb'), 're-installed version');
 
 SELECT * FROM finish();
 ROLLBACK;

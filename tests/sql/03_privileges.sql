@@ -1,12 +1,16 @@
 -- Least privilege: modb_reader reads, modb_loader writes (and reads); neither can rewrite motion.
 BEGIN;
 CREATE EXTENSION IF NOT EXISTS pgtap;
-SELECT plan(22);
+SELECT plan(27);
 
 SELECT table_privs_are('modb', t, 'modb_reader', ARRAY['SELECT'], 'modb_reader may only SELECT modb.' || t)
   FROM unnest(ARRAY['collections', 'skeletons', 'clips', 'clip_versions', 'models', 'graphs', 'current_clips']) AS t;
-SELECT table_privs_are('modb', 'clip_versions', 'modb_loader', ARRAY['INSERT', 'SELECT'],
-                       'modb_loader may INSERT clip versions (UPDATE only of meta, by column grant)');
+SELECT table_privs_are('modb', 'clip_versions', 'modb_loader', ARRAY['SELECT'],
+                       'modb_loader has no table-wide write on clip versions (column grants only)');
+SELECT ok(has_column_privilege('modb_loader', 'modb.clip_versions', 'rotations', 'INSERT')
+          AND NOT has_column_privilege('modb_loader', 'modb.clip_versions', 'created_by', 'INSERT')
+          AND NOT has_column_privilege('modb_loader', 'modb.clip_versions', 'created_at', 'INSERT'),
+          'modb_loader inserts clip versions, the server says who and when');
 SELECT ok(has_column_privilege('modb_loader', 'modb.clip_versions', 'meta', 'UPDATE')
           AND NOT has_column_privilege('modb_loader', 'modb.clip_versions', 'rotations', 'UPDATE'),
           'modb_loader may edit meta but not the frames');
@@ -37,6 +41,11 @@ SELECT lives_ok($$SELECT modb.ensure_collection('loaded/by/loader')$$, 'loader c
 SELECT is(modb.collection_path(modb.find_collection('loaded/by/loader')), 'loaded/by/loader', 'the path round-trips');
 SELECT throws_ok($$DELETE FROM modb.clips$$, '42501', NULL, 'loader cannot delete clips');
 SELECT throws_ok($$UPDATE modb.clip_versions SET rotations = rotations$$, '42501', NULL, 'loader cannot rewrite frames');
+SELECT throws_ok($$LOCK modb.snippets IN ACCESS EXCLUSIVE MODE$$, '42501', NULL, 'loader cannot lock out the readers');
+SELECT throws_ok($$UPDATE modb.match_profiles SET comment = 'mine now' WHERE name = 'default'$$, '42501', NULL,
+                 'loader cannot edit a shipped profile');
+SELECT throws_ok($$DELETE FROM modb.snippets$$, '42501', NULL, 'loader deletes snippets only through their source');
+SELECT lives_ok($$UPDATE modb.snippets SET future_heading = future_heading WHERE false$$, 'loader fills futures');
 RESET ROLE;
 
 SELECT * FROM finish();
