@@ -10,6 +10,11 @@ Conventions of the format, as CMU's files use it:
 - A bone's FK position is its tip. Our joint for a bone sits at the bone's start (its parent's
   tip), so the knee is `ltibia`; a joint's offset is the parent bone's vector, and a leaf's own
   vector is its End Site.
+
+Malformed input is a MotionFileError naming file and line: among others a :hierarchy that gives a
+bone two parents, makes a bone its own parent or root a child, or closes a cycle; a repeated dof,
+root channel or axis letter; a tree deeper than units.MAX_JOINT_DEPTH (walked without recursion);
+lengths beyond units.MAX_LENGTH_M; and an --fps outside units.FPS_RANGE.
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ from modb_kernel import quaternion
 from .errors import MotionFileError
 from .skeleton_maps import guess_joint_map, guess_mirror_pairs
 from .text import read_lines
+from .units import FPS_RANGE_TEXT, MAX_JOINT_DEPTH, MAX_LENGTH_M, NAMED_UNITS, fps_in_range
 
 DEFAULT_FPS = 120.0  # AMC files carry no rate; CMU captured at 120 fps
 _ROTATION_DOFS = ("rx", "ry", "rz")
@@ -58,15 +64,18 @@ class AsfSkeleton:
     children: dict[str, list[str]]
 
     def joint_order(self) -> list[str]:
-        """'root' then the bones depth-first in :hierarchy order."""
+        """'root' then the bones depth-first in :hierarchy order (iterative: depth costs no
+        recursion; a name is listed once even if the hierarchy were to repeat it)."""
         order: list[str] = []
-
-        def visit(name: str) -> None:
+        seen: set[str] = set()
+        todo = ["root"]
+        while todo:
+            name = todo.pop()
+            if name in seen:
+                continue
+            seen.add(name)
             order.append(name)
-            for child in self.children.get(name, []):
-                visit(child)
-
-        visit("root")
+            todo.extend(reversed(self.children.get(name, [])))
         return order
 
 
@@ -82,6 +91,16 @@ def _numbers(path: str, line: int, words: list[str], count: int, what: str) -> n
     if not np.all(np.isfinite(values)):
         raise MotionFileError(path, line, f"{what} is not finite: {' '.join(words[:count])!r}")
     return values
+
+
+def _repeated(items: list[str]) -> str | None:
+    """The first item listed a second time, or None."""
+    seen: set[str] = set()
+    for item in items:
+        if item in seen:
+            return item
+        seen.add(item)
+    return None
 
 
 def _axis_order(path: str, line: int, word: str) -> str:
@@ -110,16 +129,19 @@ def read_asf(path: str, units: str | float = "auto") -> AsfSkeleton:
     sections = _sections(lines)
     if not any(k == ":bonedata" for k, _ in sections):
         raise MotionFileError(path, 1, "no :bonedata section", "not an ASF skeleton file")
-    length_scale, angle = 1.0, "deg"
+    length_scale, length_line, angle = 1.0, 0, "deg"
     root_order = ["TX", "TY", "TZ", "RX", "RY", "RZ"]
     root_axis, root_position, root_orientation = "XYZ", np.zeros(3), np.zeros(3)
+    root_position_line = 0
     bones: dict[str, AsfBone] = {}
     children: dict[str, list[str]] = {}
+    parent_of: dict[str, tuple[str, int]] = {}  # bone -> (parent, line of the :hierarchy entry)
     for keyword, body in sections:
         if keyword == ":units":
             for line, words in body:
                 if words[0] == "length":
                     length_scale = float(_numbers(path, line, words[1:], 1, "units length")[0])
+                    length_line = line
                     if length_scale <= 0:
                         raise MotionFileError(path, line, "units length must be positive")
                 elif words[0] == "angle":
@@ -143,10 +165,19 @@ def read_asf(path: str, units: str | float = "auto") -> AsfSkeleton:
                             f"unknown root channel {unknown[0]!r}",
                             "root order uses TX TY TZ RX RY RZ",
                         )
+                    twice = _repeated(root_order)
+                    if twice:
+                        raise MotionFileError(
+                            path,
+                            line,
+                            f"root channel {twice} appears twice in the root order",
+                            "each of TX TY TZ RX RY RZ may appear once",
+                        )
                 elif key == "axis":
                     root_axis = _axis_order(path, line, words[1] if len(words) > 1 else "")
                 elif key == "position":
                     root_position = _numbers(path, line, words[1:], 3, "root position")
+                    root_position_line = line
                 elif key == "orientation":
                     root_orientation = _numbers(path, line, words[1:], 3, "root orientation")
         elif keyword == ":bonedata":
@@ -158,9 +189,19 @@ def read_asf(path: str, units: str | float = "auto") -> AsfSkeleton:
                 elif key == "end":
                     if bone is None or not bone.name:
                         raise MotionFileError(path, line, "bone without a name")
-                    if bone.name in bones or bone.name == "root":
+                    if bone.name == "root":
                         raise MotionFileError(
-                            path, bone.line, f"bone name {bone.name!r} is used twice"
+                            path,
+                            bone.line,
+                            "a bone is named 'root'",
+                            "root is the :root section; give the bone another name",
+                        )
+                    if bone.name in bones:
+                        raise MotionFileError(
+                            path,
+                            bone.line,
+                            f"bone name {bone.name!r} is used twice "
+                            f"(first on line {bones[bone.name].line})",
                         )
                     bones[bone.name] = bone
                     bone = None
@@ -191,6 +232,14 @@ def read_asf(path: str, units: str | float = "auto") -> AsfSkeleton:
                         raise MotionFileError(
                             path, line, f"unsupported dof {bad[0]!r} on bone {bone.name}", hint
                         )
+                    twice = _repeated(bone.dofs)
+                    if twice:
+                        raise MotionFileError(
+                            path,
+                            line,
+                            f"dof {twice} appears twice on bone {bone.name}",
+                            "each of rx ry rz may appear once",
+                        )
             if bone is not None:
                 raise MotionFileError(
                     path,
@@ -208,6 +257,9 @@ def read_asf(path: str, units: str | float = "auto") -> AsfSkeleton:
                         raise MotionFileError(
                             path, line, f"hierarchy names bone {name!r}, which :bonedata lacks"
                         )
+                for kid in kids:
+                    _check_parent(path, line, parent, kid, parent_of)
+                    parent_of[kid] = (parent, line)
                 children.setdefault(parent, []).extend(kids)
     scale = np.pi / 180.0 if angle == "deg" else 1.0
     for b in bones.values():
@@ -218,11 +270,16 @@ def read_asf(path: str, units: str | float = "auto") -> AsfSkeleton:
             f"--units {units:g}: {units:g} m per unit (the ASF says length {length_scale:g})",
         )
     elif units != "auto":
-        from .units import NAMED_UNITS
-
         unit_m, rule = NAMED_UNITS[units], f"--units {units}: {NAMED_UNITS[units]:g} m per unit"
     else:
         unit_m = 0.0254 / length_scale
+        if not np.isfinite(unit_m):  # a subnormal length
+            raise MotionFileError(
+                path,
+                length_line,
+                f"units length {length_scale:g} makes one unit {unit_m} m",
+                "one unit is 0.0254 / length metres: CMU uses length 0.45",
+            )
         rule = (
             f"ASF :units length {length_scale:g}: "
             f"one unit is 0.0254/{length_scale:g} = {unit_m:.7g} m"
@@ -240,11 +297,99 @@ def read_asf(path: str, units: str | float = "auto") -> AsfSkeleton:
         bones=bones,
         children=children,
     )
-    reachable = set(skeleton.joint_order())
-    orphan = next((b for b in bones.values() if b.name not in reachable), None)
-    if orphan:
-        raise MotionFileError(path, orphan.line, f"bone {orphan.name!r} is not in the :hierarchy")
+    _check_tree(skeleton, parent_of)
+    _check_lengths(skeleton, root_position_line)
     return skeleton
+
+
+def _check_parent(
+    path: str, line: int, parent: str, kid: str, parent_of: dict[str, tuple[str, int]]
+) -> None:
+    """One :hierarchy edge parent -> kid: root is nobody's child, a bone has one parent."""
+    if kid == "root":
+        raise MotionFileError(
+            path,
+            line,
+            f"root is given as a child of {parent}",
+            "root is the top of the hierarchy: it has no parent",
+        )
+    if kid == parent:
+        raise MotionFileError(path, line, f"bone {kid!r} is given as its own parent")
+    if kid in parent_of:
+        first, first_line = parent_of[kid]
+        again = "again" if first == parent else f"a second parent, {parent}"
+        raise MotionFileError(
+            path,
+            line,
+            f"bone {kid!r} is given {again} (line {first_line} made it a child of {first})",
+            "a bone has one parent: list it once in :hierarchy",
+        )
+
+
+def _check_tree(asf: AsfSkeleton, parent_of: dict[str, tuple[str, int]]) -> None:
+    """Every bone descends from root, without a cycle, at most MAX_JOINT_DEPTH joints deep."""
+    depth = {"root": 1}
+    for name in asf.joint_order()[1:]:
+        parent, line = parent_of[name]
+        depth[name] = depth[parent] + 1
+        if depth[name] > MAX_JOINT_DEPTH:
+            raise MotionFileError(
+                asf.path,
+                line,
+                f"bone {name} is {depth[name]} joints deep, more than the {MAX_JOINT_DEPTH} "
+                "accepted",
+                "the :hierarchy is damaged",
+            )
+    for bone in asf.bones.values():
+        if bone.name in depth:
+            continue
+        # Not under root: its chain of parents ends in a bone without one, or runs in a circle.
+        chain = [bone.name]
+        while chain[-1] in parent_of and parent_of[chain[-1]][0] not in chain:
+            chain.append(parent_of[chain[-1]][0])
+        if chain[-1] in parent_of:
+            start = chain.index(parent_of[chain[-1]][0])
+            loop = chain[start:][::-1]  # each bone the parent of the next
+            closing = max(range(len(loop)), key=lambda k: parent_of[loop[k]][1])
+            line = parent_of[loop[closing]][1]
+            loop = loop[closing - 1 :] + loop[: closing - 1]  # from that line's parent
+            raise MotionFileError(
+                asf.path,
+                line,
+                "the :hierarchy has a cycle: " + " -> ".join([*loop, loop[0]]),
+                "a bone cannot descend from itself; every bone descends from root",
+            )
+        raise MotionFileError(
+            asf.path,
+            bone.line,
+            f"bone {bone.name!r} is not in the :hierarchy"
+            + (f" (its ancestor {chain[-1]} has no parent)" if len(chain) > 1 else ""),
+            "every bone descends from root",
+        )
+
+
+def _check_lengths(asf: AsfSkeleton, root_position_line: int) -> None:
+    """Refuse a bone vector or root position beyond MAX_LENGTH_M, naming its line."""
+    hint = "the value is damaged, or the units are wrong: see :units length, or --units"
+    metres = float(np.max(np.abs(asf.root_position))) * asf.unit_m
+    if not metres <= MAX_LENGTH_M:
+        raise MotionFileError(
+            asf.path,
+            root_position_line or None,
+            f"root position is {metres:.4g} m from the origin, beyond the {MAX_LENGTH_M:,g} m "
+            "accepted",
+            hint,
+        )
+    for bone in asf.bones.values():
+        metres = float(np.max(np.abs(bone.direction))) * abs(bone.length) * asf.unit_m
+        if not metres <= MAX_LENGTH_M:
+            raise MotionFileError(
+                asf.path,
+                bone.line,
+                f"bone {bone.name} (direction x length) is {metres:.4g} m long, beyond the "
+                f"{MAX_LENGTH_M:,g} m accepted",
+                hint,
+            )
 
 
 def _local_rotation(
@@ -309,6 +454,13 @@ def read_amc(
     path: str, asf: AsfSkeleton, fps: float = DEFAULT_FPS, allow_truncated: bool = False, warn=None
 ) -> Motion:
     """Parse an AMC file against its ASF skeleton. Raises MotionFileError naming file and line."""
+    if not fps_in_range(fps):
+        raise MotionFileError(
+            path,
+            None,
+            f"frame rate {fps:g} fps (--fps) is outside the accepted {FPS_RANGE_TEXT}",
+            "AMC files carry no rate: pass --fps within that range (CMU captured at 120 fps)",
+        )
     raw, lines = read_lines(path)
     angle_scale = asf.angle_scale
     frames: list[dict[str, tuple[int, list[str]]]] = []
@@ -394,6 +546,9 @@ def read_amc(
                         raise MotionFileError(
                             path, line, f"value {w!r} of bone {bone} is not a number"
                         ) from None
+            raise MotionFileError(  # numpy refused a value that float() reads
+                path, rows[0][0], f"the values of bone {bone} could not be read"
+            ) from None
         if not np.all(np.isfinite(values[bone])):
             line = rows[int(np.argwhere(~np.isfinite(values[bone]))[0, 0])][0]
             raise MotionFileError(path, line, f"bone {bone} has a value that is not finite")
@@ -406,6 +561,17 @@ def read_amc(
     for axis, c in enumerate(("TX", "TY", "TZ")):
         if c in channel:
             translation[:, axis] = root[:, channel[c]]
+    far = np.argwhere(~(np.abs(translation) <= MAX_LENGTH_M / asf.unit_m))
+    if len(far):
+        k, axis = far[0]
+        raise MotionFileError(
+            path,
+            frames[k]["root"][0],
+            f"root {'XYZ'[axis]} position of frame {k + 1} is "
+            f"{abs(translation[k, axis]) * asf.unit_m:.4g} m, beyond the {MAX_LENGTH_M:,g} m "
+            "accepted",
+            "the value is damaged, or the units are wrong: see :units length, or --units",
+        )
     root_rot = [c for c in asf.root_order if c.startswith("R")]
     rotations[:, 0] = _local_rotation(
         asf.root_orientation,
