@@ -56,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
     from modb.loader.ingest import load_files
     from modb.loader.jobs import find_jobs
     from modb.loader.reading import ReadOptions
-    from modb.loader.units import UnitsError, parse_units
+    from modb.loader.units import FPS_RANGE_TEXT, UnitsError, fps_in_range, parse_units
 
     try:
         units = parse_units(args.units)
@@ -70,8 +70,8 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
-    if args.fps is not None and not args.fps > 0:
-        print(f"modb load: --fps must be positive, got {args.fps:g}", file=sys.stderr)
+    if args.fps is not None and not fps_in_range(args.fps):
+        print(f"modb load: --fps must be {FPS_RANGE_TEXT}, got {args.fps:g}", file=sys.stderr)
         return 2
     with (
         connect(args) as conn,
