@@ -3,7 +3,8 @@
 The app serves the user's database to their own browser. Another web site open in that browser can
 still send it requests, which are refused: by pointing its own DNS name at 127.0.0.1 (the Host
 header then names that site) or by posting or opening a WebSocket from its page (the Origin header
-then names that site).
+then names that site). A request with more than one Host or more than one Origin header is refused
+too: which of them counts would depend on who reads it (a proxy in front may check the first).
 """
 
 from __future__ import annotations
@@ -47,11 +48,19 @@ class HostOriginGuard:
         self.hosts = frozenset(h.lower() for h in hosts)
 
     def refusal(self, scope: Scope) -> str | None:
-        headers = {k.decode("latin-1").lower(): v.decode("latin-1") for k, v in scope["headers"]}
-        host = headers.get("host", "").lower()
+        headers: dict[str, list[str]] = {}
+        for k, v in scope["headers"]:
+            headers.setdefault(k.decode("latin-1").lower(), []).append(v.decode("latin-1"))
+        for name in ("host", "origin"):
+            if len(headers.get(name, ())) > 1:
+                return (
+                    f"requests with {len(headers[name])} {name.capitalize()} headers are refused: "
+                    "one at most is allowed"
+                )
+        host = headers.get("host", [""])[0].lower()
         if host not in self.hosts:
             return f"Host {host!r} is not this server: open it as http://{sorted(self.hosts)[0]}/"
-        origin = headers.get("origin")
+        origin = headers.get("origin", [None])[0]
         page = urlsplit(origin) if origin is not None else None
         if page is not None and (
             page.scheme not in ("http", "https") or page.netloc.lower() not in self.hosts
