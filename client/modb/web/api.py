@@ -6,14 +6,13 @@ unknown ids raise NotFound and bad arguments BadRequest (the app's 404 and 400, 
 
 from __future__ import annotations
 
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
 import psycopg
 from modb_kernel.joints import STANDARD_JOINTS
 
-from modb.clips import ClipNotFound, read_motion
+from modb.motion import Motion, Skeleton
 
 MAX_FRAMES = 20_000  # per request: a clip longer than this is fetched in pages (start, count)
 
@@ -82,38 +81,74 @@ def clip(conn: psycopg.Connection, clip_id: int) -> dict[str, Any]:
     return out
 
 
+# The version asked for (the newest when NULL) and its skeleton, without its frames.
+_VERSION = """
+SELECT v.version, v.fps, v.n_frames, s.name, s.hierarchy, s.joint_map, s.mirror_pairs
+  FROM modb.clip_versions v JOIN modb.skeletons s ON s.id = v.skeleton_id
+ WHERE v.clip_id = %s
+   AND v.version = coalesce(%s, (SELECT max(version) FROM modb.clip_versions WHERE clip_id = %s))
+"""
+# Frames first..last (1-based, inclusive) of every joint: PostgreSQL slices the arrays, so only
+# the asked frames leave the database, however long the clip.
+_SLICE = """
+SELECT v.rotations[%s:%s][:][:], v.translations[%s:%s][:][:]
+  FROM modb.clip_versions v WHERE v.clip_id = %s AND v.version = %s
+"""
+
+
+def check_page(start: int, count: int | None) -> None:
+    """BadRequest unless start and count (None: as many as one answer gives) name a page."""
+    if start < 0:
+        raise BadRequest(f"start must be 0 or more, got {start}")
+    if count is not None and not 1 <= count <= MAX_FRAMES:
+        raise BadRequest(f"count must be 1-{MAX_FRAMES}, got {count}")
+
+
 def frames(
     conn: psycopg.Connection, clip_id: int, version: int | None, start: int, count: int | None
 ) -> dict[str, Any]:
     """Frames start..start+count-1 of a clip version: local rotations (w, x, y, z per joint,
     skeleton order), the translations of the joints that have position channels, and every joint's
-    world position (metres), computed here by the shared forward kinematics."""
-    if start < 0:
-        raise BadRequest(f"start must be 0 or more, got {start}")
-    if count is not None and not 1 <= count <= MAX_FRAMES:
-        raise BadRequest(f"count must be 1-{MAX_FRAMES}, got {count}")
+    world position (metres), computed here by the shared forward kinematics. Only those frames are
+    read from the database."""
+    check_page(start, count)
     _one(conn, "clip", "SELECT id FROM modb.clips WHERE id = %s", clip_id)
-    try:
-        motion = read_motion(conn, clip_id, version)
-    except ClipNotFound as e:
-        raise NotFound(str(e)) from None
-    if start >= motion.n_frames:
-        raise BadRequest(f"start {start} is past the clip's last frame ({motion.n_frames - 1})")
-    stop = min(motion.n_frames, start + (count or MAX_FRAMES))
-    positions = replace(
-        motion, rotations=motion.rotations[start:stop], translations=motion.translations[start:stop]
-    ).world_positions()
+    row = conn.execute(_VERSION, [clip_id, version, clip_id]).fetchone()
+    if row is None:
+        which = f"version {version}" if version is not None else "any version"
+        raise NotFound(f"clip {clip_id} has no {which}")
+    version, fps, n_frames, skeleton_name, hierarchy, joint_map, mirror_pairs = row
+    if start >= n_frames:
+        raise BadRequest(f"start {start} is past the clip's last frame ({n_frames - 1})")
+    stop = min(n_frames, start + (count or MAX_FRAMES))
+    with conn.cursor(binary=True) as cur:
+        rotations, translations = cur.execute(
+            _SLICE, [start + 1, stop, start + 1, stop, clip_id, version]
+        ).fetchone()
+    skeleton = Skeleton.from_row(hierarchy, joint_map, mirror_pairs, name=skeleton_name)
+    rotations = np.asarray(rotations, dtype=np.float64)
+    translations = (
+        np.zeros((stop - start, 0, 3))
+        if translations is None
+        else np.asarray(translations, dtype=np.float64)
+    )
+    if rotations.shape[0] != stop - start or translations.shape[0] != stop - start:
+        raise RuntimeError(
+            f"clip {clip_id} version {version}: asked for frames {start}-{stop - 1}, "
+            f"the database gave {rotations.shape[0]}"
+        )
+    positions = Motion(skeleton, fps, rotations, translations, name="").world_positions()
     return {
         "clip_id": clip_id,
-        "version": motion.meta["version"],
-        "fps": motion.fps,
-        "n_frames": motion.n_frames,
+        "version": version,
+        "fps": fps,
+        "n_frames": n_frames,
         "start": start,
         "count": stop - start,
-        "joints": motion.skeleton.names,
-        "translated": motion.skeleton.translated,
-        "rotations": np.round(motion.rotations[start:stop], 7).tolist(),
-        "translations": np.round(motion.translations[start:stop], 6).tolist(),
+        "joints": skeleton.names,
+        "translated": skeleton.translated,
+        "rotations": np.round(rotations, 7).tolist(),
+        "translations": np.round(translations, 6).tolist(),
         "positions": np.round(positions, 6).tolist(),
     }
 

@@ -2,10 +2,17 @@
 
 Read-only: its pooled connections run with default_transaction_read_only, and the database role it
 is given (modb_reader is enough) bounds what it can see. Every request passes the Host/Origin guard.
+
+Frame requests are the heavy ones (the database reads the clip version's arrays, this process runs
+the forward kinematics and writes up to MAX_FRAMES frames of JSON): at most HEAVY_SLOTS are answered
+at once, so that the other pooled connections stay free for the light reads, and at most
+HEAVY_QUEUE more wait (up to HEAVY_WAIT_S) for a slot. Beyond that the answer is 503 with
+Retry-After, at once.
 """
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import logging
 import re
@@ -14,8 +21,9 @@ from pathlib import Path
 from typing import Any
 
 import psycopg
-from psycopg_pool import ConnectionPool
+from psycopg_pool import ConnectionPool, PoolTimeout
 from starlette.applications import Starlette
+from starlette.concurrency import run_in_threadpool
 from starlette.exceptions import HTTPException
 from starlette.requests import Request
 from starlette.responses import FileResponse, JSONResponse
@@ -34,17 +42,31 @@ STATIC = HERE / "static"
 THREE = HERE / "node_modules" / "three"
 log = logging.getLogger("modb.web")
 
+POOL_SIZE = 4  # database connections for the JSON endpoints and the avatar sockets' checks
+HEAVY_SLOTS = 2  # frame requests answered at once: the other connections stay for the light reads
+HEAVY_QUEUE = 16  # frame requests that may wait for a slot; more are answered 503 at once
+HEAVY_WAIT_S = 30  # a frame request that waits this long for a slot is answered 503
+RETRY_AFTER_S = 2  # the 503's Retry-After
+POOL_WAIT_S = 30  # a request that waits this long for a database connection is answered 503
+STATEMENT_TIMEOUT = "30s"  # a pooled connection's query that takes longer is cancelled (a 503)
+
 
 class ThreeMissing(RuntimeError):
     pass
+
+
+class Busy(RuntimeError):
+    """The server is answering as many requests of this kind as it takes: a 503, try again."""
 
 
 def _int(name: str, value: str | None, default: int | None = None) -> int | None:
     if value is None:
         return default
     # ASCII digits only: int() would take "1_0", "+1", "٣".
-    if not re.fullmatch(r"-?[0-9]{1,18}", value):
+    if not re.fullmatch(r"-?[0-9]+", value):
         raise api.BadRequest(f"{name} must be an integer, got {value!r}")
+    if len(value.lstrip("-")) > 18:  # 18 digits fit the database's bigint
+        raise api.BadRequest(f"{name} must be an integer of at most 18 digits, got {value}")
     return int(value)
 
 
@@ -59,10 +81,60 @@ def _query(request: Request, *allowed: str) -> dict[str, str]:
     return dict(request.query_params)
 
 
-def _endpoint(pool: ConnectionPool, view: Callable[[psycopg.Connection, Request], Any]) -> Callable:
+class Gate:
+    """At most `slots` requests inside at once and at most `queue` more waiting (each up to
+    `wait_s` seconds) for their turn; others are Busy at once. Used on the event loop only."""
+
+    def __init__(self, what: str, slots: int, queue: int, wait_s: float) -> None:
+        self.what, self.slots, self.queue, self.wait_s = what, slots, queue, wait_s
+        self._free = asyncio.Semaphore(slots)
+        self.waiting = 0
+
+    @contextlib.asynccontextmanager
+    async def turn(self):
+        if self._free.locked() and self.waiting >= self.queue:
+            raise Busy(
+                f"busy: {self.slots} {self.what} are being answered and {self.waiting} more wait: "
+                f"try again in {RETRY_AFTER_S} s"
+            )
+        self.waiting += 1
+        try:
+            await asyncio.wait_for(self._free.acquire(), self.wait_s)
+        except TimeoutError:
+            raise Busy(
+                f"busy: no turn for {self.what} in {self.wait_s:g} s: "
+                f"try again in {RETRY_AFTER_S} s"
+            ) from None
+        finally:
+            self.waiting -= 1
+        try:
+            yield
+        finally:
+            self._free.release()
+
+
+View = Callable[[psycopg.Connection, Request], Any]
+
+
+def _endpoint(pool: ConnectionPool, view: View) -> Callable:
     def endpoint(request: Request) -> JSONResponse:  # sync: Starlette runs it in its thread pool
         with pool.connection() as conn:
             return JSONResponse(view(conn, request))
+
+    return endpoint
+
+
+def _gated_endpoint(
+    pool: ConnectionPool, view: View, check: Callable[[Request], Any], gate: Gate
+) -> Callable:
+    """A heavy view: its arguments checked first (a bad request waits for nothing), then its turn
+    at the gate, then a thread and a pooled connection."""
+    answer = _endpoint(pool, view)
+
+    async def endpoint(request: Request) -> JSONResponse:
+        check(request)
+        async with gate.turn():
+            return await run_in_threadpool(answer, request)
 
     return endpoint
 
@@ -75,15 +147,16 @@ def _clips(conn: psycopg.Connection, r: Request) -> Any:
     return api.clips(conn, _int("collection", _query(r, "collection").get("collection")))
 
 
-def _frames(conn: psycopg.Connection, r: Request) -> Any:
+def _frames_args(r: Request) -> tuple[int, int | None, int, int | None]:
     q = _query(r, "version", "start", "count")
-    return api.frames(
-        conn,
-        _path_id(r, "clip"),
-        _int("version", q.get("version")),
-        _int("start", q.get("start"), 0),
-        _int("count", q.get("count")),
-    )
+    clip_id, version = _path_id(r, "clip"), _int("version", q.get("version"))
+    start, count = _int("start", q.get("start"), 0), _int("count", q.get("count"))
+    api.check_page(start, count)
+    return clip_id, version, start, count
+
+
+def _frames(conn: psycopg.Connection, r: Request) -> Any:
+    return api.frames(conn, *_frames_args(r))
 
 
 def _listing(
@@ -106,11 +179,10 @@ def _by_id(
     return answer
 
 
-VIEWS: dict[str, Callable[[psycopg.Connection, Request], Any]] = {
+VIEWS: dict[str, View] = {
     "/api/collections": _listing(api.collections),
     "/api/clips": _clips,
     "/api/clips/{ident}": _by_id(api.clip, "clip"),
-    "/api/clips/{ident}/frames": _frames,
     "/api/skeletons": _listing(api.skeletons),
     "/api/skeletons/{ident}": _by_id(api.skeleton, "skeleton"),
     "/api/models": _listing(api.models),
@@ -118,6 +190,10 @@ VIEWS: dict[str, Callable[[psycopg.Connection, Request], Any]] = {
     "/api/graphs": _listing(api.graphs),
     "/api/graphs/{ident}": _by_id(api.graph, "graph"),
     "/api/profiles": _listing(api.profiles),
+}
+# path: (view, check of its arguments before it waits for a turn)
+HEAVY_VIEWS: dict[str, tuple[View, Callable[[Request], Any]]] = {
+    "/api/clips/{ident}/frames": (_frames, _frames_args),
 }
 
 
@@ -134,6 +210,30 @@ async def _http_error(request: Request, exc: HTTPException) -> JSONResponse:
     return JSONResponse({"error": message}, status_code=exc.status_code, headers=exc.headers)
 
 
+def _unavailable(message: str) -> JSONResponse:
+    return JSONResponse(
+        {"error": message}, status_code=503, headers={"Retry-After": str(RETRY_AFTER_S)}
+    )
+
+
+async def _busy(request: Request, exc: Busy) -> JSONResponse:
+    return _unavailable(str(exc))
+
+
+async def _pool_timeout(request: Request, exc: PoolTimeout) -> JSONResponse:
+    log.warning("no database connection for %s in %s s", request.url.path, POOL_WAIT_S)
+    return _unavailable(
+        f"busy: no database connection free in {POOL_WAIT_S} s: try again in {RETRY_AFTER_S} s"
+    )
+
+
+async def _query_canceled(request: Request, exc: psycopg.errors.QueryCanceled) -> JSONResponse:
+    log.warning("query cancelled while answering %s: %s", request.url.path, exc)
+    return _unavailable(
+        f"the database did not answer within {STATEMENT_TIMEOUT}: try again in {RETRY_AFTER_S} s"
+    )
+
+
 async def _internal_error(request: Request, exc: Exception) -> JSONResponse:
     # The details go to the server's log, not the page.
     log.exception("while answering %s", request.url.path)
@@ -145,6 +245,7 @@ async def _internal_error(request: Request, exc: Exception) -> JSONResponse:
 def _configure(conn: psycopg.Connection) -> None:
     conn.autocommit = True
     conn.execute("SET default_transaction_read_only = on")
+    conn.execute("SELECT set_config('statement_timeout', %s, false)", [STATEMENT_TIMEOUT])
     pgarray.register(conn)
 
 
@@ -160,7 +261,8 @@ def create_app(
     pool = ConnectionPool(
         conninfo,
         min_size=1,
-        max_size=4,
+        max_size=POOL_SIZE,
+        timeout=POOL_WAIT_S,
         configure=_configure,
         open=False,
         check=ConnectionPool.check_connection,  # a restarted server costs no failed request
@@ -172,9 +274,14 @@ def create_app(
         yield
         pool.close()
 
+    frames_gate = Gate("clip frame requests", HEAVY_SLOTS, HEAVY_QUEUE, HEAVY_WAIT_S)
     routes = [
         Route("/", lambda request: FileResponse(STATIC / "index.html")),
         *(Route(path, _endpoint(pool, view)) for path, view in VIEWS.items()),
+        *(
+            Route(path, _gated_endpoint(pool, view, check, frames_gate))
+            for path, (view, check) in HEAVY_VIEWS.items()
+        ),
         Route("/avatar", lambda request: FileResponse(STATIC / "avatar.html")),
         WebSocketRoute("/ws/avatar", avatar_endpoint(conninfo, pool)),
         Mount("/static", StaticFiles(directory=STATIC)),
@@ -186,6 +293,9 @@ def create_app(
         exception_handlers={
             api.NotFound: _error(404),
             api.BadRequest: _error(400),
+            Busy: _busy,
+            PoolTimeout: _pool_timeout,
+            psycopg.errors.QueryCanceled: _query_canceled,
             HTTPException: _http_error,
             Exception: _internal_error,
         },
