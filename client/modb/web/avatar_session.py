@@ -70,7 +70,7 @@ class AvatarSession:
             self._send(
                 {
                     "type": "refused",
-                    "message": f"unknown message type {kind!r}: send goal or settings",
+                    "message": f"unknown message type {kind!r:.200}: send goal or settings",
                 }
             )
 
@@ -82,11 +82,11 @@ class AvatarSession:
     def _goal(self, message: dict[str, Any]) -> None:
         try:
             goal = checked_goal((message["x"], message["z"]))
-        except (KeyError, TypeError, ValueError):
+        except (KeyError, TypeError, ValueError, OverflowError):  # OverflowError: a huge integer
             self._send(
                 {
                     "type": "refused",
-                    "message": f'a goal is {{"x": metres, "z": metres}}, got {message!r}',
+                    "message": f'a goal is {{"x": metres, "z": metres}}, got {message!r:.200}',
                 }
             )
             return

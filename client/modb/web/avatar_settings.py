@@ -39,28 +39,28 @@ def settings_from(message: dict[str, Any], current: Settings) -> Settings:
         - {"type", "profile", "graph", "collection", "lead_time", "arrival_radius", "knobs"}
     )
     if unknown:
-        raise SettingsRefused(f"unknown setting {unknown[0]!r}")
+        raise SettingsRefused(f"unknown setting {unknown[0]!r:.200}")
     asked = message.get("knobs") or {}
     if not isinstance(asked, dict):
-        raise SettingsRefused(f"knobs is an object of knob: value, got {asked!r}")
+        raise SettingsRefused(f"knobs is an object of knob: value, got {asked!r:.200}")
     knobs = dict(current.knobs)
     for knob, value in asked.items():
         if knob not in TUNABLE_KNOBS:
             raise SettingsRefused(
-                f"unknown knob {knob!r}: the panel tunes {', '.join(TUNABLE_KNOBS)}"
+                f"unknown knob {knob!r:.200}: the panel tunes {', '.join(TUNABLE_KNOBS)}"
             )
         if value is None or value == "":
             knobs.pop(knob, None)  # back to the profile's
         elif isinstance(value, (str, int, float)) and not isinstance(value, bool):
             knobs[knob] = str(value)
         else:
-            raise SettingsRefused(f"knob {knob} takes a text or number, got {value!r}")
+            raise SettingsRefused(f"knob {knob} takes a text or number, got {value!r:.200}")
     changes: dict[str, Any] = {"knobs": knobs}
     for name in ("profile", "graph", "collection"):
         if name in message:
             value = message[name]
             if value is not None and not isinstance(value, str):
-                raise SettingsRefused(f"{name} is a name, got {value!r}")
+                raise SettingsRefused(f"{name} is a name, got {value!r:.200}")
             changes[name] = value or (None if name != "profile" else "default")
     for name, unit, least, most in (
         ("lead_time", "seconds", 0.0, MAX_LEAD_TIME),
@@ -68,13 +68,15 @@ def settings_from(message: dict[str, Any], current: Settings) -> Settings:
     ):
         if name in message:
             value = message[name]
-            number = (
-                not isinstance(value, bool)
-                and isinstance(value, (int, float))
-                and math.isfinite(value)
-            )
+            number = not isinstance(value, bool) and isinstance(value, (int, float))
+            try:
+                number = number and math.isfinite(value)
+            except OverflowError:  # an integer too large for a float
+                number = False
             if not number or not least <= value <= most:
-                raise SettingsRefused(f"{name} must be {least:g}-{most:g} {unit}, got {value!r}")
+                raise SettingsRefused(
+                    f"{name} must be {least:g}-{most:g} {unit}, got {value!r:.200}"
+                )
             changes[name] = float(value)
     return replace(current, **changes)
 

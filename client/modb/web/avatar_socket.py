@@ -2,6 +2,8 @@
 
 The Host/Origin guard in front refuses a foreign page before this runs. Each connection gets its own
 database session; at most MAX_AVATARS walk at once, so tabs cannot exhaust the server's connections.
+A message longer than MAX_MESSAGE_BYTES or nested deeper than MAX_MESSAGE_DEPTH is refused before
+it is parsed (json.loads recurses once per level), and the socket goes on.
 """
 
 from __future__ import annotations
@@ -9,6 +11,7 @@ from __future__ import annotations
 import asyncio
 import json
 import logging
+import re
 import threading
 from collections.abc import Callable
 from typing import Any
@@ -25,6 +28,65 @@ from .avatar_settings import check_settings
 log = logging.getLogger("modb.web")
 MAX_AVATARS = 8  # open avatar sockets (walking or not) per server
 SEND_TIMEOUT_S = 30  # a page that reads nothing for this long stops its avatar
+MAX_MESSAGE_BYTES = 64 * 1024  # the page's messages (goals, settings) are well under 1 KiB
+MAX_MESSAGE_DEPTH = 8  # arrays and objects within each other; the protocol's messages need 2
+_SPECIAL = re.compile(r'[\\"\[\]{}]')  # what the depth scan looks at: quotes, escapes, brackets
+
+
+class MessageRefused(ValueError):
+    pass
+
+
+def nesting_depth(text: str) -> int:
+    """How deep arrays and objects nest in JSON text (brackets inside strings do not count), read
+    in one pass without parsing it. Up to where a parser would stop on an error it sees what the
+    parser sees, so it never counts fewer levels than json.loads would enter."""
+    depth = deepest = 0
+    in_string = False
+    escaped = -1  # the position a backslash in a string escapes
+    for found in _SPECIAL.finditer(text):
+        at, char = found.start(), found.group()
+        if in_string:
+            if at == escaped:
+                continue
+            if char == "\\":
+                escaped = at + 1
+            elif char == '"':
+                in_string = False
+        elif char == '"':
+            in_string = True
+        elif char in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif char in "]}":
+            depth = max(0, depth - 1)
+    return deepest
+
+
+def parse_message(received: dict[str, Any]) -> Any:
+    """The JSON value of a received text message, or MessageRefused saying what is wrong with it."""
+    text = received.get("text")
+    if text is None:
+        raise MessageRefused("binary messages are not part of the protocol: send JSON text")
+    size = len(text.encode("utf-8", "surrogatepass"))
+    if size > MAX_MESSAGE_BYTES:
+        raise MessageRefused(
+            f"message too long: {size} bytes, the limit is {MAX_MESSAGE_BYTES} bytes"
+        )
+    depth = nesting_depth(text)
+    if depth > MAX_MESSAGE_DEPTH:
+        raise MessageRefused(
+            f"message nested too deep: {depth} levels of arrays and objects, "
+            f"the limit is {MAX_MESSAGE_DEPTH}"
+        )
+    try:
+        return json.loads(text)
+    except RecursionError:  # not expected after the depth check; refused all the same
+        raise MessageRefused("message nested too deep to parse") from None
+    except json.JSONDecodeError as e:
+        raise MessageRefused(f"not JSON text: {e}") from None
+    except ValueError:  # an integer of more digits than Python converts (4300)
+        raise MessageRefused("a number in the message has too many digits") from None
 
 
 def _defaults(choices: dict[str, Any]) -> Settings:
@@ -74,13 +136,23 @@ def avatar_endpoint(conninfo: str, pool: ConnectionPool) -> Callable:
                 if received["type"] == "websocket.disconnect":
                     break
                 try:
-                    message = json.loads(received.get("text") or "")
-                except json.JSONDecodeError as e:
-                    await websocket.send_text(
-                        json.dumps({"type": "refused", "message": f"not JSON text: {e}"})
-                    )
+                    message = parse_message(received)
+                except MessageRefused as e:
+                    await websocket.send_text(json.dumps({"type": "refused", "message": str(e)}))
                     continue
-                await run_in_threadpool(session.handle, message)
+                try:
+                    await run_in_threadpool(session.handle, message)
+                except Exception:  # a bug: the server's log has it; the page may go on
+                    log.exception("avatar message %.200r", message)
+                    await websocket.send_text(
+                        json.dumps(
+                            {
+                                "type": "refused",
+                                "message": "the server could not handle that message "
+                                "(its log says why)",
+                            }
+                        )
+                    )
         except WebSocketDisconnect:
             pass
         except Exception:  # the server's log has it; the page sees the socket close
