@@ -11,6 +11,14 @@
 -- LANGUAGE sql, STABLE, not STRICT, one SELECT: inlined into the caller's plan, so EXPLAIN shows the
 -- GiST index scan on snippets.begin_features with the profile's box as its Index Cond.
 
+CREATE OR REPLACE FUNCTION modb.frame_key(clip_id bigint, version int, mirrored boolean)
+RETURNS numeric
+LANGUAGE sql IMMUTABLE PARALLEL SAFE
+-- Frames are 0 .. 2^31 - 1 and versions any int: each (clip, version, mirrored) gets a stretch of its own.
+RETURN ((clip_id::numeric * 4294967296 + (version::numeric + 2147483648)) * 2 + mirrored::int) * 2147483648;
+COMMENT ON FUNCTION modb.frame_key(bigint, int, boolean) IS
+    'Internal: where the frames of a clip source (clip, version, as captured or mirrored) start on one line of numbers, a stretch of 2^31 each (frame_key + frame); select_next_snippet keeps the frames it must not replay as one multirange on it';
+
 CREATE OR REPLACE FUNCTION modb.select_next_snippets(prev_snippet bigint, target float8[], k int,
                                           profile text DEFAULT 'default', collection text DEFAULT NULL,
                                           exclude bigint[] DEFAULT NULL)
@@ -35,6 +43,17 @@ WITH cfg AS MATERIALIZED (
       FROM modb.snippets s JOIN modb.terminators t ON t.id = s.end_terminator
      WHERE s.id = prev_snippet
        AND (SELECT checked FROM cfg)  -- every path reads prev or cfg first: bad requests always raise
+), played AS MATERIALIZED (
+    -- prev_snippet and the snippets in exclude, each distinct one looked up once.
+    SELECT x.clip_id, x.version, x.mirrored, x.first_frame, x.n_frames
+      FROM modb.snippets x
+     WHERE x.id IN (SELECT e.id FROM unnest(exclude) AS e(id) UNION SELECT prev_snippet)
+), played_frames AS MATERIALIZED (
+    -- The frames they played after their first (the seam): one multirange on the line of modb.frame_key.
+    SELECT coalesce(range_agg(numrange(modb.frame_key(clip_id, version, mirrored) + first_frame + 1,
+                                       modb.frame_key(clip_id, version, mirrored) + first_frame + n_frames - 1, '[]')),
+                    '{}') AS frames
+      FROM played
 ), candidates AS NOT MATERIALIZED (
     -- The filters every level shares: same skeleton poses and rate, the collection, the transition graph
     -- (when the plan names one: its snippets never lead into a dead end), and no replay of a
@@ -45,12 +64,14 @@ WITH cfg AS MATERIALIZED (
        AND ((SELECT (plan).graph_id FROM cfg) IS NULL
             OR EXISTS (SELECT FROM modb.graph_snippets g
                         WHERE g.graph_id = (SELECT (plan).graph_id FROM cfg) AND g.snippet_id = s.id))
-       AND NOT EXISTS (SELECT FROM modb.snippets x
-                        WHERE (x.id = ANY (exclude) OR x.id = prev_snippet)
-                          AND x.clip_id = s.clip_id AND x.version = s.version
-                          AND x.mirrored = s.mirrored
-                          AND x.first_frame + 1 <= s.first_frame + s.n_frames - 1
-                          AND s.first_frame + 1 <= x.first_frame + x.n_frames - 1)
+       -- A candidate from a clip source nothing played is in (a hashed look-up); one from a played source
+       -- when its frames miss the played ones (a binary search): time linear in the length of exclude,
+       -- where testing every id against every candidate (before 0.9.0) was quadratic. An anti-join with
+       -- the one row of played_frames, so that the box scans still hand on every candidate they found.
+       AND NOT EXISTS (SELECT FROM played_frames f
+                        WHERE (s.clip_id, s.version, s.mirrored) IN (SELECT p.clip_id, p.version, p.mirrored FROM played p)
+                          AND f.frames && numrange(modb.frame_key(s.clip_id, s.version, s.mirrored) + s.first_frame + 1,
+                                                   modb.frame_key(s.clip_id, s.version, s.mirrored) + s.first_frame + s.n_frames - 1, '[]'))
 )
 (SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
         modb.approach_cost(c.net_translation, c.future_translation, c.future_heading, (SELECT aim FROM cfg), (SELECT (plan).heading_weight FROM cfg)) AS proximity,
@@ -152,7 +173,8 @@ UNION ALL
     AND c.pose_key = (SELECT pose_key FROM prev) AND c.fps = (SELECT fps FROM prev)
     AND modb.continuity_ratio(prev.term, b, cfg.plan) > 8
   ORDER BY c.begin_features <-> (SELECT features FROM prev), c.id LIMIT k)
-LIMIT k
+-- k through cfg: the request is checked before a LIMIT of 0 or less could end the query or fail on it.
+LIMIT (SELECT k FROM cfg WHERE checked)
 $$;
 COMMENT ON FUNCTION modb.select_next_snippets(bigint, float8[], int, text, text, bigint[]) IS
     'The k best continuations of prev_snippet toward target ({x, z} or {x, y, z}, metres, in the avatar''s heading frame at its end), ordered by relaxation level, then proximity (from the nearer of where the snippet ends and where it leads to the aim point: the target, or the point the profile''s lookahead_distance along the way to it) + continuity_weight x continuity (from a graph snippet at level 0: with the graph''s cost-to-go, the seconds to the goal through the candidate x the graph''s median speed; else with graph_lookahead, the proximity of the candidate or of its best successor, whichever is nearer); prev_snippet NULL: the snippets that best serve the target';
@@ -190,8 +212,12 @@ RETURNS TABLE (snippet_id bigint, clip_id bigint, version int, mirrored boolean,
                net_rotation float8[], net_heading float8)
 LANGUAGE sql STABLE PARALLEL SAFE
 AS $$
-SELECT * FROM modb.select_next_snippets(prev_snippet, modb.world_to_local(select_next_snippet_world."position", heading, target_world), 1,
-                                         profile, collection, exclude)
+-- The world arguments checked and the goal converted once, first (OFFSET 0: not flattened into every
+-- place select_next_snippets reads its target); select_next_snippets is still inlined, beside it.
+SELECT n.*
+  FROM (SELECT modb.check_world_request(select_next_snippet_world."position", heading, target_world) AS target
+        OFFSET 0) w
+ CROSS JOIN LATERAL modb.select_next_snippets(prev_snippet, w.target, 1, profile, collection, exclude) n
 $$;
 COMMENT ON FUNCTION modb.select_next_snippet_world(bigint, float8[], float8, float8[], text, text, bigint[]) IS
     'select_next_snippet with the goal in world coordinates: the avatar at position {x, y, z} with heading theta (radians, 0 = facing +Z)';

@@ -52,9 +52,12 @@ RETURNS boolean
 LANGUAGE plpgsql STABLE PARALLEL SAFE
 AS $$
 BEGIN
+    -- Coordinates: finite, within 1e9 m (as select_next_snippet's targets); subscripts from 1, as written.
+    -- NaN is above every number, so NOT (abs(v) <= 1e9) and NOT (v > 0) hold for it too.
     IF targets IS NULL OR array_ndims(targets) IS DISTINCT FROM 2 OR array_length(targets, 2) NOT IN (2, 3)
-       OR EXISTS (SELECT FROM unnest(targets) v WHERE v IS NULL OR v = 'NaN' OR v IN ('Infinity', '-Infinity')) THEN
-        RAISE EXCEPTION 'targets must be a list of world goals {{x, z}, ...} or {{x, y, z}, ...} in metres, got %',
+       OR array_lower(targets, 1) <> 1 OR array_lower(targets, 2) <> 1
+       OR EXISTS (SELECT FROM unnest(targets) v WHERE v IS NULL OR NOT abs(v) <= 1e9) THEN
+        RAISE EXCEPTION 'targets must be a list of world goals {{x, z}, ...} or {{x, y, z}, ...} in metres (finite, each coordinate within +-1e9), got %',
             coalesce(targets::text, 'NULL') USING ERRCODE = 'invalid_parameter_value';
     END IF;
     IF max_snippets IS NULL OR max_snippets < 1 THEN
@@ -62,20 +65,21 @@ BEGIN
             USING ERRCODE = 'invalid_parameter_value';
     END IF;
     IF start_position IS NULL OR array_ndims(start_position) IS DISTINCT FROM 1 OR array_length(start_position, 1) <> 3
-       OR EXISTS (SELECT FROM unnest(start_position) v WHERE v IS NULL OR v = 'NaN' OR v IN ('Infinity', '-Infinity')) THEN
-        RAISE EXCEPTION 'start_position must be {x, y, z} in metres, got %', coalesce(start_position::text, 'NULL')
-            USING ERRCODE = 'invalid_parameter_value';
+       OR array_lower(start_position, 1) <> 1
+       OR EXISTS (SELECT FROM unnest(start_position) v WHERE v IS NULL OR NOT abs(v) <= 1e9) THEN
+        RAISE EXCEPTION 'start_position must be {x, y, z} in metres (finite, each coordinate within +-1e9), got %',
+            coalesce(start_position::text, 'NULL') USING ERRCODE = 'invalid_parameter_value';
     END IF;
-    IF start_heading IS NULL OR start_heading = 'NaN' OR start_heading IN ('Infinity', '-Infinity') THEN
+    IF start_heading IS NULL OR NOT abs(start_heading) < 'Infinity' THEN
         RAISE EXCEPTION 'start_heading must be a finite angle in radians (0 faces +Z), got %',
             coalesce(start_heading::text, 'NULL') USING ERRCODE = 'invalid_parameter_value';
     END IF;
-    IF arrival_radius IS NULL OR NOT arrival_radius > 0 OR arrival_radius = 'Infinity' THEN
-        RAISE EXCEPTION 'arrival_radius must be a positive number of metres, got %', coalesce(arrival_radius::text, 'NULL')
+    IF arrival_radius IS NULL OR NOT arrival_radius > 0 OR NOT arrival_radius < 'Infinity' THEN
+        RAISE EXCEPTION 'arrival_radius must be a positive, finite number of metres, got %', coalesce(arrival_radius::text, 'NULL')
             USING ERRCODE = 'invalid_parameter_value';
     END IF;
-    IF exclude_seconds IS NULL OR NOT exclude_seconds >= 0 OR exclude_seconds = 'Infinity' THEN
-        RAISE EXCEPTION 'exclude_seconds must be zero or more, got %', coalesce(exclude_seconds::text, 'NULL')
+    IF exclude_seconds IS NULL OR NOT exclude_seconds >= 0 OR NOT exclude_seconds < 'Infinity' THEN
+        RAISE EXCEPTION 'exclude_seconds must be zero or more (a finite number of seconds), got %', coalesce(exclude_seconds::text, 'NULL')
             USING ERRCODE = 'invalid_parameter_value';
     END IF;
     IF start_snippet IS NOT NULL AND NOT EXISTS (SELECT FROM modb.snippets WHERE id = start_snippet) THEN

@@ -22,3 +22,12 @@ GRANT INSERT (name, settings, comment) ON modb.match_profiles TO modb_loader;
 GRANT UPDATE (settings, comment) ON modb.match_profiles TO modb_loader;
 --@include 90_privileges.sql
 --@include 91_shipped_profiles_guard.sql
+-- Selection input
+-- Every knob checked against its range at each selection (an error names the knob, its value and the
+-- allowed range); targets, k and select_next_snippet_world's arguments checked before any LIMIT; synthesize's
+-- NaN radius and exclusion refused; the exclude filter linear in the length of exclude (each fragment is
+-- CREATE OR REPLACE throughout).
+--@include 79_match_plan.sql
+--@include 86_select_request.sql
+--@include 87_select.sql
+--@include 89_synthesize.sql
