@@ -9,7 +9,28 @@ from pathlib import Path
 
 import psycopg
 
-from .common import connect
+from modb.synthesis.chain import MAX_SECONDS
+
+from .common import SEED, connect, positive, whole
+
+ROUNDS = whole(1, 1000)
+QUERIES = whole(1, 100_000)
+BASELINE_QUERIES = whole(0, 100_000)
+PGBENCH_SECONDS = whole(1, 3600, "seconds")
+COURSE_SECONDS = positive(MAX_SECONDS, "seconds")
+MAX_SIZE = 10_000_000  # snippets in a scaled copy of the database
+
+
+def sizes(text: str) -> list[int | None]:
+    """--sizes: snippet counts from 1 to MAX_SIZE, or 'all' (None), separated by commas."""
+    counts = whole(1, MAX_SIZE)
+    try:
+        return [None if v == "all" else counts(v) for v in text.split(",")]
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(
+            f"must be snippet counts from 1 to {MAX_SIZE} or 'all', separated by commas, got "
+            f"{text!r:.100}"
+        ) from None
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -20,7 +41,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "load", help="parse and load speed on real BVH files, beside bvhio"
     )
     load.add_argument("--data", help="folder of .bvh files (default ../shared/mocap/bandai-1)")
-    load.add_argument("--rounds", type=int, default=3, help="rounds (default 3)")
+    load.add_argument("--rounds", type=ROUNDS, default=3, help=f"rounds ({ROUNDS.span}; default 3)")
     load.set_defaults(func=run_load)
 
     select = benchmarks.add_parser(
@@ -28,9 +49,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="selection latency on the database beside a sequential scan of the same query",
     )
     select.add_argument(
-        "--queries", type=int, default=200, help="number of seeded queries (default 200)"
+        "--queries",
+        type=QUERIES,
+        default=200,
+        help=f"number of seeded queries ({QUERIES.span}; default 200)",
     )
-    select.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
+    select.add_argument(
+        "--seed", type=SEED, default=1, help=f"random seed ({SEED.span}; default 1)"
+    )
     select.add_argument("--profile", default="default", help="match profile (default: default)")
     select.add_argument(
         "--graph",
@@ -42,9 +68,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "synth", help="a seeded course of goals 1-20 m apart, synthesized, reported"
     )
     synth.add_argument(
-        "--seconds", type=float, default=600.0, help="length of the course (default 600)"
+        "--seconds",
+        type=COURSE_SECONDS,
+        default=600.0,
+        help=f"length of the course ({COURSE_SECONDS.span}; default 600)",
     )
-    synth.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
+    synth.add_argument("--seed", type=SEED, default=1, help=f"random seed ({SEED.span}; default 1)")
     synth.add_argument("--profile", default="default", help="match profile (default: default)")
     synth.add_argument("--collection", help="draw snippets from this collection")
     synth.add_argument("--graph", help="choose among this transition graph's snippets only")
@@ -62,26 +91,34 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     scale.add_argument(
         "--sizes",
+        type=sizes,
         default="10000,100000,all,1000000",
-        help="snippet counts to measure at, 'all' for the database itself; copies of the "
+        help=f"snippet counts to measure at (1-{MAX_SIZE:,}), 'all' for the database itself; "
+        "copies of the "
         "database (kept for the next run) with whole clips drawn up to a smaller count, or "
         "speed-resampled copies of its clips added up to a larger one (a million takes about "
         "half an hour to build, once)",
     )
     scale.add_argument(
-        "--queries", type=int, default=200, help="number of seeded queries (default 200)"
+        "--queries",
+        type=QUERIES,
+        default=200,
+        help=f"number of seeded queries ({QUERIES.span}; default 200)",
     )
     scale.add_argument(
         "--baseline-queries",
-        type=int,
+        type=BASELINE_QUERIES,
         default=3,
         help="how many of the queries the flat sequential query (a) also answers (it takes "
-        "seconds to minutes each; default 3)",
+        f"seconds to minutes each; {BASELINE_QUERIES.span}; default 3)",
     )
     scale.add_argument(
-        "--pgbench-seconds", type=int, default=10, help="length of each pgbench run (default 10)"
+        "--pgbench-seconds",
+        type=PGBENCH_SECONDS,
+        default=10,
+        help=f"length of each pgbench run ({PGBENCH_SECONDS.span}; default 10)",
     )
-    scale.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
+    scale.add_argument("--seed", type=SEED, default=1, help=f"random seed ({SEED.span}; default 1)")
     scale.add_argument("--profile", default="default", help="match profile (default: default)")
     scale.set_defaults(func=run_scale)
 
@@ -115,7 +152,6 @@ def run_scale(args: argparse.Namespace) -> int:
     from modb.bench.scale import report as scale_report
     from modb.database.dsn import resolve
 
-    sizes = [None if v == "all" else int(v) for v in args.sizes.split(",")]
     print(
         f"modb bench scale: profile {args.profile}, {args.queries} seeded queries (seed "
         f"{args.seed}); "
@@ -124,7 +160,7 @@ def run_scale(args: argparse.Namespace) -> int:
     )
     results = bench_scale(
         resolve(args.dsn)[0],
-        sizes,
+        args.sizes,
         args.queries,
         args.baseline_queries,
         args.seed,

@@ -1,4 +1,6 @@
-"""What several commands share: the connection the global options name, and writing a BVH file."""
+"""What several commands share: the connection the global options name, the argparse types of
+numeric options (bounded: no NaN, infinities or values beyond a stated range), and checking and
+writing output files."""
 
 from __future__ import annotations
 
@@ -6,6 +8,8 @@ import argparse
 import sys
 
 import psycopg
+
+from modb.synthesis.chain import checked_number, number_range
 
 
 def connect(args: argparse.Namespace) -> psycopg.Connection:
@@ -19,12 +23,77 @@ def connect(args: argparse.Namespace) -> psycopg.Connection:
     return connect(conninfo)
 
 
+class Number:
+    """An argparse type: a finite number from `least` (excluded if `above`) to `most`, a whole one
+    if `whole`. Anything else (NaN, inf, 1e308, text) is refused with the range named, and argparse
+    names the option: "argument --seconds: must be a number greater than 0 and at most 3600
+    seconds, got 'inf'"."""
+
+    def __init__(
+        self, least: float, most: float, *, above: bool = False, whole: bool = False, unit=""
+    ) -> None:
+        self.bounds = (least, most, above, whole, unit)
+        self.least, self.most, self.above, self.unit = least, most, above, unit
+
+    @property
+    def span(self) -> str:
+        """The range for a help text: '1-65535', '0-2 seconds', 'more than 0, at most 3600 s'."""
+        unit = f" {self.unit}" if self.unit else ""
+        least, most = (str(v) if self.bounds[3] else f"{v:g}" for v in (self.least, self.most))
+        if self.above:
+            return f"more than {least}, at most {most}{unit}"
+        return f"{least}-{most}{unit}"
+
+    def __call__(self, text: str):
+        try:
+            value = int(text) if self.bounds[3] else float(text)
+            return checked_number("value", value, *self.bounds)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"must be {number_range(*self.bounds)}, got {text!r:.100}"
+            ) from None
+
+    def __repr__(self) -> str:
+        return f"Number({number_range(*self.bounds)})"
+
+
+def whole(least: int, most: int, unit: str = "") -> Number:
+    return Number(least, most, whole=True, unit=unit)
+
+
+def positive(most: float, unit: str = "") -> Number:
+    """More than 0, at most `most`."""
+    return Number(0.0, most, above=True, unit=unit)
+
+
+SEED = whole(0, 2**32 - 1)  # a random seed
+PORT = whole(1, 65535)  # a TCP port
+
+
+def writable(command: str, path: str | None) -> bool:
+    """Whether `path` (`-`: standard output; None: nothing to write) can be written, checked before
+    any work is done: a directory or a folder that does not exist is refused at once, with the
+    reason on stderr. How it is written is modb.bvh_export.open_output's."""
+    from modb.bvh_export import output_target
+
+    if path is None:
+        return True
+    try:
+        output_target(path, allow_stdout=True)
+    except OSError as e:
+        where = f" ({e.filename})" if e.filename not in (None, path) else ""
+        print(f"modb {command}: cannot write {path}: {e.strerror or e}{where}", file=sys.stderr)
+        return False
+    return True
+
+
 def write_bvh_file(command: str, motion, path: str) -> bool:
-    """Writes `motion` to `path`; if it cannot, False, with the reason on stderr."""
+    """Writes `motion` to `path` (`-`: standard output); if it cannot, False, with the reason on
+    stderr."""
     from modb.bvh_export import write_bvh_file
 
     try:
-        write_bvh_file(motion, path)
+        write_bvh_file(motion, path, allow_stdout=True)
     except OSError as e:
         print(f"modb {command}: cannot write {path}: {e.strerror or e}", file=sys.stderr)
         return False

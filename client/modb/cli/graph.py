@@ -7,7 +7,9 @@ import sys
 
 import psycopg
 
-from .common import connect
+from .common import Number, connect
+
+MIN_TURN = Number(0.0, 180.0, unit="degrees")
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -24,11 +26,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     graph.add_argument(
         "--min-turn",
-        type=float,
+        type=MIN_TURN,
         default=45.0,
         metavar="DEGREES",
         help="build: keep the largest component whose snippets turn at least this much each way "
-        "(default 45)",
+        f"({MIN_TURN.span}; default 45)",
     )
     graph.add_argument("-q", "--quiet", action="store_true", help="no progress")
     graph.set_defaults(func=run)

@@ -5,18 +5,14 @@ from __future__ import annotations
 import argparse
 import sys
 
-
-def _tcp_port(text: str) -> int:
-    if not text.isascii() or not text.isdigit() or not 1 <= int(text) <= 65535:
-        raise argparse.ArgumentTypeError(f"a port is a number from 1 to 65535, got {text!r}")
-    return int(text)
+from .common import PORT
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     serve = sub.add_parser(
         "serve", help="browse the database in the web browser (three.js) and JSON endpoints"
     )
-    serve.add_argument("--port", type=_tcp_port, default=8765, help="port, 1-65535 (default 8765)")
+    serve.add_argument("--port", type=PORT, default=8765, help=f"port, {PORT.span} (default 8765)")
     serve.add_argument(
         "--host",
         default="127.0.0.1",

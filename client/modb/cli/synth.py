@@ -5,7 +5,23 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .common import connect, write_bvh_file
+from modb.synthesis.chain import (
+    MAX_ARRIVAL_RADIUS,
+    MAX_BLEND_FRAMES,
+    MAX_EXCLUDE_SECONDS,
+    MAX_ID,
+    MAX_LEAD_TIME,
+    MAX_SECONDS,
+)
+
+from .common import Number, connect, positive, whole, writable, write_bvh_file
+
+SECONDS = positive(MAX_SECONDS, "seconds")
+ARRIVAL_RADIUS = positive(MAX_ARRIVAL_RADIUS, "metres")
+EXCLUDE_SECONDS = Number(0.0, MAX_EXCLUDE_SECONDS, unit="seconds")
+LEAD_TIME = Number(0.0, MAX_LEAD_TIME, unit="seconds")
+BLEND = whole(0, MAX_BLEND_FRAMES, "frames")
+SNIPPET = whole(1, MAX_ID)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -19,43 +35,61 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "+Z); "
         "repeat for waypoints, followed in order",
     )
-    synth.add_argument("--seconds", type=float, required=True, help="length of the strip")
-    synth.add_argument("--out", required=True, help="the BVH file to write")
+    synth.add_argument(
+        "--seconds", type=SECONDS, required=True, help=f"length of the strip ({SECONDS.span})"
+    )
+    synth.add_argument(
+        "--out",
+        required=True,
+        help="the BVH file to write, - for standard output; a device, FIFO or symlink's target is "
+        "written into, a regular file replaced whole",
+    )
     synth.add_argument(
         "--collection", help="draw snippets from this collection (and those below it)"
     )
     synth.add_argument(
-        "--start", type=int, help="the first snippet (default: the best one for the first goal)"
+        "--start",
+        type=SNIPPET,
+        help="the first snippet, a modb.snippets id (default: the best one for the first goal)",
     )
     synth.add_argument("--profile", default="default", help="match profile (modb.match_profiles)")
     synth.add_argument(
         "--graph", help="choose among this transition graph's snippets only (`modb graph build`)"
     )
-    synth.add_argument("--arrival-radius", type=float, default=0.5, help="metres (default 0.5)")
+    synth.add_argument(
+        "--arrival-radius",
+        type=ARRIVAL_RADIUS,
+        default=0.5,
+        help=f"a goal is reached this near ({ARRIVAL_RADIUS.span}; default 0.5)",
+    )
     synth.add_argument(
         "--exclude-seconds",
-        type=float,
+        type=EXCLUDE_SECONDS,
         default=2.0,
-        help="do not replay frames played this recently (default 2)",
+        help=f"do not replay frames played this recently ({EXCLUDE_SECONDS.span}; default 2)",
     )
     synth.add_argument(
         "--lead-time",
-        type=float,
+        type=LEAD_TIME,
         default=0.0,
-        help="issue each query this many seconds before the current snippet ends (default 0)",
+        help="issue each query this many seconds before the current snippet ends "
+        f"({LEAD_TIME.span}; default 0)",
     )
     synth.add_argument(
         "--blend",
-        type=int,
+        type=BLEND,
         default=0,
         metavar="FRAMES",
-        help="blend each seam over this many frames (default 0: snippets as captured)",
+        help=f"blend each seam over this many frames ({BLEND.span}; default 0: snippets as "
+        "captured)",
     )
     synth.add_argument(
         "--report", action="store_true", help="print the choices and the quality figures"
     )
     synth.add_argument(
-        "--report-json", metavar="FILE", help="write the choices and figures as JSON"
+        "--report-json",
+        metavar="FILE",
+        help="write the choices and figures as JSON (- for standard output)",
     )
     synth.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     synth.set_defaults(func=run)
@@ -79,9 +113,24 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as e:
         print(f"modb synth: {e}", file=sys.stderr)
         return 2
-    if not args.seconds > 0:
-        print("modb synth: --seconds must be positive", file=sys.stderr)
+    on_stdout = [
+        name
+        for name, used in (
+            ("--out -", args.out == "-"),
+            ("--report-json -", args.report_json == "-"),
+            ("--report", args.report),
+        )
+        if used
+    ]
+    if len(on_stdout) > 1:
+        print(
+            f"modb synth: {' and '.join(on_stdout)} cannot share standard output: write all but "
+            "one to a file",
+            file=sys.stderr,
+        )
         return 2
+    if not (writable("synth", args.out) and writable("synth", args.report_json)):
+        return 1
     try:
         settings = Settings(
             profile=args.profile,
@@ -111,7 +160,8 @@ def run(args: argparse.Namespace) -> int:
         if not write_bvh_file("synth", result.strip, args.out):
             return 1
         print(
-            f"wrote {args.out}: {result.strip.n_frames} frames at {result.strip.fps:g} fps "
+            f"wrote {'the strip to standard output' if args.out == '-' else args.out}: "
+            f"{result.strip.n_frames} frames at {result.strip.fps:g} fps "
             f"({(result.strip.n_frames - 1) / result.strip.fps:.1f} s), {len(result.chain)} "
             f"snippets",
             file=sys.stderr,
@@ -124,7 +174,7 @@ def run(args: argparse.Namespace) -> int:
                 if args.report:
                     print(format_report(result, rep, clip_names(conn, result.chain)))
                 if args.report_json:
-                    write_report_json(args.report_json, result, rep)
+                    write_report_json(args.report_json, result, rep, allow_stdout=True)
             except ValueError as e:
                 print(f"modb synth: no quality report: {e}", file=sys.stderr)
                 return 1

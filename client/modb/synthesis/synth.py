@@ -12,7 +12,18 @@ import numpy as np
 import psycopg
 
 from .avatar import Avatar
-from .chain import Choice, Frame, Goal, NoContinuation, Settings, checked_goal
+from .chain import (
+    MAX_COORDINATE,
+    MAX_SECONDS,
+    Choice,
+    Frame,
+    Goal,
+    NoContinuation,
+    Settings,
+    checked_goal,
+    checked_number,
+)
+from modb.bvh_export import open_output
 from modb.clips import read_motion
 from modb.motion import Motion
 from .quality import REACH_MIN_DISTANCE, NaturalSteps, Report, measure
@@ -51,7 +62,9 @@ def synthesize(
     """Frames until the strip lasts at least `seconds` (whole snippets).
 
     It ends early, saying why, when the database has nothing to play next (as modb.synthesize does).
+    `seconds` is more than 0 and at most MAX_SECONDS (an hour): the strip is kept in memory.
     """
+    seconds = checked_number("seconds", seconds, 0.0, MAX_SECONDS, above=True, unit="seconds")
     avatar = Avatar(conn, goals=goals, start_snippet=start_snippet, settings=settings)
     frames: list[Frame] = []
     stopped = None
@@ -204,7 +217,11 @@ def format_summary(result: Synthesis, rep: Report) -> str:
     return "\n".join(lines)
 
 
-def write_report_json(path: str, result: Synthesis, rep: Report) -> None:
+def write_report_json(
+    path: str, result: Synthesis, rep: Report, allow_stdout: bool = False
+) -> None:
+    """The choices and figures as JSON, written through open_output (`-`: standard output if
+    `allow_stdout`)."""
     data = {
         "report": rep.as_json(),
         "chain": [
@@ -239,7 +256,7 @@ def write_report_json(path: str, result: Synthesis, rep: Report) -> None:
             for c in result.chain
         ],
     }
-    with open(path, "w") as f:
+    with open_output(path, allow_stdout=allow_stdout) as f:
         json.dump(
             data, f, indent=1, default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o)
         )
@@ -251,7 +268,10 @@ def parse_goal(text: str) -> Goal:
     try:
         return checked_goal(text.split(","))
     except ValueError:
-        raise ValueError(f"--to {text!r}: expected X,Z in metres, e.g. --to 3,-4") from None
+        raise ValueError(
+            f"--to {text!r:.200}: expected X,Z in metres (each at most {MAX_COORDINATE:,.0f} "
+            f"from the origin), e.g. --to 3,-4"
+        ) from None
 
 
 def print_progress(total: float) -> Callable[[float], None]:
