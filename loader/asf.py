@@ -13,8 +13,8 @@ Conventions of the format, as CMU's files use it:
 
 Malformed input is a MotionFileError naming file and line: among others a :hierarchy that gives a
 bone two parents, makes a bone its own parent or root a child, or closes a cycle; a repeated dof,
-root channel or axis letter; a tree deeper than units.MAX_JOINT_DEPTH (walked without recursion);
-lengths beyond units.MAX_LENGTH_M; and an --fps outside units.FPS_RANGE.
+root channel or axis letter; a tree deeper than limits.MAX_JOINT_DEPTH (walked without recursion);
+lengths beyond limits.MAX_LENGTH_M; and an --fps outside limits.FPS_RANGE.
 """
 
 from __future__ import annotations
@@ -31,7 +31,8 @@ from modb_kernel import quaternion
 from .errors import MotionFileError
 from .skeleton_maps import guess_joint_map, guess_mirror_pairs
 from .text import read_lines
-from .units import FPS_RANGE_TEXT, MAX_JOINT_DEPTH, MAX_LENGTH_M, NAMED_UNITS, fps_in_range
+from .limits import FPS_RANGE_TEXT, MAX_JOINT_DEPTH, MAX_LENGTH_M, fps_in_range
+from .units import NAMED_UNITS
 
 DEFAULT_FPS = 120.0  # AMC files carry no rate; CMU captured at 120 fps
 _ROTATION_DOFS = ("rx", "ry", "rz")

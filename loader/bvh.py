@@ -6,8 +6,8 @@ in bvhio and most tools), End Sites, CRLF, tabs (also inside `Frame Time:`),
 numbers like `.0083333`, and colons in joint names. Names may not contain whitespace.
 
 Anything else is a MotionFileError naming file and line: among others a channel listed twice on
-a joint, a frame rate outside units.FPS_RANGE, a hierarchy deeper than units.MAX_JOINT_DEPTH (it
-is read with an explicit stack, not recursion), and lengths beyond units.MAX_LENGTH_M.
+a joint, a frame rate outside limits.FPS_RANGE, a hierarchy deeper than limits.MAX_JOINT_DEPTH (it
+is read with an explicit stack, not recursion), and lengths beyond limits.MAX_LENGTH_M.
 """
 
 from __future__ import annotations
@@ -25,14 +25,8 @@ from modb_kernel import quaternion
 from .errors import MotionFileError
 from .skeleton_maps import guess_joint_map, guess_mirror_pairs
 from .text import read_lines
-from .units import (
-    FPS_RANGE_TEXT,
-    MAX_JOINT_DEPTH,
-    MAX_LENGTH_M,
-    UnitsError,
-    fps_in_range,
-    resolve_units,
-)
+from .limits import FPS_RANGE_TEXT, MAX_JOINT_DEPTH, MAX_LENGTH_M, fps_in_range
+from .units import UnitsError, resolve_units
 
 _CHANNELS = {"Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation"}
 # The MOTION header's two lines; any whitespace (spaces, tabs) between and after the words.

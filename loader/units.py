@@ -1,5 +1,5 @@
-"""Length units of a source file (an explicit choice, or a stated rule on the figure's size), and
-the ranges a loaded clip must fall in: frame rate, lengths, hierarchy depth."""
+"""Length units of a source file: an explicit choice, or a stated rule on the figure's size (the
+ranges a loaded clip must fall in are in limits.py)."""
 
 from __future__ import annotations
 
@@ -13,22 +13,8 @@ NAMED_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
 _AUTO_RANGES = (("m", 0.5, 3.0), ("cm", 50.0, 300.0), ("mm", 500.0, 3000.0))
 
 
-# What a loader accepts; outside these a file is damaged, or read with the wrong options, and is
-# refused with its line instead of being stored (or refused later by the database).
-FPS_RANGE = (1.0, 1000.0)  # frames per second, inclusive (real capture: 24 to a few hundred)
-MAX_LENGTH_M = 1e6  # metres, for any offset or translation (translations are stored as float32)
-MAX_JOINT_DEPTH = 256  # joints on the path from the root (which counts 1) to the deepest joint;
-# a human skeleton with fingers is about 15 deep
-FPS_RANGE_TEXT = f"{FPS_RANGE[0]:g} to {FPS_RANGE[1]:,g} fps"
-
-
 class UnitsError(ValueError):
     pass
-
-
-def fps_in_range(fps: float) -> bool:
-    """Whether a frame rate is within FPS_RANGE (False for nan)."""
-    return FPS_RANGE[0] <= fps <= FPS_RANGE[1]
 
 
 def parse_units(value: str) -> str | float:

@@ -419,10 +419,7 @@ def subcommands(parser):
 
 
 def commands() -> list:
-    names = [name for name, _ in subcommands(build_parser())]
-    # load.py has its own owner: it checks --fps in its run(), not with a bounded argparse type yet.
-    load = pytest.mark.xfail(strict=True, reason="modb load's --fps is a plain float to argparse")
-    return [pytest.param(name, marks=load if name == "load" else ()) for name in names]
+    return [name for name, _ in subcommands(build_parser())]
 
 
 @pytest.mark.parametrize("command", commands())

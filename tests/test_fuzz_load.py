@@ -23,7 +23,7 @@ from support.data import CMU_UNITS, mocap
 from modb.loader.asf import read_amc, read_asf
 from modb.loader.bvh import read_bvh
 from modb.loader.errors import MotionFileError
-from modb.loader.units import FPS_RANGE, MAX_LENGTH_M
+from modb.loader.limits import FPS_RANGE, MAX_LENGTH_M
 from modb.motion import Motion
 
 SEED = 20261201

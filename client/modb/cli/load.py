@@ -5,7 +5,9 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .common import connect
+from modb.loader.limits import FPS_RANGE
+
+from .common import Number, connect
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -20,8 +22,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="auto | m | cm | mm | in | metres per unit (default auto: judged from the figure's "
         "size)",
     )
+    fps = Number(*FPS_RANGE, unit="fps")
     load.add_argument(
-        "--fps", type=float, help="AMC frame rate (AMC files carry none; default 120)"
+        "--fps", type=fps, help=f"AMC frame rate, {fps.span} (AMC files carry none; default 120)"
     )
     load.add_argument(
         "--allow-truncated",
@@ -56,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
     from modb.loader.ingest import load_files
     from modb.loader.jobs import find_jobs
     from modb.loader.reading import ReadOptions
-    from modb.loader.units import FPS_RANGE_TEXT, UnitsError, fps_in_range, parse_units
+    from modb.loader.units import UnitsError, parse_units
 
     try:
         units = parse_units(args.units)
@@ -69,9 +72,6 @@ def run(args: argparse.Namespace) -> int:
             "modb load: no motion files (.bvh, .amc) found in " + " ".join(args.paths),
             file=sys.stderr,
         )
-        return 2
-    if args.fps is not None and not fps_in_range(args.fps):
-        print(f"modb load: --fps must be {FPS_RANGE_TEXT}, got {args.fps:g}", file=sys.stderr)
         return 2
     with (
         connect(args) as conn,
