@@ -34,6 +34,7 @@ def run(args: argparse.Namespace) -> int:
 
     from modb.database.dsn import resolve
     from modb.web.app import ThreeMissing, create_app
+    from modb.web.avatar_socket import MAX_MESSAGE_BYTES
     from modb.web.guard import WILDCARD_ADDRESSES, is_loopback
 
     conninfo, origin = resolve(args.dsn)
@@ -57,5 +58,13 @@ def run(args: argparse.Namespace) -> int:
         f"modb serve: http://{shown}:{args.port}/  (database: {origin}; Ctrl-C stops)",
         file=sys.stderr,
     )
-    uvicorn.run(app, host=args.host, port=args.port, log_level="warning")
+    # A WebSocket message past 16 times the socket's own limit is not even buffered (uvicorn's
+    # default is 16 MiB); one between the two is answered `refused`.
+    uvicorn.run(
+        app,
+        host=args.host,
+        port=args.port,
+        log_level="warning",
+        ws_max_size=16 * MAX_MESSAGE_BYTES,
+    )
     return 0
