@@ -199,6 +199,22 @@ def test_a_symlink_as_out_stays_a_symlink_and_its_target_gets_the_content(
 
 
 @pytest.mark.parametrize("writer", WRITERS)
+def test_a_symlink_target_keeps_its_directory_entry(walks, tmp_path, writer):
+    """Written in place: the target keeps its inode, so a hard link to it sees the new content."""
+    dsn, clip = walks
+    target, hard = tmp_path / "real", tmp_path / "hard"
+    target.write_text("old content\n")
+    os.link(target, hard)
+    inode = target.stat().st_ino
+    link = tmp_path / "link"
+    os.symlink(target, link)
+    r = modb(dsn, *WRITERS[writer](clip, link, tmp_path))
+    assert r.returncode == 0, r.stderr
+    assert target.stat().st_ino == inode and hard.read_bytes() == target.read_bytes()
+    check_content(writer, target.read_bytes(), tmp_path)
+
+
+@pytest.mark.parametrize("writer", WRITERS)
 def test_a_regular_file_as_out_is_replaced_atomically(walks, tmp_path, writer):
     dsn, clip = walks
     folder = tmp_path / "out"

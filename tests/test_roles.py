@@ -95,6 +95,15 @@ def test_every_loader_command_works_as_a_loader_login(cluster, fresh_db, db, tmp
             r = run_modb(as_loader, "graph", "build", "walks", "--min-turn", "0", "-q")
             assert r.returncode == 0, r.stderr
         assert db.execute("SELECT count(*) FROM modb.graphs").fetchone()[0] == 1
+        # a graph is deleted through its name, with its rows
+        with psycopg.connect(as_loader) as conn:
+            with pytest.raises(psycopg.errors.InsufficientPrivilege), conn.transaction():
+                conn.execute("DELETE FROM modb.graphs")
+            conn.execute("DELETE FROM modb.graph_names WHERE name = 'walks'")
+            conn.commit()
+        assert db.execute(
+            "SELECT (SELECT count(*) FROM modb.graphs), (SELECT count(*) FROM modb.graph_snippets)"
+        ).fetchone() == (0, 0)
         (created_by,) = db.execute("SELECT DISTINCT created_by FROM modb.clip_versions").fetchone()
         assert created_by == "test_loader_cli"
     finally:
@@ -102,7 +111,19 @@ def test_every_loader_command_works_as_a_loader_login(cluster, fresh_db, db, tmp
         db.execute("DROP ROLE test_loader_cli")
 
 
-READER_TABLES = ("snippets", "terminators", "clip_versions", "clips", "skeletons", "match_profiles")
+# Every table a selection reads (select_next_snippet's plan opens them all, graph or not).
+READER_TABLES = (
+    "snippets",
+    "terminators",
+    "clip_versions",
+    "clips",
+    "skeletons",
+    "collections",
+    "match_profiles",
+    "graphs",
+    "graph_snippets",
+    "graph_transitions",
+)
 
 
 def test_loader_gets_only_what_loading_needs(cluster, fresh_db, db):

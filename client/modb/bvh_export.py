@@ -136,6 +136,8 @@ def output_target(
         return "replace", where, None
     if stat.S_ISDIR(st.st_mode):
         raise IsADirectoryError(errno.EISDIR, "is a directory, not a file", text)
+    if os.path.islink(text):  # written in place: the target's own entry (and hard links) stay
+        return "direct", where, st
     if stat.S_ISREG(st.st_mode) and not where.startswith(_DESCRIPTOR_FOLDERS):
         return "replace", where, st
     return "direct", where, st  # a character or block device, a FIFO, an open descriptor
@@ -156,8 +158,9 @@ def open_output(
       old file's permissions are kept.
     - a character or block device, a FIFO, /dev/stdout and the like: written straight into, never
       replaced (replacing /dev/null with a regular file would break the system).
-    - a symlink: followed, and what it points at written as above (the link stays), unless
-      `replace_symlink`, which replaces the link itself.
+    - a symlink: followed, and what it points at written in place (the link, the target's own
+      directory entry and any hard links to it stay), unless `replace_symlink`, which replaces the
+      link itself.
     - a directory: IsADirectoryError.
     - `-` with `allow_stdout`: standard output.
 

@@ -98,7 +98,9 @@ data = {"profile": profile, "collection": collection, "min_turn_degrees": min_tu
         "edges_within_kept": int(inside.sum()), "transition_key": json.loads(plan["transition_key"]),
         "cost_to_go": dict(grid.as_json(), seconds_per_ratio=seconds_per_ratio, iterations=iterations,
                            last_change=change)}
-plpy.execute(plpy.prepare("DELETE FROM modb.graphs WHERE name = $1 AND kind = 'transitions'", ["text"]), [name])
+# The old graph goes with its name (92_graph_names.sql), its rows with it.
+plpy.execute(plpy.prepare("DELETE FROM modb.graph_names WHERE name = $1 AND kind = 'transitions'", ["text"]), [name])
+plpy.execute(plpy.prepare("INSERT INTO modb.graph_names (name, kind) VALUES ($1, 'transitions')", ["text"]), [name])
 graph_id = plpy.execute(plpy.prepare(
     "INSERT INTO modb.graphs (name, kind, data) VALUES ($1, 'transitions', $2::jsonb) RETURNING id",
     ["text", "text"]), [name, json.dumps(data)])[0]["id"]

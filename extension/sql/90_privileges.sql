@@ -12,7 +12,8 @@ GRANT INSERT (clip_id, version, skeleton_id, fps, n_frames, rotations, translati
               load_params, meta) ON modb.clip_versions TO modb_loader;
 GRANT UPDATE (meta) ON modb.collections, modb.clips, modb.clip_versions TO modb_loader;
 GRANT UPDATE (name, joint_map, mirror_pairs, meta) ON modb.skeletons TO modb_loader;
-GRANT INSERT, UPDATE, DELETE ON modb.models, modb.graphs TO modb_loader;
+GRANT INSERT, UPDATE, DELETE ON modb.models TO modb_loader;  -- no selection reads models
+-- modb.graphs: 92_graph_names.sql
 GRANT USAGE ON ALL SEQUENCES IN SCHEMA modb TO modb_loader;
 REVOKE EXECUTE ON FUNCTION modb.ensure_collection(text) FROM PUBLIC;
 GRANT EXECUTE ON FUNCTION modb.ensure_collection(text) TO modb_loader;

@@ -7,7 +7,7 @@ SELECT has_extension('modb');
 SELECT has_schema('modb');
 SELECT tables_are('modb', ARRAY['collections', 'skeletons', 'clips', 'clip_versions', 'models', 'graphs',
                                'snippet_sources', 'terminators', 'snippets', 'match_profiles', 'graph_snippets',
-                               'graph_transitions']);
+                               'graph_transitions', 'graph_names']);
 SELECT views_are('modb', ARRAY['current_clips']);
 SELECT functions_are('modb', ARRAY[
     'skeleton_identity', 'unit_quaternions_ok', 'finite_ok', 'skeleton_joint_names', 'joint_map_ok', 'mirror_pairs_ok',
@@ -17,7 +17,8 @@ SELECT functions_are('modb', ARRAY[
     'match_knobs', 'session_settings', 'match_plan', '_thresholds', 'continuity_ratio', 'continuity_ratio_native', 'match_box', 'target_cost', 'aim_point', 'approach_cost', 'collection_subtree',
     'check_request', 'build_snippets', 'select_next_snippets', 'select_next_snippet', 'world_to_local', 'select_next_snippet_world',
     'local_to_world', 'synthesis_goal', 'synthesis_step_end', 'check_synthesis', 'synthesize', 'fill_futures', 'build_transition_graph', 'transition_key', 'cost_to_go', 'candidates_examined',
-    'feature_cube_penalty', 'feature_cube_picksplit', 'match_profiles_guard']);
+    'feature_cube_penalty', 'feature_cube_picksplit', 'match_profiles_guard', '_knob_boolean', '_knob_number',
+    'check_world_request', 'frame_key']);
 SELECT is((SELECT o.opcname::text FROM pg_index i JOIN pg_opclass o ON o.oid = i.indclass[0]
             WHERE i.indexrelid = 'modb.snippets_begin_features_idx'::regclass), 'cube_feature_ops',
           'the feature index uses modb''s operator class');
@@ -48,7 +49,8 @@ SELECT set_eq(
     ARRAY['modb.collections', 'modb.collections_id_seq', 'modb.skeletons', 'modb.skeletons_id_seq',
           'modb.clips', 'modb.clips_id_seq', 'modb.clip_versions', 'modb.models', 'modb.models_id_seq',
           'modb.graphs', 'modb.graphs_id_seq', 'modb.snippet_sources', 'modb.terminators', 'modb.terminators_id_seq',
-          'modb.snippets', 'modb.snippets_id_seq', 'modb.match_profiles', 'modb.graph_snippets', 'modb.graph_transitions'],
+          'modb.snippets', 'modb.snippets_id_seq', 'modb.match_profiles', 'modb.graph_snippets', 'modb.graph_transitions',
+          'modb.graph_names'],
     'every data table and id sequence is registered for pg_dump');
 
 DROP EXTENSION modb;

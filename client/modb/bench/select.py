@@ -110,6 +110,9 @@ def bench_select_graph(
         )
     box_graph = f"{graph} (bench select: no stored transitions)"
     with conn.transaction():
+        conn.execute(
+            "INSERT INTO modb.graph_names (name, kind) VALUES (%s, 'transitions')", [box_graph]
+        )
         (copy_id,) = conn.execute(
             "INSERT INTO modb.graphs (name, kind, data) SELECT %s, kind, data - 'transition_key' "
             "FROM modb.graphs "
@@ -138,7 +141,9 @@ def bench_select_graph(
             ids, queries, seed, profile, on(graph), on(box_graph)
         )
     finally:
-        conn.execute("DELETE FROM modb.graphs WHERE id = %s", [copy_id])
+        conn.execute(
+            "DELETE FROM modb.graph_names WHERE name = %s AND kind = 'transitions'", [box_graph]
+        )
     size = conn.execute("SELECT pg_total_relation_size('modb.graph_transitions')").fetchone()[0]
     return {
         "snippets": len(ids),
