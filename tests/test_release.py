@@ -72,9 +72,11 @@ def embedded_kernels(text: str) -> list[dict[str, str]]:
     return [ast.literal_eval(m[2]) for m in EMBEDDED.finditer(text)]
 
 
-# Local variables renamed in the kernel since the release (E741 refuses the name `l`), as module ->
-# function -> {released name: today's name}: the released code, so renamed, must equal today's.
-RENAMED = {"modb_kernel.terminators": {"headings": {"l": "hip_axis"}}}
+# Local variables renamed in the kernel since a release, as release -> module -> function ->
+# {released name: today's name}: the released code, so renamed, must equal today's.
+RENAMED = {
+    "0.8.0": {"modb_kernel.terminators": {"headings": {"l": "hip_axis"}}},  # E741 refuses `l`
+}.get(VERSION, {})
 
 
 def code_of(source: str, renamed: dict[str, dict[str, str]] | None = None) -> str:
