@@ -533,3 +533,19 @@ def test_goals_far_beyond_any_floor_are_refused():
     for goal in [(1e6 + 1, 0.0), (0.0, -1e308), (0.0, 5.0, math.inf)]:
         with pytest.raises(ValueError, match="metres"):
             checked_goal(goal)
+
+
+@pytest.mark.parametrize("command", ["export", "synth"])
+def test_a_reader_that_leaves_early_is_no_failure(walks, command):
+    """`modb export X | head` exits 0, as `modb list | head` does (the pipe closes early)."""
+    dsn, clip = walks
+    args = [clip] if command == "export" else ["--to", "0,3", "--seconds", "20", "--out", "-"]
+    read = subprocess.Popen(
+        [sys.executable, "-m", "modb.cli", "--dsn", dsn, command, *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    assert read.stdout.readline() == b"HIERARCHY\n"
+    read.stdout.close()  # as head does after its lines
+    assert read.wait(timeout=TIMEOUT) == 0, read.stderr.read()
+    assert b"Traceback" not in read.stderr.read()

@@ -94,6 +94,8 @@ def write_bvh_file(command: str, motion, path: str) -> bool:
 
     try:
         write_bvh_file(motion, path, allow_stdout=True)
+    except BrokenPipeError:
+        raise  # the reader left early (`modb export X | head`): main() exits 0
     except OSError as e:
         print(f"modb {command}: cannot write {path}: {e.strerror or e}", file=sys.stderr)
         return False

@@ -178,6 +178,8 @@ def run(args: argparse.Namespace) -> int:
             except ValueError as e:
                 print(f"modb synth: no quality report: {e}", file=sys.stderr)
                 return 1
+            except BrokenPipeError:
+                raise  # the reader left early: main() exits 0
             except OSError as e:
                 print(
                     f"modb synth: cannot write {args.report_json}: {e.strerror or e}",
