@@ -107,7 +107,8 @@ BEGIN
     -- The session's knobs, each checked against its range as it is read (README "Knobs"): the knobs are
     -- placeholder settings, text whatever they hold, so 'Infinity', 'NaN' or '1e999' get this far.
     FOREACH knob IN ARRAY modb.match_knobs() LOOP
-        value := nullif(current_setting('modb.' || knob, true), '');
+        value := current_setting('modb.' || knob, true);
+        value := CASE WHEN lower(btrim(value)) NOT IN ('', 'profile') THEN value END;  -- '' or profile: the profile's
         CONTINUE WHEN value IS NULL;
         session_knobs := session_knobs || knob;
         settings := settings || jsonb_build_object(knob, CASE

@@ -1,4 +1,5 @@
--- select_next_snippet: continuity (WHERE) and objective (ORDER BY) as one query the planner sees whole.
+-- select_next_snippets_reference: continuity (WHERE) and objective (ORDER BY) as one query the planner
+-- sees whole; the statement of the rule that select_next_snippets (C, below) follows.
 -- The objective (modb.approach_cost): the nearer of where the candidate ends and where it leads
 -- (future_translation: itself and up to two play-on snippets) measured against the aim point (the goal,
 -- or the point lookahead_distance along the way to a farther one, so that a far goal does not favour the
@@ -19,7 +20,7 @@ RETURN ((clip_id::numeric * 4294967296 + (version::numeric + 2147483648)) * 2 + 
 COMMENT ON FUNCTION modb.frame_key(bigint, int, boolean) IS
     'Internal: where the frames of a clip source (clip, version, as captured or mirrored) start on one line of numbers, a stretch of 2^31 each (frame_key + frame); select_next_snippet keeps the frames it must not replay as one multirange on it';
 
-CREATE OR REPLACE FUNCTION modb.select_next_snippets(prev_snippet bigint, target float8[], k int,
+CREATE OR REPLACE FUNCTION modb.select_next_snippets_reference(prev_snippet bigint, target float8[], k int,
                                           profile text DEFAULT 'default', collection text DEFAULT NULL,
                                           exclude bigint[] DEFAULT NULL)
 RETURNS TABLE (snippet_id bigint, clip_id bigint, version int, mirrored boolean, first_frame int, n_frames int,
@@ -176,8 +177,31 @@ UNION ALL
 -- k through cfg: the request is checked before a LIMIT of 0 or less could end the query or fail on it.
 LIMIT (SELECT k FROM cfg WHERE checked)
 $$;
+COMMENT ON FUNCTION modb.select_next_snippets_reference(bigint, float8[], int, text, text, bigint[]) IS
+    'The rule of select_next_snippets as one SQL query (the planner sees it whole: EXPLAIN shows its GiST box scans); select_next_snippets returns the same rows, faster. The k best continuations of prev_snippet toward target ({x, z} or {x, y, z}, metres, in the avatar''s heading frame at its end), ordered by relaxation level, then proximity (from the nearer of where the snippet ends and where it leads to the aim point: the target, or the point the profile''s lookahead_distance along the way to it) + continuity_weight x continuity (from a graph snippet at level 0: with the graph''s cost-to-go, the seconds to the goal through the candidate x the graph''s median speed; else with graph_lookahead, the proximity of the candidate or of its best successor, whichever is nearer); prev_snippet NULL: the snippets that best serve the target';
+
+-- The same rule in C (src/selection.c), without planning a query per call: the plan resolved once per
+-- session, the box read by kept generic plans, candidates scored in C; a start and level 4 are answered by
+-- the reference above. Not STRICT: prev_snippet NULL is a start.
+CREATE OR REPLACE FUNCTION modb.select_next_snippets(prev_snippet bigint, target float8[], k int,
+                                          profile text DEFAULT 'default', collection text DEFAULT NULL,
+                                          exclude bigint[] DEFAULT NULL)
+RETURNS TABLE (snippet_id bigint, clip_id bigint, version int, mirrored boolean, first_frame int, n_frames int,
+               proximity float8, relax_level int, continuity float8, net_translation float8[],
+               net_rotation float8[], net_heading float8)
+LANGUAGE c STABLE CALLED ON NULL INPUT PARALLEL SAFE COST 1000 ROWS 5
+AS 'MODULE_PATHNAME', 'modb_select_next_snippets';
 COMMENT ON FUNCTION modb.select_next_snippets(bigint, float8[], int, text, text, bigint[]) IS
     'The k best continuations of prev_snippet toward target ({x, z} or {x, y, z}, metres, in the avatar''s heading frame at its end), ordered by relaxation level, then proximity (from the nearer of where the snippet ends and where it leads to the aim point: the target, or the point the profile''s lookahead_distance along the way to it) + continuity_weight x continuity (from a graph snippet at level 0: with the graph''s cost-to-go, the seconds to the goal through the candidate x the graph''s median speed; else with graph_lookahead, the proximity of the candidate or of its best successor, whichever is nearer); prev_snippet NULL: the snippets that best serve the target';
+
+CREATE OR REPLACE FUNCTION modb.explain_selection(prev_snippet bigint, target float8[], k int DEFAULT 1,
+                                          profile text DEFAULT 'default', collection text DEFAULT NULL,
+                                          exclude bigint[] DEFAULT NULL)
+RETURNS SETOF text
+LANGUAGE c STABLE CALLED ON NULL INPUT PARALLEL SAFE COST 1000 ROWS 12
+AS 'MODULE_PATHNAME', 'modb_explain_selection';
+COMMENT ON FUNCTION modb.explain_selection(bigint, float8[], int, text, text, bigint[]) IS
+    'How select_next_snippets answers this call (its arguments, in its order): the profile as resolved, which path answered, and per relaxation level the box, the scan that read it, rows scanned, filtered, within the continuity ratio and returned, and the time of each stage';
 
 CREATE OR REPLACE FUNCTION modb.select_next_snippet(prev_snippet bigint, target float8[], profile text DEFAULT 'default',
                                          collection text DEFAULT NULL, exclude bigint[] DEFAULT NULL)

@@ -67,43 +67,23 @@ quat_angle(const float *a, const float *b)
 	return 4 * atan2(Min(minus, plus), Max(minus, plus));
 }
 
-Datum
-modb_continuity_ratio(PG_FUNCTION_ARGS)
+double
+modb_continuity(const Terminator *a, const Terminator *b, const Thresholds *t)
 {
-	HeapTupleHeader a = PG_GETARG_HEAPTUPLEHEADER(0);
-	HeapTupleHeader b = PG_GETARG_HEAPTUPLEHEADER(1);
-	HeapTupleHeader plan = PG_GETARG_HEAPTUPLEHEADER(2);
-	const float *a_pos = field_array(a, "positions", FLOAT4OID, 3 * N_JOINTS);
-	const float *b_pos = field_array(b, "positions", FLOAT4OID, 3 * N_JOINTS);
-	const float *a_rot = field_array(a, "rotations", FLOAT4OID, 4 * N_JOINTS);
-	const float *b_rot = field_array(b, "rotations", FLOAT4OID, 4 * N_JOINTS);
-	const float *a_vel = field_array(a, "velocities", FLOAT4OID, 3 * N_JOINTS);
-	const float *b_vel = field_array(b, "velocities", FLOAT4OID, 3 * N_JOINTS);
-	const float *a_ang = field_array(a, "angular_velocities", FLOAT4OID, 3 * N_JOINTS);
-	const float *b_ang = field_array(b, "angular_velocities", FLOAT4OID, 3 * N_JOINTS);
-	const double *position_threshold = field_array(plan, "position_threshold", FLOAT8OID, N_JOINTS);
-	const double *angle_threshold = field_array(plan, "angle_threshold", FLOAT8OID, N_JOINTS);
-	const double *velocity_threshold = field_array(plan, "velocity_threshold", FLOAT8OID, N_JOINTS);
-	const double *angular_threshold = field_array(plan, "angular_velocity_threshold", FLOAT8OID, N_JOINTS);
-	bool		isnull;
-	Datum		norm = GetAttributeByName(plan, "norm", &isnull);
-	bool		l1_norm = !isnull && strcmp(TextDatumGetCString(norm), "l1") == 0;
-	Datum		velocity_terms = GetAttributeByName(plan, "velocity_terms", &isnull);
-	bool		with_velocities = !isnull && DatumGetBool(velocity_terms);
 	double		ratio = -INFINITY;
 
 	for (int j = 0; j < N_JOINTS; j++)
 	{
-		const float *pa = a_pos + 3 * j, *pb = b_pos + 3 * j;
+		const float *pa = a->positions + 3 * j, *pb = b->positions + 3 * j;
 		double		term;
 		double		position;
 
-		if (isinf(position_threshold[j]) && position_threshold[j] > 0)
+		if (isinf(t->position[j]) && t->position[j] > 0)
 		{
 			ratio = Max(ratio, 0.0);	/* a joint the profile leaves out */
 			continue;
 		}
-		if (l1_norm)
+		if (t->l1)
 		{
 			float		sum = fabsf(pa[0] - pb[0]) + fabsf(pa[1] - pb[1]);
 
@@ -112,12 +92,47 @@ modb_continuity_ratio(PG_FUNCTION_ARGS)
 		}
 		else
 			position = l2(pa, pb);
-		term = Max(position / position_threshold[j], quat_angle(a_rot + 4 * j, b_rot + 4 * j) / angle_threshold[j]);
-		term = Max(term, with_velocities
-				   ? Max(l2(a_vel + 3 * j, b_vel + 3 * j) / velocity_threshold[j],
-						 l2(a_ang + 3 * j, b_ang + 3 * j) / angular_threshold[j])
+		term = Max(position / t->position[j],
+				   quat_angle(a->rotations + 4 * j, b->rotations + 4 * j) / t->angle[j]);
+		term = Max(term, t->velocity_terms
+				   ? Max(l2(a->velocities + 3 * j, b->velocities + 3 * j) / t->velocity[j],
+						 l2(a->angular_velocities + 3 * j, b->angular_velocities + 3 * j) / t->angular_velocity[j])
 				   : 0.0);
 		ratio = Max(ratio, term);
 	}
-	PG_RETURN_FLOAT8(ratio);
+	return ratio;
+}
+
+static Terminator
+terminator_of(HeapTupleHeader row)
+{
+	Terminator	t;
+
+	t.positions = field_array(row, "positions", FLOAT4OID, 3 * N_JOINTS);
+	t.rotations = field_array(row, "rotations", FLOAT4OID, 4 * N_JOINTS);
+	t.velocities = field_array(row, "velocities", FLOAT4OID, 3 * N_JOINTS);
+	t.angular_velocities = field_array(row, "angular_velocities", FLOAT4OID, 3 * N_JOINTS);
+	return t;
+}
+
+Datum
+modb_continuity_ratio(PG_FUNCTION_ARGS)
+{
+	Terminator	a = terminator_of(PG_GETARG_HEAPTUPLEHEADER(0));
+	Terminator	b = terminator_of(PG_GETARG_HEAPTUPLEHEADER(1));
+	HeapTupleHeader plan = PG_GETARG_HEAPTUPLEHEADER(2);
+	Thresholds	t;
+	bool		isnull;
+	Datum		value;
+
+	memcpy(t.position, field_array(plan, "position_threshold", FLOAT8OID, N_JOINTS), sizeof(t.position));
+	memcpy(t.angle, field_array(plan, "angle_threshold", FLOAT8OID, N_JOINTS), sizeof(t.angle));
+	memcpy(t.velocity, field_array(plan, "velocity_threshold", FLOAT8OID, N_JOINTS), sizeof(t.velocity));
+	memcpy(t.angular_velocity, field_array(plan, "angular_velocity_threshold", FLOAT8OID, N_JOINTS),
+		   sizeof(t.angular_velocity));
+	value = GetAttributeByName(plan, "norm", &isnull);
+	t.l1 = !isnull && strcmp(TextDatumGetCString(value), "l1") == 0;
+	value = GetAttributeByName(plan, "velocity_terms", &isnull);
+	t.velocity_terms = !isnull && DatumGetBool(value);
+	PG_RETURN_FLOAT8(modb_continuity(&a, &b, &t));
 }

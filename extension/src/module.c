@@ -1,11 +1,19 @@
 /*
- * The modb shared library's magic block: PostgreSQL checks it once per library, whatever C file is first
- * loaded. modb is SQL and PL/Python except for three C files: session_settings.c (the session's modb.*
- * settings, which no SQL view lists), continuity.c (the continuity ratio, ~100x faster than SQL) and
- * cube_gist.c (a GiST penalty and split for the 49-dimension feature cube).
+ * The modb shared library: its magic block, and _PG_init, which defines the session knobs (settings.c)
+ * when the library is loaded (session_preload_libraries, or the first call of one of its functions).
  */
 #include "postgres.h"
 
 #include "fmgr.h"
 
+#include "modb.h"
+
 PG_MODULE_MAGIC;
+
+void		_PG_init(void);
+
+void
+_PG_init(void)
+{
+	modb_define_settings();
+}

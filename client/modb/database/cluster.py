@@ -151,6 +151,8 @@ class Cluster:
                 # (a million
                 # snippets: an 800 MB index). A quarter of the memory, PostgreSQL's usual advice.
                 f"shared_buffers = {_shared_buffers_mb()}MB\n"
+                # modb's settings (SET modb.<knob>) are checked at SET once its library is loaded.
+                "session_preload_libraries = 'modb'\n"
             )
 
     def start(self) -> None:
@@ -165,6 +167,11 @@ class Cluster:
         import psycopg
 
         with psycopg.connect(self.dsn("postgres"), autocommit=True) as conn:
+            preloaded = conn.execute("SHOW session_preload_libraries").fetchone()[0]
+            if "modb" not in [name.strip() for name in preloaded.split(",")]:
+                # Clusters made before 0.10.0: modb's settings are checked at SET from now on.
+                conn.execute("ALTER SYSTEM SET session_preload_libraries = 'modb'")
+                conn.execute("SELECT pg_reload_conf()")
             if not conn.execute(
                 "SELECT 1 FROM pg_database WHERE datname = %s", [dbname]
             ).fetchone():

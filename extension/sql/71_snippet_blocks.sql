@@ -1,0 +1,101 @@
+-- Snippet blocks: the begin features of up to 32 consecutive snippets of a clip source as 8-bit codes
+-- within the block's bounds (src/snippet_blocks.c). select_next_snippets finds a box's candidates by
+-- testing each block's bounds (kept per session in memory: src/block_directory.c) and then the codes of
+-- the blocks that meet the box, where the GiST index visits a few percent of its pages whatever the box
+-- (BENCHMARKS.md "Selection at scale"): consecutive snippets of a clip are near-identical, so a block's
+-- bounds are tight. A block is a superset: every candidate is checked on its exact features again.
+-- Derived from modb.snippets by triggers in the same transaction, so a block is visible exactly when its
+-- snippets are (any snapshot, a standby, the loader's own uncommitted rows); not dumped: a restore's
+-- COPY into modb.snippets builds them again.
+
+CREATE TABLE modb.snippet_blocks (
+    clip_id       bigint NOT NULL,
+    version       int NOT NULL,
+    mirrored      boolean NOT NULL,
+    pose_key      text NOT NULL,
+    fps           float8 NOT NULL,
+    collection_id bigint NOT NULL,
+    snippets      bigint[] NOT NULL CHECK (array_length(snippets, 1) BETWEEN 1 AND 32),
+    low           real[] NOT NULL,
+    high          real[] NOT NULL,
+    codes         bytea NOT NULL,
+    FOREIGN KEY (clip_id, version, mirrored) REFERENCES modb.snippet_sources ON DELETE CASCADE
+) WITH (toast_tuple_target = 8160);  -- a block (about 2.3 kB) stays in its heap page, uncompressed
+COMMENT ON TABLE modb.snippet_blocks IS
+    'Up to 32 consecutive snippets of a clip source (same pose, rate and collection): the bounds of their begin features and each one''s 8-bit code within them; select_next_snippets'' box search (kept by triggers on modb.snippets)';
+COMMENT ON COLUMN modb.snippet_blocks.codes IS
+    'snippets x features bytes: floor((feature - low) / ((high - low) / 255)), clamped to 0..255';
+CREATE INDEX snippet_blocks_source_idx ON modb.snippet_blocks (clip_id, version, mirrored);  -- ON DELETE CASCADE
+
+-- Which blocks a session's cached directory holds: every change of modb.snippet_blocks takes a new number
+-- from the sequence (never reused, even by a transaction that rolls back). Writers of blocks queue on this
+-- one row, so the number a snapshot sees names exactly the blocks it sees.
+CREATE SEQUENCE modb.snippet_blocks_generation_seq;
+CREATE TABLE modb.snippet_blocks_generation (
+    one        boolean PRIMARY KEY DEFAULT true CHECK (one),
+    generation bigint NOT NULL
+);
+COMMENT ON TABLE modb.snippet_blocks_generation IS
+    'One row: the number of the last change of modb.snippet_blocks, which sessions compare with the one their block directory was read at';
+INSERT INTO modb.snippet_blocks_generation VALUES (true, nextval('modb.snippet_blocks_generation_seq'));
+
+CREATE FUNCTION modb.snippet_blocks_changed()
+RETURNS trigger
+LANGUAGE plpgsql VOLATILE PARALLEL UNSAFE
+AS $$
+BEGIN
+    UPDATE modb.snippet_blocks_generation SET generation = nextval('modb.snippet_blocks_generation_seq');
+    RETURN NULL;
+END
+$$;
+COMMENT ON FUNCTION modb.snippet_blocks_changed() IS
+    'Trigger: a change of modb.snippet_blocks takes a new generation (sessions then read their block directory again)';
+CREATE TRIGGER snippet_blocks_generation AFTER INSERT OR UPDATE OR DELETE OR TRUNCATE ON modb.snippet_blocks
+    FOR EACH STATEMENT EXECUTE FUNCTION modb.snippet_blocks_changed();
+
+CREATE FUNCTION modb.add_snippet_blocks(snippet_ids bigint[])
+RETURNS int
+LANGUAGE c VOLATILE STRICT PARALLEL UNSAFE
+AS 'MODULE_PATHNAME', 'modb_add_snippet_blocks';
+COMMENT ON FUNCTION modb.add_snippet_blocks(bigint[]) IS
+    'Adds the blocks of these snippets (in clip order, up to 32 consecutive ones of a source each); returns how many. The triggers on modb.snippets call it';
+
+CREATE FUNCTION modb.snippets_inserted()
+RETURNS trigger
+LANGUAGE plpgsql VOLATILE PARALLEL UNSAFE
+AS $$
+BEGIN
+    PERFORM modb.add_snippet_blocks(ARRAY(SELECT id FROM inserted));
+    RETURN NULL;
+END
+$$;
+COMMENT ON FUNCTION modb.snippets_inserted() IS 'Trigger: blocks for the snippets an INSERT added';
+CREATE TRIGGER snippets_blocks_insert AFTER INSERT ON modb.snippets REFERENCING NEW TABLE AS inserted
+    FOR EACH STATEMENT EXECUTE FUNCTION modb.snippets_inserted();
+
+-- An update of what a block holds (fill_futures updates other columns) adds a block for the new values;
+-- the old block keeps naming the snippet, whose exact values are read again at every selection.
+CREATE FUNCTION modb.snippets_updated()
+RETURNS trigger
+LANGUAGE plpgsql VOLATILE PARALLEL UNSAFE
+AS $$
+BEGIN
+    PERFORM modb.add_snippet_blocks(ARRAY(
+        SELECT n.id FROM new_rows n JOIN old_rows o ON o.id = n.id
+         WHERE (n.begin_features, n.pose_key, n.fps, n.collection_id, n.clip_id, n.version, n.mirrored)
+               IS DISTINCT FROM (o.begin_features, o.pose_key, o.fps, o.collection_id, o.clip_id, o.version, o.mirrored)));
+    RETURN NULL;
+END
+$$;
+COMMENT ON FUNCTION modb.snippets_updated() IS 'Trigger: blocks for snippets whose features, pose, rate, collection or source an UPDATE changed';
+CREATE TRIGGER snippets_blocks_update AFTER UPDATE ON modb.snippets
+    REFERENCING OLD TABLE AS old_rows NEW TABLE AS new_rows
+    FOR EACH STATEMENT EXECUTE FUNCTION modb.snippets_updated();
+
+GRANT SELECT ON modb.snippet_blocks, modb.snippet_blocks_generation TO modb_reader;
+-- The loader's snippets bring their blocks (the triggers run as the inserting role).
+GRANT INSERT ON modb.snippet_blocks TO modb_loader;
+GRANT UPDATE (generation) ON modb.snippet_blocks_generation TO modb_loader;
+GRANT USAGE ON SEQUENCE modb.snippet_blocks_generation_seq TO modb_loader;
+REVOKE EXECUTE ON FUNCTION modb.add_snippet_blocks(bigint[]) FROM PUBLIC;
+GRANT EXECUTE ON FUNCTION modb.add_snippet_blocks(bigint[]) TO modb_loader;

@@ -1,0 +1,677 @@
+/*
+ * select_next_snippets in C: the rule of select_next_snippets_reference (87_select.sql), computed without
+ * planning a query per call. The plan is resolved once per session (selection_plan.c); the previous
+ * snippet's end, the box of each relaxation level (GiST) or the graph's stored transitions, and the
+ * candidates' begin terminators are read by kept generic SPI plans under the caller's snapshot; the
+ * filters, the continuity ratio (continuity.c), the objective (objective.c) and the order are computed
+ * here, level by level, stopping once k rows are found. What the fast path does not compute is answered by
+ * the reference query itself (a start without a previous snippet, level 4 - the nearest start at any
+ * ratio -, graph_lookahead), so every answer is the reference's (tests/test_select_fast.py).
+ */
+#include "postgres.h"
+
+#include <math.h>
+
+#include "catalog/pg_type.h"
+#include "executor/spi.h"
+#include "funcapi.h"
+#include "utils/array.h"
+#include "utils/builtins.h"
+#include "utils/guc.h"
+#include "utils/lsyscache.h"
+
+#include "extension/cube/cubedata.h"
+#include "selection.h"
+
+PG_FUNCTION_INFO_V1(modb_select_next_snippets);
+
+/* The columns both candidate queries start with. */
+#define CANDIDATE_COLUMNS \
+	"c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames, c.collection_id, c.pose_key, c.fps," \
+	" c.net_translation, c.net_rotation, c.net_heading, c.future_translation, c.future_heading," \
+	" b.positions, b.rotations, b.velocities, b.angular_velocities, c.begin_features"
+enum
+{
+	COL_ID = 1, COL_CLIP, COL_VERSION, COL_MIRRORED, COL_FIRST_FRAME, COL_N_FRAMES, COL_COLLECTION,
+	COL_POSE_KEY, COL_FPS, COL_NET_TRANSLATION, COL_NET_ROTATION, COL_NET_HEADING, COL_FUTURE_TRANSLATION,
+	COL_FUTURE_HEADING, COL_POSITIONS, COL_ROTATIONS, COL_VELOCITIES, COL_ANGULAR_VELOCITIES,
+	COL_BEGIN_FEATURES, COL_COST_TO_GO
+};
+
+/* A stretch of frames a clip source played: the frames after a snippet's first (its seam). */
+typedef struct Played
+{
+	int64		clip_id;
+	int32		version;
+	bool		mirrored;
+	int32		low;
+	int32		high;
+} Played;
+
+typedef struct Request
+{
+	int64		prev;
+	double		target[3];
+	int			n;				/* 2: {x, z}; 3: {x, y, z} */
+	double		aim[3];
+	int			k;
+	const MatchPlan *plan;
+	/* the previous snippet's end */
+	Terminator	end;
+	double		features[N_FEATURES];
+	char	   *pose_key;
+	double		fps;
+	/* which blocks this snapshot sees (block_directory.c) */
+	Oid			blocks_relid;
+	int64		blocks_generation;
+	/* filters */
+	Played	   *played;
+	int			n_played;
+	int64	   *collections;	/* NULL: every collection */
+	int			n_collections;
+} Request;
+
+typedef struct Candidate
+{
+	int			row;
+	int64		id;
+	bool		has_key;
+	double		key;			/* objective + continuity_weight x ratio */
+	bool		has_proximity;
+	double		proximity;
+	double		ratio;
+} Candidate;
+
+static const float *
+float4_array(HeapTuple row, TupleDesc desc, int column, int length)
+{
+	bool		isnull;
+	ArrayType  *a = DatumGetArrayTypeP(SPI_getbinval(row, desc, column, &isnull));
+
+	if (ARR_NDIM(a) != 1 || ARR_HASNULL(a) || ARR_DIMS(a)[0] != length)
+		elog(ERROR, "modb: a terminator array is not %d values", length);
+	return (const float *) ARR_DATA_PTR(a);
+}
+
+/* A float8[] column's values (NULL when the column is); *n gets its length. */
+static const double *
+float8_array(HeapTuple row, TupleDesc desc, int column, int *n)
+{
+	bool		isnull;
+	Datum		value = SPI_getbinval(row, desc, column, &isnull);
+	ArrayType  *a;
+
+	if (isnull)
+		return NULL;
+	a = DatumGetArrayTypeP(value);
+	if (ARR_NDIM(a) != 1 || ARR_HASNULL(a))
+		return NULL;
+	*n = ARR_DIMS(a)[0];
+	return (const double *) ARR_DATA_PTR(a);
+}
+
+static Terminator
+terminator_of(HeapTuple row, TupleDesc desc, int first_column)
+{
+	Terminator	t;
+
+	t.positions = float4_array(row, desc, first_column, 3 * N_JOINTS);
+	t.rotations = float4_array(row, desc, first_column + 1, 4 * N_JOINTS);
+	t.velocities = float4_array(row, desc, first_column + 2, 3 * N_JOINTS);
+	t.angular_velocities = float4_array(row, desc, first_column + 3, 3 * N_JOINTS);
+	return t;
+}
+
+/* The cheap part of modb.check_request; what fails it goes to check_request itself for its error. */
+static bool
+target_ok(ArrayType *target, Request *r)
+{
+	if (ARR_NDIM(target) != 1 || ARR_HASNULL(target) || ARR_LBOUND(target)[0] != 1
+		|| (ARR_DIMS(target)[0] != 2 && ARR_DIMS(target)[0] != 3))
+		return false;
+	r->n = ARR_DIMS(target)[0];
+	for (int i = 0; i < r->n; i++)
+	{
+		r->target[i] = ((double *) ARR_DATA_PTR(target))[i];
+		if (!(fabs(r->target[i]) <= 1e9))
+			return false;
+	}
+	return true;
+}
+
+/* Raises modb.check_request's error for this request (and returns if it has none). */
+static void
+check_request(FunctionCallInfo fcinfo, int64 **collections, int *n_collections)
+{
+	static SPIPlanPtr query;
+	Oid			types[4] = {INT8OID, FLOAT8ARRAYOID, INT4OID, TEXTOID};
+	Datum		args[4];
+	char		nulls[4];
+	bool		isnull;
+	Datum		ids;
+
+	for (int i = 0; i < 4; i++)
+	{
+		nulls[i] = PG_ARGISNULL(i == 3 ? 4 : i) ? 'n' : ' ';
+		args[i] = nulls[i] == 'n' ? (Datum) 0 : PG_GETARG_DATUM(i == 3 ? 4 : i);
+	}
+	modb_kept_plan(&query,
+				   "SELECT modb.check_request($1, $2, $3, $4),"
+				   "       CASE WHEN $4 IS NOT NULL THEN modb.collection_subtree($4) END",
+				   4, types);
+	if (SPI_execute_plan(query, args, nulls, true, 1) != SPI_OK_SELECT || SPI_processed != 1)
+		elog(ERROR, "modb: check_request returned nothing");
+	ids = SPI_getbinval(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 2, &isnull);
+	if (!isnull && collections != NULL)
+	{
+		ArrayType  *a = DatumGetArrayTypeP(ids);
+		Datum	   *elements;
+		bool	   *element_nulls;
+
+		deconstruct_array(a, INT8OID, 8, FLOAT8PASSBYVAL, TYPALIGN_DOUBLE, &elements, &element_nulls,
+						  n_collections);
+		*collections = palloc(sizeof(int64) * Max(*n_collections, 1));
+		for (int i = 0; i < *n_collections; i++)
+			(*collections)[i] = element_nulls[i] ? -1 : DatumGetInt64(elements[i]);
+	}
+}
+
+/* The previous snippet's end terminator and the frames it played; false when there is no such snippet. */
+static bool
+read_previous(Request *r)
+{
+	static SPIPlanPtr query;
+	Oid			types[1] = {INT8OID};
+	Datum		args[1] = {Int64GetDatum(r->prev)};
+	HeapTuple	row;
+	TupleDesc	desc;
+	bool		isnull;
+	NDBOX	   *features;
+
+	modb_kept_plan(&query,
+				   "SELECT s.clip_id, s.version, s.mirrored, s.first_frame, s.n_frames, s.pose_key, s.fps, t.features,"
+				   "       t.positions, t.rotations, t.velocities, t.angular_velocities,"
+				   "       (SELECT g.generation FROM modb.snippet_blocks_generation g),"
+				   "       to_regclass('modb.snippet_blocks')::oid"
+				   "  FROM modb.snippets s JOIN modb.terminators t ON t.id = s.end_terminator WHERE s.id = $1",
+				   1, types);
+	if (SPI_execute_plan(query, args, NULL, true, 1) != SPI_OK_SELECT || SPI_processed != 1)
+		return false;
+	row = SPI_tuptable->vals[0];
+	desc = SPI_tuptable->tupdesc;
+	r->played = palloc(sizeof(Played));
+	r->played[0].clip_id = DatumGetInt64(SPI_getbinval(row, desc, 1, &isnull));
+	r->played[0].version = DatumGetInt32(SPI_getbinval(row, desc, 2, &isnull));
+	r->played[0].mirrored = DatumGetBool(SPI_getbinval(row, desc, 3, &isnull));
+	r->played[0].low = DatumGetInt32(SPI_getbinval(row, desc, 4, &isnull)) + 1;
+	r->played[0].high = r->played[0].low - 2 + DatumGetInt32(SPI_getbinval(row, desc, 5, &isnull));
+	r->n_played = 1;
+	r->pose_key = SPI_getvalue(row, desc, 6);
+	r->fps = DatumGetFloat8(SPI_getbinval(row, desc, 7, &isnull));
+	features = DatumGetNDBOXP(SPI_getbinval(row, desc, 8, &isnull));
+	if (DIM(features) != N_FEATURES)
+		elog(ERROR, "modb: terminator features have %d dimensions, not %d", DIM(features), N_FEATURES);
+	for (int i = 0; i < N_FEATURES; i++)
+		r->features[i] = LL_COORD(features, i);
+	r->end = terminator_of(row, desc, 9);
+	r->blocks_generation = DatumGetInt64(SPI_getbinval(row, desc, 13, &isnull));
+	r->blocks_relid = DatumGetObjectId(SPI_getbinval(row, desc, 14, &isnull));
+	return true;
+}
+
+/* The frames the snippets of `exclude` played (after their first), beside the previous snippet's. */
+static void
+read_excluded(Request *r, Datum exclude)
+{
+	static SPIPlanPtr query;
+	Oid			types[1] = {INT8ARRAYOID};
+	Datum		args[1] = {exclude};
+	bool		isnull;
+
+	modb_kept_plan(&query,
+				   "SELECT x.clip_id, x.version, x.mirrored, x.first_frame, x.n_frames FROM modb.snippets x"
+				   " WHERE x.id = ANY ($1)",
+				   1, types);
+	if (SPI_execute_plan(query, args, NULL, true, 0) != SPI_OK_SELECT)
+		elog(ERROR, "modb: reading the excluded snippets failed");
+	r->played = repalloc(r->played, sizeof(Played) * (r->n_played + SPI_processed));
+	for (uint64 i = 0; i < SPI_processed; i++)
+	{
+		HeapTuple	row = SPI_tuptable->vals[i];
+		TupleDesc	desc = SPI_tuptable->tupdesc;
+		Played	   *p = &r->played[r->n_played++];
+
+		p->clip_id = DatumGetInt64(SPI_getbinval(row, desc, 1, &isnull));
+		p->version = DatumGetInt32(SPI_getbinval(row, desc, 2, &isnull));
+		p->mirrored = DatumGetBool(SPI_getbinval(row, desc, 3, &isnull));
+		p->low = DatumGetInt32(SPI_getbinval(row, desc, 4, &isnull)) + 1;
+		p->high = p->low - 2 + DatumGetInt32(SPI_getbinval(row, desc, 5, &isnull));
+	}
+}
+
+/* The candidates CTE of the reference: the collection, and no replay of a played frame. */
+static bool
+passes_filters(const Request *r, HeapTuple row, TupleDesc desc)
+{
+	bool		isnull;
+	int64		clip_id = DatumGetInt64(SPI_getbinval(row, desc, COL_CLIP, &isnull));
+	int32		version = DatumGetInt32(SPI_getbinval(row, desc, COL_VERSION, &isnull));
+	bool		mirrored = DatumGetBool(SPI_getbinval(row, desc, COL_MIRRORED, &isnull));
+	int32		low = DatumGetInt32(SPI_getbinval(row, desc, COL_FIRST_FRAME, &isnull)) + 1;
+	int32		high = low - 2 + DatumGetInt32(SPI_getbinval(row, desc, COL_N_FRAMES, &isnull));
+
+	if (r->collections != NULL)
+	{
+		int64		collection = DatumGetInt64(SPI_getbinval(row, desc, COL_COLLECTION, &isnull));
+		bool		inside = false;
+
+		for (int i = 0; i < r->n_collections && !inside; i++)
+			inside = r->collections[i] == collection;
+		if (!inside)
+			return false;
+	}
+	for (int i = 0; i < r->n_played; i++)
+	{
+		const Played *p = &r->played[i];
+
+		if (p->clip_id == clip_id && p->version == version && p->mirrored == mirrored
+			&& Max(p->low, low) <= Min(p->high, high))
+			return false;
+	}
+	return true;
+}
+
+static bool
+same_pose_and_rate(const Request *r, HeapTuple row, TupleDesc desc)
+{
+	bool		isnull;
+	double		fps = DatumGetFloat8(SPI_getbinval(row, desc, COL_FPS, &isnull));
+	char	   *pose_key;
+
+	if (fps != r->fps)
+		return false;
+	pose_key = TextDatumGetCString(SPI_getbinval(row, desc, COL_POSE_KEY, &isnull));
+	return strcmp(pose_key, r->pose_key) == 0;
+}
+
+/* modb.approach_cost of a candidate row toward the request's aim point. */
+static bool
+proximity_of(const Request *r, HeapTuple row, TupleDesc desc, double *proximity)
+{
+	int			n_net = 0,
+				n_future = 0;
+	const double *net = float8_array(row, desc, COL_NET_TRANSLATION, &n_net);
+	const double *future = float8_array(row, desc, COL_FUTURE_TRANSLATION, &n_future);
+	bool		isnull;
+	double		future_heading = DatumGetFloat8(SPI_getbinval(row, desc, COL_FUTURE_HEADING, &isnull));
+
+	return modb_approach_cost(net, n_future == 3 ? future : NULL, !isnull, future_heading, r->aim, r->n,
+							  r->plan->heading_weight, proximity);
+}
+
+/* The graph's objective at level 0: seconds to the goal through the candidate x the graph's speed. */
+static bool
+graph_objective(const Request *r, HeapTuple row, TupleDesc desc, double *objective)
+{
+	int			n_net = 0;
+	const double *net = float8_array(row, desc, COL_NET_TRANSLATION, &n_net);
+	bool		isnull;
+	double		heading = DatumGetFloat8(SPI_getbinval(row, desc, COL_NET_HEADING, &isnull));
+	int32		n_frames = DatumGetInt32(SPI_getbinval(row, desc, COL_N_FRAMES, &isnull));
+	double		fps = DatumGetFloat8(SPI_getbinval(row, desc, COL_FPS, &isnull));
+	Datum		costs_datum = SPI_getbinval(row, desc, COL_COST_TO_GO, &isnull);
+	const float *costs = NULL;
+	int			n_costs = 0;
+	double		goal[3];
+	double		seconds;
+
+	if (!isnull)
+	{
+		ArrayType  *a = DatumGetArrayTypeP(costs_datum);
+
+		if (ARR_NDIM(a) == 1 && !ARR_HASNULL(a) && ARR_LBOUND(a)[0] == 1)
+		{
+			costs = (const float *) ARR_DATA_PTR(a);
+			n_costs = ARR_DIMS(a)[0];
+		}
+	}
+	modb_world_to_local(net, heading, r->target, r->n, goal);
+	if (!modb_cost_to_go(costs, n_costs, goal, r->n, &r->plan->grid, &seconds))
+		return false;
+	*objective = r->plan->grid.speed * ((double) (n_frames - 1) / fps + seconds);
+	return true;
+}
+
+/* A copy that outlives SPI_finish (for explain_selection's report). */
+static char *
+outliving(const char *text)
+{
+	char	   *copy = SPI_palloc(strlen(text) + 1);
+
+	strcpy(copy, text);
+	return copy;
+}
+
+static int
+candidate_order(const void *a, const void *b)
+{
+	const Candidate *x = a,
+			   *y = b;
+
+	if (x->has_key != y->has_key)
+		return x->has_key ? -1 : 1;		/* NULLs last */
+	if (x->has_key && x->key != y->key)
+		return x->key < y->key ? -1 : 1;
+	return x->id < y->id ? -1 : (x->id > y->id ? 1 : 0);
+}
+
+
+/*
+ * One level: score the rows of `query` and put the best (k - *emitted) of those within the level's ratio
+ * range into the store. low < ratio <= high (low is -Infinity at level 0).
+ */
+/* cube's <@ of a point in a box: every coordinate within the box's bounds. */
+static bool
+in_box(HeapTuple row, TupleDesc desc, const double *lo, const double *hi)
+{
+	bool		isnull;
+	NDBOX	   *features = DatumGetNDBOXP(SPI_getbinval(row, desc, COL_BEGIN_FEATURES, &isnull));
+
+	if (DIM(features) != N_FEATURES)
+		return false;
+	for (int d = 0; d < N_FEATURES; d++)
+		if (Min(LL_COORD(features, d), UR_COORD(features, d)) < lo[d]
+			|| Max(LL_COORD(features, d), UR_COORD(features, d)) > hi[d])
+			return false;
+	return true;
+}
+
+static void
+run_level(const Request *r, SPIPlanPtr query, Datum *args, const char *nulls, int level, const double *lo,
+		  const double *hi, double low, double high, Tuplestorestate *store, TupleDesc out, int *emitted,
+		  LevelStats *stats)
+{
+	bool		stored = lo == NULL;
+	Candidate  *candidates;
+	int			n = 0;
+	uint64		rows;
+	TupleDesc	desc;
+	instr_time	start,
+				duration;
+
+	if (stats)
+		INSTR_TIME_SET_CURRENT(start);
+	if (SPI_execute_plan(query, args, nulls, true, 0) != SPI_OK_SELECT)
+		elog(ERROR, "modb: a selection query failed");
+	rows = SPI_processed;
+	desc = SPI_tuptable->tupdesc;
+	candidates = palloc(sizeof(Candidate) * Max(rows, 1));
+	for (uint64 i = 0; i < rows; i++)
+	{
+		HeapTuple	row = SPI_tuptable->vals[i];
+		Terminator	begin;
+		Candidate  *c = &candidates[n];
+		bool		isnull;
+
+		if (!stored && !in_box(row, desc, lo, hi))
+			continue;
+		if (stats)
+			stats->in_box++;
+		if (!stored && !same_pose_and_rate(r, row, desc))
+			continue;
+		if (!passes_filters(r, row, desc))
+			continue;
+		if (stats)
+			stats->filtered++;
+		begin = terminator_of(row, desc, COL_POSITIONS);
+		c->ratio = modb_continuity(&r->end, &begin, &r->plan->thresholds);
+		if (!(c->ratio <= high && c->ratio > low))
+			continue;
+		c->row = (int) i;
+		c->id = DatumGetInt64(SPI_getbinval(row, desc, COL_ID, &isnull));
+		c->has_proximity = stored && r->plan->has_grid
+			? graph_objective(r, row, desc, &c->proximity)
+			: proximity_of(r, row, desc, &c->proximity);
+		c->has_key = c->has_proximity;
+		c->key = c->proximity + r->plan->continuity_weight * c->ratio;
+		n++;
+	}
+	qsort(candidates, n, sizeof(Candidate), candidate_order);
+	for (int i = 0; i < n && *emitted < r->k; i++)
+	{
+		HeapTuple	row = SPI_tuptable->vals[candidates[i].row];
+		Datum		values[12];
+		bool		isnull[12];
+		static const int columns[] = {COL_ID, COL_CLIP, COL_VERSION, COL_MIRRORED, COL_FIRST_FRAME, COL_N_FRAMES};
+
+		for (int j = 0; j < 6; j++)
+			values[j] = SPI_getbinval(row, desc, columns[j], &isnull[j]);
+		values[6] = Float8GetDatum(candidates[i].proximity);
+		isnull[6] = !candidates[i].has_proximity;
+		values[7] = Int32GetDatum(level);
+		isnull[7] = false;
+		values[8] = Float8GetDatum(candidates[i].ratio);
+		isnull[8] = false;
+		values[9] = SPI_getbinval(row, desc, COL_NET_TRANSLATION, &isnull[9]);
+		values[10] = SPI_getbinval(row, desc, COL_NET_ROTATION, &isnull[10]);
+		values[11] = SPI_getbinval(row, desc, COL_NET_HEADING, &isnull[11]);
+		tuplestore_putvalues(store, out, values, isnull);
+		(*emitted)++;
+		if (stats)
+			stats->returned++;
+	}
+	if (stats)
+	{
+		INSTR_TIME_SET_CURRENT(duration);
+		INSTR_TIME_SUBTRACT(duration, start);
+		stats->ran = true;
+		stats->stored = stored;
+		stats->scanned = rows;
+		if (stored)
+			stats->in_box = rows;
+		stats->within = n;
+		stats->ms = INSTR_TIME_GET_MILLISEC(duration);
+		stats->access = outliving(modb_describe_access(query));
+	}
+	SPI_freetuptable(SPI_tuptable);
+}
+
+/* modb.match_box: the features +- scale x half-width, + 1e-4 (float4 terminators, float8 features). */
+static void
+box_of(const Request *r, double scale, double *lo, double *hi, LevelStats *stats)
+{
+	for (int i = 0; i < N_FEATURES; i++)
+	{
+		lo[i] = r->features[i] - scale * r->plan->box_half_width[i] - 1e-4;
+		hi[i] = r->features[i] + scale * r->plan->box_half_width[i] + 1e-4;
+	}
+	if (stats)
+	{
+		StringInfoData text;
+
+		initStringInfo(&text);
+		appendStringInfoString(&text, "(");
+		for (int i = 0; i < N_FEATURES; i++)
+			appendStringInfo(&text, "%s%.17g", i ? ", " : "", lo[i]);
+		appendStringInfoString(&text, "),(");
+		for (int i = 0; i < N_FEATURES; i++)
+			appendStringInfo(&text, "%s%.17g", i ? ", " : "", hi[i]);
+		appendStringInfoString(&text, ")");
+		stats->box = outliving(text.data);
+	}
+}
+
+/* Levels 0-3 of the reference's rule; false when they found fewer than k rows (level 4 is needed). */
+static bool
+fast_path(Request *r, Tuplestorestate *store, TupleDesc out, SelectionStats *stats)
+{
+	static SPIPlanPtr stored_query;
+	static SPIPlanPtr stored_candidates;
+	static SPIPlanPtr candidates_by_id;
+	int			emitted = 0;
+	bool		stored = false;
+	Datum		args[2];
+	char		nulls[2] = {' ', ' '};
+
+	if (r->plan->has_graph && r->plan->stored_key)
+	{
+		Oid			types[2] = {INT8OID, INT8OID};
+
+		modb_kept_plan(&stored_query,
+					   "SELECT e.to_snippets FROM modb.graph_transitions e WHERE e.graph_id = $1 AND e.from_snippet = $2",
+					   2, types);
+		args[0] = Int64GetDatum(r->plan->graph_id);
+		args[1] = Int64GetDatum(r->prev);
+		if (SPI_execute_plan(stored_query, args, NULL, true, 1) != SPI_OK_SELECT)
+			elog(ERROR, "modb: reading stored transitions failed");
+		if (SPI_processed == 1)
+		{
+			bool		isnull;
+
+			stored = true;
+			args[1] = SPI_getbinval(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 1, &isnull);
+			types[1] = INT8ARRAYOID;
+			modb_kept_plan(&stored_candidates,
+						   "SELECT " CANDIDATE_COLUMNS ", ce.cost_to_go"
+						   "  FROM unnest($2::bigint[]) AS n(id) JOIN modb.snippets c ON c.id = n.id"
+						   "  JOIN modb.graph_transitions ce ON ce.graph_id = $1 AND ce.from_snippet = c.id"
+						   "  JOIN modb.terminators b ON b.id = c.begin_terminator"
+						   " WHERE EXISTS (SELECT FROM modb.graph_snippets g WHERE g.graph_id = $1 AND g.snippet_id = c.id)",
+						   2, types);
+			run_level(r, stored_candidates, args, nulls, 0, NULL, NULL, -INFINITY, 1.0, store, out, &emitted,
+					  stats ? &stats->levels[0] : NULL);
+		}
+	}
+	for (int level = stored ? 1 : 0; level < N_LEVELS && emitted < r->k; level++)
+	{
+		double		scale = (double) (1 << level);
+		double		lo[N_FEATURES],
+					hi[N_FEATURES];
+		int			n_ids;
+		int64	   *ids;
+		Datum	   *id_datums;
+		Oid			types[2] = {INT8ARRAYOID, INT8OID};
+		LevelStats *level_stats = stats ? &stats->levels[level] : NULL;
+
+		box_of(r, scale, lo, hi, level_stats);
+		ids = modb_block_candidates(r->blocks_relid, r->blocks_generation, r->pose_key, r->fps, lo, hi, &n_ids,
+									level_stats ? &level_stats->blocks : NULL);
+		id_datums = palloc(sizeof(Datum) * Max(n_ids, 1));
+		for (int i = 0; i < n_ids; i++)
+			id_datums[i] = Int64GetDatum(ids[i]);
+		args[0] = PointerGetDatum(construct_array(id_datums, n_ids, INT8OID, 8, FLOAT8PASSBYVAL, TYPALIGN_DOUBLE));
+		args[1] = Int64GetDatum(r->plan->graph_id);
+		nulls[1] = r->plan->has_graph ? ' ' : 'n';
+		modb_kept_plan(&candidates_by_id,
+					   "SELECT " CANDIDATE_COLUMNS
+					   "  FROM unnest($1::bigint[]) AS n(id) JOIN modb.snippets c ON c.id = n.id"
+					   "  JOIN modb.terminators b ON b.id = c.begin_terminator"
+					   " WHERE ($2 IS NULL OR EXISTS (SELECT FROM modb.graph_snippets g"
+					   "                              WHERE g.graph_id = $2 AND g.snippet_id = c.id))",
+					   2, types);
+		run_level(r, candidates_by_id, args, nulls, level, lo, hi, level == 0 ? -INFINITY : scale / 2, scale,
+				  store, out, &emitted, level_stats);
+	}
+	return emitted >= r->k;
+}
+
+/* The reference query's answer (the rule itself), put into the store. */
+static void
+reference(FunctionCallInfo fcinfo, Tuplestorestate *store, TupleDesc out)
+{
+	static SPIPlanPtr query;
+	Oid			types[6] = {INT8OID, FLOAT8ARRAYOID, INT4OID, TEXTOID, TEXTOID, INT8ARRAYOID};
+	Datum		args[6];
+	char		nulls[6];
+
+	for (int i = 0; i < 6; i++)
+	{
+		nulls[i] = PG_ARGISNULL(i) ? 'n' : ' ';
+		args[i] = PG_ARGISNULL(i) ? (Datum) 0 : PG_GETARG_DATUM(i);
+	}
+	modb_kept_plan(&query, "SELECT * FROM modb.select_next_snippets_reference($1, $2, $3, $4, $5, $6)", 6, types);
+	if (SPI_execute_plan(query, args, nulls, true, 0) != SPI_OK_SELECT)
+		elog(ERROR, "modb: the reference selection failed");
+	for (uint64 i = 0; i < SPI_processed; i++)
+	{
+		Datum		values[12];
+		bool		isnull[12];
+
+		heap_deform_tuple(SPI_tuptable->vals[i], SPI_tuptable->tupdesc, values, isnull);
+		tuplestore_putvalues(store, out, values, isnull);
+	}
+}
+
+void
+modb_select(FunctionCallInfo fcinfo, Tuplestorestate *store, TupleDesc out, SelectionStats *stats)
+{
+	Request		r = {0};
+	const char *reason = NULL;	/* why the reference query answers, if it does */
+	bool		valid;
+	int			nest_level;
+	instr_time	start,
+				now;
+
+	INSTR_TIME_SET_CURRENT(start);
+	valid = !PG_ARGISNULL(1) && target_ok(PG_GETARG_ARRAYTYPE_P(1), &r) && !PG_ARGISNULL(2)
+		&& PG_GETARG_INT32(2) >= 1;
+	if (SPI_connect() != SPI_OK_CONNECT)
+		elog(ERROR, "modb: SPI_connect failed");
+	/* As a function's SET clause would: no JIT for the queries below, whatever the session's jit. */
+	nest_level = NewGUCNestLevel();
+	(void) set_config_option("jit", "off", PGC_USERSET, PGC_S_SESSION, GUC_ACTION_SAVE, true, 0, false);
+	if (!valid || !PG_ARGISNULL(4))
+		check_request(fcinfo, &r.collections, &r.n_collections);	/* raises the request's error */
+	r.k = PG_GETARG_INT32(2);
+	r.prev = PG_ARGISNULL(0) ? 0 : PG_GETARG_INT64(0);
+	r.plan = modb_match_plan(PG_ARGISNULL(3) ? NULL : PG_GETARG_TEXT_PP(3));
+	if (stats)
+	{
+		INSTR_TIME_SET_CURRENT(now);
+		INSTR_TIME_SUBTRACT(now, start);
+		stats->plan = r.plan;
+		stats->plan_ms = INSTR_TIME_GET_MILLISEC(now);
+	}
+	if (PG_ARGISNULL(0))
+		reason = "a start (no previous snippet) ranks every snippet";
+	else if (!read_previous(&r))
+	{
+		check_request(fcinfo, NULL, NULL);	/* no snippet prev: its error */
+		elog(ERROR, "modb: no snippet " INT64_FORMAT, r.prev);
+	}
+	else if (r.plan->has_graph && r.plan->graph_lookahead && !r.plan->has_grid)
+		reason = "graph_lookahead, with a graph that has no cost-to-go";
+	else
+	{
+		if (!PG_ARGISNULL(5))
+			read_excluded(&r, PG_GETARG_DATUM(5));
+		modb_aim_point(r.target, r.n, r.plan->has_lookahead, r.plan->lookahead, r.aim);
+		if (!fast_path(&r, store, out, stats))
+		{
+			tuplestore_clear(store);
+			reason = "levels 0-3 found fewer than k rows: level 4 (the nearest start) is needed";
+		}
+	}
+	if (reason != NULL)
+		reference(fcinfo, store, out);
+	AtEOXact_GUC(true, nest_level);
+	SPI_finish();
+	if (stats)
+	{
+		INSTR_TIME_SET_CURRENT(now);
+		INSTR_TIME_SUBTRACT(now, start);
+		stats->total_ms = INSTR_TIME_GET_MILLISEC(now);
+		stats->returned = tuplestore_tuple_count(store);
+		stats->reference_reason = reason;
+	}
+}
+
+Datum
+modb_select_next_snippets(PG_FUNCTION_ARGS)
+{
+	ReturnSetInfo *rsinfo = (ReturnSetInfo *) fcinfo->resultinfo;
+
+	InitMaterializedSRF(fcinfo, 0);
+	modb_select(fcinfo, rsinfo->setResult, rsinfo->setDesc, NULL);
+	return (Datum) 0;
+}

@@ -1,0 +1,87 @@
+/*
+ * The fast path of select_next_snippets (selection.c), the match plan it runs with (selection_plan.c), and
+ * what modb.explain_selection reports of a call (selection_explain.c).
+ */
+#ifndef SELECTION_H
+#define SELECTION_H
+
+#include "executor/spi.h"
+#include "portability/instr_time.h"
+
+#include "modb.h"
+
+/* A match profile resolved with the session's knobs (modb.match_plan), as the fast path needs it. */
+typedef struct MatchPlan
+{
+	Thresholds	thresholds;
+	double		box_half_width[N_FEATURES];
+	double		heading_weight;
+	double		continuity_weight;
+	bool		has_lookahead;
+	double		lookahead;
+	bool		has_graph;
+	int64		graph_id;
+	bool		graph_lookahead;
+	bool		stored_key;		/* the graph's stored transitions were built for these thresholds */
+	bool		has_grid;		/* rank level 0 by the graph's cost-to-go */
+	CostGrid	grid;
+	char	   *shown;			/* the plan as jsonb text, for explain_selection */
+	bool		cached;			/* taken from this session's cache, not resolved now */
+} MatchPlan;
+
+/* A kept, generic SPI plan of a query (planned once per session, never JIT-compiled: selection.c). */
+extern SPIPlanPtr modb_kept_plan(SPIPlanPtr *slot, const char *query, int nargs, Oid *argtypes);
+extern const char *modb_cube_schema(void);
+
+/* The scan nodes of a kept plan (selection_explain.c). */
+extern char *modb_describe_access(SPIPlanPtr plan);
+
+/* The plan for `profile` (NULL: default) with this session's knobs; must be called inside SPI. */
+extern const MatchPlan *modb_match_plan(text *profile);
+
+/* snippet_blocks.c and block_directory.c: the box search over blocks of consecutive snippets. */
+#define BLOCK_SNIPPETS 32
+
+typedef struct BlockStats
+{
+	bool		read_directory;	/* this call read the block directory (a new generation of blocks) */
+	int64		blocks;			/* blocks in the directory */
+	int64		snippets;		/* snippets in them */
+	int64		blocks_read;	/* blocks whose bounds met the box */
+} BlockStats;
+
+extern int	modb_block_code(double x, float low, float high);
+extern int64 *modb_block_candidates(Oid relid, int64 generation, const char *pose_key, double fps,
+									const double *lo, const double *hi, int *n_ids, BlockStats *stats);
+
+#define N_LEVELS 4				/* box levels 0-3; level 4 (the nearest start, any ratio) is the reference's */
+
+typedef struct LevelStats
+{
+	bool		ran;
+	bool		stored;			/* level 0 from the graph's stored transitions, not a box */
+	char	   *box;			/* the box, as a cube literal */
+	char	   *access;			/* how the rows were read (the kept plan's scan nodes) */
+	BlockStats	blocks;
+	int64		scanned;		/* rows read: the blocks' candidates (or the stored transitions) */
+	int64		in_box;			/* of those: in the box (exactly) */
+	int64		filtered;		/* of those: same pose and rate, in the collection, not excluded */
+	int64		within;			/* of those: with a continuity ratio in the level's range */
+	int64		returned;
+	double		ms;
+} LevelStats;
+
+typedef struct SelectionStats
+{
+	const MatchPlan *plan;
+	double		plan_ms;
+	const char *reference_reason;	/* NULL: answered by the fast path */
+	LevelStats	levels[N_LEVELS];
+	int64		returned;
+	double		total_ms;
+} SelectionStats;
+
+/* Runs a selection into `store` (rows of select_next_snippets' result type); stats may be NULL. */
+extern void modb_select(FunctionCallInfo fcinfo, Tuplestorestate *store, TupleDesc desc, SelectionStats *stats);
+
+#endif							/* SELECTION_H */

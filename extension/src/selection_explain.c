@@ -1,0 +1,158 @@
+/*
+ * modb.explain_selection: what a select_next_snippets call did, for the DBA who cannot see it in EXPLAIN (a
+ * C function is one Function Scan there): the profile as resolved, which path answered, and per relaxation
+ * level the box, how its rows were found (the kept query's scan nodes), how many rows it yielded, passed
+ * the filters, passed the continuity test and were returned, and the time each stage took.
+ */
+#include "postgres.h"
+
+#include "funcapi.h"
+#include "lib/stringinfo.h"
+#include "nodes/plannodes.h"
+#include "parser/parsetree.h"
+#include "miscadmin.h"
+#include "utils/builtins.h"
+#include "utils/lsyscache.h"
+#include "utils/plancache.h"
+#include "utils/resowner.h"
+
+#include "selection.h"
+
+PG_FUNCTION_INFO_V1(modb_explain_selection);
+
+static void
+describe_node(Plan *node, List *rtable, StringInfo into)
+{
+	const char *kind = NULL;
+	Oid			index = InvalidOid;
+	Index		scanrelid = 0;
+
+	if (node == NULL)
+		return;
+	switch (nodeTag(node))
+	{
+		case T_IndexScan:
+			kind = "Index Scan";
+			index = ((IndexScan *) node)->indexid;
+			scanrelid = ((Scan *) node)->scanrelid;
+			break;
+		case T_IndexOnlyScan:
+			kind = "Index Only Scan";
+			index = ((IndexOnlyScan *) node)->indexid;
+			scanrelid = ((Scan *) node)->scanrelid;
+			break;
+		case T_BitmapIndexScan:
+			kind = "Bitmap Index Scan";
+			index = ((BitmapIndexScan *) node)->indexid;
+			break;
+		case T_SeqScan:
+			kind = "Seq Scan";
+			scanrelid = ((Scan *) node)->scanrelid;
+			break;
+		default:
+			break;
+	}
+	if (kind != NULL)
+	{
+		appendStringInfo(into, "%s%s", into->len ? ", " : "", kind);
+		if (OidIsValid(index))
+			appendStringInfo(into, " using %s", get_rel_name(index));
+		if (scanrelid > 0 && rt_fetch(scanrelid, rtable)->rtekind == RTE_RELATION)
+			appendStringInfo(into, " on %s", get_rel_name(rt_fetch(scanrelid, rtable)->relid));
+	}
+	describe_node(node->lefttree, rtable, into);
+	describe_node(node->righttree, rtable, into);
+}
+
+/* The scan nodes of a kept plan's generic plan, in plan order. */
+char *
+modb_describe_access(SPIPlanPtr plan)
+{
+	CachedPlan *cached = SPI_plan_get_cached_plan(plan);
+	StringInfoData text;
+	ListCell   *cell;
+
+	initStringInfo(&text);
+	if (cached == NULL)
+		return "unknown";
+	foreach(cell, cached->stmt_list)
+	{
+		PlannedStmt *stmt = lfirst_node(PlannedStmt, cell);
+
+		describe_node(stmt->planTree, stmt->rtable, &text);
+	}
+	ReleaseCachedPlan(cached, CurrentResourceOwner);
+	return text.data;
+}
+
+Datum
+modb_explain_selection(PG_FUNCTION_ARGS)
+{
+	ReturnSetInfo *rsinfo = (ReturnSetInfo *) fcinfo->resultinfo;
+	SelectionStats stats = {0};
+	Tuplestorestate *rows;
+	TupleDesc	row_desc;
+	StringInfoData line;
+	Datum		value;
+	bool		isnull = false;
+
+	InitMaterializedSRF(fcinfo, MAT_SRF_USE_EXPECTED_DESC);
+	/* The selection's rows go to a store of their own: only the report is returned. */
+	row_desc = CreateTemplateTupleDesc(12);
+	{
+		static const Oid types[12] = {INT8OID, INT8OID, INT4OID, BOOLOID, INT4OID, INT4OID, FLOAT8OID,
+			INT4OID, FLOAT8OID, FLOAT8ARRAYOID, FLOAT8ARRAYOID, FLOAT8OID};
+
+		for (int i = 0; i < 12; i++)
+			TupleDescInitEntry(row_desc, i + 1, NULL, types[i], -1, 0);
+	}
+	rows = tuplestore_begin_heap(false, false, work_mem);
+	modb_select(fcinfo, rows, row_desc, &stats);
+	tuplestore_end(rows);
+
+	initStringInfo(&line);
+#define EMIT() \
+	do { value = CStringGetTextDatum(line.data); \
+		 tuplestore_putvalues(rsinfo->setResult, rsinfo->setDesc, &value, &isnull); \
+		 resetStringInfo(&line); } while (0)
+
+	appendStringInfo(&line, "Selection: up to %d after snippet %s, profile \"%s\": %lld rows in %.3f ms",
+					 PG_GETARG_INT32(2), PG_ARGISNULL(0) ? "none (a start)" : psprintf(INT64_FORMAT, PG_GETARG_INT64(0)),
+					 PG_ARGISNULL(3) ? "default" : text_to_cstring(PG_GETARG_TEXT_PP(3)),
+					 (long long) stats.returned, stats.total_ms);
+	EMIT();
+	appendStringInfo(&line, "  Profile as resolved (%s, %.3f ms): %s",
+					 stats.plan->cached ? "this session's cached plan" : "resolved by modb.match_plan",
+					 stats.plan_ms, stats.plan->shown);
+	EMIT();
+	if (stats.reference_reason)
+		appendStringInfo(&line, "  Answered by: the reference query (modb.select_next_snippets_reference), because %s",
+						 stats.reference_reason);
+	else
+		appendStringInfoString(&line, "  Answered by: the fast path (levels 0-3 in C)");
+	EMIT();
+	for (int level = 0; level < N_LEVELS; level++)
+	{
+		LevelStats *s = &stats.levels[level];
+
+		if (!s->ran)
+		{
+			appendStringInfo(&line, "  Level %d: not run", level);
+			EMIT();
+			continue;
+		}
+		appendStringInfo(&line, "  Level %d: %s (%s): %lld rows scanned, %lld %s, %lld within ratio %g, %lld returned (%.3f ms)",
+						 level, s->stored ? "the graph's stored transitions" : "box",
+						 s->access, (long long) s->scanned, (long long) s->filtered,
+						 s->stored ? "in the graph, collection and not excluded"
+						 : "of the same pose and rate, in the collection and not excluded",
+						 (long long) s->within, (double) (1 << level), (long long) s->returned, s->ms);
+		EMIT();
+		if (s->box)
+		{
+			appendStringInfo(&line, "    Box: begin_features <@ '%s'", s->box);
+			EMIT();
+		}
+	}
+	return (Datum) 0;
+}

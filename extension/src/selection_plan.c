@@ -1,0 +1,208 @@
+/*
+ * The match plan of the fast path: modb.match_plan(profile) (SQL, the one definition of a profile's
+ * meaning) resolved once and kept for the session while nothing it depends on changes: the profile's row,
+ * the session's knobs and the graph they name. Each call reads the profile's row and the graph's id under
+ * its own snapshot (one indexed look-up), so an edit of a profile or a rebuilt graph takes effect on the
+ * next call, in this transaction or after another commits.
+ */
+#include "postgres.h"
+
+#include "catalog/pg_type.h"
+#include "executor/spi.h"
+#include "lib/stringinfo.h"
+#include "utils/array.h"
+#include "utils/builtins.h"
+#include "utils/memutils.h"
+
+#include "selection.h"
+
+#define N_CACHED 8
+
+typedef struct CachedEntry
+{
+	char	   *key;
+	MatchPlan	plan;
+} CachedEntry;
+
+static CachedEntry cache[N_CACHED];
+static int	next_victim;
+
+SPIPlanPtr
+modb_kept_plan(SPIPlanPtr *slot, const char *query, int nargs, Oid *argtypes)
+{
+	if (*slot == NULL)
+	{
+		/* Generic: planned once, not again with each call's values (plan_cache_mode auto would). */
+		SPIPlanPtr	plan = SPI_prepare_cursor(query, nargs, argtypes, CURSOR_OPT_GENERIC_PLAN);
+
+		if (plan == NULL)
+			elog(ERROR, "modb: preparing a selection query failed: %s", SPI_result_code_string(SPI_result));
+		SPI_keepplan(plan);
+		*slot = plan;
+	}
+	return *slot;
+}
+
+/* The schema of extension cube (quoted), whose type and operators the box queries name. */
+const char *
+modb_cube_schema(void)
+{
+	static char *schema;
+
+	if (schema == NULL)
+	{
+		if (SPI_execute("SELECT quote_ident(n.nspname) FROM pg_catalog.pg_extension e "
+						"JOIN pg_catalog.pg_namespace n ON n.oid = e.extnamespace WHERE e.extname = 'cube'",
+						true, 1) != SPI_OK_SELECT || SPI_processed != 1)
+			elog(ERROR, "modb: extension cube is not installed");
+		schema = MemoryContextStrdup(TopMemoryContext,
+									 SPI_getvalue(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 1));
+	}
+	return schema;
+}
+
+static void
+copy_doubles(Datum array, double *into, int n)
+{
+	ArrayType  *a = DatumGetArrayTypeP(array);
+
+	if (ARR_NDIM(a) != 1 || ARR_HASNULL(a) || ARR_DIMS(a)[0] != n || ARR_ELEMTYPE(a) != FLOAT8OID)
+		elog(ERROR, "modb: a match plan array is not %d float8 values", n);
+	memcpy(into, ARR_DATA_PTR(a), sizeof(double) * n);
+}
+
+static double
+get_double(HeapTuple row, TupleDesc desc, int column, bool *isnull)
+{
+	Datum		value = SPI_getbinval(row, desc, column, isnull);
+
+	return *isnull ? 0.0 : DatumGetFloat8(value);
+}
+
+/* Resolves the plan with modb.match_plan (which raises the errors of a bad profile) into `plan`. */
+static void
+resolve(text *profile, MatchPlan *plan)
+{
+	static SPIPlanPtr query;
+	Oid			types[1] = {TEXTOID};
+	Datum		args[1] = {PointerGetDatum(profile)};
+	char		nulls[1] = {profile ? ' ' : 'n'};
+	HeapTuple	row;
+	TupleDesc	desc;
+	bool		isnull;
+	Datum		norm;
+
+	modb_kept_plan(&query,
+				   "SELECT p.position_threshold, p.angle_threshold, p.velocity_threshold, p.angular_velocity_threshold,"
+				   "       p.norm = 'l1', p.velocity_terms, p.box_half_width, p.heading_weight, p.continuity_weight,"
+				   "       p.lookahead_distance, p.graph_id, p.graph_lookahead,"
+				   "       (SELECT g.data->'transition_key' = modb.transition_key(p) FROM modb.graphs g WHERE g.id = p.graph_id),"
+				   "       c.grid IS NOT NULL, (c.grid->>'inner_radius')::float8, (c.grid->>'outer_radius')::float8,"
+				   "       (c.grid->>'speed')::float8, (c.grid->>'rings')::int, (c.grid->>'angles')::int,"
+				   "       ((c.grid->>'rings')::int - 1 - 1e-9)::float8,"
+				   "       ln((c.grid->>'outer_radius')::float8 / (c.grid->>'inner_radius')::float8),"
+				   "       (to_jsonb(p) - 'box_half_width')::text"
+				   "  FROM modb.match_plan($1) p"
+				   "  LEFT JOIN LATERAL (SELECT g.data->'cost_to_go' AS grid FROM modb.graphs g"
+				   "                      WHERE g.id = p.graph_id AND p.graph_cost_to_go) c ON true",
+				   1, types);
+	if (SPI_execute_plan(query, args, nulls, true, 1) != SPI_OK_SELECT || SPI_processed != 1)
+		elog(ERROR, "modb: match_plan returned no plan");
+	row = SPI_tuptable->vals[0];
+	desc = SPI_tuptable->tupdesc;
+	copy_doubles(SPI_getbinval(row, desc, 1, &isnull), plan->thresholds.position, N_JOINTS);
+	copy_doubles(SPI_getbinval(row, desc, 2, &isnull), plan->thresholds.angle, N_JOINTS);
+	copy_doubles(SPI_getbinval(row, desc, 3, &isnull), plan->thresholds.velocity, N_JOINTS);
+	copy_doubles(SPI_getbinval(row, desc, 4, &isnull), plan->thresholds.angular_velocity, N_JOINTS);
+	norm = SPI_getbinval(row, desc, 5, &isnull);
+	plan->thresholds.l1 = !isnull && DatumGetBool(norm);
+	norm = SPI_getbinval(row, desc, 6, &isnull);
+	plan->thresholds.velocity_terms = !isnull && DatumGetBool(norm);
+	copy_doubles(SPI_getbinval(row, desc, 7, &isnull), plan->box_half_width, N_FEATURES);
+	plan->heading_weight = get_double(row, desc, 8, &isnull);
+	plan->continuity_weight = get_double(row, desc, 9, &isnull);
+	plan->lookahead = get_double(row, desc, 10, &isnull);
+	plan->has_lookahead = !isnull;
+	plan->graph_id = DatumGetInt64(SPI_getbinval(row, desc, 11, &isnull));
+	plan->has_graph = !isnull;
+	plan->graph_lookahead = DatumGetBool(SPI_getbinval(row, desc, 12, &isnull)) && !isnull;
+	plan->stored_key = DatumGetBool(SPI_getbinval(row, desc, 13, &isnull)) && !isnull;
+	plan->has_grid = DatumGetBool(SPI_getbinval(row, desc, 14, &isnull)) && !isnull;
+	if (plan->has_grid)
+	{
+		plan->grid.inner_radius = get_double(row, desc, 15, &isnull);
+		plan->grid.outer_radius = get_double(row, desc, 16, &isnull);
+		plan->grid.speed = get_double(row, desc, 17, &isnull);
+		plan->grid.rings = DatumGetInt32(SPI_getbinval(row, desc, 18, &isnull));
+		plan->grid.angles = DatumGetInt32(SPI_getbinval(row, desc, 19, &isnull));
+		plan->grid.last_ring = get_double(row, desc, 20, &isnull);
+		plan->grid.log_radius_ratio = get_double(row, desc, 21, &isnull);
+	}
+	plan->shown = MemoryContextStrdup(TopMemoryContext, SPI_getvalue(row, desc, 22));
+}
+
+/*
+ * What the plan depends on, read under this call's snapshot: the profile's settings, the knobs, and the
+ * graph's row (its id and xmin: a rebuilt or edited graph is a new key). NULL when there is no such profile.
+ */
+static char *
+plan_key(text *profile)
+{
+	static SPIPlanPtr query;
+	Oid			types[2] = {TEXTOID, TEXTOID};
+	const char *graph = modb_knob_value(10);	/* modb.graph */
+	Datum		args[2];
+	char		nulls[2] = {' ', ' '};
+	StringInfoData key;
+
+	Assert(strcmp(modb_knob_name(10), "graph") == 0);
+	modb_kept_plan(&query,
+				   "SELECT p.settings::text, g.id::text || '/' || g.xmin::text"
+				   "  FROM modb.match_profiles p"
+				   "  LEFT JOIN modb.graphs g ON g.name = coalesce($2, p.settings->>'graph') AND g.kind = 'transitions'"
+				   " WHERE p.name = coalesce($1, 'default')",
+				   2, types);
+	args[0] = PointerGetDatum(profile);
+	nulls[0] = profile ? ' ' : 'n';
+	if (modb_knob_is_profile(graph))
+		nulls[1] = 'n';
+	else
+		args[1] = CStringGetTextDatum(graph);
+	if (SPI_execute_plan(query, args, nulls, true, 2) != SPI_OK_SELECT || SPI_processed != 1)
+		return NULL;			/* no such profile (resolve raises the error) */
+	initStringInfo(&key);
+	appendStringInfo(&key, "%s\x1e%s\x1e%s", profile ? text_to_cstring(profile) : "default",
+					 SPI_getvalue(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 1),
+					 SPI_getvalue(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 2) ?: "");
+	for (int i = 0; i < N_KNOBS; i++)
+		appendStringInfo(&key, "\x1e%s", modb_knob_is_profile(modb_knob_value(i)) ? "" : modb_knob_value(i));
+	return key.data;
+}
+
+const MatchPlan *
+modb_match_plan(text *profile)
+{
+	char	   *key = plan_key(profile);
+	CachedEntry *entry;
+
+	for (int i = 0; key != NULL && i < N_CACHED; i++)
+		if (cache[i].key != NULL && strcmp(cache[i].key, key) == 0)
+		{
+			cache[i].plan.cached = true;
+			return &cache[i].plan;
+		}
+	entry = &cache[next_victim];
+	next_victim = (next_victim + 1) % N_CACHED;
+	if (entry->key != NULL)
+	{
+		pfree(entry->key);
+		pfree(entry->plan.shown);
+		entry->key = NULL;
+	}
+	resolve(profile, &entry->plan);		/* raises the profile's errors (no such profile included) */
+	if (key == NULL)
+		elog(ERROR, "modb: match profile disappeared while it was read");
+	entry->key = MemoryContextStrdup(TopMemoryContext, key);
+	entry->plan.cached = false;
+	return &entry->plan;
+}

@@ -1,0 +1,160 @@
+"""select_next_snippets (C, 0.10.0) returns what the reference query (the 0.9.0 SQL function,
+select_next_snippets_reference) returns: the same ids, levels, order, proximity and continuity, on
+seeded requests reaching every relaxation level, with and without a transition graph, a collection
+and an exclude list; and modb.explain_selection reports what the call scanned."""
+
+from __future__ import annotations
+
+import random
+
+import psycopg
+import pytest
+from support.databases import GRAPH
+
+PROFILES = ("default", "strict", "locomotion")
+# Session thresholds as fractions of the default profile's typical ones (None: the profile's own).
+# With the previous snippet's own successor excluded, these reach every relaxation level on CMU 131.
+TIGHTNESS = (None, 1.0, 0.5, 0.25)
+PER_LEVEL = 50
+CALL = "SELECT * FROM modb.{}(%s, %s, %s, %s, %s, %s)"
+# The snippet that plays on from prev in its own clip (always a level-0 continuation).
+SUCCESSOR = """
+SELECT n.id FROM modb.snippets s JOIN modb.snippets n
+    ON (n.clip_id, n.version, n.mirrored) = (s.clip_id, s.version, s.mirrored)
+   AND n.first_frame = s.first_frame + s.n_frames - 1
+ WHERE s.id = %s"""
+
+
+def connect(dsn: str) -> psycopg.Connection:
+    """Plain rows (modb's own connection returns arrays as numpy, which compare element-wise)."""
+    return psycopg.connect(dsn, autocommit=True)
+
+
+def _set_tightness(conn, f) -> None:
+    for knob, value in (
+        ("position_threshold", 0.12),
+        ("angle_threshold", 0.3),
+        ("velocity_threshold", 0.6),
+        ("angular_velocity_threshold", 4.0),
+    ):
+        conn.execute(
+            "SELECT set_config(%s, %s, false)",
+            [f"modb.{knob}", "" if f is None else repr(value * f)],
+        )
+
+
+def _both(conn, args):
+    fast = conn.execute(CALL.format("select_next_snippets"), args).fetchall()
+    reference = conn.execute(CALL.format("select_next_snippets_reference"), args).fetchall()
+    return fast, reference
+
+
+def _answered_by(conn, args) -> str:
+    lines = [
+        r[0]
+        for r in conn.execute("SELECT * FROM modb.explain_selection(%s, %s, %s, %s, %s, %s)", args)
+    ]
+    return next(line for line in lines if "Answered by" in line)
+
+
+def test_fast_path_equals_the_reference_at_every_level(cmu):
+    rng = random.Random(23)
+    per_level = {level: 0 for level in range(5)}
+    fast_answers = 0
+    with connect(cmu) as conn:
+        ids = [r[0] for r in conn.execute("SELECT id FROM modb.snippets ORDER BY id")]
+        collections = [
+            r[0] for r in conn.execute("SELECT modb.collection_path(id) FROM modb.collections")
+        ]
+        for i in range(3000):
+            if min(per_level.values()) >= PER_LEVEL:
+                break
+            f = rng.choice(TIGHTNESS)
+            _set_tightness(conn, f)
+            prev = rng.choice(ids)
+            target = [round(rng.uniform(-6, 6), 3) for _ in range(rng.choice((2, 3)))]
+            k = rng.choice((1, 1, 3, 8))
+            exclude = rng.sample(ids, rng.choice((0, 0, 5, 40)))
+            if rng.random() < 0.8:
+                exclude += [r[0] for r in conn.execute(SUCCESSOR, [prev])]
+            collection = rng.choice(collections) if rng.random() < 0.2 else None
+            args = [prev, target, k, rng.choice(PROFILES), collection, exclude or None]
+            fast, reference = _both(conn, args)
+            assert fast == reference, (args, f)
+            if reference:
+                per_level[reference[0][7]] += 1
+                if (
+                    reference[0][7] < 4
+                    and len(reference) == k
+                    and reference[-1][7] < 4
+                    and i % 7 == 0
+                ):
+                    assert "the fast path" in _answered_by(conn, args), args
+                    fast_answers += 1
+        _set_tightness(conn, None)
+    assert min(per_level.values()) >= PER_LEVEL, per_level
+    assert fast_answers >= 20
+
+
+def test_fast_path_equals_the_reference_with_a_transition_graph(locomotion):
+    rng = random.Random(5)
+    stored = 0
+    with connect(locomotion) as conn:
+        conn.execute("SELECT set_config('modb.graph', %s, false)", [GRAPH])
+        ids = [r[0] for r in conn.execute("SELECT snippet_id FROM modb.graph_snippets ORDER BY 1")]
+        for _ in range(150):
+            target = [round(rng.uniform(-8, 8), 3) for _ in range(2)]
+            args = [rng.choice(ids), target, rng.choice((1, 4)), "default", None, None]
+            fast, reference = _both(conn, args)
+            assert fast == reference, args
+            lines = [
+                r[0]
+                for r in conn.execute(
+                    "SELECT * FROM modb.explain_selection(%s, %s, %s, %s, %s, %s)", args
+                )
+            ]
+            stored += any("stored transitions" in line for line in lines)
+    assert stored >= 100  # level 0 read the graph's stored transitions and ranked by its cost-to-go
+
+
+def test_a_start_and_errors_are_the_references(cmu):
+    with connect(cmu) as conn:
+        args = [None, [1.0, 2.0], 3, "default", None, None]
+        assert _both(conn, args)[0] == _both(conn, args)[1]
+        for bad, message in (
+            ([1, [1.0], 1, "default", None, None], "target must be"),
+            ([1, [1.0, 2.0], 0, "default", None, None], "k must be at least 1"),
+            ([-5, [1.0, 2.0], 1, "default", None, None], "no snippet -5"),
+            ([1, [1.0, 2.0], 1, "nonesuch", None, None], 'unknown match profile "nonesuch"'),
+            ([1, [1.0, 2.0], 1, "default", "no/such", None], 'no collection "no/such"'),
+        ):
+            with pytest.raises(Exception, match=message):
+                conn.execute(CALL.format("select_next_snippets"), bad)
+
+
+def test_explain_selection_counts_what_a_box_scan_finds(cmu):
+    """The rows explain_selection says level 0 found in its box are the snippets a sequential scan
+    finds in the box it prints."""
+    rng = random.Random(8)
+    with connect(cmu) as conn:
+        ids = [r[0] for r in conn.execute("SELECT id FROM modb.snippets ORDER BY id")]
+        for _ in range(10):
+            args = [rng.choice(ids), [0.5, 3.0], 1, "default", None, None]
+            lines = [
+                r[0]
+                for r in conn.execute(
+                    "SELECT * FROM modb.explain_selection(%s, %s, %s, %s, %s, %s)", args
+                )
+            ]
+            level0 = next(line for line in lines if line.startswith("  Level 0:"))
+            box = next(line for line in lines if line.startswith("    Box:")).split("'")[1]
+            scanned = int(level0.split("): ")[1].split(" rows scanned")[0])
+            conn.execute("SET enable_indexscan = off")
+            conn.execute("SET enable_bitmapscan = off")
+            (brute,) = conn.execute(
+                "SELECT count(*) FROM modb.snippets WHERE begin_features <@ %s::cube", [box]
+            ).fetchone()
+            conn.execute("RESET enable_indexscan")
+            conn.execute("RESET enable_bitmapscan")
+            assert scanned == brute, (args, level0)
+            assert "Profile as resolved" in lines[1]
