@@ -103,15 +103,18 @@ def test_exclusion_removes_every_overlapping_window_but_not_the_successor(cmu):
         assert successor in got and ids[first + 4] not in got and ids[first - 4] not in got
 
 
-def test_explain_shows_the_inlined_function_and_the_gist_box(cmu):
+def test_explain_of_the_reference_shows_the_inlined_function_and_the_gist_box(cmu):
+    # select_next_snippets_reference, the rule as one SQL query, is what EXPLAIN can show whole
+    # (select_next_snippets, C, has modb.explain_selection: tests/test_select_fast.py).
     with connect(cmu) as conn:
         prev = conn.execute(
             "SELECT id FROM modb.snippets ORDER BY id LIMIT 1 OFFSET 100"
         ).fetchone()[0]
-        nodes = plan_nodes(conn, "SELECT * FROM modb.select_next_snippet(%s, '{1,2}')", [prev])
+        reference = "SELECT * FROM modb.select_next_snippets_reference(%s, '{1,2}', 1)"
+        nodes = plan_nodes(conn, reference, [prev])
         assert not any(
             n.get("Function Name", "").startswith("select_next_snippet") for n in nodes
-        ), "select_next_snippet was not inlined"
+        ), "select_next_snippets_reference was not inlined"
         box_scans = [
             n
             for n in nodes
@@ -121,12 +124,7 @@ def test_explain_shows_the_inlined_function_and_the_gist_box(cmu):
         assert box_scans and box_scans[0].get("Actual Loops", 0) >= 1, [
             n["Node Type"] for n in nodes
         ]
-        text = "\n".join(
-            r[0]
-            for r in conn.execute(
-                "EXPLAIN SELECT * FROM modb.select_next_snippet(%s, '{1,2}')", [prev]
-            ).fetchall()
-        )
+        text = "\n".join(r[0] for r in conn.execute("EXPLAIN " + reference, [prev]).fetchall())
         assert "Index Cond: (begin_features <@" in text
 
 
@@ -200,7 +198,9 @@ def test_candidates_examined_is_what_the_box_scans_of_the_selection_returned(cmu
                 if level == 4:  # the nearest start configuration: an ordered scan, not a box
                     continue
                 nodes = plan_nodes(
-                    conn, "SELECT * FROM modb.select_next_snippet(%s, '{1,2}')", [prev]
+                    conn,
+                    "SELECT * FROM modb.select_next_snippets_reference(%s, '{1,2}', 1)",
+                    [prev],
                 )
                 scanned = sum(
                     n["Actual Rows"] * n["Actual Loops"]

@@ -53,7 +53,7 @@ def refused(conn, sql, params=(), error=psycopg.Error) -> psycopg.Error:
     return caught.value
 
 
-# --- 1. knobs: finite and in their documented ranges, checked at the call -------------------------
+# --- 1. knobs: finite and in their documented ranges, checked at SET ------------------------------
 
 OUT_OF_RANGE_KNOBS = [
     ("position_threshold", "Infinity"),  # was accepted: a row at level 0, whatever the seam
@@ -77,13 +77,17 @@ OUT_OF_RANGE_KNOBS = [
 
 
 @pytest.mark.parametrize("knob,value", OUT_OF_RANGE_KNOBS)
-def test_a_knob_out_of_its_range_is_an_error_naming_it_its_value_and_the_range(conn, knob, value):
-    prev = middle_snippet(conn)
-    conn.execute("SELECT set_config(%s, %s, false)", [f"modb.{knob}", value])
-    e = refused(conn, "SELECT * FROM modb.select_next_snippet(%s, %s)", [prev, TARGET])
-    message, hint = e.diag.message_primary or "", e.diag.message_hint or ""
-    assert f"modb.{knob}" in message and value in message and "allowed" in message, message
-    assert f"modb.{knob}" in hint, hint  # what to do about it
+def test_a_knob_out_of_its_range_is_refused_at_set_naming_it_its_value_and_the_range(
+    conn, knob, value
+):
+    # Since 0.10.0 the knobs are real settings (the test cluster preloads modb, as the embedded one
+    # does): the SET itself fails, and the session keeps the profile's value.
+    e = refused(conn, "SELECT set_config(%s, %s, false)", [f"modb.{knob}", value])
+    message, detail = e.diag.message_primary or "", e.diag.message_detail or ""
+    assert f"modb.{knob}" in message and value in message, message
+    assert "allowed" in detail or "on or off" in detail, detail
+    assert f"modb.{knob}" in (e.diag.message_hint or ""), e.diag.message_hint  # what to do
+    assert conn.execute(f"SHOW modb.{knob}").fetchone()[0] == ""
 
 
 @pytest.mark.parametrize(
@@ -97,9 +101,17 @@ def test_a_knob_out_of_its_range_is_an_error_naming_it_its_value_and_the_range(c
     ],
 )
 def test_every_entry_point_refuses_an_infinite_threshold(conn, call):
-    conn.execute("SET modb.position_threshold = 'Infinity'")
-    e = refused(conn, call, {"prev": middle_snippet(conn)} if "%(" in call else ())
-    assert "modb.position_threshold" in e.diag.message_primary
+    refused(conn, "SET modb.position_threshold = 'Infinity'")
+    prev = middle_snippet(conn)
+    # A profile's own values are checked where the plan is resolved, on every path.
+    with pytest.raises(psycopg.Error) as caught, conn.transaction():
+        conn.execute(
+            "UPDATE modb.match_profiles SET settings = settings || "
+            "'{\"position_threshold\": \"Infinity\"}' WHERE name = 'default'"
+        )
+        conn.execute(call, {"prev": prev} if "%(" in call else ()).fetchall()
+    message = caught.value.diag.message_primary
+    assert 'profile "default"' in message and "position_threshold" in message, message
 
 
 def test_knobs_in_range_still_select(conn):

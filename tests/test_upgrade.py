@@ -31,7 +31,7 @@ MIRRORED_TERMINATORS = (
 )
 
 
-OLD_VERSIONS = ["0.1.0", "0.2.0", "0.3.0", "0.4.0", "0.5.0", "0.6.0", "0.7.0", "0.8.0"]
+OLD_VERSIONS = ["0.1.0", "0.2.0", "0.3.0", "0.4.0", "0.5.0", "0.6.0", "0.7.0", "0.8.0", "0.9.0"]
 
 
 @pytest.mark.parametrize("old", OLD_VERSIONS)
@@ -66,10 +66,10 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
     # A graph built before 0.5.0 stored no transitions: it keeps working through the box. One built
     # by 0.5.0 has no cost-to-go: it keeps ranking by where the candidates lead. One built by 0.6.0
     # or later keeps its costs (0.8.0's wider feature cube changes no transition).
-    if old in ("0.4.0", "0.5.0", "0.6.0", "0.7.0", "0.8.0"):
+    if old in ("0.4.0", "0.5.0", "0.6.0", "0.7.0", "0.8.0", "0.9.0"):
         db.execute("SELECT modb.build_transition_graph('old', 'locomotion', NULL, 0)")
     db.execute("ALTER EXTENSION modb UPDATE")
-    if old in ("0.4.0", "0.5.0", "0.6.0", "0.7.0", "0.8.0"):
+    if old in ("0.4.0", "0.5.0", "0.6.0", "0.7.0", "0.8.0", "0.9.0"):
         stored, costs = db.execute(
             "SELECT count(*), count(cost_to_go) FROM modb.graph_transitions"
         ).fetchone()
@@ -110,6 +110,19 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
         assert len(updated_mirrored) == len(old_mirrored)
         assert (updated_mirrored != old_mirrored) == (old == "0.2.0")
         assert db.execute("SELECT count(*) FROM modb.snippets WHERE mirrored").fetchone()[0] > 0
+        # 0.10.0: every stored snippet is in a block, and the C selection answers as the reference
+        assert db.execute(
+            "SELECT count(*) FROM modb.snippets s WHERE NOT EXISTS "
+            "(SELECT FROM modb.snippet_blocks b WHERE s.id = ANY (b.snippets))"
+        ).fetchone() == (0,)
+        for (prev,) in db.execute("SELECT id FROM modb.snippets ORDER BY id LIMIT 5 OFFSET 200"):
+            fast, reference = (
+                db.execute(
+                    f"SELECT snippet_id, relax_level FROM modb.{f}(%s, '{{1, 2}}', 3)", [prev]
+                ).fetchall()
+                for f in ("select_next_snippets", "select_next_snippets_reference")
+            )
+            assert fast == reference and fast, prev
         assert (
             db.execute(
                 "SELECT count(*) FROM modb.snippets WHERE future_translation IS NULL"

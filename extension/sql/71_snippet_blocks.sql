@@ -27,31 +27,8 @@ COMMENT ON COLUMN modb.snippet_blocks.codes IS
     'snippets x features bytes: floor((feature - low) / ((high - low) / 255)), clamped to 0..255';
 CREATE INDEX snippet_blocks_source_idx ON modb.snippet_blocks (clip_id, version, mirrored);  -- ON DELETE CASCADE
 
--- Which blocks a session's cached directory holds: every change of modb.snippet_blocks takes a new number
--- from the sequence (never reused, even by a transaction that rolls back). Writers of blocks queue on this
--- one row, so the number a snapshot sees names exactly the blocks it sees.
-CREATE SEQUENCE modb.snippet_blocks_generation_seq;
-CREATE TABLE modb.snippet_blocks_generation (
-    one        boolean PRIMARY KEY DEFAULT true CHECK (one),
-    generation bigint NOT NULL
-);
-COMMENT ON TABLE modb.snippet_blocks_generation IS
-    'One row: the number of the last change of modb.snippet_blocks, which sessions compare with the one their block directory was read at';
-INSERT INTO modb.snippet_blocks_generation VALUES (true, nextval('modb.snippet_blocks_generation_seq'));
-
-CREATE FUNCTION modb.snippet_blocks_changed()
-RETURNS trigger
-LANGUAGE plpgsql VOLATILE PARALLEL UNSAFE
-AS $$
-BEGIN
-    UPDATE modb.snippet_blocks_generation SET generation = nextval('modb.snippet_blocks_generation_seq');
-    RETURN NULL;
-END
-$$;
-COMMENT ON FUNCTION modb.snippet_blocks_changed() IS
-    'Trigger: a change of modb.snippet_blocks takes a new generation (sessions then read their block directory again)';
 CREATE TRIGGER snippet_blocks_generation AFTER INSERT OR UPDATE OR DELETE OR TRUNCATE ON modb.snippet_blocks
-    FOR EACH STATEMENT EXECUTE FUNCTION modb.snippet_blocks_changed();
+    FOR EACH STATEMENT EXECUTE FUNCTION modb.next_generation('snippet_blocks');
 
 CREATE FUNCTION modb.add_snippet_blocks(snippet_ids bigint[])
 RETURNS int
@@ -92,10 +69,8 @@ CREATE TRIGGER snippets_blocks_update AFTER UPDATE ON modb.snippets
     REFERENCING OLD TABLE AS old_rows NEW TABLE AS new_rows
     FOR EACH STATEMENT EXECUTE FUNCTION modb.snippets_updated();
 
-GRANT SELECT ON modb.snippet_blocks, modb.snippet_blocks_generation TO modb_reader;
+GRANT SELECT ON modb.snippet_blocks TO modb_reader;
 -- The loader's snippets bring their blocks (the triggers run as the inserting role).
 GRANT INSERT ON modb.snippet_blocks TO modb_loader;
-GRANT UPDATE (generation) ON modb.snippet_blocks_generation TO modb_loader;
-GRANT USAGE ON SEQUENCE modb.snippet_blocks_generation_seq TO modb_loader;
 REVOKE EXECUTE ON FUNCTION modb.add_snippet_blocks(bigint[]) FROM PUBLIC;
 GRANT EXECUTE ON FUNCTION modb.add_snippet_blocks(bigint[]) TO modb_loader;

@@ -1,7 +1,7 @@
 /*
- * The block directory: each snippet block's bounds, 8-bit within its (pose, rate) group's range, kept in
- * this session's memory (about 110 bytes a block: 3.5 MB at a million snippets), with a box over every
- * SUPER_BLOCKS consecutive blocks above them. A box search tests the groups, the super boxes and the
+ * The block directory: each snippet block's bounds, 8-bit on each feature's fixed physical scale, by
+ * (pose, rate) group, kept in this session's memory (about 110 bytes a block: 3.5 MB at a million
+ * snippets), with a box over every SUPER_BLOCKS consecutive blocks above them. A box search tests the groups, the super boxes and the
  * blocks here, reads only the blocks that meet the box from modb.snippet_blocks (under the caller's
  * snapshot, by their tuple ids) and tests their snippets' codes: what passes is a superset of the
  * snippets whose features lie in the box, which the caller checks exactly.
@@ -17,6 +17,8 @@
 #include <math.h>
 
 #include "access/heapam.h"
+#include "access/tableam.h"
+#include "access/detoast.h"
 #include "access/relation.h"
 #include "access/table.h"
 #include "catalog/pg_type.h"
@@ -48,10 +50,9 @@ typedef struct PoseGroup
 {
 	char	   *pose_key;
 	double		fps;
-	double		min[N_FEATURES];
-	double		step[N_FEATURES];
-	int			first;			/* its entries: entries[first .. first + count) */
-	int			count;
+	int			count;			/* its blocks, in table order (a clip's blocks are stored in clip order) */
+	int			capacity;
+	Entry	   *entries;
 	Box8	   *supers;			/* one per SUPER_BLOCKS entries */
 } PoseGroup;
 
@@ -62,14 +63,29 @@ typedef struct Directory
 	Oid			relfilenode;	/* a rewrite (VACUUM FULL, CLUSTER) moves every block */
 	int64		generation;
 	int			n_groups;
-	PoseGroup	   *groups;
-	int			n_entries;
-	Entry	   *entries;
+	int			groups_capacity;
+	PoseGroup  *groups;
+	int64		n_blocks;
 	int64		n_snippets;
 } Directory;
 
 static Directory directory;
 static MemoryContext directory_context;
+
+/* Each feature's fixed 8-bit scale (build_sql.py's feature_range): code c covers min + c step. */
+static const double feature_ranges[N_FEATURES][2] = FEATURE_RANGES;
+
+static double
+scale_min(int d)
+{
+	return feature_ranges[d][0];
+}
+
+static double
+scale_step(int d)
+{
+	return (feature_ranges[d][1] - feature_ranges[d][0]) / 255.0;
+}
 
 static void
 code_range(double lo, double hi, double min, double step, int *from, int *to)
@@ -100,100 +116,112 @@ float4_values(Datum array, float *into)
 	memcpy(into, ARR_DATA_PTR(a), sizeof(float) * N_FEATURES);
 }
 
-/* Reads every block's bounds (under the caller's snapshot) into the directory. */
-static void
-read_directory(Oid relid, Oid relfilenode, int64 generation)
+static PoseGroup *
+group_of(const char *pose_key, int length, double fps)
 {
-	static SPIPlanPtr query;
-	MemoryContext old;
-	SPITupleTable *rows;
-	uint64		n;
-	float	   *low,
-			   *high;
+	PoseGroup  *g;
+
+	for (int k = directory.n_groups - 1; k >= 0; k--)
+	{
+		g = &directory.groups[k];
+		if (g->fps == fps && strlen(g->pose_key) == length && memcmp(g->pose_key, pose_key, length) == 0)
+			return g;
+	}
+	if (directory.n_groups == directory.groups_capacity)
+	{
+		directory.groups_capacity = Max(8, 2 * directory.groups_capacity);
+		directory.groups = directory.groups
+			? repalloc(directory.groups, sizeof(PoseGroup) * directory.groups_capacity)
+			: palloc(sizeof(PoseGroup) * directory.groups_capacity);
+	}
+	g = &directory.groups[directory.n_groups++];
+	g->pose_key = pnstrdup(pose_key, length);
+	g->fps = fps;
+	g->count = 0;
+	g->capacity = 256;
+	g->entries = palloc(sizeof(Entry) * g->capacity);
+	g->supers = NULL;
+	return g;
+}
+
+/*
+ * Reads every block's bounds visible to the caller's snapshot into the directory: one sequential scan of
+ * modb.snippet_blocks, each block's bounds coded on the fixed scale, outward.
+ */
+static void
+read_directory(Relation rel, int64 generation)
+{
+	TableScanDesc scan;
+	HeapTuple	tuple;
+	TupleDesc	desc = RelationGetDescr(rel);
+	MemoryContext old,
+				per_block;
 
 	if (directory_context == NULL)
 		directory_context = AllocSetContextCreate(TopMemoryContext, "modb block directory", ALLOCSET_DEFAULT_SIZES);
 	directory.valid = false;
 	MemoryContextReset(directory_context);
-	modb_kept_plan(&query,
-				   "SELECT b.ctid, b.pose_key, b.fps, b.low, b.high, cardinality(b.snippets) FROM modb.snippet_blocks b"
-				   " ORDER BY b.pose_key, b.fps, b.clip_id, b.version, b.mirrored, b.snippets[1]",
-				   0, NULL);
-	if (SPI_execute_plan(query, NULL, NULL, true, 0) != SPI_OK_SELECT)
-		elog(ERROR, "modb: reading the snippet blocks failed");
-	rows = SPI_tuptable;
-	n = SPI_processed;
-	low = palloc(sizeof(float) * N_FEATURES * Max(n, 1));
-	high = palloc(sizeof(float) * N_FEATURES * Max(n, 1));
+	memset(&directory, 0, sizeof(directory));
+	per_block = AllocSetContextCreate(CurrentMemoryContext, "modb block", ALLOCSET_SMALL_SIZES);
 	old = MemoryContextSwitchTo(directory_context);
-	directory.entries = palloc(sizeof(Entry) * Max(n, 1));
-	directory.groups = palloc(sizeof(PoseGroup) * Max(n, 1));
-	directory.n_groups = 0;
-	directory.n_snippets = 0;
-	for (uint64 i = 0; i < n; i++)
+	scan = table_beginscan(rel, GetActiveSnapshot(), 0, NULL);
+	while ((tuple = heap_getnext(scan, ForwardScanDirection)) != NULL)
 	{
-		HeapTuple	row = rows->vals[i];
 		bool		isnull;
-		char	   *pose_key = SPI_getvalue(row, rows->tupdesc, 2);
-		double		fps = DatumGetFloat8(SPI_getbinval(row, rows->tupdesc, 3, &isnull));
-		PoseGroup	   *g = directory.n_groups ? &directory.groups[directory.n_groups - 1] : NULL;
+		text	   *pose_key = (text *) DatumGetPointer(heap_getattr(tuple, 4, desc, &isnull));
+		double		fps = DatumGetFloat8(heap_getattr(tuple, 5, desc, &isnull));
+		Datum		codes = heap_getattr(tuple, 10, desc, &isnull);
+		float		low[N_FEATURES],
+					high[N_FEATURES];
+		PoseGroup  *g;
+		Entry	   *e;
 
-		directory.entries[i].tid = *(ItemPointer) DatumGetPointer(SPI_getbinval(row, rows->tupdesc, 1, &isnull));
-		float4_values(SPI_getbinval(row, rows->tupdesc, 4, &isnull), low + i * N_FEATURES);
-		float4_values(SPI_getbinval(row, rows->tupdesc, 5, &isnull), high + i * N_FEATURES);
-		directory.n_snippets += DatumGetInt32(SPI_getbinval(row, rows->tupdesc, 6, &isnull));
-		if (g == NULL || g->fps != fps || strcmp(g->pose_key, pose_key) != 0)
+		MemoryContextSwitchTo(per_block);
+		float4_values(heap_getattr(tuple, 8, desc, &isnull), low);
+		float4_values(heap_getattr(tuple, 9, desc, &isnull), high);
+		MemoryContextSwitchTo(directory_context);
+		MemoryContextReset(per_block);
+		g = group_of(VARDATA_ANY(pose_key), VARSIZE_ANY_EXHDR(pose_key), fps);
+		if (g->count == g->capacity)
 		{
-			g = &directory.groups[directory.n_groups++];
-			g->pose_key = pstrdup(pose_key);
-			g->fps = fps;
-			g->first = (int) i;
-			g->count = 0;
+			g->capacity *= 2;
+			g->entries = repalloc(g->entries, sizeof(Entry) * g->capacity);
 		}
-		g->count++;
-	}
-	directory.n_entries = (int) n;
-	for (int k = 0; k < directory.n_groups; k++)
-	{
-		PoseGroup	   *g = &directory.groups[k];
-		int			n_supers = (g->count + SUPER_BLOCKS - 1) / SUPER_BLOCKS;
-
+		e = &g->entries[g->count++];
+		e->tid = tuple->t_self;
 		for (int d = 0; d < N_FEATURES; d++)
 		{
-			double		min = INFINITY,
-						max = -INFINITY;
+			double		a = floor(((double) low[d] - scale_min(d)) / scale_step(d));
+			double		b = ceil(((double) high[d] - scale_min(d)) / scale_step(d));
 
-			for (int e = g->first; e < g->first + g->count; e++)
-			{
-				min = Min(min, (double) low[e * N_FEATURES + d]);
-				max = Max(max, (double) high[e * N_FEATURES + d]);
-			}
-			g->min[d] = min;
-			g->step[d] = max > min ? (max - min) / 255.0 : 1.0;
+			e->box.lo[d] = (uint8) (a < 0 ? 0 : (a > 255 ? 255 : a));
+			e->box.hi[d] = (uint8) (b < 0 ? 0 : (b > 255 ? 255 : b));
 		}
-		g->supers = palloc(sizeof(Box8) * Max(n_supers, 1));
-		for (int e = g->first; e < g->first + g->count; e++)
+		directory.n_blocks++;
+		directory.n_snippets += toast_raw_datum_size(codes) / N_FEATURES;
+	}
+	table_endscan(scan);
+	for (int k = 0; k < directory.n_groups; k++)
+	{
+		PoseGroup  *g = &directory.groups[k];
+
+		g->supers = palloc(sizeof(Box8) * Max((g->count + SUPER_BLOCKS - 1) / SUPER_BLOCKS, 1));
+		for (int e = 0; e < g->count; e++)
 		{
-			Box8	   *box = &directory.entries[e].box;
-			Box8	   *super = &g->supers[(e - g->first) / SUPER_BLOCKS];
-			bool		first_of_super = (e - g->first) % SUPER_BLOCKS == 0;
+			Box8	   *box = &g->entries[e].box;
+			Box8	   *super = &g->supers[e / SUPER_BLOCKS];
 
 			for (int d = 0; d < N_FEATURES; d++)
 			{
-				/* outward: the code box holds the block's bounds */
-				double		a = floor(((double) low[e * N_FEATURES + d] - g->min[d]) / g->step[d]);
-				double		b = ceil(((double) high[e * N_FEATURES + d] - g->min[d]) / g->step[d]);
-
-				box->lo[d] = (uint8) (a < 0 ? 0 : (a > 255 ? 255 : a));
-				box->hi[d] = (uint8) (b < 0 ? 0 : (b > 255 ? 255 : b));
-				super->lo[d] = first_of_super ? box->lo[d] : Min(super->lo[d], box->lo[d]);
-				super->hi[d] = first_of_super ? box->hi[d] : Max(super->hi[d], box->hi[d]);
+				super->lo[d] = e % SUPER_BLOCKS == 0 ? box->lo[d] : Min(super->lo[d], box->lo[d]);
+				super->hi[d] = e % SUPER_BLOCKS == 0 ? box->hi[d] : Max(super->hi[d], box->hi[d]);
 			}
 		}
 	}
 	MemoryContextSwitchTo(old);
-	directory.relid = relid;
-	directory.relfilenode = relfilenode;
+	MemoryContextDelete(per_block);
+	directory.relid = RelationGetRelid(rel);
+	directory.relfilenode = rel->rd_node.relNode;
 	directory.generation = generation;
 	directory.valid = true;
 }
@@ -260,45 +288,49 @@ modb_block_candidates(Oid relid, int64 generation, const char *pose_key, double 
 	int64	   *ids;
 	int			n = 0,
 				capacity = 1024;
+	int			from[N_FEATURES],
+				to[N_FEATURES];
+	instr_time	start,
+				end;
+
+	INSTR_TIME_SET_CURRENT(start);
 
 	rel = table_open(relid, AccessShareLock);
 	if (!directory.valid || directory.relid != relid || directory.generation != generation
 		|| directory.relfilenode != rel->rd_node.relNode)
 	{
-		read_directory(relid, rel->rd_node.relNode, generation);
+		read_directory(rel, generation);
 		if (stats)
 			stats->read_directory = true;
 	}
 	if (stats)
 	{
-		stats->blocks = directory.n_entries;
+		stats->blocks = directory.n_blocks;
 		stats->snippets = directory.n_snippets;
 	}
 	ids = palloc(sizeof(int64) * capacity);
+	for (int d = 0; d < N_FEATURES; d++)
+		code_range(lo[d], hi[d], scale_min(d), scale_step(d), &from[d], &to[d]);
 	for (int k = 0; k < directory.n_groups; k++)
 	{
-		PoseGroup	   *g = &directory.groups[k];
-		int			from[N_FEATURES],
-					to[N_FEATURES];
+		PoseGroup  *g = &directory.groups[k];
 
 		if (g->fps != fps || strcmp(g->pose_key, pose_key) != 0)
 			continue;
-		for (int d = 0; d < N_FEATURES; d++)
-			code_range(lo[d], hi[d], g->min[d], g->step[d], &from[d], &to[d]);
 		for (int s = 0; s * SUPER_BLOCKS < g->count; s++)
 		{
 			if (!box8_meets(&g->supers[s], from, to))
 				continue;
-			for (int e = g->first + s * SUPER_BLOCKS; e < g->first + Min(g->count, (s + 1) * SUPER_BLOCKS); e++)
+			for (int e = s * SUPER_BLOCKS; e < Min(g->count, (s + 1) * SUPER_BLOCKS); e++)
 			{
 				HeapTupleData tuple;
 				Buffer		buffer;
 
-				if (!box8_meets(&directory.entries[e].box, from, to))
+				if (!box8_meets(&g->entries[e].box, from, to))
 					continue;
 				if (stats)
 					stats->blocks_read++;
-				tuple.t_self = directory.entries[e].tid;
+				tuple.t_self = g->entries[e].tid;
 				if (!heap_fetch(rel, GetActiveSnapshot(), &tuple, &buffer, false))
 					continue;	/* not visible to this snapshot */
 				if (n + BLOCK_SNIPPETS > capacity)
@@ -318,5 +350,11 @@ modb_block_candidates(Oid relid, int64 generation, const char *pose_key, double 
 	for (int i = 0; i < n; i++)
 		if (i == 0 || ids[i] != ids[i - 1])
 			ids[(*n_ids)++] = ids[i];
+	if (stats)
+	{
+		INSTR_TIME_SET_CURRENT(end);
+		INSTR_TIME_SUBTRACT(end, start);
+		stats->ms = INSTR_TIME_GET_MILLISEC(end);
+	}
 	return ids;
 }

@@ -64,12 +64,27 @@ typedef struct Request
 	/* which blocks this snapshot sees (block_directory.c) */
 	Oid			blocks_relid;
 	int64		blocks_generation;
+	int64		plans_generation;	/* of the profiles and graphs (selection_plan.c) */
 	/* filters */
 	Played	   *played;
 	int			n_played;
 	int64	   *collections;	/* NULL: every collection */
 	int			n_collections;
 } Request;
+
+/* A candidate row, deformed once (SPI_getbinval walks the tuple from its start at every call). */
+typedef struct Row
+{
+	Datum		values[COL_COST_TO_GO];
+	bool		nulls[COL_COST_TO_GO];
+} Row;
+
+static inline Datum
+row_value(const Row *row, int column, bool *isnull)
+{
+	*isnull = row->nulls[column - 1];
+	return row->values[column - 1];
+}
 
 typedef struct Candidate
 {
@@ -83,10 +98,9 @@ typedef struct Candidate
 } Candidate;
 
 static const float *
-float4_array(HeapTuple row, TupleDesc desc, int column, int length)
+float4_array(Datum value, int length)
 {
-	bool		isnull;
-	ArrayType  *a = DatumGetArrayTypeP(SPI_getbinval(row, desc, column, &isnull));
+	ArrayType  *a = DatumGetArrayTypeP(value);
 
 	if (ARR_NDIM(a) != 1 || ARR_HASNULL(a) || ARR_DIMS(a)[0] != length)
 		elog(ERROR, "modb: a terminator array is not %d values", length);
@@ -95,10 +109,8 @@ float4_array(HeapTuple row, TupleDesc desc, int column, int length)
 
 /* A float8[] column's values (NULL when the column is); *n gets its length. */
 static const double *
-float8_array(HeapTuple row, TupleDesc desc, int column, int *n)
+float8_array(Datum value, bool isnull, int *n)
 {
-	bool		isnull;
-	Datum		value = SPI_getbinval(row, desc, column, &isnull);
 	ArrayType  *a;
 
 	if (isnull)
@@ -110,15 +122,16 @@ float8_array(HeapTuple row, TupleDesc desc, int column, int *n)
 	return (const double *) ARR_DATA_PTR(a);
 }
 
+/* A terminator from four consecutive array values (positions, rotations, velocities, angular ones). */
 static Terminator
-terminator_of(HeapTuple row, TupleDesc desc, int first_column)
+terminator_of(const Datum *values)
 {
 	Terminator	t;
 
-	t.positions = float4_array(row, desc, first_column, 3 * N_JOINTS);
-	t.rotations = float4_array(row, desc, first_column + 1, 4 * N_JOINTS);
-	t.velocities = float4_array(row, desc, first_column + 2, 3 * N_JOINTS);
-	t.angular_velocities = float4_array(row, desc, first_column + 3, 3 * N_JOINTS);
+	t.positions = float4_array(values[0], 3 * N_JOINTS);
+	t.rotations = float4_array(values[1], 4 * N_JOINTS);
+	t.velocities = float4_array(values[2], 3 * N_JOINTS);
+	t.angular_velocities = float4_array(values[3], 3 * N_JOINTS);
 	return t;
 }
 
@@ -191,8 +204,9 @@ read_previous(Request *r)
 	modb_kept_plan(&query,
 				   "SELECT s.clip_id, s.version, s.mirrored, s.first_frame, s.n_frames, s.pose_key, s.fps, t.features,"
 				   "       t.positions, t.rotations, t.velocities, t.angular_velocities,"
-				   "       (SELECT g.generation FROM modb.snippet_blocks_generation g),"
-				   "       to_regclass('modb.snippet_blocks')::oid"
+				   "       (SELECT g.generation FROM modb.generations g WHERE g.name = 'snippet_blocks'),"
+				   "       to_regclass('modb.snippet_blocks')::oid,"
+				   "       (SELECT g.generation FROM modb.generations g WHERE g.name = 'match_plans')"
 				   "  FROM modb.snippets s JOIN modb.terminators t ON t.id = s.end_terminator WHERE s.id = $1",
 				   1, types);
 	if (SPI_execute_plan(query, args, NULL, true, 1) != SPI_OK_SELECT || SPI_processed != 1)
@@ -213,9 +227,16 @@ read_previous(Request *r)
 		elog(ERROR, "modb: terminator features have %d dimensions, not %d", DIM(features), N_FEATURES);
 	for (int i = 0; i < N_FEATURES; i++)
 		r->features[i] = LL_COORD(features, i);
-	r->end = terminator_of(row, desc, 9);
+	{
+		Datum		arrays[4];
+
+		for (int i = 0; i < 4; i++)
+			arrays[i] = SPI_getbinval(row, desc, 9 + i, &isnull);
+		r->end = terminator_of(arrays);
+	}
 	r->blocks_generation = DatumGetInt64(SPI_getbinval(row, desc, 13, &isnull));
 	r->blocks_relid = DatumGetObjectId(SPI_getbinval(row, desc, 14, &isnull));
+	r->plans_generation = DatumGetInt64(SPI_getbinval(row, desc, 15, &isnull));
 	return true;
 }
 
@@ -251,18 +272,18 @@ read_excluded(Request *r, Datum exclude)
 
 /* The candidates CTE of the reference: the collection, and no replay of a played frame. */
 static bool
-passes_filters(const Request *r, HeapTuple row, TupleDesc desc)
+passes_filters(const Request *r, const Row *row)
 {
 	bool		isnull;
-	int64		clip_id = DatumGetInt64(SPI_getbinval(row, desc, COL_CLIP, &isnull));
-	int32		version = DatumGetInt32(SPI_getbinval(row, desc, COL_VERSION, &isnull));
-	bool		mirrored = DatumGetBool(SPI_getbinval(row, desc, COL_MIRRORED, &isnull));
-	int32		low = DatumGetInt32(SPI_getbinval(row, desc, COL_FIRST_FRAME, &isnull)) + 1;
-	int32		high = low - 2 + DatumGetInt32(SPI_getbinval(row, desc, COL_N_FRAMES, &isnull));
+	int64		clip_id = DatumGetInt64(row_value(row, COL_CLIP, &isnull));
+	int32		version = DatumGetInt32(row_value(row, COL_VERSION, &isnull));
+	bool		mirrored = DatumGetBool(row_value(row, COL_MIRRORED, &isnull));
+	int32		low = DatumGetInt32(row_value(row, COL_FIRST_FRAME, &isnull)) + 1;
+	int32		high = low - 2 + DatumGetInt32(row_value(row, COL_N_FRAMES, &isnull));
 
 	if (r->collections != NULL)
 	{
-		int64		collection = DatumGetInt64(SPI_getbinval(row, desc, COL_COLLECTION, &isnull));
+		int64		collection = DatumGetInt64(row_value(row, COL_COLLECTION, &isnull));
 		bool		inside = false;
 
 		for (int i = 0; i < r->n_collections && !inside; i++)
@@ -282,28 +303,28 @@ passes_filters(const Request *r, HeapTuple row, TupleDesc desc)
 }
 
 static bool
-same_pose_and_rate(const Request *r, HeapTuple row, TupleDesc desc)
+same_pose_and_rate(const Request *r, const Row *row)
 {
 	bool		isnull;
-	double		fps = DatumGetFloat8(SPI_getbinval(row, desc, COL_FPS, &isnull));
+	double		fps = DatumGetFloat8(row_value(row, COL_FPS, &isnull));
 	char	   *pose_key;
 
 	if (fps != r->fps)
 		return false;
-	pose_key = TextDatumGetCString(SPI_getbinval(row, desc, COL_POSE_KEY, &isnull));
+	pose_key = TextDatumGetCString(row_value(row, COL_POSE_KEY, &isnull));
 	return strcmp(pose_key, r->pose_key) == 0;
 }
 
 /* modb.approach_cost of a candidate row toward the request's aim point. */
 static bool
-proximity_of(const Request *r, HeapTuple row, TupleDesc desc, double *proximity)
+proximity_of(const Request *r, const Row *row, double *proximity)
 {
 	int			n_net = 0,
 				n_future = 0;
-	const double *net = float8_array(row, desc, COL_NET_TRANSLATION, &n_net);
-	const double *future = float8_array(row, desc, COL_FUTURE_TRANSLATION, &n_future);
 	bool		isnull;
-	double		future_heading = DatumGetFloat8(SPI_getbinval(row, desc, COL_FUTURE_HEADING, &isnull));
+	const double *net = float8_array(row->values[COL_NET_TRANSLATION - 1], row->nulls[COL_NET_TRANSLATION - 1], &n_net);
+	const double *future = float8_array(row->values[COL_FUTURE_TRANSLATION - 1], row->nulls[COL_FUTURE_TRANSLATION - 1], &n_future);
+	double		future_heading = DatumGetFloat8(row_value(row, COL_FUTURE_HEADING, &isnull));
 
 	return modb_approach_cost(net, n_future == 3 ? future : NULL, !isnull, future_heading, r->aim, r->n,
 							  r->plan->heading_weight, proximity);
@@ -311,15 +332,15 @@ proximity_of(const Request *r, HeapTuple row, TupleDesc desc, double *proximity)
 
 /* The graph's objective at level 0: seconds to the goal through the candidate x the graph's speed. */
 static bool
-graph_objective(const Request *r, HeapTuple row, TupleDesc desc, double *objective)
+graph_objective(const Request *r, const Row *row, double *objective)
 {
 	int			n_net = 0;
-	const double *net = float8_array(row, desc, COL_NET_TRANSLATION, &n_net);
 	bool		isnull;
-	double		heading = DatumGetFloat8(SPI_getbinval(row, desc, COL_NET_HEADING, &isnull));
-	int32		n_frames = DatumGetInt32(SPI_getbinval(row, desc, COL_N_FRAMES, &isnull));
-	double		fps = DatumGetFloat8(SPI_getbinval(row, desc, COL_FPS, &isnull));
-	Datum		costs_datum = SPI_getbinval(row, desc, COL_COST_TO_GO, &isnull);
+	const double *net = float8_array(row->values[COL_NET_TRANSLATION - 1], row->nulls[COL_NET_TRANSLATION - 1], &n_net);
+	double		heading = DatumGetFloat8(row_value(row, COL_NET_HEADING, &isnull));
+	int32		n_frames = DatumGetInt32(row_value(row, COL_N_FRAMES, &isnull));
+	double		fps = DatumGetFloat8(row_value(row, COL_FPS, &isnull));
+	Datum		costs_datum = row_value(row, COL_COST_TO_GO, &isnull);
 	const float *costs = NULL;
 	int			n_costs = 0;
 	double		goal[3];
@@ -372,10 +393,10 @@ candidate_order(const void *a, const void *b)
  */
 /* cube's <@ of a point in a box: every coordinate within the box's bounds. */
 static bool
-in_box(HeapTuple row, TupleDesc desc, const double *lo, const double *hi)
+in_box(const Row *row, const double *lo, const double *hi)
 {
 	bool		isnull;
-	NDBOX	   *features = DatumGetNDBOXP(SPI_getbinval(row, desc, COL_BEGIN_FEATURES, &isnull));
+	NDBOX	   *features = DatumGetNDBOXP(row_value(row, COL_BEGIN_FEATURES, &isnull));
 
 	if (DIM(features) != N_FEATURES)
 		return false;
@@ -393,6 +414,7 @@ run_level(const Request *r, SPIPlanPtr query, Datum *args, const char *nulls, in
 {
 	bool		stored = lo == NULL;
 	Candidate  *candidates;
+	Row		   *rows_deformed;
 	int			n = 0;
 	uint64		rows;
 	TupleDesc	desc;
@@ -406,32 +428,35 @@ run_level(const Request *r, SPIPlanPtr query, Datum *args, const char *nulls, in
 	rows = SPI_processed;
 	desc = SPI_tuptable->tupdesc;
 	candidates = palloc(sizeof(Candidate) * Max(rows, 1));
+	rows_deformed = palloc(sizeof(Row) * Max(rows, 1));
 	for (uint64 i = 0; i < rows; i++)
 	{
-		HeapTuple	row = SPI_tuptable->vals[i];
+		Row		   *row = &rows_deformed[i];
 		Terminator	begin;
 		Candidate  *c = &candidates[n];
 		bool		isnull;
 
-		if (!stored && !in_box(row, desc, lo, hi))
+		heap_deform_tuple(SPI_tuptable->vals[i], desc, row->values, row->nulls);
+
+		if (!stored && !in_box(row, lo, hi))
 			continue;
 		if (stats)
 			stats->in_box++;
-		if (!stored && !same_pose_and_rate(r, row, desc))
+		if (!stored && !same_pose_and_rate(r, row))
 			continue;
-		if (!passes_filters(r, row, desc))
+		if (!passes_filters(r, row))
 			continue;
 		if (stats)
 			stats->filtered++;
-		begin = terminator_of(row, desc, COL_POSITIONS);
+		begin = terminator_of(&row->values[COL_POSITIONS - 1]);
 		c->ratio = modb_continuity(&r->end, &begin, &r->plan->thresholds);
 		if (!(c->ratio <= high && c->ratio > low))
 			continue;
 		c->row = (int) i;
-		c->id = DatumGetInt64(SPI_getbinval(row, desc, COL_ID, &isnull));
+		c->id = DatumGetInt64(row_value(row, COL_ID, &isnull));
 		c->has_proximity = stored && r->plan->has_grid
-			? graph_objective(r, row, desc, &c->proximity)
-			: proximity_of(r, row, desc, &c->proximity);
+			? graph_objective(r, row, &c->proximity)
+			: proximity_of(r, row, &c->proximity);
 		c->has_key = c->has_proximity;
 		c->key = c->proximity + r->plan->continuity_weight * c->ratio;
 		n++;
@@ -439,22 +464,22 @@ run_level(const Request *r, SPIPlanPtr query, Datum *args, const char *nulls, in
 	qsort(candidates, n, sizeof(Candidate), candidate_order);
 	for (int i = 0; i < n && *emitted < r->k; i++)
 	{
-		HeapTuple	row = SPI_tuptable->vals[candidates[i].row];
+		const Row  *row = &rows_deformed[candidates[i].row];
 		Datum		values[12];
 		bool		isnull[12];
 		static const int columns[] = {COL_ID, COL_CLIP, COL_VERSION, COL_MIRRORED, COL_FIRST_FRAME, COL_N_FRAMES};
 
 		for (int j = 0; j < 6; j++)
-			values[j] = SPI_getbinval(row, desc, columns[j], &isnull[j]);
+			values[j] = row_value(row, columns[j], &isnull[j]);
 		values[6] = Float8GetDatum(candidates[i].proximity);
 		isnull[6] = !candidates[i].has_proximity;
 		values[7] = Int32GetDatum(level);
 		isnull[7] = false;
 		values[8] = Float8GetDatum(candidates[i].ratio);
 		isnull[8] = false;
-		values[9] = SPI_getbinval(row, desc, COL_NET_TRANSLATION, &isnull[9]);
-		values[10] = SPI_getbinval(row, desc, COL_NET_ROTATION, &isnull[10]);
-		values[11] = SPI_getbinval(row, desc, COL_NET_HEADING, &isnull[11]);
+		values[9] = row_value(row, COL_NET_TRANSLATION, &isnull[9]);
+		values[10] = row_value(row, COL_NET_ROTATION, &isnull[10]);
+		values[11] = row_value(row, COL_NET_HEADING, &isnull[11]);
 		tuplestore_putvalues(store, out, values, isnull);
 		(*emitted)++;
 		if (stats)
@@ -624,14 +649,6 @@ modb_select(FunctionCallInfo fcinfo, Tuplestorestate *store, TupleDesc out, Sele
 		check_request(fcinfo, &r.collections, &r.n_collections);	/* raises the request's error */
 	r.k = PG_GETARG_INT32(2);
 	r.prev = PG_ARGISNULL(0) ? 0 : PG_GETARG_INT64(0);
-	r.plan = modb_match_plan(PG_ARGISNULL(3) ? NULL : PG_GETARG_TEXT_PP(3));
-	if (stats)
-	{
-		INSTR_TIME_SET_CURRENT(now);
-		INSTR_TIME_SUBTRACT(now, start);
-		stats->plan = r.plan;
-		stats->plan_ms = INSTR_TIME_GET_MILLISEC(now);
-	}
 	if (PG_ARGISNULL(0))
 		reason = "a start (no previous snippet) ranks every snippet";
 	else if (!read_previous(&r))
@@ -639,17 +656,28 @@ modb_select(FunctionCallInfo fcinfo, Tuplestorestate *store, TupleDesc out, Sele
 		check_request(fcinfo, NULL, NULL);	/* no snippet prev: its error */
 		elog(ERROR, "modb: no snippet " INT64_FORMAT, r.prev);
 	}
-	else if (r.plan->has_graph && r.plan->graph_lookahead && !r.plan->has_grid)
-		reason = "graph_lookahead, with a graph that has no cost-to-go";
 	else
 	{
-		if (!PG_ARGISNULL(5))
-			read_excluded(&r, PG_GETARG_DATUM(5));
-		modb_aim_point(r.target, r.n, r.plan->has_lookahead, r.plan->lookahead, r.aim);
-		if (!fast_path(&r, store, out, stats))
+		r.plan = modb_match_plan(PG_ARGISNULL(3) ? NULL : PG_GETARG_TEXT_PP(3), r.plans_generation);
+		if (stats)
 		{
-			tuplestore_clear(store);
-			reason = "levels 0-3 found fewer than k rows: level 4 (the nearest start) is needed";
+			INSTR_TIME_SET_CURRENT(now);
+			INSTR_TIME_SUBTRACT(now, start);
+			stats->plan = r.plan;
+			stats->plan_ms = INSTR_TIME_GET_MILLISEC(now);
+		}
+		if (r.plan->has_graph && r.plan->graph_lookahead && !r.plan->has_grid)
+			reason = "graph_lookahead, with a graph that has no cost-to-go";
+		else
+		{
+			if (!PG_ARGISNULL(5))
+				read_excluded(&r, PG_GETARG_DATUM(5));
+			modb_aim_point(r.target, r.n, r.plan->has_lookahead, r.plan->lookahead, r.aim);
+			if (!fast_path(&r, store, out, stats))
+			{
+				tuplestore_clear(store);
+				reason = "levels 0-3 found fewer than k rows: level 4 (the nearest start) is needed";
+			}
 		}
 	}
 	if (reason != NULL)

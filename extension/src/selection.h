@@ -36,8 +36,11 @@ extern const char *modb_cube_schema(void);
 /* The scan nodes of a kept plan (selection_explain.c). */
 extern char *modb_describe_access(SPIPlanPtr plan);
 
-/* The plan for `profile` (NULL: default) with this session's knobs; must be called inside SPI. */
-extern const MatchPlan *modb_match_plan(text *profile);
+/*
+ * The plan for `profile` (NULL: default) with this session's knobs, at this generation of the profiles and
+ * graphs (modb.generations 'match_plans'); must be called inside SPI.
+ */
+extern const MatchPlan *modb_match_plan(text *profile, int64 generation);
 
 /* snippet_blocks.c and block_directory.c: the box search over blocks of consecutive snippets. */
 #define BLOCK_SNIPPETS 32
@@ -48,6 +51,7 @@ typedef struct BlockStats
 	int64		blocks;			/* blocks in the directory */
 	int64		snippets;		/* snippets in them */
 	int64		blocks_read;	/* blocks whose bounds met the box */
+	double		ms;				/* the search's time (the directory's reading included) */
 } BlockStats;
 
 extern int	modb_block_code(double x, float low, float high);

@@ -121,9 +121,12 @@ modb_explain_selection(PG_FUNCTION_ARGS)
 					 PG_ARGISNULL(3) ? "default" : text_to_cstring(PG_GETARG_TEXT_PP(3)),
 					 (long long) stats.returned, stats.total_ms);
 	EMIT();
-	appendStringInfo(&line, "  Profile as resolved (%s, %.3f ms): %s",
-					 stats.plan->cached ? "this session's cached plan" : "resolved by modb.match_plan",
-					 stats.plan_ms, stats.plan->shown);
+	if (stats.plan)
+		appendStringInfo(&line, "  Profile as resolved (%s, %.3f ms): %s",
+						 stats.plan->cached ? "this session's cached plan" : "resolved by modb.match_plan",
+						 stats.plan_ms, stats.plan->shown);
+	else
+		appendStringInfoString(&line, "  Profile: resolved by the reference query");
 	EMIT();
 	if (stats.reference_reason)
 		appendStringInfo(&line, "  Answered by: the reference query (modb.select_next_snippets_reference), because %s",
@@ -141,10 +144,18 @@ modb_explain_selection(PG_FUNCTION_ARGS)
 			EMIT();
 			continue;
 		}
-		appendStringInfo(&line, "  Level %d: %s (%s): %lld rows scanned, %lld %s, %lld within ratio %g, %lld returned (%.3f ms)",
-						 level, s->stored ? "the graph's stored transitions" : "box",
-						 s->access, (long long) s->scanned, (long long) s->filtered,
-						 s->stored ? "in the graph, collection and not excluded"
+		if (s->stored)
+			appendStringInfo(&line, "  Level 0: the graph's stored transitions (%s): %lld rows",
+							 s->access, (long long) s->scanned);
+		else
+			appendStringInfo(&line, "  Level %d: box over %lld blocks of %lld snippets (block directory %s): "
+							 "%lld blocks met it, %lld candidates from their codes (%.3f ms), read by %s, %lld in the box",
+							 level, (long long) s->blocks.blocks, (long long) s->blocks.snippets,
+							 s->blocks.read_directory ? "read now" : "cached", (long long) s->blocks.blocks_read,
+							 (long long) s->scanned, s->blocks.ms, s->access, (long long) s->in_box);
+		appendStringInfo(&line, ", %lld %s, %lld within ratio %g, %lld returned (%.3f ms)",
+						 (long long) s->filtered,
+						 s->stored ? "in the collection and not excluded"
 						 : "of the same pose and rate, in the collection and not excluded",
 						 (long long) s->within, (double) (1 << level), (long long) s->returned, s->ms);
 		EMIT();

@@ -1,9 +1,9 @@
 /*
  * The match plan of the fast path: modb.match_plan(profile) (SQL, the one definition of a profile's
- * meaning) resolved once and kept for the session while nothing it depends on changes: the profile's row,
- * the session's knobs and the graph they name. Each call reads the profile's row and the graph's id under
- * its own snapshot (one indexed look-up), so an edit of a profile or a rebuilt graph takes effect on the
- * next call, in this transaction or after another commits.
+ * meaning) resolved once and kept for the session while nothing it depends on changes: the session's knobs,
+ * and the profiles and graphs, whose every change takes a new generation (69_generations.sql) that each call
+ * reads under its own snapshot, so an edit of a profile or a rebuilt graph takes effect on the next call,
+ * in this transaction or after another commits.
  */
 #include "postgres.h"
 
@@ -141,51 +141,26 @@ resolve(text *profile, MatchPlan *plan)
 	plan->shown = MemoryContextStrdup(TopMemoryContext, SPI_getvalue(row, desc, 22));
 }
 
-/*
- * What the plan depends on, read under this call's snapshot: the profile's settings, the knobs, and the
- * graph's row (its id and xmin: a rebuilt or edited graph is a new key). NULL when there is no such profile.
- */
+/* What the plan depends on: the profile's name, the generation of profiles and graphs, the knobs. */
 static char *
-plan_key(text *profile)
+plan_key(text *profile, int64 generation)
 {
-	static SPIPlanPtr query;
-	Oid			types[2] = {TEXTOID, TEXTOID};
-	const char *graph = modb_knob_value(10);	/* modb.graph */
-	Datum		args[2];
-	char		nulls[2] = {' ', ' '};
 	StringInfoData key;
 
-	Assert(strcmp(modb_knob_name(10), "graph") == 0);
-	modb_kept_plan(&query,
-				   "SELECT p.settings::text, g.id::text || '/' || g.xmin::text"
-				   "  FROM modb.match_profiles p"
-				   "  LEFT JOIN modb.graphs g ON g.name = coalesce($2, p.settings->>'graph') AND g.kind = 'transitions'"
-				   " WHERE p.name = coalesce($1, 'default')",
-				   2, types);
-	args[0] = PointerGetDatum(profile);
-	nulls[0] = profile ? ' ' : 'n';
-	if (modb_knob_is_profile(graph))
-		nulls[1] = 'n';
-	else
-		args[1] = CStringGetTextDatum(graph);
-	if (SPI_execute_plan(query, args, nulls, true, 2) != SPI_OK_SELECT || SPI_processed != 1)
-		return NULL;			/* no such profile (resolve raises the error) */
 	initStringInfo(&key);
-	appendStringInfo(&key, "%s\x1e%s\x1e%s", profile ? text_to_cstring(profile) : "default",
-					 SPI_getvalue(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 1),
-					 SPI_getvalue(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 2) ?: "");
+	appendStringInfo(&key, "%s\x1e" INT64_FORMAT, profile ? text_to_cstring(profile) : "default", generation);
 	for (int i = 0; i < N_KNOBS; i++)
 		appendStringInfo(&key, "\x1e%s", modb_knob_is_profile(modb_knob_value(i)) ? "" : modb_knob_value(i));
 	return key.data;
 }
 
 const MatchPlan *
-modb_match_plan(text *profile)
+modb_match_plan(text *profile, int64 generation)
 {
-	char	   *key = plan_key(profile);
+	char	   *key = plan_key(profile, generation);
 	CachedEntry *entry;
 
-	for (int i = 0; key != NULL && i < N_CACHED; i++)
+	for (int i = 0; i < N_CACHED; i++)
 		if (cache[i].key != NULL && strcmp(cache[i].key, key) == 0)
 		{
 			cache[i].plan.cached = true;
@@ -200,8 +175,6 @@ modb_match_plan(text *profile)
 		entry->key = NULL;
 	}
 	resolve(profile, &entry->plan);		/* raises the profile's errors (no such profile included) */
-	if (key == NULL)
-		elog(ERROR, "modb: match profile disappeared while it was read");
 	entry->key = MemoryContextStrdup(TopMemoryContext, key);
 	entry->plan.cached = false;
 	return &entry->plan;

@@ -162,6 +162,8 @@ check_knob(const Knob *knob, const char *value)
 
 	if (modb_knob_is_profile(value))
 		return true;
+	GUC_check_errhint("SET modb.%s to an allowed value, or to profile (or RESET modb.%s) for the profile's.",
+					  knob->name, knob->name);
 	switch (knob->kind)
 	{
 		case KNOB_JOINTS:

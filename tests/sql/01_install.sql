@@ -7,7 +7,7 @@ SELECT has_extension('modb');
 SELECT has_schema('modb');
 SELECT tables_are('modb', ARRAY['collections', 'skeletons', 'clips', 'clip_versions', 'models', 'graphs',
                                'snippet_sources', 'terminators', 'snippets', 'match_profiles', 'graph_snippets',
-                               'graph_transitions', 'graph_names']);
+                               'graph_transitions', 'graph_names', 'snippet_blocks', 'generations']);
 SELECT views_are('modb', ARRAY['current_clips']);
 SELECT functions_are('modb', ARRAY[
     'skeleton_identity', 'unit_quaternions_ok', 'finite_ok', 'skeleton_joint_names', 'joint_map_ok', 'mirror_pairs_ok',
@@ -18,7 +18,8 @@ SELECT functions_are('modb', ARRAY[
     'check_request', 'build_snippets', 'select_next_snippets', 'select_next_snippet', 'world_to_local', 'select_next_snippet_world',
     'local_to_world', 'synthesis_goal', 'synthesis_step_end', 'check_synthesis', 'synthesize', 'fill_futures', 'build_transition_graph', 'transition_key', 'cost_to_go', 'candidates_examined',
     'feature_cube_penalty', 'feature_cube_picksplit', 'match_profiles_guard', '_knob_boolean', '_knob_number',
-    'check_world_request', 'frame_key']);
+    'check_world_request', 'frame_key', 'select_next_snippets_reference', 'explain_selection',
+    'add_snippet_blocks', 'next_generation', 'snippets_inserted', 'snippets_updated']);
 SELECT is((SELECT o.opcname::text FROM pg_index i JOIN pg_opclass o ON o.oid = i.indclass[0]
             WHERE i.indexrelid = 'modb.snippets_begin_features_idx'::regclass), 'cube_feature_ops',
           'the feature index uses modb''s operator class');

@@ -1,7 +1,7 @@
 """The baselines `modb bench scale` sets beside select_next_snippet (see modb.bench.scale).
 
-(a) the paper's flat query (FLAT); (b) a numpy brute force and (c) a k-d tree in this process, over
-a Snapshot of the stored terminators.
+(a) the paper's flat query (FLAT); (b) a numpy brute force, (c) a k-d tree and (d) a vectorised box
+scan in this process, over a Snapshot of the stored terminators.
 """
 
 from __future__ import annotations
@@ -193,6 +193,16 @@ class Snapshot:
         """(b): every snippet of the same pose and rate scored."""
         prev = int(np.searchsorted(self.ids, prev_id))
         return self._best(prev, np.flatnonzero(self.group == self.group[prev]), target)
+
+    def box_scan(self, prev_id: int) -> int:
+        """(d): the level-0 box tested against every snippet of the same pose and rate,
+        vectorised: the least an in-process scan does (no continuity check, no objective)."""
+        prev = int(np.searchsorted(self.ids, prev_id))
+        members, _ = self.trees[self.group[prev]]
+        half = np.asarray(self.plan["box_half_width"], dtype=np.float64) + transitions.BOX_MARGIN
+        point = self.term.features[self.end[prev]]
+        inside = np.all(np.abs(self.term.features[self.begin[members]] - point) <= half, axis=1)
+        return int(inside.sum())
 
     def kd_tree(self, prev_id: int, target: list[float]) -> tuple[int, int] | None:
         """(c): candidates from the tree's ball of each level (the box), scored like (b)."""

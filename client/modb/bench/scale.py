@@ -1,23 +1,21 @@
-"""`modb bench scale` (make bench): select_next_snippet at several database sizes, beside in the
-same run
+"""`modb bench scale` (make bench): select_next_snippet at several database sizes, as a user calls
+it (the server's default settings: psql one call per statement, psycopg with and without prepare,
+the first call of a new session), beside in the same run
 (a) the paper's formulation: one flat query scoring every snippet (no box, so no index: a
-    sequential scan), its continuity ratio by modb.continuity_ratio, the C function the tests tie
-    to 0.6.0's arithmetic over the terminator columns to the last bit (that arithmetic in SQL is
-    about 4.5x slower: the ratio to (a) here is the conservative one) (the same rows as the
-    function),
+    sequential scan), its continuity ratio by modb.continuity_ratio (the same rows as the function),
 (b) a vectorised numpy brute force in this process over the same stored terminators (the same
     rows),
 (c) scipy's cKDTree in this process (the box as a Chebyshev ball of the scaled features) plus one
-    `SELECT 1` round trip: what an in-memory index in the client costs (the same rows).
-(a), (b) and (c) are in modb.bench.baselines. The index is rebuilt (REINDEX, timed) before the
-queries, so every size is measured on a fresh build. Also: candidates examined per query
-(modb.candidates_examined), the GiST index's build time and size, bytes per snippet, and
-throughput with pgbench and the shipped script at 1, 2 and 8 clients.
+    `SELECT 1` round trip: what an in-memory index in the client costs (the same rows),
+(d) a vectorised numpy test of the level-0 box against every snippet of the pose, plus one round
+    trip: the least an in-process scan of the same data does (no continuity check, no objective).
+(a)-(d) are in modb.bench.baselines. The databases are measured as the loader left them (no REINDEX
+or VACUUM). Also: the snippet blocks' size, bytes per snippet, and throughput with pgbench and the
+shipped script at 1, 2 and 8 clients.
 """
 
 from __future__ import annotations
 
-import os
 import re
 import statistics
 import subprocess
@@ -30,9 +28,10 @@ import psycopg
 
 from .baselines import FLAT, Snapshot
 from .resampled import add_resampled_clips, resampled_snippets
-from modb.database.connection import configure_for_selection, connect, selection_pgoptions
+from modb.database.connection import connect
 
 PGBENCH = "/usr/lib/postgresql/15/bin/pgbench"  # postgresql-15's own (Debian keeps it off PATH)
+PSQL = "/usr/lib/postgresql/15/bin/psql"
 PGBENCH_SCRIPT = Path(__file__).with_name("select_next_snippet.pgbench")  # package data
 FUNCTION = "SELECT snippet_id, relax_level FROM modb.select_next_snippet(%s, %s, %s)"
 
@@ -79,13 +78,12 @@ def sized_database(dsn: str, size: int, seed: int, progress=print) -> str:
 
 
 def pgbench(dsn: str, clients: int, seconds: int) -> float:
-    """Selections per second: the shipped script, prepared, with generic plans and no JIT.
+    """Selections per second: the shipped script, prepared, with the server's default settings.
 
     Each call draws a random prev and target.
     """
     with psycopg.connect(dsn) as conn:
         low, high = conn.execute("SELECT min(id), max(id) FROM modb.snippets").fetchone()
-    env = {**os.environ, "PGOPTIONS": selection_pgoptions()}
     out = subprocess.run(
         [
             PGBENCH,
@@ -108,12 +106,39 @@ def pgbench(dsn: str, clients: int, seconds: int) -> float:
         ],  # pgbench takes a conninfo string where a database name goes
         capture_output=True,
         text=True,
-        env=env,
     )
     if out.returncode != 0:
         raise RuntimeError(f"pgbench failed: {out.stderr.strip()}")
     out = out.stdout
     return float(re.search(r"tps = ([0-9.]+) \(without initial connection time\)", out).group(1))
+
+
+def psql_times(dsn: str, requests: list, profile: str) -> list[float]:
+    """psql, one call per statement (\\timing: the client's time around each), default settings."""
+    lines = ["\\timing on"] + [
+        f"SELECT snippet_id, relax_level FROM modb.select_next_snippet({prev}, "
+        f"'{{{target[0]!r}, {target[1]!r}}}', '{profile}');"
+        for prev, target in requests
+    ]
+    out = subprocess.run(
+        [PSQL, "-X", "-q", "-A", "-t", "-d", dsn],
+        input="\n".join(lines),
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
+    return [float(m) for m in re.findall(r"^Time: ([0-9.]+) ms", out, re.M)]
+
+
+def first_call_ms(dsn: str, requests: list, profile: str, sessions: int = 5) -> list[float]:
+    """The first call in a new session (its connection opened before the clock starts)."""
+    times = []
+    for prev, target in requests[:sessions]:
+        with psycopg.connect(dsn, autocommit=True) as conn:
+            t = time.perf_counter()
+            conn.execute(FUNCTION, [prev, target, profile]).fetchone()
+            times.append((time.perf_counter() - t) * 1000)
+    return times
 
 
 def bench_database(
@@ -125,42 +150,45 @@ def bench_database(
     pgbench_seconds: int,
     progress=print,
 ) -> dict:
-    """Every figure of one database (see the module's docstring)."""
-    with psycopg.connect(dsn, autocommit=True) as conn:
-        configure_for_selection(conn)
+    """Every figure of one database (see the module's docstring), with the server's defaults."""
+    with (
+        psycopg.connect(dsn, autocommit=True) as conn,
+        psycopg.connect(dsn, autocommit=True) as prepared,
+    ):
         progress("  reading the snippets into memory (for numpy and the k-d tree)")
         t = time.perf_counter()
         snap = Snapshot.load(conn, profile)
         load_s = time.perf_counter() - t
-        t = time.perf_counter()
-        conn.execute("REINDEX INDEX modb.snippets_begin_features_idx")
-        index_s = time.perf_counter() - t
         rng = np.random.default_rng(seed)
         requests = [
             (int(rng.choice(snap.ids)), [float(v) for v in rng.uniform(-5, 5, size=2)])
             for _ in range(queries)
         ]
-        conn.execute(
-            FUNCTION, [requests[0][0], requests[0][1], profile], prepare=True
-        ).fetchone()  # plans once
         out = {
             k: []
-            for k in ("function_ms", "flat_ms", "numpy_ms", "kdtree_ms", "candidates", "levels")
+            for k in (
+                "plain_ms",
+                "prepared_ms",
+                "flat_ms",
+                "numpy_ms",
+                "kdtree_ms",
+                "scan_ms",
+                "levels",
+            )
         }
+        progress("  the first call of new sessions")
+        out["first_ms"] = first_call_ms(dsn, requests, profile)
         same_flat = same_numpy = same_kdtree = 0
         progress(f"  {queries} seeded queries ({baseline_queries} also by the flat query)")
         for k, (prev, target) in enumerate(requests):
             t = time.perf_counter()
-            chosen = conn.execute(FUNCTION, [prev, target, profile], prepare=True).fetchone()
-            out["function_ms"].append((time.perf_counter() - t) * 1000)
+            chosen = conn.execute(FUNCTION, [prev, target, profile], prepare=False).fetchone()
+            out["plain_ms"].append((time.perf_counter() - t) * 1000)
+            t = time.perf_counter()
+            again = prepared.execute(FUNCTION, [prev, target, profile], prepare=True).fetchone()
+            out["prepared_ms"].append((time.perf_counter() - t) * 1000)
+            assert again == chosen, (prev, target)
             out["levels"].append(chosen[1])
-            out["candidates"].append(
-                conn.execute(
-                    "SELECT modb.candidates_examined(%s, %s, %s)",
-                    [prev, chosen[1], profile],
-                    prepare=True,
-                ).fetchone()[0]
-            )
             t = time.perf_counter()
             mine = snap.brute_force(prev, target)
             out["numpy_ms"].append((time.perf_counter() - t) * 1000)
@@ -170,20 +198,26 @@ def bench_database(
             conn.execute("SELECT 1", prepare=True).fetchone()
             out["kdtree_ms"].append((time.perf_counter() - t) * 1000)
             same_kdtree += tree_choice == tuple(chosen)
+            t = time.perf_counter()
+            snap.box_scan(prev)
+            conn.execute("SELECT 1", prepare=True).fetchone()
+            out["scan_ms"].append((time.perf_counter() - t) * 1000)
             if k < baseline_queries:
                 t = time.perf_counter()
                 flat = conn.execute(
-                    FLAT, {"prev": prev, "target": target, "profile": profile}, prepare=True
+                    FLAT, {"prev": prev, "target": target, "profile": profile}
                 ).fetchone()
                 out["flat_ms"].append((time.perf_counter() - t) * 1000)
                 same_flat += tuple(flat) == tuple(chosen)
         resampled = resampled_snippets(conn)
-        index_bytes, table_bytes = conn.execute(
-            "SELECT pg_relation_size('modb.snippets_begin_features_idx'), "
-            "sum(pg_total_relation_size(c)) "
-            "FROM unnest(ARRAY['modb.snippets', 'modb.terminators', "
-            "'modb.snippet_sources']::regclass[]) AS c"
+        blocks_bytes, blocks, table_bytes = conn.execute(
+            "SELECT pg_relation_size('modb.snippet_blocks'), "
+            "(SELECT count(*) FROM modb.snippet_blocks), sum(pg_total_relation_size(c)) "
+            "FROM unnest(ARRAY['modb.snippets', 'modb.terminators', 'modb.snippet_sources', "
+            "'modb.snippet_blocks']::regclass[]) AS c"
         ).fetchone()
+    progress("  psql, one call per statement")
+    out["psql_ms"] = psql_times(dsn, requests, profile)
     progress("  pgbench")
     tps = {c: pgbench(dsn, c, pgbench_seconds) for c in (1, 2, 8)}
     return {
@@ -195,8 +229,8 @@ def bench_database(
         "same_kdtree": same_kdtree,
         "baseline_queries": baseline_queries,
         "queries": queries,
-        "index_s": index_s,
-        "index_bytes": index_bytes,
+        "blocks": blocks,
+        "blocks_bytes": blocks_bytes,
         "bytes_per_snippet": table_bytes / len(snap.ids),
         "snapshot_s": load_s,
         "tps": tps,
@@ -205,17 +239,17 @@ def bench_database(
 
 def report(name: str, r: dict) -> str:
     def row(label: str, ms: list[float]) -> str:
-        return f"| {label} | {statistics.median(ms):.2f} | {np.percentile(ms, 99):.2f} |"
+        return f"| {label} | {statistics.median(ms):.3f} | {np.percentile(ms, 99):.3f} |"
 
     n = r["baseline_queries"]
     flat_ratio = (
-        statistics.median(a / b for a, b in zip(r["flat_ms"], r["function_ms"][:n]))
+        statistics.median(a / b for a, b in zip(r["flat_ms"], r["plain_ms"][:n]))
         if n
         else float("nan")
     )
-    kd_ratio = statistics.median(a / b for a, b in zip(r["function_ms"], r["kdtree_ms"]))
-    np_ratio = statistics.median(a / b for a, b in zip(r["function_ms"], r["numpy_ms"]))
-    c = r["candidates"]
+    kd_ratio = statistics.median(a / b for a, b in zip(r["plain_ms"], r["kdtree_ms"]))
+    np_ratio = statistics.median(a / b for a, b in zip(r["plain_ms"], r["numpy_ms"]))
+    scan_ratio = statistics.median(a / b for a, b in zip(r["plain_ms"], r["scan_ms"]))
     levels = {lvl: r["levels"].count(lvl) for lvl in sorted(set(r["levels"]))}
     return "\n".join(
         [
@@ -230,28 +264,30 @@ def report(name: str, r: dict) -> str:
                 if r["resampled"]
                 else []
             ),
-            "| | p50 ms | p99 ms |",
+            "| select_next_snippet, server defaults | p50 ms | p99 ms |",
             "|---|---|---|",
-            row("select_next_snippet (prepared, generic plan)", r["function_ms"]),
+            row("psql, one call per statement (\\timing)", r["psql_ms"]),
+            row("psycopg, not prepared", r["plain_ms"]),
+            row("psycopg, prepared", r["prepared_ms"]),
+            row(f"first call of a new session ({len(r['first_ms'])} sessions)", r["first_ms"]),
             row(f"(a) flat query, sequential scan ({n} of the queries)", r["flat_ms"])
             if n
             else "| (a) | - | - |",
             row("(b) numpy brute force, in process", r["numpy_ms"]),
             row("(c) cKDTree in process + SELECT 1", r["kdtree_ms"]),
+            row("(d) numpy box scan in process (no checks) + SELECT 1", r["scan_ms"]),
             "",
-            f"- Per query, median: (a) / function {flat_ratio:.1f}x; function / (b) "
-            f"{np_ratio:.2f}x; "
-            f"function / (c) {kd_ratio:.2f}x.",
+            f"- Per query, median: (a) / psycopg {flat_ratio:.1f}x; psycopg / (b) {np_ratio:.2f}x; "
+            f"psycopg / (c) {kd_ratio:.2f}x; psycopg / (d) {scan_ratio:.2f}x.",
             f"- Same snippet and level as the function: (a) {r['same_flat']}/{n}, (b) "
             f"{r['same_numpy']}/{r['queries']}, "
-            f"(c) {r['same_kdtree']}/{r['queries']}.",
-            f"- Candidates examined: p50 {np.percentile(c, 50):.0f}, p90 "
-            f"{np.percentile(c, 90):.0f}, "
-            f"p99 {np.percentile(c, 99):.0f}, max {max(c)}; relaxation levels {levels}.",
-            f"- GiST index: {r['index_bytes'] / 2**20:.1f} MiB, rebuilt in {r['index_s']:.1f} s; "
-            f"{r['bytes_per_snippet']:,.0f} bytes per snippet (snippets, terminators, sources and "
-            f"their indexes).",
-            "- pgbench (shipped script, prepared): "
+            f"(c) {r['same_kdtree']}/{r['queries']}; relaxation levels {levels}.",
+            f"- Snippet blocks: {r['blocks']:,} ({r['blocks_bytes'] / 2**20:.1f} MiB, "
+            f"{r['blocks_bytes'] / r['snippets']:.0f} bytes a snippet; a session's directory of "
+            f"them about {r['blocks'] * 110 / 2**20:.1f} MiB); "
+            f"{r['bytes_per_snippet']:,.0f} bytes per snippet in all (snippets, terminators, "
+            f"sources, blocks and their indexes).",
+            "- pgbench (shipped script, prepared, server defaults): "
             + ", ".join(f"{k} client{'s' if k > 1 else ''} {v:,.0f}/s" for k, v in r["tps"].items())
             + ".",
         ]

@@ -24,11 +24,6 @@ def configure_for_selection(conn: psycopg.Connection) -> None:
     )
 
 
-def selection_pgoptions() -> str:
-    """SELECTION_SETTINGS as PGOPTIONS, for a client such as pgbench."""
-    return " ".join(f"-c {name}={value}" for name, value in SELECTION_SETTINGS.items())
-
-
 class NotInstalledError(RuntimeError):
     pass
 
