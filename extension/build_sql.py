@@ -113,7 +113,7 @@ def feature_range(name: str) -> tuple[float, float]:
 
 
 def c_header() -> str:
-    """src/standard_joints.h: the standard joints and the features for C, from the kernel's lists."""
+    """src/standard_joints.h: the standard joints and features for C, from the kernel's lists."""
     joints = kernel_constants()["STANDARD_JOINTS"]
     names = ", ".join(f'"{name}"' for name in joints)
     features = kernel_constants()["FEATURES"]
