@@ -883,6 +883,11 @@ add_snippets = plpy.prepare(
 def flat(a):
     return np.asarray(a, dtype=np.float64).reshape(len(a), -1).tolist()
 
+def flat_real(a):
+    # Rounded to float4 here: a value below float4's range (a resampled clip had 3.8e-51) is then 0, where
+    # the real[] input refused it. Normal values round as the input would.
+    return np.asarray(a, dtype=np.float32).astype(np.float64).reshape(len(a), -1).tolist()
+
 def frames(row, lo, hi):
     """Rotations and translations (None when no joint has position channels) of frames lo..hi-1."""
     r = plpy.execute(read_frames, [row["clip_id"], row["version"], lo + 1, hi])[0]
@@ -933,10 +938,11 @@ while True:
             ids = {f: i for f, i in ids.items() if f >= starts[0]}
             wanted = sorted((set(starts.tolist()) | set((starts + length - 1).tolist())) - set(ids))
             local = [f - lo for f in wanted]
-            pick = {k: flat(terms[k][local]) for k in ("positions", "rotations", "velocities", "angular_velocities", "features")}
-            configuration = terms["configuration"][local].tolist()
+            pick = {k: flat_real(terms[k][local]) for k in ("positions", "rotations", "velocities", "angular_velocities")}
+            pick["features"] = flat(terms["features"][local])
+            configuration = terms["configuration"][local].astype(np.float32).astype(np.float64).tolist()
             records = [{"frame": f, "heading": float(terms["heading"][f - lo]),
-                        "pelvis_height": float(terms["pelvis_height"][f - lo]),
+                        "pelvis_height": float(np.float32(terms["pelvis_height"][f - lo])),
                         "positions": pick["positions"][i], "rotations": pick["rotations"][i],
                         "velocities": pick["velocities"][i], "angular_velocities": pick["angular_velocities"][i],
                         "configuration": configuration[i], "features": pick["features"][i]}
