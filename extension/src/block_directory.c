@@ -24,6 +24,8 @@
 #include "catalog/pg_type.h"
 #include "executor/spi.h"
 #include "storage/bufmgr.h"
+#include "miscadmin.h"
+#include "utils/acl.h"
 #include "utils/array.h"
 #include "utils/builtins.h"
 #include "utils/memutils.h"
@@ -296,6 +298,9 @@ modb_block_candidates(Oid relid, int64 generation, const char *pose_key, double 
 	INSTR_TIME_SET_CURRENT(start);
 
 	rel = table_open(relid, AccessShareLock);
+	/* Read directly, not through a query: check the caller's right to read it as a query would. */
+	if (pg_class_aclcheck(relid, GetUserId(), ACL_SELECT) != ACLCHECK_OK)
+		aclcheck_error(ACLCHECK_NO_PRIV, OBJECT_TABLE, RelationGetRelationName(rel));
 	if (!directory.valid || directory.relid != relid || directory.generation != generation
 		|| directory.relfilenode != rel->rd_node.relNode)
 	{
