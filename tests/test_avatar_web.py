@@ -519,7 +519,7 @@ def test_every_panel_control_reaches_this_connections_settings(avatar_server, br
     )
     assert answer("graph", "")["settings"]["graph"] is None
     refused = answer("position_threshold", "-1")
-    assert refused["type"] == "refused" and "thresholds must be positive" in refused["message"]
+    assert refused["type"] == "refused" and "Thresholds must be positive" in refused["message"]
     assert browser.find_element(By.ID, "status").text == refused["message"]
     # back to what is in force
     assert browser.find_element(By.ID, "position_threshold").get_attribute("value") == ""
@@ -558,8 +558,8 @@ def test_bad_settings_are_refused_with_the_reason_and_the_walk_goes_on(avatar_se
     with socket_to(avatar_server[0], None) as ws:
         assert json.loads(ws.recv(10))["type"] == "ready"
         for message, reason in [
-            ({"knobs": {"position_threshold": "-1"}}, "thresholds must be positive"),
-            ({"knobs": {"joints": "pelvis,tail"}}, "must be standard joints"),
+            ({"knobs": {"position_threshold": "-1"}}, "Thresholds must be positive"),
+            ({"knobs": {"joints": "pelvis,tail"}}, '"tail" is not a standard joint'),
             ({"knobs": {"graph_lookahead": "on"}}, "unknown knob 'graph_lookahead'"),
             ({"profile": "nope"}, 'unknown match profile "nope"'),
             ({"graph": "nope"}, 'no transition graph "nope"'),

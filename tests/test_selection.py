@@ -340,7 +340,13 @@ BAD_PARAMETER, RAISED = psycopg.errors.InvalidParameterValue, psycopg.errors.Rai
 def test_requests_that_cannot_be_answered_are_errors(cmu, setting, call, error, message):
     with connect(cmu) as conn:
         if setting:
-            conn.execute(setting)
+            # Since 0.10.0 a knob out of range is refused at SET (the library is preloaded), and the
+            # call, with the profile's value, is answered.
+            with pytest.raises(psycopg.errors.InvalidParameterValue) as refused:
+                conn.execute(setting)
+            assert message.lower() in refused.value.diag.message_detail.lower()
+            assert conn.execute(call).fetchall()
+            return
         with pytest.raises(error, match=message):
             conn.execute(call).fetchall()
 

@@ -112,8 +112,9 @@ check_number(const Knob *knob, const char *value)
 	if (parse_decimal(value, &x) && ((x == 0 && !positive) || (x >= 1e-300 && x <= 1e300)))
 		return true;
 	GUC_check_errdetail("%s %s (allowed: %s1e-300 to 1e300 %s).",
-						knob->kind == KNOB_THRESHOLD ? "Thresholds must be" : psprintf("modb.%s must be", knob->name),
-						positive ? "positive and finite" : "zero or positive, and finite",
+						knob->kind == KNOB_THRESHOLD ? "Thresholds must be" : psprintf("modb.%s must", knob->name),
+						knob->kind == KNOB_THRESHOLD ? "positive and finite"
+						: positive ? "be positive and finite" : "not be negative and must be finite",
 						positive ? "" : "0, or ", knob->unit);
 	return false;
 }

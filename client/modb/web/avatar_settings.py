@@ -93,5 +93,7 @@ def check_settings(conn: psycopg.Connection, settings: Settings) -> None:
                 [settings.profile, settings.collection],
             )
     except psycopg.Error as e:
+        # A knob's SET is refused by the setting itself (0.10.0): the reason is in its detail.
+        detail = f": {e.diag.message_detail}" if e.diag.message_detail else ""
         hint = f" ({e.diag.message_hint})" if e.diag.message_hint else ""
-        raise SettingsRefused(f"{e.diag.message_primary or e}{hint}") from None
+        raise SettingsRefused(f"{e.diag.message_primary or e}{detail}{hint}") from None
