@@ -191,7 +191,7 @@ def test_unknown_knob_and_profile_are_errors(loaded):
     dsn, _ = loaded
     with connect(dsn) as conn:
         # misspelt: refused at SET, since the library (preloaded) reserves the modb. prefix
-        with pytest.raises(psycopg.errors.InvalidParameterValue, match="modb.postion_threshold"):
+        with pytest.raises(psycopg.errors.InvalidName, match="modb.postion_threshold"):
             conn.execute("SET modb.postion_threshold = 0.1")
         conn.execute("SET modb.norm = l1")
         assert (
