@@ -352,7 +352,13 @@ def test_from_a_graph_snippet_level_0_reads_the_stored_transitions_not_the_box(l
     dsn, _ = loaded
     kept, _, _ = cmu_graph
     prev = sorted(kept)[len(kept) // 2]
-    query = "SELECT * FROM modb.select_next_snippet(%s, '{1,2}', 'locomotion')"
+    # The rule's plan (the reference query) and what the C function reports of its own search.
+    query = "SELECT * FROM modb.select_next_snippets_reference(%s, '{1,2}', 1, 'locomotion')"
+    explain = "SELECT * FROM modb.explain_selection(%s, '{1,2}', 1, 'locomotion')"
+
+    def level0(conn) -> str:
+        return next(r[0] for r in conn.execute(explain, [prev]) if r[0].startswith("  Level 0"))
+
     with connect(dsn) as conn:
         conn.execute("SET modb.graph = 'cmu'")
         stored = _scans(conn, query, [prev])
@@ -360,9 +366,11 @@ def test_from_a_graph_snippet_level_0_reads_the_stored_transitions_not_the_box(l
             stored.get("snippets_begin_features_idx", 0) == 0
             and stored["graph_transitions_pkey"] >= 1
         ), stored
+        assert "the graph's stored transitions" in level0(conn)
         # Thresholds other than the graph's: its transitions do not apply, the box does.
         conn.execute("SET modb.angle_threshold = 0.4")
         assert _scans(conn, query, [prev]).get("snippets_begin_features_idx", 0) >= 1
+        assert "box over" in level0(conn)
 
 
 def test_selection_with_a_graph_equals_brute_force_over_its_snippets(loaded, cmu_graph, cmu_costs):

@@ -152,29 +152,33 @@ target_ok(ArrayType *target, Request *r)
 	return true;
 }
 
-/* Raises modb.check_request's error for this request (and returns if it has none). */
+/*
+ * Raises the request's error, if it has one, as the reference would: modb.match_plan (the profile) first,
+ * then modb.check_request (target, k, prev, collection); and reads the collection's subtree.
+ */
 static void
 check_request(FunctionCallInfo fcinfo, int64 **collections, int *n_collections)
 {
 	static SPIPlanPtr query;
-	Oid			types[4] = {INT8OID, FLOAT8ARRAYOID, INT4OID, TEXTOID};
-	Datum		args[4];
-	char		nulls[4];
+	static const int arg_of[5] = {0, 1, 2, 4, 3};	/* prev, target, k, collection, profile */
+	Oid			types[5] = {INT8OID, FLOAT8ARRAYOID, INT4OID, TEXTOID, TEXTOID};
+	Datum		args[5];
+	char		nulls[5];
 	bool		isnull;
 	Datum		ids;
 
-	for (int i = 0; i < 4; i++)
+	for (int i = 0; i < 5; i++)
 	{
-		nulls[i] = PG_ARGISNULL(i == 3 ? 4 : i) ? 'n' : ' ';
-		args[i] = nulls[i] == 'n' ? (Datum) 0 : PG_GETARG_DATUM(i == 3 ? 4 : i);
+		nulls[i] = PG_ARGISNULL(arg_of[i]) ? 'n' : ' ';
+		args[i] = nulls[i] == 'n' ? (Datum) 0 : PG_GETARG_DATUM(arg_of[i]);
 	}
 	modb_kept_plan(&query,
-				   "SELECT modb.check_request($1, $2, $3, $4),"
+				   "SELECT modb.match_plan($5) IS NOT NULL, modb.check_request($1, $2, $3, $4),"
 				   "       CASE WHEN $4 IS NOT NULL THEN modb.collection_subtree($4) END",
-				   4, types);
+				   5, types);
 	if (SPI_execute_plan(query, args, nulls, true, 1) != SPI_OK_SELECT || SPI_processed != 1)
 		elog(ERROR, "modb: check_request returned nothing");
-	ids = SPI_getbinval(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 2, &isnull);
+	ids = SPI_getbinval(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 3, &isnull);
 	if (!isnull && collections != NULL)
 	{
 		ArrayType  *a = DatumGetArrayTypeP(ids);
