@@ -37,11 +37,9 @@ def main(dsn: str, n: int) -> None:
         assert rows[0] == rows[1], (prev, target, rows)
     ratio = statistics.median(b / a for a, b in zip(fast, reference))
     print(f"{len(ids):,} snippets, {n} calls each, one session with the server's defaults:")
-    print(
-        f"select_next_snippets p50 {statistics.median(fast):.2f} p99 {np.percentile(fast, 99):.2f} ms;"
-        f" reference p50 {statistics.median(reference):.2f} p99 {np.percentile(reference, 99):.2f}"
-        f" ms; median ratio reference / C {ratio:.1f}x; the same rows {n}/{n}"
-    )
+    for name, times in (("select_next_snippets", fast), ("reference", reference)):
+        print(f"{name}: p50 {statistics.median(times):.2f} p99 {np.percentile(times, 99):.2f} ms")
+    print(f"median ratio reference / C {ratio:.1f}x; the same rows {n}/{n}")
 
 
 if __name__ == "__main__":
