@@ -7,11 +7,9 @@ import psycopg
 from . import pgarray
 
 
-# Selection's plan does not depend on its arguments' values, and planning it can cost more than
-# executing it
-# (about 140 ms a call on the locomotion data, BENCHMARKS.md): a generic plan, planned once; and no
-# JIT, whose
-# threshold the generic plan's estimate passes.
+# Since 0.10.0 select_next_snippets (C) plans nothing per call and never JIT-compiles; these settings
+# still spare the SQL a chain runs around it (select_next_snippet_world's wrapper, the bench's
+# baselines) planning at each call and JIT.
 SELECTION_SETTINGS = {"plan_cache_mode": "force_generic_plan", "jit": "off"}
 
 
