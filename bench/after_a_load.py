@@ -17,6 +17,7 @@ import numpy as np
 import psycopg
 
 from modb.bench.resampled import add_resampled_clips
+from modb.database.connection import connect
 
 QUERY = "SELECT snippet_id, relax_level FROM modb.select_next_snippet(%s, %s)"
 DIRECTORY = (
@@ -53,7 +54,7 @@ def main(source: str, queries: int) -> None:
         ]
         before = len(ids)
     results = {"as loaded": phase(dsn, requests)}
-    with psycopg.connect(dsn, autocommit=True) as conn:
+    with connect(dsn) as conn:  # modb's: arrays as numpy, as the loader reads them
         t = time.perf_counter()
         after = add_resampled_clips(conn, int(before * 1.1), seed=3)
         load_s = time.perf_counter() - t
