@@ -7,9 +7,9 @@ import psycopg
 from . import pgarray
 
 
-# Since 0.10.0 select_next_snippets (C) plans nothing per call and never JIT-compiles; these settings
-# still spare the SQL a chain runs around it (select_next_snippet_world's wrapper, the bench's
-# baselines) planning at each call and JIT.
+# Since 0.10.0 select_next_snippets (C) plans nothing per call and never JIT-compiles; these
+# settings still spare the SQL a chain runs around it (select_next_snippet_world's wrapper, the
+# bench's baselines) planning at each call and JIT.
 SELECTION_SETTINGS = {"plan_cache_mode": "force_generic_plan", "jit": "off"}
 
 
