@@ -18,7 +18,6 @@
 #include "utils/array.h"
 #include "utils/builtins.h"
 #include "utils/guc.h"
-#include "utils/lsyscache.h"
 
 #include "extension/cube/cubedata.h"
 #include "selection.h"
@@ -193,6 +192,21 @@ check_request(FunctionCallInfo fcinfo, int64 **collections, int *n_collections)
 	}
 }
 
+/* The frames a snippet row (clip_id, version, mirrored, first_frame, n_frames, in that order) played. */
+static Played
+played_of(HeapTuple row, TupleDesc desc)
+{
+	bool		isnull;
+	Played		p;
+
+	p.clip_id = DatumGetInt64(SPI_getbinval(row, desc, 1, &isnull));
+	p.version = DatumGetInt32(SPI_getbinval(row, desc, 2, &isnull));
+	p.mirrored = DatumGetBool(SPI_getbinval(row, desc, 3, &isnull));
+	p.low = DatumGetInt32(SPI_getbinval(row, desc, 4, &isnull)) + 1;
+	p.high = p.low - 2 + DatumGetInt32(SPI_getbinval(row, desc, 5, &isnull));
+	return p;
+}
+
 /* The previous snippet's end terminator and the frames it played; false when there is no such snippet. */
 static bool
 read_previous(Request *r)
@@ -218,11 +232,7 @@ read_previous(Request *r)
 	row = SPI_tuptable->vals[0];
 	desc = SPI_tuptable->tupdesc;
 	r->played = palloc(sizeof(Played));
-	r->played[0].clip_id = DatumGetInt64(SPI_getbinval(row, desc, 1, &isnull));
-	r->played[0].version = DatumGetInt32(SPI_getbinval(row, desc, 2, &isnull));
-	r->played[0].mirrored = DatumGetBool(SPI_getbinval(row, desc, 3, &isnull));
-	r->played[0].low = DatumGetInt32(SPI_getbinval(row, desc, 4, &isnull)) + 1;
-	r->played[0].high = r->played[0].low - 2 + DatumGetInt32(SPI_getbinval(row, desc, 5, &isnull));
+	r->played[0] = played_of(row, desc);
 	r->n_played = 1;
 	r->pose_key = SPI_getvalue(row, desc, 6);
 	r->fps = DatumGetFloat8(SPI_getbinval(row, desc, 7, &isnull));
@@ -251,7 +261,6 @@ read_excluded(Request *r, Datum exclude)
 	static SPIPlanPtr query;
 	Oid			types[1] = {INT8ARRAYOID};
 	Datum		args[1] = {exclude};
-	bool		isnull;
 
 	modb_kept_plan(&query,
 				   "SELECT x.clip_id, x.version, x.mirrored, x.first_frame, x.n_frames FROM modb.snippets x"
@@ -261,17 +270,7 @@ read_excluded(Request *r, Datum exclude)
 		elog(ERROR, "modb: reading the excluded snippets failed");
 	r->played = repalloc(r->played, sizeof(Played) * (r->n_played + SPI_processed));
 	for (uint64 i = 0; i < SPI_processed; i++)
-	{
-		HeapTuple	row = SPI_tuptable->vals[i];
-		TupleDesc	desc = SPI_tuptable->tupdesc;
-		Played	   *p = &r->played[r->n_played++];
-
-		p->clip_id = DatumGetInt64(SPI_getbinval(row, desc, 1, &isnull));
-		p->version = DatumGetInt32(SPI_getbinval(row, desc, 2, &isnull));
-		p->mirrored = DatumGetBool(SPI_getbinval(row, desc, 3, &isnull));
-		p->low = DatumGetInt32(SPI_getbinval(row, desc, 4, &isnull)) + 1;
-		p->high = p->low - 2 + DatumGetInt32(SPI_getbinval(row, desc, 5, &isnull));
-	}
+		r->played[r->n_played++] = played_of(SPI_tuptable->vals[i], SPI_tuptable->tupdesc);
 }
 
 /* The candidates CTE of the reference: the collection, and no replay of a played frame. */

@@ -31,7 +31,6 @@ typedef struct MatchPlan
 
 /* A kept, generic SPI plan of a query (planned once per session, never JIT-compiled: selection.c). */
 extern SPIPlanPtr modb_kept_plan(SPIPlanPtr *slot, const char *query, int nargs, Oid *argtypes);
-extern const char *modb_cube_schema(void);
 
 /* The scan nodes of a kept plan (selection_explain.c). */
 extern char *modb_describe_access(SPIPlanPtr plan);

@@ -43,24 +43,6 @@ modb_kept_plan(SPIPlanPtr *slot, const char *query, int nargs, Oid *argtypes)
 	return *slot;
 }
 
-/* The schema of extension cube (quoted), whose type and operators the box queries name. */
-const char *
-modb_cube_schema(void)
-{
-	static char *schema;
-
-	if (schema == NULL)
-	{
-		if (SPI_execute("SELECT quote_ident(n.nspname) FROM pg_catalog.pg_extension e "
-						"JOIN pg_catalog.pg_namespace n ON n.oid = e.extnamespace WHERE e.extname = 'cube'",
-						true, 1) != SPI_OK_SELECT || SPI_processed != 1)
-			elog(ERROR, "modb: extension cube is not installed");
-		schema = MemoryContextStrdup(TopMemoryContext,
-									 SPI_getvalue(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 1));
-	}
-	return schema;
-}
-
 static void
 copy_doubles(Datum array, double *into, int n)
 {
