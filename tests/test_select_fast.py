@@ -135,12 +135,22 @@ def test_a_start_and_errors_are_the_references(cmu):
 
 def test_explain_selection_counts_what_a_box_scan_finds(cmu):
     """The rows explain_selection says level 0 found in its box are the snippets a sequential scan
-    finds in the box it prints."""
+    finds in the box it prints (asked for more rows than there are, a call reads every candidate;
+    asked for one, it reads fewer, best objective first)."""
     rng = random.Random(8)
     with connect(cmu) as conn:
         ids = [r[0] for r in conn.execute("SELECT id FROM modb.snippets ORDER BY id")]
+        fewer = 0
         for _ in range(10):
-            args = [rng.choice(ids), [0.5, 3.0], 1, "default", None, None]
+            prev = rng.choice(ids)
+            one = next(
+                r[0]
+                for r in conn.execute(
+                    "SELECT * FROM modb.explain_selection(%s, '{0.5, 3.0}', 1)", [prev]
+                )
+                if r[0].startswith("  Level 0:")
+            )
+            args = [prev, [0.5, 3.0], len(ids) + 1, "default", None, None]
             lines = [
                 r[0]
                 for r in conn.execute(
@@ -159,6 +169,11 @@ def test_explain_selection_counts_what_a_box_scan_finds(cmu):
             conn.execute("RESET enable_bitmapscan")
             assert in_box == brute, (args, level0)
             assert "Profile as resolved" in lines[1]
+            read = int(re.search(r"(\d+) read \(best objective first\)", one).group(1))
+            candidates = int(re.search(r"(\d+) candidates from their codes", one).group(1))
+            assert read <= candidates and candidates >= in_box
+            fewer += read < candidates
+        assert fewer >= 3
 
 
 def _requests(conn, rng, n, but_clip=None):
@@ -230,3 +245,80 @@ def test_a_repeatable_read_snapshot_keeps_its_snippets_while_another_session_cha
         for args in requests:
             fast, reference = _both(reader, args)
             assert fast == reference, args
+
+
+def _covered_once(conn) -> tuple[int, int]:
+    """Snippets in no block, and snippets in more than one."""
+    return conn.execute(
+        "SELECT (SELECT count(*) FROM modb.snippets s WHERE NOT EXISTS "
+        "        (SELECT FROM modb.snippet_blocks b WHERE s.id = ANY (b.snippets))),"
+        "       (SELECT count(*) FROM (SELECT unnest(snippets) FROM modb.snippet_blocks "
+        "        GROUP BY 1 HAVING count(*) > 1) twice)"
+    ).fetchone()
+
+
+def test_packed_blocks_cover_every_snippet_once_and_answer_as_the_reference(cmu):
+    """modb.pack_snippet_blocks (0.11.0) re-cuts every pose's blocks into k-d leaves: each snippet
+    in exactly one block, the packing's order 0..n-1, and the fast path still answers as the
+    reference, at every level, before and after a clip's snippets are rebuilt beside the packed
+    blocks (deleted ids left in packed blocks, new ones in blocks of consecutive snippets)."""
+    rng = random.Random(31)
+    with connect(cmu) as conn, conn.transaction(force_rollback=True):
+        packed = conn.execute("SELECT * FROM modb.pack_snippet_blocks(0)").fetchall()
+        (n_snippets,) = conn.execute("SELECT count(*) FROM modb.snippets").fetchone()
+        assert sum(row[2] for row in packed) == n_snippets
+        assert _covered_once(conn) == (0, 0)
+        assert conn.execute(
+            "SELECT bool_and(n = orders AND lowest = 0 AND highest = n - 1) FROM (SELECT"
+            " count(*) n, count(DISTINCT pack_order) orders, min(pack_order) lowest,"
+            " max(pack_order) highest"
+            " FROM modb.snippet_blocks GROUP BY pose_key, fps) g"
+        ).fetchone() == (True,)
+        ids = [r[0] for r in conn.execute("SELECT id FROM modb.snippets ORDER BY id")]
+        (clip,) = conn.execute(
+            "SELECT min(clip_id) FROM modb.snippets WHERE NOT mirrored"
+        ).fetchone()
+        levels = set()
+        for step in ("packed", "a clip rebuilt beside them"):
+            if step != "packed":
+                conn.execute(
+                    "DELETE FROM modb.snippet_sources WHERE clip_id = %s AND NOT mirrored", [clip]
+                )
+                conn.execute("SELECT modb.build_snippets(clip => %s)", [clip])
+                assert _covered_once(conn) == (0, 0)
+                ids = [r[0] for r in conn.execute("SELECT id FROM modb.snippets ORDER BY id")]
+            for _ in range(120):
+                f = rng.choice(TIGHTNESS)
+                _set_tightness(conn, f)
+                prev = rng.choice(ids)
+                exclude = [r[0] for r in conn.execute(SUCCESSOR, [prev])] or None
+                target = [round(rng.uniform(-6, 6), 3) for _ in range(2)]
+                args = [prev, target, rng.choice((1, 3)), rng.choice(PROFILES), None, exclude]
+                fast, reference = _both(conn, args)
+                assert fast == reference, (step, args, f)
+                levels.update(row[7] for row in reference)
+        _set_tightness(conn, None)
+        assert levels >= {0, 1, 2, 3}, levels
+
+
+def test_a_packing_waits_for_a_load_in_flight_and_keeps_its_blocks(cmu):
+    """A load that has added snippets (and blocks) but not committed holds the blocks' generation
+    row: the packing waits for it, then packs what was committed, the loaded snippets with the
+    rest."""
+    with connect(cmu) as loader, connect(cmu) as packer:
+        (clip,) = loader.execute(
+            "SELECT max(clip_id) FROM modb.snippets WHERE NOT mirrored"
+        ).fetchone()
+        loader.autocommit = False
+        loader.execute(
+            "DELETE FROM modb.snippet_sources WHERE clip_id = %s AND NOT mirrored", [clip]
+        )
+        loader.execute("SELECT modb.build_snippets(clip => %s)", [clip])
+        packer.execute("SET lock_timeout = '300ms'")
+        with pytest.raises(psycopg.errors.LockNotAvailable):
+            packer.execute("SELECT * FROM modb.pack_snippet_blocks(0)")
+        loader.commit()
+        packed = packer.execute("SELECT * FROM modb.pack_snippet_blocks(0)").fetchall()
+        (n_snippets,) = packer.execute("SELECT count(*) FROM modb.snippets").fetchone()
+        assert sum(row[2] for row in packed) == n_snippets
+        assert _covered_once(packer) == (0, 0)

@@ -31,7 +31,18 @@ MIRRORED_TERMINATORS = (
 )
 
 
-OLD_VERSIONS = ["0.1.0", "0.2.0", "0.3.0", "0.4.0", "0.5.0", "0.6.0", "0.7.0", "0.8.0", "0.9.0"]
+OLD_VERSIONS = [
+    "0.1.0",
+    "0.2.0",
+    "0.3.0",
+    "0.4.0",
+    "0.5.0",
+    "0.6.0",
+    "0.7.0",
+    "0.8.0",
+    "0.9.0",
+    "0.10.0",
+]
 
 
 @pytest.mark.parametrize("old", OLD_VERSIONS)
@@ -115,6 +126,11 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
             "SELECT count(*) FROM modb.snippets s WHERE NOT EXISTS "
             "(SELECT FROM modb.snippet_blocks b WHERE s.id = ANY (b.snippets))"
         ).fetchone() == (0,)
+        # 0.11.0: the blocks a load left are packed; a load packed them already since 0.11.0
+        db.execute("SELECT * FROM modb.pack_snippet_blocks(0.2)")
+        assert db.execute(
+            "SELECT count(*) FILTER (WHERE pack_order IS NULL) FROM modb.snippet_blocks"
+        ).fetchone() == (0,)
         for (prev,) in db.execute("SELECT id FROM modb.snippets ORDER BY id LIMIT 5 OFFSET 200"):
             fast, reference = (
                 db.execute(
@@ -191,6 +207,18 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
         "SELECT p.oid::regprocedure::text, p.proacl::text FROM pg_proc p "
         "WHERE pronamespace = 'modb'::regnamespace ORDER BY 1"
     )
+    # 0.11.0 altered a table: its columns (type, NOT NULL) and constraints are compared too.
+    shapes = (
+        "SELECT c.relname, a.attname, format_type(a.atttypid, a.atttypmod), a.attnotnull "
+        "FROM pg_attribute a JOIN pg_class c ON c.oid = a.attrelid "
+        "WHERE c.relnamespace = 'modb'::regnamespace AND c.relkind = 'r' AND a.attnum > 0 "
+        "AND NOT a.attisdropped "
+        "UNION ALL SELECT t.relname, o.conname, pg_get_constraintdef(o.oid), NULL "
+        "FROM pg_constraint o JOIN pg_class t ON t.oid = o.conrelid "
+        "WHERE t.relnamespace = 'modb'::regnamespace "
+        "ORDER BY 1, 2"
+    )
+    updated_shapes = db.execute(shapes).fetchall()
     updated_acls, updated_grants = db.execute(acls).fetchall(), db.execute(grants).fetchall()
     updated_column_acls = db.execute(column_acls).fetchall()
     db.execute("DROP ROLE IF EXISTS t_updated_reader")
@@ -211,6 +239,8 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
     db.execute("CREATE EXTENSION modb")
     assert [r[0] for r in db.execute(objects).fetchall()] == updated
     assert db.execute(functions).fetchall() == updated_functions
+    if old == "0.10.0":  # (earlier releases' own changes are not re-checked here)
+        assert db.execute(shapes).fetchall() == updated_shapes
     assert (
         db.execute(acls).fetchall() == updated_acls
         and db.execute(grants).fetchall() == updated_grants

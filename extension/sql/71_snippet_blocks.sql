@@ -1,28 +1,38 @@
--- Snippet blocks: the begin features of up to 32 consecutive snippets of a clip source as 8-bit codes
--- within the block's bounds (src/snippet_blocks.c). select_next_snippets finds a box's candidates by
--- testing each block's bounds (kept per session in memory: src/block_directory.c) and then the codes of
--- the blocks that meet the box, where the GiST index visits a few percent of its pages whatever the box
--- (BENCHMARKS.md "Selection at scale"): consecutive snippets of a clip are near-identical, so a block's
--- bounds are tight. A block is a superset: every candidate is checked on its exact features again.
+-- Snippet blocks: the begin features of up to 32 snippets of one pose and rate as 8-bit codes within the
+-- block's bounds (src/snippet_blocks.c). select_next_snippets finds a box's candidates by testing each
+-- block's bounds (kept per session in memory: src/block_directory.c) and then the codes of the blocks that
+-- meet the box, where the GiST index visits a few percent of its pages whatever the box (BENCHMARKS.md
+-- "Selection at scale"). A load adds blocks of consecutive snippets of a clip source;
+-- modb.pack_snippet_blocks (71_snippet_blocks_pack.sql) re-cuts a pose's blocks into ones of snippets near
+-- each other in feature space, which are tighter. A block is a superset: every candidate is checked on its
+-- exact features again.
 -- Derived from modb.snippets by triggers in the same transaction, so a block is visible exactly when its
 -- snippets are (any snapshot, a standby, the loader's own uncommitted rows); not dumped: a restore's
 -- COPY into modb.snippets builds them again.
 
 CREATE TABLE modb.snippet_blocks (
-    clip_id       bigint NOT NULL,
-    version       int NOT NULL,
-    mirrored      boolean NOT NULL,
+    clip_id       bigint,
+    version       int,
+    mirrored      boolean,
     pose_key      text NOT NULL,
     fps           float8 NOT NULL,
-    collection_id bigint NOT NULL,
+    collection_id bigint,
     snippets      bigint[] NOT NULL CHECK (array_length(snippets, 1) BETWEEN 1 AND 32),
     low           real[] NOT NULL,
     high          real[] NOT NULL,
     codes         bytea NOT NULL,
-    FOREIGN KEY (clip_id, version, mirrored) REFERENCES modb.snippet_sources ON DELETE CASCADE
-) WITH (toast_tuple_target = 8160);  -- a block (about 2.3 kB) stays in its heap page, uncompressed
+    FOREIGN KEY (clip_id, version, mirrored) REFERENCES modb.snippet_sources ON DELETE CASCADE,
+    pack_order    int,
+    objective_inputs real[],
+    CONSTRAINT snippet_blocks_source_check CHECK (pack_order IS NOT NULL OR (clip_id IS NOT NULL
+        AND version IS NOT NULL AND mirrored IS NOT NULL AND collection_id IS NOT NULL))
+) WITH (toast_tuple_target = 8160);  -- a block (about 3.3 kB, two a page) stays uncompressed
 COMMENT ON TABLE modb.snippet_blocks IS
-    'Up to 32 consecutive snippets of a clip source (same pose, rate and collection): the bounds of their begin features and each one''s 8-bit code within them; select_next_snippets'' box search (kept by triggers on modb.snippets)';
+    'Up to 32 snippets of one pose and rate: consecutive ones of a clip source (as loaded) or packed ones near each other (pack_order set); the bounds of their begin features and each one''s 8-bit code within them; select_next_snippets'' box search (kept by triggers on modb.snippets)';
+COMMENT ON COLUMN modb.snippet_blocks.objective_inputs IS
+    'Per snippet, what its objective is computed from, as float4: net_translation (3), future_translation (3), future_heading; NaN for NULL. A call reads candidates in the order of the least objective these allow and stops when none left can make the answer';
+COMMENT ON COLUMN modb.snippet_blocks.pack_order IS
+    'The block''s place in its pose''s packing (modb.pack_snippet_blocks), NULL for a block of consecutive snippets of the clip source named by clip_id, version, mirrored and collection_id (NULL in a packed block)';
 COMMENT ON COLUMN modb.snippet_blocks.codes IS
     'snippets x features bytes: floor((feature - low) / ((high - low) / 255)), clamped to 0..255';
 CREATE INDEX snippet_blocks_source_idx ON modb.snippet_blocks (clip_id, version, mirrored);  -- ON DELETE CASCADE
@@ -50,21 +60,8 @@ COMMENT ON FUNCTION modb.snippets_inserted() IS 'Trigger: blocks for the snippet
 CREATE TRIGGER snippets_blocks_insert AFTER INSERT ON modb.snippets REFERENCING NEW TABLE AS inserted
     FOR EACH STATEMENT EXECUTE FUNCTION modb.snippets_inserted();
 
--- An update of what a block holds (fill_futures updates other columns) adds a block for the new values;
--- the old block keeps naming the snippet, whose exact values are read again at every selection.
-CREATE FUNCTION modb.snippets_updated()
-RETURNS trigger
-LANGUAGE plpgsql VOLATILE PARALLEL UNSAFE
-AS $$
-BEGIN
-    PERFORM modb.add_snippet_blocks(ARRAY(
-        SELECT n.id FROM new_rows n JOIN old_rows o ON o.id = n.id
-         WHERE (n.begin_features, n.pose_key, n.fps, n.collection_id, n.clip_id, n.version, n.mirrored)
-               IS DISTINCT FROM (o.begin_features, o.pose_key, o.fps, o.collection_id, o.clip_id, o.version, o.mirrored)));
-    RETURN NULL;
-END
-$$;
-COMMENT ON FUNCTION modb.snippets_updated() IS 'Trigger: blocks for snippets whose features, pose, rate, collection or source an UPDATE changed';
+-- An update of what a block holds adds a block for the new values (modb.snippets_updated:
+-- 70_snippets_updated.sql).
 CREATE TRIGGER snippets_blocks_update AFTER UPDATE ON modb.snippets
     REFERENCING OLD TABLE AS old_rows NEW TABLE AS new_rows
     FOR EACH STATEMENT EXECUTE FUNCTION modb.snippets_updated();

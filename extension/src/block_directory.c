@@ -1,7 +1,8 @@
 /*
- * The block directory: each snippet block's bounds, 8-bit on each feature's fixed physical scale, by
- * (pose, rate) group, kept in this session's memory (about 110 bytes a block: 3.5 MB at a million
- * snippets), with a box over every SUPER_BLOCKS consecutive blocks above them. A box search tests the groups, the super boxes and the
+ * The block directory: each snippet block's bounds, 16-bit on each feature's fixed physical scale, by
+ * (pose, rate) group, kept in this session's memory (about 210 bytes a block: 6.6 MB at a million
+ * snippets), with a box over every SUPER_BLOCKS consecutive blocks above them (packed blocks in the order
+ * of their packing, a subtree of its split each, then the others in table order). A box search tests the groups, the super boxes and the
  * blocks here, reads only the blocks that meet the box from modb.snippet_blocks (under the caller's
  * snapshot, by their tuple ids) and tests their snippets' codes: what passes is a superset of the
  * snippets whose features lie in the box, which the caller checks exactly.
@@ -35,17 +36,23 @@
 #include "selection.h"
 
 #define SUPER_BLOCKS 32
+#define MaxBlockColumns 12		/* objective_inputs is the 12th */
 
-typedef struct Box8
+/* 8-bit bounds on the fixed scale met twice as many blocks as the float bounds; 16-bit ones, as many. */
+#define SCALE_STEPS 65535
+
+typedef struct Box16
 {
-	uint8		lo[N_FEATURES];
-	uint8		hi[N_FEATURES];
-} Box8;
+	uint16		lo[N_FEATURES];
+	uint16		hi[N_FEATURES];
+} Box16;
 
 typedef struct Entry
 {
 	ItemPointerData tid;
-	Box8		box;
+	int32		order;			/* pack_order; PG_INT32_MAX (after the packed ones) when none */
+	int32		tid_order;		/* its place in the table scan */
+	Box16		box;
 } Entry;
 
 typedef struct PoseGroup
@@ -55,7 +62,7 @@ typedef struct PoseGroup
 	int			count;			/* its blocks, in table order (a clip's blocks are stored in clip order) */
 	int			capacity;
 	Entry	   *entries;
-	Box8	   *supers;			/* one per SUPER_BLOCKS entries */
+	Box16	   *supers;			/* one per SUPER_BLOCKS entries */
 } PoseGroup;
 
 typedef struct Directory
@@ -74,7 +81,7 @@ typedef struct Directory
 static Directory directory;
 static MemoryContext directory_context;
 
-/* Each feature's fixed 8-bit scale (build_sql.py's feature_range): code c covers min + c step. */
+/* Each feature's fixed scale (build_sql.py's feature_range): code c covers min + c step. */
 static const double feature_ranges[N_FEATURES][2] = FEATURE_RANGES;
 
 static double
@@ -86,26 +93,38 @@ scale_min(int d)
 static double
 scale_step(int d)
 {
-	return (feature_ranges[d][1] - feature_ranges[d][0]) / 255.0;
+	return (feature_ranges[d][1] - feature_ranges[d][0]) / SCALE_STEPS;
 }
 
+/* The codes (of `steps` steps) that values within [lo, hi] may have, with a code's margin each side. */
 static void
-code_range(double lo, double hi, double min, double step, int *from, int *to)
+code_range(double lo, double hi, double min, double step, int steps, int *from, int *to)
 {
 	double		a = floor((lo - min) / step) - 1;
 	double		b = ceil((hi - min) / step) + 1;
 
-	*from = a < -1 ? -1 : (a > 256 ? 256 : (int) a);
-	*to = b < -1 ? -1 : (b > 256 ? 256 : (int) b);
+	*from = a < -1 ? -1 : (a > steps + 1 ? steps + 1 : (int) a);
+	*to = b < -1 ? -1 : (b > steps + 1 ? steps + 1 : (int) b);
 }
 
 static bool
-box8_meets(const Box8 *box, const int *from, const int *to)
+box_meets(const Box16 *box, const int *from, const int *to)
 {
 	for (int d = 0; d < N_FEATURES; d++)
 		if (box->hi[d] < from[d] || box->lo[d] > to[d])
 			return false;
 	return true;
+}
+
+static int
+entry_order(const void *a, const void *b)
+{
+	const Entry *x = a,
+			   *y = b;
+
+	if (x->order != y->order)
+		return x->order < y->order ? -1 : 1;
+	return x->tid_order < y->tid_order ? -1 : (x->tid_order > y->tid_order ? 1 : 0);
 }
 
 static void
@@ -173,6 +192,7 @@ read_directory(Relation rel, int64 generation)
 		text	   *pose_key = (text *) DatumGetPointer(heap_getattr(tuple, 4, desc, &isnull));
 		double		fps = DatumGetFloat8(heap_getattr(tuple, 5, desc, &isnull));
 		Datum		codes = heap_getattr(tuple, 10, desc, &isnull);
+		Datum		order;
 		float		low[N_FEATURES],
 					high[N_FEATURES];
 		PoseGroup  *g;
@@ -191,13 +211,15 @@ read_directory(Relation rel, int64 generation)
 		}
 		e = &g->entries[g->count++];
 		e->tid = tuple->t_self;
+		order = desc->natts >= 11 ? heap_getattr(tuple, 11, desc, &isnull) : (Datum) 0;	/* 0.10.0: none */
+		e->order = desc->natts < 11 || isnull ? PG_INT32_MAX : DatumGetInt32(order);
 		for (int d = 0; d < N_FEATURES; d++)
 		{
 			double		a = floor(((double) low[d] - scale_min(d)) / scale_step(d));
 			double		b = ceil(((double) high[d] - scale_min(d)) / scale_step(d));
 
-			e->box.lo[d] = (uint8) (a < 0 ? 0 : (a > 255 ? 255 : a));
-			e->box.hi[d] = (uint8) (b < 0 ? 0 : (b > 255 ? 255 : b));
+			e->box.lo[d] = (uint16) (a < 0 ? 0 : (a > SCALE_STEPS ? SCALE_STEPS : a));
+			e->box.hi[d] = (uint16) (b < 0 ? 0 : (b > SCALE_STEPS ? SCALE_STEPS : b));
 		}
 		directory.n_blocks++;
 		directory.n_snippets += toast_raw_datum_size(codes) / N_FEATURES;
@@ -207,11 +229,15 @@ read_directory(Relation rel, int64 generation)
 	{
 		PoseGroup  *g = &directory.groups[k];
 
-		g->supers = palloc(sizeof(Box8) * Max((g->count + SUPER_BLOCKS - 1) / SUPER_BLOCKS, 1));
+		/* Stable: blocks of consecutive snippets keep their table (clip) order. */
+		for (int e = 0; e < g->count; e++)
+			g->entries[e].tid_order = e;
+		qsort(g->entries, g->count, sizeof(Entry), entry_order);
+		g->supers = palloc(sizeof(Box16) * Max((g->count + SUPER_BLOCKS - 1) / SUPER_BLOCKS, 1));
 		for (int e = 0; e < g->count; e++)
 		{
-			Box8	   *box = &g->entries[e].box;
-			Box8	   *super = &g->supers[e / SUPER_BLOCKS];
+			Box16	   *box = &g->entries[e].box;
+			Box16	   *super = &g->supers[e / SUPER_BLOCKS];
 
 			for (int d = 0; d < N_FEATURES; d++)
 			{
@@ -228,22 +254,34 @@ read_directory(Relation rel, int64 generation)
 	directory.valid = true;
 }
 
-/* Tests a block's snippets' codes against [lo, hi]; appends the ids that pass. */
+/*
+ * Tests a block's snippets' codes against [lo, hi]; appends those that pass, with the objective inputs the
+ * block holds for them (blocks from 0.10.0 hold none).
+ */
 static int
-scan_block(HeapTuple tuple, TupleDesc desc, const double *lo, const double *hi, int64 *ids, int n_ids)
+scan_block(HeapTuple tuple, TupleDesc desc, const double *lo, const double *hi, BlockCandidate *out, int n_out)
 {
-	bool		isnull;
-	ArrayType  *snippets = DatumGetArrayTypeP(heap_getattr(tuple, 7, desc, &isnull));
+	Datum		values[MaxBlockColumns];
+	bool		nulls[MaxBlockColumns];
+	ArrayType  *snippets;
 	float		low[N_FEATURES],
 				high[N_FEATURES];
-	bytea	   *codes = DatumGetByteaPP(heap_getattr(tuple, 10, desc, &isnull));
-	const uint8 *code = (const uint8 *) VARDATA_ANY(codes);
-	int			n = ARR_DIMS(snippets)[0];
+	bytea	   *codes;
+	const uint8 *code;
+	int			n;
 	int			from[N_FEATURES],
 				to[N_FEATURES];
+	const float *inputs = NULL;
 
-	float4_values(heap_getattr(tuple, 8, desc, &isnull), low);
-	float4_values(heap_getattr(tuple, 9, desc, &isnull), high);
+	if (desc->natts > MaxBlockColumns)
+		elog(ERROR, "modb: modb.snippet_blocks has %d columns, not at most %d", desc->natts, MaxBlockColumns);
+	heap_deform_tuple(tuple, desc, values, nulls);
+	snippets = DatumGetArrayTypeP(values[6]);
+	codes = DatumGetByteaPP(values[9]);
+	code = (const uint8 *) VARDATA_ANY(codes);
+	n = ARR_DIMS(snippets)[0];
+	float4_values(values[7], low);
+	float4_values(values[8], high);
 	if (VARSIZE_ANY_EXHDR(codes) != n * N_FEATURES)
 		elog(ERROR, "modb: a snippet block has %d codes for %d snippets", (int) VARSIZE_ANY_EXHDR(codes), n);
 	for (int d = 0; d < N_FEATURES; d++)
@@ -251,43 +289,65 @@ scan_block(HeapTuple tuple, TupleDesc desc, const double *lo, const double *hi, 
 		double		step = ((double) high[d] - (double) low[d]) / 255.0;
 
 		if (hi[d] < (double) low[d] || lo[d] > (double) high[d])
-			return n_ids;		/* the block's own bounds miss the box */
+			return n_out;		/* the block's own bounds miss the box */
 		if (step > 0)
-			code_range(lo[d], hi[d], (double) low[d], step, &from[d], &to[d]);
+			code_range(lo[d], hi[d], (double) low[d], step, 255, &from[d], &to[d]);
 		else
 		{
 			from[d] = 0;
 			to[d] = 255;
 		}
 	}
+	if (desc->natts >= 12 && !nulls[11])
+	{
+		ArrayType  *a = DatumGetArrayTypeP(values[11]);
+
+		if (ARR_NDIM(a) == 1 && !ARR_HASNULL(a) && ARR_DIMS(a)[0] == n * N_OBJECTIVE_INPUTS)
+			inputs = (const float *) ARR_DATA_PTR(a);
+	}
 	for (int i = 0; i < n; i++)
 	{
 		const uint8 *c = code + i * N_FEATURES;
 		int			d = 0;
+		BlockCandidate *candidate = &out[n_out];
 
 		while (d < N_FEATURES && c[d] >= from[d] && c[d] <= to[d])
 			d++;
-		if (d == N_FEATURES)
-			ids[n_ids++] = ((int64 *) ARR_DATA_PTR(snippets))[i];
+		if (d < N_FEATURES)
+			continue;
+		candidate->id = ((int64 *) ARR_DATA_PTR(snippets))[i];
+		/* Not yet filled futures (NaN) may be filled since: such a snippet's block says nothing of them. */
+		candidate->hinted = inputs != NULL;
+		for (int k = 0; k < N_OBJECTIVE_INPUTS; k++)
+		{
+			candidate->inputs[k] = inputs ? (double) inputs[i * N_OBJECTIVE_INPUTS + k] : NAN;
+			candidate->hinted &= isfinite(candidate->inputs[k]);
+		}
+		n_out++;
 	}
-	return n_ids;
+	return n_out;
 }
 
-static int
-int64_order(const void *a, const void *b)
+/* A candidate's id and place, sorted by id (a specialised sort: candidates are thousands a call). */
+typedef struct IdPlace
 {
-	int64		x = *(const int64 *) a,
-				y = *(const int64 *) b;
+	int64		id;
+	int32		place;
+} IdPlace;
 
-	return x < y ? -1 : (x > y ? 1 : 0);
-}
+#define ST_SORT sort_id_places
+#define ST_ELEMENT_TYPE IdPlace
+#define ST_COMPARE(a, b) ((a)->id < (b)->id ? -1 : ((a)->id > (b)->id ? 1 : 0))
+#define ST_SCOPE static
+#define ST_DEFINE
+#include "lib/sort_template.h"
 
-int64 *
+BlockCandidate *
 modb_block_candidates(Oid relid, int64 generation, const char *pose_key, double fps, const double *lo,
-					  const double *hi, int *n_ids, BlockStats *stats)
+					  const double *hi, int *n_out, BlockStats *stats)
 {
 	Relation	rel;
-	int64	   *ids;
+	BlockCandidate *out;
 	int			n = 0,
 				capacity = 1024;
 	int			from[N_FEATURES],
@@ -313,9 +373,9 @@ modb_block_candidates(Oid relid, int64 generation, const char *pose_key, double 
 		stats->blocks = directory.n_blocks;
 		stats->snippets = directory.n_snippets;
 	}
-	ids = palloc(sizeof(int64) * capacity);
+	out = palloc(sizeof(BlockCandidate) * capacity);
 	for (int d = 0; d < N_FEATURES; d++)
-		code_range(lo[d], hi[d], scale_min(d), scale_step(d), &from[d], &to[d]);
+		code_range(lo[d], hi[d], scale_min(d), scale_step(d), SCALE_STEPS, &from[d], &to[d]);
 	for (int k = 0; k < directory.n_groups; k++)
 	{
 		PoseGroup  *g = &directory.groups[k];
@@ -324,14 +384,14 @@ modb_block_candidates(Oid relid, int64 generation, const char *pose_key, double 
 			continue;
 		for (int s = 0; s * SUPER_BLOCKS < g->count; s++)
 		{
-			if (!box8_meets(&g->supers[s], from, to))
+			if (!box_meets(&g->supers[s], from, to))
 				continue;
 			for (int e = s * SUPER_BLOCKS; e < Min(g->count, (s + 1) * SUPER_BLOCKS); e++)
 			{
 				HeapTupleData tuple;
 				Buffer		buffer;
 
-				if (!box8_meets(&g->entries[e].box, from, to))
+				if (!box_meets(&g->entries[e].box, from, to))
 					continue;
 				if (stats)
 					stats->blocks_read++;
@@ -341,25 +401,45 @@ modb_block_candidates(Oid relid, int64 generation, const char *pose_key, double 
 				if (n + BLOCK_SNIPPETS > capacity)
 				{
 					capacity *= 2;
-					ids = repalloc(ids, sizeof(int64) * capacity);
+					out = repalloc(out, sizeof(BlockCandidate) * capacity);
 				}
-				n = scan_block(&tuple, RelationGetDescr(rel), lo, hi, ids, n);
+				n = scan_block(&tuple, RelationGetDescr(rel), lo, hi, out, n);
 				ReleaseBuffer(buffer);
 			}
 		}
 	}
 	table_close(rel, AccessShareLock);
-	/* A snippet in two blocks (its values updated) is one candidate. */
-	qsort(ids, n, sizeof(int64), int64_order);
-	*n_ids = 0;
-	for (int i = 0; i < n; i++)
-		if (i == 0 || ids[i] != ids[i - 1])
-			ids[(*n_ids)++] = ids[i];
+	/*
+	 * A snippet in two blocks (its values updated since its first block) is one candidate, and neither
+	 * block's objective inputs need be its own.
+	 */
+	{
+		IdPlace    *order = palloc(sizeof(IdPlace) * Max(n, 1));
+		BlockCandidate *unique = palloc(sizeof(BlockCandidate) * Max(n, 1));
+
+		for (int i = 0; i < n; i++)
+		{
+			order[i].id = out[i].id;
+			order[i].place = i;
+		}
+		sort_id_places(order, n);
+		*n_out = 0;
+		for (int i = 0; i < n; i++)
+		{
+			if (*n_out > 0 && order[i].id == unique[*n_out - 1].id)
+				unique[*n_out - 1].hinted = false;
+			else
+				unique[(*n_out)++] = out[order[i].place];
+		}
+		pfree(order);
+		pfree(out);
+		out = unique;
+	}
 	if (stats)
 	{
 		INSTR_TIME_SET_CURRENT(end);
 		INSTR_TIME_SUBTRACT(end, start);
 		stats->ms = INSTR_TIME_GET_MILLISEC(end);
 	}
-	return ids;
+	return out;
 }

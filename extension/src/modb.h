@@ -48,9 +48,11 @@ typedef struct CostGrid
 } CostGrid;
 
 extern void modb_aim_point(const double *target, int n, bool has_lookahead, double lookahead, double *aim);
+/* The direction of the aim point from the origin (radians), which modb_approach_cost measures headings to. */
+extern double modb_aim_direction(const double *aim, int n);
 extern bool modb_approach_cost(const double *net_translation, const double *future_translation,
 							   bool has_future_heading, double future_heading, const double *aim, int n,
-							   double heading_weight, double *cost);
+							   double direction, double heading_weight, double *cost);
 extern void modb_world_to_local(const double *origin, double heading, const double *target, int n, double *local);
 extern bool modb_cost_to_go(const float *costs, int n_costs, const double *goal, int n, const CostGrid *grid,
 							double *seconds);

@@ -32,30 +32,40 @@ modb_aim_point(const double *target, int n, bool has_lookahead, double lookahead
 	aim[n - 1] = target[n - 1] * lookahead / ground;
 }
 
-/* modb.target_cost: translation (3 values) and heading change against the aim ({x, z} or {x, y, z}). */
-static double
-target_cost(const double *translation, double heading, const double *aim, int n, double heading_weight)
+double
+modb_aim_direction(const double *aim, int n)
 {
-	double		distance = n == 3
-		? sqrt(sq(translation[0] - aim[0]) + sq(translation[1] - aim[1]) + sq(translation[2] - aim[2]))
-		: sqrt(sq(translation[0] - aim[0]) + sq(translation[2] - aim[1]));
-	double		direction = atan2(aim[0], aim[n - 1]);
-
-	return distance + heading_weight * fabs(atan2(sin(heading - direction), cos(heading - direction)));
+	return atan2(aim[0], aim[n - 1]);
 }
 
+/* The distance part of modb.target_cost: translation (3 values) to the aim ({x, z} or {x, y, z}). */
+static double
+distance_to(const double *translation, const double *aim, int n)
+{
+	return n == 3
+		? sqrt(sq(translation[0] - aim[0]) + sq(translation[1] - aim[1]) + sq(translation[2] - aim[2]))
+		: sqrt(sq(translation[0] - aim[0]) + sq(translation[2] - aim[1]));
+}
+
+/*
+ * modb.approach_cost: least(target_cost(net), target_cost(future)), both with the future heading, so their
+ * heading terms are one value (computed once; direction is modb_aim_direction's).
+ */
 bool
 modb_approach_cost(const double *net_translation, const double *future_translation, bool has_future_heading,
-				   double future_heading, const double *aim, int n, double heading_weight, double *cost)
+				   double future_heading, const double *aim, int n, double direction, double heading_weight,
+				   double *cost)
 {
+	double		turn;
 	double		end;
 
 	if (!has_future_heading)
 		return false;			/* NULL, as in SQL: both terms use the future heading */
-	end = target_cost(net_translation, future_heading, aim, n, heading_weight);
+	turn = heading_weight * fabs(atan2(sin(future_heading - direction), cos(future_heading - direction)));
+	end = distance_to(net_translation, aim, n) + turn;
 	if (future_translation != NULL)
 	{
-		double		future = target_cost(future_translation, future_heading, aim, n, heading_weight);
+		double		future = distance_to(future_translation, aim, n) + turn;
 
 		end = future < end ? future : end;	/* least() */
 	}

@@ -37,6 +37,10 @@ enum
 	COL_BEGIN_FEATURES, COL_COST_TO_GO
 };
 
+/* Candidates one query reads, at first; each next query reads twice as many. */
+#define FIRST_BATCH 16
+#define LARGEST_BATCH 512
+
 /* A stretch of frames a clip source played: the frames after a snippet's first (its seam). */
 typedef struct Played
 {
@@ -53,6 +57,7 @@ typedef struct Request
 	double		target[3];
 	int			n;				/* 2: {x, z}; 3: {x, y, z} */
 	double		aim[3];
+	double		direction;		/* of the aim point (modb_aim_direction) */
 	int			k;
 	const MatchPlan *plan;
 	/* the previous snippet's end */
@@ -85,9 +90,10 @@ row_value(const Row *row, int column, bool *isnull)
 	return row->values[column - 1];
 }
 
+/* A candidate read and checked. */
 typedef struct Candidate
 {
-	int			row;
+	const Row  *row;
 	int64		id;
 	bool		has_key;
 	double		key;			/* objective + continuity_weight x ratio */
@@ -95,6 +101,15 @@ typedef struct Candidate
 	double		proximity;
 	double		ratio;
 } Candidate;
+
+/* A candidate not read yet: the least key it can have, from the objective inputs its block holds. */
+typedef struct Pending
+{
+	int64		id;
+	bool		hinted;			/* false: unknown (read first) */
+	bool		has_proximity;
+	double		bound;
+} Pending;
 
 static const float *
 float4_array(Datum value, int length)
@@ -329,7 +344,7 @@ proximity_of(const Request *r, const Row *row, double *proximity)
 	const double *future = float8_array(row->values[COL_FUTURE_TRANSLATION - 1], row->nulls[COL_FUTURE_TRANSLATION - 1], &n_future);
 	double		future_heading = DatumGetFloat8(row_value(row, COL_FUTURE_HEADING, &isnull));
 
-	return modb_approach_cost(net, n_future == 3 ? future : NULL, !isnull, future_heading, r->aim, r->n,
+	return modb_approach_cost(net, n_future == 3 ? future : NULL, !isnull, future_heading, r->aim, r->n, r->direction,
 							  r->plan->heading_weight, proximity);
 }
 
@@ -390,10 +405,6 @@ candidate_order(const void *a, const void *b)
 }
 
 
-/*
- * One level: score the rows of `query` and put the best (k - *emitted) of those within the level's ratio
- * range into the store. low < ratio <= high (low is -Infinity at level 0).
- */
 /* cube's <@ of a point in a box: every coordinate within the box's bounds. */
 static bool
 in_box(const Row *row, const double *lo, const double *hi)
@@ -410,98 +421,266 @@ in_box(const Row *row, const double *lo, const double *hi)
 	return true;
 }
 
-static void
-run_level(const Request *r, SPIPlanPtr query, Datum *args, const char *nulls, int level, const double *lo,
-		  const double *hi, double low, double high, Tuplestorestate *store, TupleDesc out, int *emitted,
-		  LevelStats *stats)
+/* In the order candidates are read: unknown ones first, then by the least key they can have, NULLs last. */
+static int
+pending_order(const void *a, const void *b)
 {
-	bool		stored = lo == NULL;
-	Candidate  *candidates;
-	Row		   *rows_deformed;
-	int			n = 0;
-	uint64		rows;
-	TupleDesc	desc;
-	instr_time	start,
-				duration;
+	const Pending *x = a,
+			   *y = b;
 
-	if (stats)
-		INSTR_TIME_SET_CURRENT(start);
-	if (SPI_execute_plan(query, args, nulls, true, 0) != SPI_OK_SELECT)
-		elog(ERROR, "modb: a selection query failed");
-	rows = SPI_processed;
-	desc = SPI_tuptable->tupdesc;
-	candidates = palloc(sizeof(Candidate) * Max(rows, 1));
-	rows_deformed = palloc(sizeof(Row) * Max(rows, 1));
-	for (uint64 i = 0; i < rows; i++)
+	if (x->hinted != y->hinted)
+		return x->hinted ? 1 : -1;
+	if (x->has_proximity != y->has_proximity)
+		return x->has_proximity ? -1 : 1;
+	if (x->has_proximity && x->bound != y->bound)
+		return x->bound < y->bound ? -1 : 1;
+	return x->id < y->id ? -1 : (x->id > y->id ? 1 : 0);
+}
+
+/* Restores the heap order (pending_order: least first) below heap[at]. */
+static void
+sift_down(Pending *heap, int n, int at)
+{
+	for (;;)
 	{
-		Row		   *row = &rows_deformed[i];
+		int			least = at,
+					left = 2 * at + 1,
+					right = left + 1;
+		Pending		t;
+
+		if (left < n && pending_order(&heap[left], &heap[least]) < 0)
+			least = left;
+		if (right < n && pending_order(&heap[right], &heap[least]) < 0)
+			least = right;
+		if (least == at)
+			return;
+		t = heap[at];
+		heap[at] = heap[least];
+		heap[least] = t;
+		at = least;
+	}
+}
+
+/* Puts c into best (sorted, at most `need` long, *n of them) if it ranks among the best `need`. */
+static void
+keep_best(Candidate *best, int *n, int need, const Candidate *c)
+{
+	int			at = *n;
+
+	while (at > 0 && candidate_order(c, &best[at - 1]) < 0)
+		at--;
+	if (at >= need)
+		return;
+	memmove(&best[at + 1], &best[at], sizeof(Candidate) * (Min(*n, need - 1) - at));
+	best[at] = *c;
+	*n = Min(*n + 1, need);
+}
+
+/* Whether p, at best, still ranks before the last of a full list of the best. */
+static bool
+may_beat(const Pending *p, const Candidate *last)
+{
+	Candidate	at_best = {.id = p->id, .has_key = p->has_proximity, .key = p->bound};
+
+	return !p->hinted || candidate_order(&at_best, last) <= 0;
+}
+
+/* A level's reading: its query, what the rows must pass, and the best found so far. */
+typedef struct LevelRead
+{
+	const Request *r;
+	SPIPlanPtr	query;
+	Datum		graph_id;
+	bool		no_graph;
+	const double *lo;			/* the box; NULL for stored transitions */
+	const double *hi;
+	double		low;			/* low < ratio <= high */
+	double		high;
+	int			need;
+	Candidate  *best;
+	int			n_best;
+	LevelStats *stats;
+} LevelRead;
+
+/* Reads the rows of ids[0..n) and checks each: the box, pose and rate, filters, ratio, objective. */
+static void
+read_and_check(LevelRead *lr, const Pending *pending, int n)
+{
+	const Request *r = lr->r;
+	bool		stored = lr->lo == NULL;
+	Datum	   *ids = palloc(sizeof(Datum) * n);
+	Datum		args[2];
+	char		nulls[2] = {' ', lr->no_graph ? 'n' : ' '};
+	TupleDesc	desc;
+	Row		   *rows;
+
+	for (int i = 0; i < n; i++)
+		ids[i] = Int64GetDatum(pending[i].id);
+	args[0] = PointerGetDatum(construct_array(ids, n, INT8OID, 8, FLOAT8PASSBYVAL, TYPALIGN_DOUBLE));
+	args[1] = lr->graph_id;
+	if (SPI_execute_plan(lr->query, args, nulls, true, 0) != SPI_OK_SELECT)
+		elog(ERROR, "modb: a selection query failed");
+	desc = SPI_tuptable->tupdesc;
+	/* Kept to the end of the call: the best rows' values point into them. */
+	rows = palloc(sizeof(Row) * Max(SPI_processed, 1));
+	if (lr->stats)
+		lr->stats->scanned += SPI_processed;
+	for (uint64 i = 0; i < SPI_processed; i++)
+	{
+		Row		   *row = &rows[i];
+		Candidate	c;
 		Terminator	begin;
-		Candidate  *c = &candidates[n];
 		bool		isnull;
 
 		heap_deform_tuple(SPI_tuptable->vals[i], desc, row->values, row->nulls);
-
-		if (!stored && !in_box(row, lo, hi))
+		if (!stored && !in_box(row, lr->lo, lr->hi))
 			continue;
-		if (stats)
-			stats->in_box++;
+		if (lr->stats)
+			lr->stats->in_box++;
 		if (!stored && !same_pose_and_rate(r, row))
 			continue;
 		if (!passes_filters(r, row))
 			continue;
-		if (stats)
-			stats->filtered++;
+		if (lr->stats)
+			lr->stats->filtered++;
 		begin = terminator_of(&row->values[COL_POSITIONS - 1]);
-		c->ratio = modb_continuity(&r->end, &begin, &r->plan->thresholds);
-		if (!(c->ratio <= high && c->ratio > low))
+		c.ratio = modb_continuity(&r->end, &begin, &r->plan->thresholds);
+		if (!(c.ratio <= lr->high && c.ratio > lr->low))
 			continue;
-		c->row = (int) i;
-		c->id = DatumGetInt64(row_value(row, COL_ID, &isnull));
-		c->has_proximity = stored && r->plan->has_grid
-			? graph_objective(r, row, &c->proximity)
-			: proximity_of(r, row, &c->proximity);
-		c->has_key = c->has_proximity;
-		c->key = c->proximity + r->plan->continuity_weight * c->ratio;
-		n++;
+		if (lr->stats)
+			lr->stats->within++;
+		c.row = row;
+		c.id = DatumGetInt64(row_value(row, COL_ID, &isnull));
+		c.has_proximity = stored && r->plan->has_grid
+			? graph_objective(r, row, &c.proximity)
+			: proximity_of(r, row, &c.proximity);
+		c.has_key = c.has_proximity;
+		c.key = c.proximity + r->plan->continuity_weight * c.ratio;
+		keep_best(lr->best, &lr->n_best, lr->need, &c);
 	}
-	qsort(candidates, n, sizeof(Candidate), candidate_order);
-	for (int i = 0; i < n && *emitted < r->k; i++)
+}
+
+/*
+ * One level: of the candidates (ids from the box's blocks with their objective inputs, or the stored
+ * transitions), those that pass the box (exactly), the filters and low < ratio <= high (low is -Infinity
+ * at level 0), ranked by objective + continuity_weight x ratio; the best (k - *emitted) go into the store.
+ * Candidates are read in the order of the least key they can have (their objective, from the inputs their
+ * block holds, plus the weight times the least ratio of the level), in batches, and no further than that
+ * least key can still beat the k-th best found: the rows and order are those of reading every one.
+ */
+static void
+run_level(LevelRead *lr, const BlockCandidate *from_blocks, const int64 *stored_ids, int n, int level,
+		  Tuplestorestate *store, TupleDesc out, int *emitted)
+{
+	const Request *r = lr->r;
+	double		weight = r->plan->continuity_weight;
+	/* The least weight x ratio at this level: the ratio is at least 0, above low and at most high. */
+	double		least = weight >= 0 ? weight * Max(lr->low, 0.0) : weight * lr->high;
+	Pending    *pending = palloc(sizeof(Pending) * Max(n, 1));
+	Pending    *heap;
+	Pending    *batch;
+	int			n_unknown = 0;
+	int			n_heap;
+	int			n_batch;
+	instr_time	start,
+				duration;
+
+	if (lr->stats)
+		INSTR_TIME_SET_CURRENT(start);
+	for (int i = 0; i < n; i++)
 	{
-		const Row  *row = &rows_deformed[candidates[i].row];
+		Pending    *p = &pending[i];
+
+		p->id = from_blocks ? from_blocks[i].id : stored_ids[i];
+		p->hinted = from_blocks && from_blocks[i].hinted;
+		p->has_proximity = false;
+		p->bound = 0;
+		if (p->hinted)
+		{
+			const double *inputs = from_blocks[i].inputs;
+			double		largest = 0;
+
+			/* The row's function (proximity_of) on the float4 roundings of its values: a float4 is within
+			 * 2^-24 of its value, distances and the turn move by at most what their inputs do, so the
+			 * objective is within 2^-24 (sqrt(3) the largest translation + heading_weight x the heading):
+			 * allowed for sixteen times over, and the double arithmetic's own rounding. */
+			for (int k = 0; k < 6; k++)
+				largest = Max(largest, fabs(inputs[k]));
+			p->has_proximity = modb_approach_cost(inputs, inputs + 3, true, inputs[6], r->aim, r->n, r->direction,
+												  r->plan->heading_weight, &p->bound);
+			p->bound -= ldexp(2 * largest + fabs(r->plan->heading_weight) * fabs(inputs[6]), -20)
+				+ 1e-12 * (1 + fabs(p->bound));
+			/* x + y rounds monotonically in y: no key at this level is below this */
+			p->bound += least;
+		}
+	}
+	lr->need = r->k - *emitted;
+	lr->best = palloc(sizeof(Candidate) * Max(lr->need, 1));
+	lr->n_best = 0;
+	/* The unknown ones first, read at once; the others from a heap (a call reads few of them). */
+	for (int i = 0; i < n; i++)
+		if (!pending[i].hinted)
+		{
+			Pending		t = pending[n_unknown];
+
+			pending[n_unknown++] = pending[i];
+			pending[i] = t;
+		}
+	heap = pending + n_unknown;
+	n_heap = n - n_unknown;
+	for (int i = n_heap / 2 - 1; i >= 0; i--)
+		sift_down(heap, n_heap, i);
+	batch = palloc(sizeof(Pending) * (n_unknown + LARGEST_BATCH));
+	memcpy(batch, pending, sizeof(Pending) * n_unknown);
+	n_batch = n_unknown;
+	for (int size = FIRST_BATCH;; size = Min(2 * size, LARGEST_BATCH))
+	{
+		int			limit = n_batch + size;
+
+		while (n_heap > 0 && n_batch < limit
+			   && (lr->n_best < lr->need || may_beat(&heap[0], &lr->best[lr->need - 1])))
+		{
+			batch[n_batch++] = heap[0];
+			heap[0] = heap[--n_heap];
+			sift_down(heap, n_heap, 0);
+		}
+		if (n_batch == 0)
+			break;
+		read_and_check(lr, batch, n_batch);
+		n_batch = 0;
+	}
+	for (int i = 0; i < lr->n_best; i++)
+	{
+		const Candidate *c = &lr->best[i];
 		Datum		values[12];
 		bool		isnull[12];
 		static const int columns[] = {COL_ID, COL_CLIP, COL_VERSION, COL_MIRRORED, COL_FIRST_FRAME, COL_N_FRAMES};
 
 		for (int j = 0; j < 6; j++)
-			values[j] = row_value(row, columns[j], &isnull[j]);
-		values[6] = Float8GetDatum(candidates[i].proximity);
-		isnull[6] = !candidates[i].has_proximity;
+			values[j] = row_value(c->row, columns[j], &isnull[j]);
+		values[6] = Float8GetDatum(c->proximity);
+		isnull[6] = !c->has_proximity;
 		values[7] = Int32GetDatum(level);
 		isnull[7] = false;
-		values[8] = Float8GetDatum(candidates[i].ratio);
+		values[8] = Float8GetDatum(c->ratio);
 		isnull[8] = false;
-		values[9] = row_value(row, COL_NET_TRANSLATION, &isnull[9]);
-		values[10] = row_value(row, COL_NET_ROTATION, &isnull[10]);
-		values[11] = row_value(row, COL_NET_HEADING, &isnull[11]);
+		values[9] = row_value(c->row, COL_NET_TRANSLATION, &isnull[9]);
+		values[10] = row_value(c->row, COL_NET_ROTATION, &isnull[10]);
+		values[11] = row_value(c->row, COL_NET_HEADING, &isnull[11]);
 		tuplestore_putvalues(store, out, values, isnull);
 		(*emitted)++;
-		if (stats)
-			stats->returned++;
 	}
-	if (stats)
+	if (lr->stats)
 	{
 		INSTR_TIME_SET_CURRENT(duration);
 		INSTR_TIME_SUBTRACT(duration, start);
-		stats->ran = true;
-		stats->stored = stored;
-		stats->scanned = rows;
-		if (stored)
-			stats->in_box = rows;
-		stats->within = n;
-		stats->ms = INSTR_TIME_GET_MILLISEC(duration);
-		stats->access = outliving(modb_describe_access(query));
+		lr->stats->ran = true;
+		lr->stats->stored = lr->lo == NULL;
+		lr->stats->candidates = n;
+		lr->stats->returned = lr->n_best;
+		lr->stats->ms = INSTR_TIME_GET_MILLISEC(duration);
+		lr->stats->access = outliving(modb_describe_access(lr->query));
 	}
-	SPI_freetuptable(SPI_tuptable);
 }
 
 /* modb.match_box: the features +- scale x half-width, + 1e-4 (float4 terminators, float8 features). */
@@ -536,38 +715,39 @@ fast_path(Request *r, Tuplestorestate *store, TupleDesc out, SelectionStats *sta
 	static SPIPlanPtr stored_query;
 	static SPIPlanPtr stored_candidates;
 	static SPIPlanPtr candidates_by_id;
+	Oid			types[2] = {INT8ARRAYOID, INT8OID};
 	int			emitted = 0;
 	bool		stored = false;
-	Datum		args[2];
-	char		nulls[2] = {' ', ' '};
 
 	if (r->plan->has_graph && r->plan->stored_key)
 	{
-		Oid			types[2] = {INT8OID, INT8OID};
+		Datum		args[2] = {Int64GetDatum(r->plan->graph_id), Int64GetDatum(r->prev)};
+		Oid			key_types[2] = {INT8OID, INT8OID};
 
 		modb_kept_plan(&stored_query,
 					   "SELECT e.to_snippets FROM modb.graph_transitions e WHERE e.graph_id = $1 AND e.from_snippet = $2",
-					   2, types);
-		args[0] = Int64GetDatum(r->plan->graph_id);
-		args[1] = Int64GetDatum(r->prev);
+					   2, key_types);
 		if (SPI_execute_plan(stored_query, args, NULL, true, 1) != SPI_OK_SELECT)
 			elog(ERROR, "modb: reading stored transitions failed");
 		if (SPI_processed == 1)
 		{
 			bool		isnull;
+			ArrayType  *to = DatumGetArrayTypeP(SPI_getbinval(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 1, &isnull));
+			LevelRead	lr = {.r = r, .graph_id = Int64GetDatum(r->plan->graph_id), .low = -INFINITY, .high = 1.0,
+			.stats = stats ? &stats->levels[0] : NULL};
 
 			stored = true;
-			args[1] = SPI_getbinval(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 1, &isnull);
-			types[1] = INT8ARRAYOID;
-			modb_kept_plan(&stored_candidates,
-						   "SELECT " CANDIDATE_COLUMNS ", ce.cost_to_go"
-						   "  FROM unnest($2::bigint[]) AS n(id) JOIN modb.snippets c ON c.id = n.id"
-						   "  JOIN modb.graph_transitions ce ON ce.graph_id = $1 AND ce.from_snippet = c.id"
-						   "  JOIN modb.terminators b ON b.id = c.begin_terminator"
-						   " WHERE EXISTS (SELECT FROM modb.graph_snippets g WHERE g.graph_id = $1 AND g.snippet_id = c.id)",
-						   2, types);
-			run_level(r, stored_candidates, args, nulls, 0, NULL, NULL, -INFINITY, 1.0, store, out, &emitted,
-					  stats ? &stats->levels[0] : NULL);
+			if (ARR_NDIM(to) > 1 || ARR_HASNULL(to))
+				elog(ERROR, "modb: a graph's stored transitions are not a list of snippets");
+			lr.query = modb_kept_plan(&stored_candidates,
+									  "SELECT " CANDIDATE_COLUMNS ", ce.cost_to_go"
+									  "  FROM unnest($1::bigint[]) AS n(id) JOIN modb.snippets c ON c.id = n.id"
+									  "  JOIN modb.graph_transitions ce ON ce.graph_id = $2 AND ce.from_snippet = c.id"
+									  "  JOIN modb.terminators b ON b.id = c.begin_terminator"
+									  " WHERE EXISTS (SELECT FROM modb.graph_snippets g WHERE g.graph_id = $2 AND g.snippet_id = c.id)",
+									  2, types);
+			run_level(&lr, NULL, (const int64 *) ARR_DATA_PTR(to), ARR_NDIM(to) ? ARR_DIMS(to)[0] : 0, 0, store,
+					  out, &emitted);
 		}
 	}
 	for (int level = stored ? 1 : 0; level < N_LEVELS && emitted < r->k; level++)
@@ -575,30 +755,23 @@ fast_path(Request *r, Tuplestorestate *store, TupleDesc out, SelectionStats *sta
 		double		scale = (double) (1 << level);
 		double		lo[N_FEATURES],
 					hi[N_FEATURES];
-		int			n_ids;
-		int64	   *ids;
-		Datum	   *id_datums;
-		Oid			types[2] = {INT8ARRAYOID, INT8OID};
-		LevelStats *level_stats = stats ? &stats->levels[level] : NULL;
+		int			n;
+		BlockCandidate *candidates;
+		LevelRead	lr = {.r = r, .graph_id = Int64GetDatum(r->plan->graph_id), .no_graph = !r->plan->has_graph,
+			.lo = lo, .hi = hi, .low = level == 0 ? -INFINITY : scale / 2, .high = scale,
+		.stats = stats ? &stats->levels[level] : NULL};
 
-		box_of(r, scale, lo, hi, level_stats);
-		ids = modb_block_candidates(r->blocks_relid, r->blocks_generation, r->pose_key, r->fps, lo, hi, &n_ids,
-									level_stats ? &level_stats->blocks : NULL);
-		id_datums = palloc(sizeof(Datum) * Max(n_ids, 1));
-		for (int i = 0; i < n_ids; i++)
-			id_datums[i] = Int64GetDatum(ids[i]);
-		args[0] = PointerGetDatum(construct_array(id_datums, n_ids, INT8OID, 8, FLOAT8PASSBYVAL, TYPALIGN_DOUBLE));
-		args[1] = Int64GetDatum(r->plan->graph_id);
-		nulls[1] = r->plan->has_graph ? ' ' : 'n';
-		modb_kept_plan(&candidates_by_id,
-					   "SELECT " CANDIDATE_COLUMNS
-					   "  FROM unnest($1::bigint[]) AS n(id) JOIN modb.snippets c ON c.id = n.id"
-					   "  JOIN modb.terminators b ON b.id = c.begin_terminator"
-					   " WHERE ($2 IS NULL OR EXISTS (SELECT FROM modb.graph_snippets g"
-					   "                              WHERE g.graph_id = $2 AND g.snippet_id = c.id))",
-					   2, types);
-		run_level(r, candidates_by_id, args, nulls, level, lo, hi, level == 0 ? -INFINITY : scale / 2, scale,
-				  store, out, &emitted, level_stats);
+		box_of(r, scale, lo, hi, lr.stats);
+		candidates = modb_block_candidates(r->blocks_relid, r->blocks_generation, r->pose_key, r->fps, lo, hi, &n,
+										   lr.stats ? &lr.stats->blocks : NULL);
+		lr.query = modb_kept_plan(&candidates_by_id,
+								  "SELECT " CANDIDATE_COLUMNS
+								  "  FROM unnest($1::bigint[]) AS n(id) JOIN modb.snippets c ON c.id = n.id"
+								  "  JOIN modb.terminators b ON b.id = c.begin_terminator"
+								  " WHERE ($2 IS NULL OR EXISTS (SELECT FROM modb.graph_snippets g"
+								  "                              WHERE g.graph_id = $2 AND g.snippet_id = c.id))",
+								  2, types);
+		run_level(&lr, candidates, NULL, n, level, store, out, &emitted);
 	}
 	return emitted >= r->k;
 }
@@ -676,6 +849,7 @@ modb_select(FunctionCallInfo fcinfo, Tuplestorestate *store, TupleDesc out, Sele
 			if (!PG_ARGISNULL(5))
 				read_excluded(&r, PG_GETARG_DATUM(5));
 			modb_aim_point(r.target, r.n, r.plan->has_lookahead, r.plan->lookahead, r.aim);
+			r.direction = modb_aim_direction(r.aim, r.n);
 			if (!fast_path(&r, store, out, stats))
 			{
 				tuplestore_clear(store);

@@ -53,9 +53,41 @@ typedef struct BlockStats
 	double		ms;				/* the search's time (the directory's reading included) */
 } BlockStats;
 
+/* A block's clip source (its snippets' clip version, side, pose, rate and collection). */
+typedef struct BlockSource
+{
+	int64		clip_id;
+	int32		version;
+	bool		mirrored;
+	char	   *pose_key;
+	double		fps;
+	int64		collection_id;
+} BlockSource;
+
+/*
+ * What the objective of a snippet is computed from, kept in its block (as float4) beside its code so that
+ * candidates can be read in the order of the least objective they can have: net_translation (3),
+ * future_translation (3) and future_heading; NaN for NULL.
+ */
+#define N_OBJECTIVE_INPUTS 7
+
+typedef struct BlockCandidate
+{
+	int64		id;
+	bool		hinted;			/* in exactly one block, which holds its objective's inputs */
+	double		inputs[N_OBJECTIVE_INPUTS];
+} BlockCandidate;
+
 extern int	modb_block_code(double x, float low, float high);
-extern int64 *modb_block_candidates(Oid relid, int64 generation, const char *pose_key, double fps,
-									const double *lo, const double *hi, int *n_ids, BlockStats *stats);
+extern void modb_store_block(const int64 *ids, const double (*x)[N_FEATURES],
+							 const double (*inputs)[N_OBJECTIVE_INPUTS], int n, const BlockSource *s,
+							 int pack_order);
+extern void modb_block_row(HeapTuple row, TupleDesc desc, int features, int64 *id, double *x, double *inputs);
+/* A snippet row's objective inputs from its net_translation, future_translation and future_heading. */
+extern void modb_objective_inputs(Datum net, bool net_null, Datum future, bool future_null, Datum heading,
+								  bool heading_null, double *inputs);
+extern BlockCandidate *modb_block_candidates(Oid relid, int64 generation, const char *pose_key, double fps,
+											 const double *lo, const double *hi, int *n, BlockStats *stats);
 
 #define N_LEVELS 4				/* box levels 0-3; level 4 (the nearest start, any ratio) is the reference's */
 
@@ -66,7 +98,9 @@ typedef struct LevelStats
 	char	   *box;			/* the box, as a cube literal */
 	char	   *access;			/* how the rows were read (the kept plan's scan nodes) */
 	BlockStats	blocks;
-	int64		scanned;		/* rows read: the blocks' candidates (or the stored transitions) */
+	int64		candidates;		/* the blocks' candidates (or the stored transitions) */
+	int64		scanned;		/* of those: rows read (in the order of the least key they can have, until
+								 * none left can make the answer) */
 	int64		in_box;			/* of those: in the box (exactly) */
 	int64		filtered;		/* of those: same pose and rate, in the collection, not excluded */
 	int64		within;			/* of those: with a continuity ratio in the level's range */

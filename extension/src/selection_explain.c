@@ -145,14 +145,16 @@ modb_explain_selection(PG_FUNCTION_ARGS)
 			continue;
 		}
 		if (s->stored)
-			appendStringInfo(&line, "  Level 0: the graph's stored transitions (%s): %lld rows",
-							 s->access, (long long) s->scanned);
+			appendStringInfo(&line, "  Level 0: the graph's stored transitions: %lld candidates, %lld read by %s",
+							 (long long) s->candidates, (long long) s->scanned, s->access);
 		else
 			appendStringInfo(&line, "  Level %d: box over %lld blocks of %lld snippets (block directory %s): "
-							 "%lld blocks met it, %lld candidates from their codes (%.3f ms), read by %s, %lld in the box",
+							 "%lld blocks met it, %lld candidates from their codes (%.3f ms), "
+							 "%lld read (best objective first) by %s, %lld in the box",
 							 level, (long long) s->blocks.blocks, (long long) s->blocks.snippets,
 							 s->blocks.read_directory ? "read now" : "cached", (long long) s->blocks.blocks_read,
-							 (long long) s->scanned, s->blocks.ms, s->access, (long long) s->in_box);
+							 (long long) s->candidates, s->blocks.ms, (long long) s->scanned, s->access,
+							 (long long) s->in_box);
 		appendStringInfo(&line, ", %lld %s, %lld within ratio %g, %lld returned (%.3f ms)",
 						 (long long) s->filtered,
 						 s->stored ? "in the collection and not excluded"

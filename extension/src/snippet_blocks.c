@@ -1,14 +1,18 @@
 /*
  * modb.add_snippet_blocks: cuts snippets into blocks of up to BLOCK_SNIPPETS consecutive ones of a clip
  * source (71_snippet_blocks.sql) and stores, per block, the bounds of their begin features (float4, rounded
- * outward) and each snippet's 8-bit code within them. block_directory.c searches them.
+ * outward), each snippet's 8-bit code within them and its objective's inputs. block_directory.c searches
+ * them; pack_blocks.c re-cuts them.
  */
 #include "postgres.h"
 
 #include <math.h>
 
+#include "catalog/namespace.h"
 #include "catalog/pg_type.h"
 #include "executor/spi.h"
+#include "nodes/makefuncs.h"
+#include "utils/lsyscache.h"
 #include "utils/array.h"
 #include "utils/builtins.h"
 
@@ -43,18 +47,8 @@ float_above(double x)
 	return (double) f < x ? nextafterf(f, INFINITY) : f;
 }
 
-typedef struct Source
-{
-	int64		clip_id;
-	int32		version;
-	bool		mirrored;
-	char	   *pose_key;
-	double		fps;
-	int64		collection_id;
-} Source;
-
 static void
-read_source(HeapTuple row, TupleDesc desc, Source *s)
+read_source(HeapTuple row, TupleDesc desc, BlockSource *s)
 {
 	bool		isnull;
 
@@ -67,41 +61,41 @@ read_source(HeapTuple row, TupleDesc desc, Source *s)
 }
 
 static bool
-same_source(const Source *a, const Source *b)
+same_source(const BlockSource *a, const BlockSource *b)
 {
 	return a->clip_id == b->clip_id && a->version == b->version && a->mirrored == b->mirrored
 		&& strcmp(a->pose_key, b->pose_key) == 0 && a->fps == b->fps && a->collection_id == b->collection_id;
 }
 
-/* Stores rows [first, first + n) of the SPI result (one source, clip order) as one block. */
-static void
-store_block(SPITupleTable *rows, uint64 first, int n, const Source *s)
+/*
+ * Stores one block: the snippets `ids` with their begin features `x`, of one clip source (`s`, with
+ * pack_order < 0) or packed across the sources of s's pose and rate (pack_order its place in the packing,
+ * and no clip source: pack_blocks.c).
+ */
+void
+modb_store_block(const int64 *ids, const double (*x)[N_FEATURES], const double (*inputs)[N_OBJECTIVE_INPUTS],
+				 int n, const BlockSource *s, int pack_order)
 {
 	static SPIPlanPtr insert;
-	Oid			types[10] = {INT8OID, INT4OID, BOOLOID, TEXTOID, FLOAT8OID, INT8OID, INT8ARRAYOID,
-	FLOAT4ARRAYOID, FLOAT4ARRAYOID, BYTEAOID};
-	Datum		args[10];
-	Datum		ids[BLOCK_SNIPPETS];
+	static SPIPlanPtr insert_010;
+	Oid			relid = RangeVarGetRelid(makeRangeVar("modb", "snippet_blocks", -1), NoLock, false);
+	/* A 0.10.0 database (not updated yet) has neither packing nor objective inputs. */
+	bool		at_010 = get_attnum(relid, "objective_inputs") == InvalidAttrNumber;
+	Oid			types[12] = {INT8OID, INT4OID, BOOLOID, TEXTOID, FLOAT8OID, INT8OID, INT8ARRAYOID,
+	FLOAT4ARRAYOID, FLOAT4ARRAYOID, BYTEAOID, INT4OID, FLOAT4ARRAYOID};
+	Datum		args[12];
+	char		nulls[12];
+	Datum		id_datums[BLOCK_SNIPPETS];
+	Datum		input_datums[BLOCK_SNIPPETS * N_OBJECTIVE_INPUTS];
 	Datum		low[N_FEATURES],
 				high[N_FEATURES];
 	float		lo[N_FEATURES],
 				hi[N_FEATURES];
-	double		x[BLOCK_SNIPPETS][N_FEATURES];
 	bytea	   *codes = palloc(VARHDRSZ + n * N_FEATURES);
-	bool		isnull;
 
 	SET_VARSIZE(codes, VARHDRSZ + n * N_FEATURES);
 	for (int i = 0; i < n; i++)
-	{
-		HeapTuple	row = rows->vals[first + i];
-		NDBOX	   *features = DatumGetNDBOXP(SPI_getbinval(row, rows->tupdesc, 8, &isnull));
-
-		if (DIM(features) != N_FEATURES)
-			elog(ERROR, "modb: snippet features have %d dimensions, not %d", DIM(features), N_FEATURES);
-		ids[i] = SPI_getbinval(row, rows->tupdesc, 1, &isnull);
-		for (int d = 0; d < N_FEATURES; d++)
-			x[i][d] = LL_COORD(features, d);
-	}
+		id_datums[i] = Int64GetDatum(ids[i]);
 	for (int d = 0; d < N_FEATURES; d++)
 	{
 		double		min = x[0][d],
@@ -120,22 +114,99 @@ store_block(SPITupleTable *rows, uint64 first, int n, const Source *s)
 	for (int i = 0; i < n; i++)
 		for (int d = 0; d < N_FEATURES; d++)
 			((uint8 *) VARDATA(codes))[i * N_FEATURES + d] = (uint8) modb_block_code(x[i][d], lo[d], hi[d]);
+	memset(nulls, pack_order < 0 ? ' ' : 'n', 12);
 	args[0] = Int64GetDatum(s->clip_id);
 	args[1] = Int32GetDatum(s->version);
 	args[2] = BoolGetDatum(s->mirrored);
 	args[3] = CStringGetTextDatum(s->pose_key);
 	args[4] = Float8GetDatum(s->fps);
 	args[5] = Int64GetDatum(s->collection_id);
-	args[6] = PointerGetDatum(construct_array(ids, n, INT8OID, 8, FLOAT8PASSBYVAL, TYPALIGN_DOUBLE));
+	nulls[3] = nulls[4] = nulls[6] = nulls[7] = nulls[8] = nulls[9] = ' ';
+	args[6] = PointerGetDatum(construct_array(id_datums, n, INT8OID, 8, FLOAT8PASSBYVAL, TYPALIGN_DOUBLE));
 	args[7] = PointerGetDatum(construct_array(low, N_FEATURES, FLOAT4OID, 4, true, TYPALIGN_INT));
 	args[8] = PointerGetDatum(construct_array(high, N_FEATURES, FLOAT4OID, 4, true, TYPALIGN_INT));
 	args[9] = PointerGetDatum(codes);
-	modb_kept_plan(&insert,
-				   "INSERT INTO modb.snippet_blocks (clip_id, version, mirrored, pose_key, fps, collection_id,"
-				   " snippets, low, high, codes) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10)",
-				   10, types);
-	if (SPI_execute_plan(insert, args, NULL, false, 0) != SPI_OK_INSERT)
+	args[10] = Int32GetDatum(pack_order);
+	nulls[10] = pack_order < 0 ? 'n' : ' ';
+	/* float4: two blocks fit a page; the reader allows for the rounding (selection.c) */
+	for (int i = 0; i < n * N_OBJECTIVE_INPUTS; i++)
+		input_datums[i] = Float4GetDatum((float) inputs[i / N_OBJECTIVE_INPUTS][i % N_OBJECTIVE_INPUTS]);
+	args[11] = PointerGetDatum(construct_array(input_datums, n * N_OBJECTIVE_INPUTS, FLOAT4OID, 4, true,
+											   TYPALIGN_INT));
+	nulls[11] = ' ';
+	if (at_010)
+		modb_kept_plan(&insert_010,
+					   "INSERT INTO modb.snippet_blocks (clip_id, version, mirrored, pose_key, fps, collection_id,"
+					   " snippets, low, high, codes) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10)",
+					   10, types);
+	else
+		modb_kept_plan(&insert,
+					   "INSERT INTO modb.snippet_blocks (clip_id, version, mirrored, pose_key, fps, collection_id,"
+					   " snippets, low, high, codes, pack_order, objective_inputs)"
+					   " VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12)",
+					   12, types);
+	if (SPI_execute_plan(at_010 ? insert_010 : insert, args, nulls, false, 0) != SPI_OK_INSERT)
 		elog(ERROR, "modb: storing a snippet block failed");
+}
+
+void
+modb_objective_inputs(Datum net, bool net_null, Datum future, bool future_null, Datum heading,
+					  bool heading_null, double *inputs)
+{
+	for (int i = 0; i < N_OBJECTIVE_INPUTS; i++)
+		inputs[i] = NAN;
+	if (!net_null)
+	{
+		ArrayType  *a = DatumGetArrayTypeP(net);
+
+		if (ARR_NDIM(a) == 1 && !ARR_HASNULL(a) && ARR_DIMS(a)[0] == 3)
+			memcpy(inputs, ARR_DATA_PTR(a), 3 * sizeof(double));
+	}
+	if (!future_null)
+	{
+		ArrayType  *a = DatumGetArrayTypeP(future);
+
+		if (ARR_NDIM(a) == 1 && !ARR_HASNULL(a) && ARR_DIMS(a)[0] == 3)
+			memcpy(inputs + 3, ARR_DATA_PTR(a), 3 * sizeof(double));
+	}
+	if (!heading_null)
+		inputs[6] = DatumGetFloat8(heading);
+}
+
+/*
+ * One snippet of an SPI row: its id (column 1), begin features (column `features`, a cube) and objective
+ * inputs (the three columns after it).
+ */
+void
+modb_block_row(HeapTuple row, TupleDesc desc, int features, int64 *id, double *x, double *inputs)
+{
+	bool		isnull;
+	bool		nulls[3];
+	Datum		values[3];
+	NDBOX	   *f = DatumGetNDBOXP(SPI_getbinval(row, desc, features, &isnull));
+
+	if (DIM(f) != N_FEATURES)
+		elog(ERROR, "modb: snippet features have %d dimensions, not %d", DIM(f), N_FEATURES);
+	*id = DatumGetInt64(SPI_getbinval(row, desc, 1, &isnull));
+	for (int d = 0; d < N_FEATURES; d++)
+		x[d] = LL_COORD(f, d);
+	for (int i = 0; i < 3; i++)
+		values[i] = SPI_getbinval(row, desc, features + 1 + i, &nulls[i]);
+	modb_objective_inputs(values[0], nulls[0], values[1], nulls[1], values[2], nulls[2], inputs);
+}
+
+/* Stores rows [first, first + n) of the SPI result (one source, clip order) as one block. */
+static void
+store_rows(SPITupleTable *rows, uint64 first, int n, const BlockSource *s)
+{
+	int64		ids[BLOCK_SNIPPETS];
+	double		x[BLOCK_SNIPPETS][N_FEATURES];
+	double		inputs[BLOCK_SNIPPETS][N_OBJECTIVE_INPUTS];
+
+	for (int i = 0; i < n; i++)
+		modb_block_row(rows->vals[first + i], rows->tupdesc, 8, &ids[i], x[i], inputs[i]);
+	modb_store_block(ids, (const double (*)[N_FEATURES]) x, (const double (*)[N_OBJECTIVE_INPUTS]) inputs, n, s,
+					 -1);
 }
 
 Datum
@@ -152,7 +223,8 @@ modb_add_snippet_blocks(PG_FUNCTION_ARGS)
 	if (SPI_connect() != SPI_OK_CONNECT)
 		elog(ERROR, "modb: SPI_connect failed");
 	modb_kept_plan(&query,
-				   "SELECT s.id, s.clip_id, s.version, s.mirrored, s.pose_key, s.fps, s.collection_id, s.begin_features"
+				   "SELECT s.id, s.clip_id, s.version, s.mirrored, s.pose_key, s.fps, s.collection_id, s.begin_features,"
+				   "       s.net_translation, s.future_translation, s.future_heading"
 				   "  FROM modb.snippets s WHERE s.id = ANY ($1)"
 				   " ORDER BY s.clip_id, s.version, s.mirrored, s.pose_key, s.fps, s.collection_id, s.first_frame, s.id",
 				   1, types);
@@ -162,7 +234,7 @@ modb_add_snippet_blocks(PG_FUNCTION_ARGS)
 	n_rows = SPI_processed;
 	while (first < n_rows)
 	{
-		Source		source,
+		BlockSource source,
 					next;
 		int			n = 1;
 
@@ -174,7 +246,7 @@ modb_add_snippet_blocks(PG_FUNCTION_ARGS)
 				break;
 			n++;
 		}
-		store_block(rows, first, n, &source);
+		store_rows(rows, first, n, &source);
 		first += n;
 		blocks++;
 	}

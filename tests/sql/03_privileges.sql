@@ -1,7 +1,7 @@
 -- Least privilege: modb_reader reads, modb_loader writes (and reads); neither can rewrite motion.
 BEGIN;
 CREATE EXTENSION IF NOT EXISTS pgtap;
-SELECT plan(27);
+SELECT plan(28);
 
 SELECT table_privs_are('modb', t, 'modb_reader', ARRAY['SELECT'], 'modb_reader may only SELECT modb.' || t)
   FROM unnest(ARRAY['collections', 'skeletons', 'clips', 'clip_versions', 'models', 'graphs', 'current_clips']) AS t;
@@ -47,6 +47,11 @@ SELECT throws_ok($$UPDATE modb.match_profiles SET comment = 'mine now' WHERE nam
 SELECT throws_ok($$DELETE FROM modb.snippets$$, '42501', NULL, 'loader deletes snippets only through their source');
 SELECT lives_ok($$UPDATE modb.snippets SET future_heading = future_heading WHERE false$$, 'loader fills futures');
 RESET ROLE;
+SELECT ok(has_function_privilege('modb_loader', 'modb.pack_snippet_blocks(float8)', 'EXECUTE')
+          AND NOT has_function_privilege('modb_reader', 'modb.pack_snippet_blocks(float8)', 'EXECUTE')
+          AND has_table_privilege('modb_loader', 'modb.snippet_blocks', 'DELETE')
+          AND NOT has_table_privilege('modb_reader', 'modb.snippet_blocks', 'DELETE'),
+          'the loader packs snippet blocks, a reader cannot');
 
 SELECT * FROM finish();
 ROLLBACK;

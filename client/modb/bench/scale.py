@@ -29,6 +29,7 @@ import psycopg
 from .baselines import FLAT, Snapshot
 from .resampled import add_resampled_clips, resampled_snippets
 from modb.database.connection import connect
+from modb.loader.ingest import PACK_SHARE, pack_blocks
 
 PGBENCH = "/usr/lib/postgresql/15/bin/pgbench"  # postgresql-15's own (Debian keeps it off PATH)
 PSQL = "/usr/lib/postgresql/15/bin/psql"
@@ -56,6 +57,7 @@ def sized_database(dsn: str, size: int, seed: int, progress=print) -> str:
             # Needs no other session on the source.
             admin.execute(f'CREATE DATABASE "{name}" TEMPLATE "{source}"')
     with connect(_with_dbname(dsn, name)) as conn:
+        conn.execute("ALTER EXTENSION modb UPDATE")  # a copy kept from an earlier release
         clips = conn.execute(
             "SELECT clip_id, count(*) FROM modb.snippets GROUP BY clip_id ORDER BY clip_id"
         ).fetchall()
@@ -74,6 +76,8 @@ def sized_database(dsn: str, size: int, seed: int, progress=print) -> str:
             conn.execute("DELETE FROM modb.clips WHERE NOT id = ANY (%s)", [sorted(kept)])
             conn.execute("VACUUM (FULL, ANALYZE) modb.snippets")
             conn.execute("VACUUM (FULL, ANALYZE) modb.terminators")
+        # As a load leaves them: packed (a new copy's blocks named the deleted clips' snippets too).
+        pack_blocks(conn, 0.0 if made else PACK_SHARE)
     return _with_dbname(dsn, name)
 
 

@@ -189,6 +189,11 @@ class Cluster:
                 # tables are vacuumed and the index rebuilt here.
                 conn.execute("VACUUM ANALYZE modb.snippets, modb.terminators")
                 conn.execute("REINDEX INDEX modb.snippets_begin_features_idx")
+            if before < [0, 11, 0] <= conn.execute(version).fetchone()[0]:
+                # 0.11.0 packs the blocks of consecutive snippets that loads left (a few seconds).
+                from modb.loader.ingest import pack_blocks
+
+                pack_blocks(conn)
 
     def stop(self) -> None:
         if self.is_running():
