@@ -271,6 +271,10 @@ def pack_blocks(conn: psycopg.Connection, min_share: float = PACK_SHARE) -> list
     """Packs the snippet blocks of the poses that loads have grown (its own transaction; about 25 s
     a million snippets, README "Performance"). What it leaves unpacked is correct, only slower."""
     with conn.transaction():
+        if conn.execute(
+            "SELECT to_regprocedure('modb.pack_snippet_blocks(float8)') IS NULL"
+        ).fetchone()[0]:
+            return []  # an extension older than 0.11.0, not updated yet
         rows = conn.execute(
             "SELECT pose_key, fps, snippets, blocks, seconds FROM modb.pack_snippet_blocks(%s)",
             [min_share],

@@ -136,13 +136,14 @@ def test_a_start_and_errors_are_the_references(cmu):
 def test_explain_selection_counts_what_a_box_scan_finds(cmu):
     """The rows explain_selection says level 0 found in its box are the snippets a sequential scan
     finds in the box it prints (asked for more rows than there are, a call reads every candidate;
-    asked for one, it reads fewer, best objective first)."""
+    asked for one in a wide box, it reads fewer, best objective first)."""
     rng = random.Random(8)
     with connect(cmu) as conn:
         ids = [r[0] for r in conn.execute("SELECT id FROM modb.snippets ORDER BY id")]
         fewer = 0
         for _ in range(10):
             prev = rng.choice(ids)
+            _set_tightness(conn, 2.0)  # a wider box: more candidates than one batch
             one = next(
                 r[0]
                 for r in conn.execute(
@@ -150,6 +151,7 @@ def test_explain_selection_counts_what_a_box_scan_finds(cmu):
                 )
                 if r[0].startswith("  Level 0:")
             )
+            _set_tightness(conn, None)
             args = [prev, [0.5, 3.0], len(ids) + 1, "default", None, None]
             lines = [
                 r[0]

@@ -220,6 +220,10 @@ def bench_database(
             "FROM unnest(ARRAY['modb.snippets', 'modb.terminators', 'modb.snippet_sources', "
             "'modb.snippet_blocks']::regclass[]) AS c"
         ).fetchone()
+        (directory_bytes,) = conn.execute(  # this session's, after its calls
+            "SELECT coalesce(sum(total_bytes), 0) FROM pg_backend_memory_contexts "
+            "WHERE name = 'modb block directory'"
+        ).fetchone()
     progress("  psql, one call per statement")
     out["psql_ms"] = psql_times(dsn, requests, profile)
     progress("  pgbench")
@@ -235,6 +239,7 @@ def bench_database(
         "queries": queries,
         "blocks": blocks,
         "blocks_bytes": blocks_bytes,
+        "directory_bytes": directory_bytes,
         "bytes_per_snippet": table_bytes / len(snap.ids),
         "snapshot_s": load_s,
         "tps": tps,
@@ -287,8 +292,8 @@ def report(name: str, r: dict) -> str:
             f"{r['same_numpy']}/{r['queries']}, "
             f"(c) {r['same_kdtree']}/{r['queries']}; relaxation levels {levels}.",
             f"- Snippet blocks: {r['blocks']:,} ({r['blocks_bytes'] / 2**20:.1f} MiB, "
-            f"{r['blocks_bytes'] / r['snippets']:.0f} bytes a snippet; a session's directory of "
-            f"them about {r['blocks'] * 110 / 2**20:.1f} MiB); "
+            f"{r['blocks_bytes'] / r['snippets']:.0f} bytes a snippet; the session's directory of "
+            f"them {r['directory_bytes'] / 2**20:.1f} MiB); "
             f"{r['bytes_per_snippet']:,.0f} bytes per snippet in all (snippets, terminators, "
             f"sources, blocks and their indexes).",
             "- pgbench (shipped script, prepared, server defaults): "
