@@ -177,6 +177,7 @@ read_directory(Relation rel, int64 generation)
 	TupleDesc	desc = RelationGetDescr(rel);
 	MemoryContext old,
 				per_block;
+	double		per_step[N_FEATURES];
 
 	if (directory_context == NULL)
 		directory_context = AllocSetContextCreate(TopMemoryContext, "modb block directory", ALLOCSET_DEFAULT_SIZES);
@@ -186,24 +187,27 @@ read_directory(Relation rel, int64 generation)
 	per_block = AllocSetContextCreate(CurrentMemoryContext, "modb block", ALLOCSET_SMALL_SIZES);
 	old = MemoryContextSwitchTo(directory_context);
 	scan = table_beginscan(rel, GetActiveSnapshot(), 0, NULL);
+	for (int d = 0; d < N_FEATURES; d++)
+		per_step[d] = 1.0 / scale_step(d);
 	while ((tuple = heap_getnext(scan, ForwardScanDirection)) != NULL)
 	{
-		bool		isnull;
-		text	   *pose_key = (text *) DatumGetPointer(heap_getattr(tuple, 4, desc, &isnull));
-		double		fps = DatumGetFloat8(heap_getattr(tuple, 5, desc, &isnull));
-		Datum		codes = heap_getattr(tuple, 10, desc, &isnull);
-		Datum		order;
+		Datum		values[MaxBlockColumns];
+		bool		nulls[MaxBlockColumns];
+		text	   *pose_key;
 		float		low[N_FEATURES],
 					high[N_FEATURES];
 		PoseGroup  *g;
 		Entry	   *e;
 
+		if (desc->natts > MaxBlockColumns)
+			elog(ERROR, "modb: modb.snippet_blocks has %d columns, not at most %d", desc->natts, MaxBlockColumns);
 		MemoryContextSwitchTo(per_block);
-		float4_values(heap_getattr(tuple, 8, desc, &isnull), low);
-		float4_values(heap_getattr(tuple, 9, desc, &isnull), high);
+		heap_deform_tuple(tuple, desc, values, nulls);
+		pose_key = DatumGetTextPP(values[3]);
+		float4_values(values[7], low);
+		float4_values(values[8], high);
 		MemoryContextSwitchTo(directory_context);
-		MemoryContextReset(per_block);
-		g = group_of(VARDATA_ANY(pose_key), VARSIZE_ANY_EXHDR(pose_key), fps);
+		g = group_of(VARDATA_ANY(pose_key), VARSIZE_ANY_EXHDR(pose_key), DatumGetFloat8(values[4]));
 		if (g->count == g->capacity)
 		{
 			g->capacity *= 2;
@@ -211,18 +215,19 @@ read_directory(Relation rel, int64 generation)
 		}
 		e = &g->entries[g->count++];
 		e->tid = tuple->t_self;
-		order = desc->natts >= 11 ? heap_getattr(tuple, 11, desc, &isnull) : (Datum) 0;	/* 0.10.0: none */
-		e->order = desc->natts < 11 || isnull ? PG_INT32_MAX : DatumGetInt32(order);
+		e->order = desc->natts < 11 || nulls[10] ? PG_INT32_MAX : DatumGetInt32(values[10]);	/* 0.10.0: none */
 		for (int d = 0; d < N_FEATURES; d++)
 		{
-			double		a = floor(((double) low[d] - scale_min(d)) / scale_step(d));
-			double		b = ceil(((double) high[d] - scale_min(d)) / scale_step(d));
+			/* times the reciprocal, not divided: within a code of the quotient, so one more code out */
+			double		a = floor(((double) low[d] - scale_min(d)) * per_step[d]) - 1;
+			double		b = ceil(((double) high[d] - scale_min(d)) * per_step[d]) + 1;
 
 			e->box.lo[d] = (uint16) (a < 0 ? 0 : (a > SCALE_STEPS ? SCALE_STEPS : a));
 			e->box.hi[d] = (uint16) (b < 0 ? 0 : (b > SCALE_STEPS ? SCALE_STEPS : b));
 		}
+		directory.n_snippets += toast_raw_datum_size(values[9]) / N_FEATURES;
+		MemoryContextReset(per_block);
 		directory.n_blocks++;
-		directory.n_snippets += toast_raw_datum_size(codes) / N_FEATURES;
 	}
 	table_endscan(scan);
 	for (int k = 0; k < directory.n_groups; k++)
