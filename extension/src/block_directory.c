@@ -1,6 +1,6 @@
 /*
  * The block directory: each snippet block's bounds, 16-bit on each feature's fixed physical scale, by
- * (pose, rate) group, kept in this session's memory (about 210 bytes a block: 6.6 MB at a million
+ * (pose, rate) group, kept in this session's memory (about 210 bytes a block: 7.3 MiB at a million
  * snippets), with a box over every SUPER_BLOCKS consecutive blocks above them (packed blocks in the order
  * of their packing, a subtree of its split each, then the others in table order). A box search tests the groups, the super boxes and the
  * blocks here, reads only the blocks that meet the box from modb.snippet_blocks (under the caller's
