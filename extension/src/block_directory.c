@@ -1,11 +1,12 @@
 /*
  * The block directory: each snippet block's bounds, 16-bit on each feature's fixed physical scale, by
  * (pose, rate) group, kept in this session's memory (about 210 bytes a block: 7.3 MiB at a million
- * snippets), with a box over every SUPER_BLOCKS consecutive blocks above them (packed blocks in the order
- * of their packing, a subtree of its split each, then the others in table order). A box search tests the groups, the super boxes and the
- * blocks here, reads only the blocks that meet the box from modb.snippet_blocks (under the caller's
- * snapshot, by their tuple ids) and tests their snippets' codes: what passes is a superset of the
- * snippets whose features lie in the box, which the caller checks exactly.
+ * snippets), with a box over every SUPER_BLOCKS consecutive blocks above them (packed blocks in the
+ * order of their packing, a subtree of its split each, then the others in table order). A box search
+ * tests the groups, the super boxes and the blocks here, reads only the blocks that meet the box from
+ * modb.snippet_blocks (under the caller's snapshot, by their tuple ids) and tests their snippets' codes:
+ * what passes is a superset of the snippets whose features lie in the box, which the caller checks
+ * exactly.
  *
  * The directory is valid for one generation of modb.snippet_blocks (71_snippet_blocks.sql): every change
  * of the blocks takes a new generation, and writers of blocks queue on the one generation row, so the
