@@ -128,6 +128,14 @@ entry_order(const void *a, const void *b)
 	return x->tid_order < y->tid_order ? -1 : (x->tid_order > y->tid_order ? 1 : 0);
 }
 
+/* The arrays a block is deformed into hold every column of this table. */
+static void
+check_columns(TupleDesc desc)
+{
+	if (desc->natts > MaxBlockColumns)
+		elog(ERROR, "modb: modb.snippet_blocks has %d columns, not at most %d", desc->natts, MaxBlockColumns);
+}
+
 static void
 float4_values(Datum array, float *into)
 {
@@ -190,6 +198,7 @@ read_directory(Relation rel, int64 generation)
 	scan = table_beginscan(rel, GetActiveSnapshot(), 0, NULL);
 	for (int d = 0; d < N_FEATURES; d++)
 		per_step[d] = 1.0 / scale_step(d);
+	check_columns(desc);
 	while ((tuple = heap_getnext(scan, ForwardScanDirection)) != NULL)
 	{
 		Datum		values[MaxBlockColumns];
@@ -200,8 +209,6 @@ read_directory(Relation rel, int64 generation)
 		PoseGroup  *g;
 		Entry	   *e;
 
-		if (desc->natts > MaxBlockColumns)
-			elog(ERROR, "modb: modb.snippet_blocks has %d columns, not at most %d", desc->natts, MaxBlockColumns);
 		MemoryContextSwitchTo(per_block);
 		heap_deform_tuple(tuple, desc, values, nulls);
 		pose_key = DatumGetTextPP(values[3]);
@@ -279,8 +286,6 @@ scan_block(HeapTuple tuple, TupleDesc desc, const double *lo, const double *hi, 
 				to[N_FEATURES];
 	const float *inputs = NULL;
 
-	if (desc->natts > MaxBlockColumns)
-		elog(ERROR, "modb: modb.snippet_blocks has %d columns, not at most %d", desc->natts, MaxBlockColumns);
 	heap_deform_tuple(tuple, desc, values, nulls);
 	snippets = DatumGetArrayTypeP(values[6]);
 	codes = DatumGetByteaPP(values[9]);
@@ -367,6 +372,7 @@ modb_block_candidates(Oid relid, int64 generation, const char *pose_key, double 
 	/* Read directly, not through a query: check the caller's right to read it as a query would. */
 	if (pg_class_aclcheck(relid, GetUserId(), ACL_SELECT) != ACLCHECK_OK)
 		aclcheck_error(ACLCHECK_NO_PRIV, OBJECT_TABLE, RelationGetRelationName(rel));
+	check_columns(RelationGetDescr(rel));
 	if (!directory.valid || directory.relid != relid || directory.generation != generation
 		|| directory.relfilenode != rel->rd_node.relNode)
 	{

@@ -15,6 +15,7 @@
 #include "catalog/pg_type.h"
 #include "executor/spi.h"
 #include "funcapi.h"
+#include "lib/binaryheap.h"
 #include "utils/array.h"
 #include "utils/builtins.h"
 #include "utils/guc.h"
@@ -437,28 +438,11 @@ pending_order(const void *a, const void *b)
 	return x->id < y->id ? -1 : (x->id > y->id ? 1 : 0);
 }
 
-/* Restores the heap order (pending_order: least first) below heap[at]. */
-static void
-sift_down(Pending *heap, int n, int at)
+/* binaryheap keeps the greatest first: the one pending_order puts first. */
+static int
+pending_heap_order(Datum a, Datum b, void *arg)
 {
-	for (;;)
-	{
-		int			least = at,
-					left = 2 * at + 1,
-					right = left + 1;
-		Pending		t;
-
-		if (left < n && pending_order(&heap[left], &heap[least]) < 0)
-			least = left;
-		if (right < n && pending_order(&heap[right], &heap[least]) < 0)
-			least = right;
-		if (least == at)
-			return;
-		t = heap[at];
-		heap[at] = heap[least];
-		heap[least] = t;
-		at = least;
-	}
+	return -pending_order(DatumGetPointer(a), DatumGetPointer(b));
 }
 
 /* Puts c into best (sorted, at most `need` long, *n of them) if it ranks among the best `need`. */
@@ -577,11 +561,10 @@ run_level(LevelRead *lr, const BlockCandidate *from_blocks, const int64 *stored_
 	/* The least weight x ratio at this level: the ratio is at least 0, above low and at most high. */
 	double		least = weight >= 0 ? weight * Max(lr->low, 0.0) : weight * lr->high;
 	Pending    *pending = palloc(sizeof(Pending) * Max(n, 1));
-	Pending    *heap;
+	binaryheap *heap;
 	Pending    *batch;
 	int			n_unknown = 0;
-	int			n_heap;
-	int			n_batch;
+	int			limit;
 	instr_time	start,
 				duration;
 
@@ -617,37 +600,27 @@ run_level(LevelRead *lr, const BlockCandidate *from_blocks, const int64 *stored_
 	lr->need = r->k - *emitted;
 	lr->best = palloc(sizeof(Candidate) * Max(lr->need, 1));
 	lr->n_best = 0;
-	/* The unknown ones first, read at once; the others from a heap (a call reads few of them). */
+	/* From a heap: a call reads few of them, and every unknown one, all in its first read. */
+	heap = binaryheap_allocate(Max(n, 1), pending_heap_order, NULL);
 	for (int i = 0; i < n; i++)
-		if (!pending[i].hinted)
-		{
-			Pending		t = pending[n_unknown];
-
-			pending[n_unknown++] = pending[i];
-			pending[i] = t;
-		}
-	heap = pending + n_unknown;
-	n_heap = n - n_unknown;
-	for (int i = n_heap / 2 - 1; i >= 0; i--)
-		sift_down(heap, n_heap, i);
-	batch = palloc(sizeof(Pending) * (n_unknown + LARGEST_BATCH));
-	memcpy(batch, pending, sizeof(Pending) * n_unknown);
-	n_batch = n_unknown;
-	for (int size = FIRST_BATCH;; size = Min(2 * size, LARGEST_BATCH))
 	{
-		int			limit = n_batch + size;
+		binaryheap_add_unordered(heap, PointerGetDatum(&pending[i]));
+		n_unknown += !pending[i].hinted;
+	}
+	binaryheap_build(heap);
+	batch = palloc(sizeof(Pending) * (n_unknown + LARGEST_BATCH));
+	limit = n_unknown + FIRST_BATCH;
+	for (int size = FIRST_BATCH;; limit = size = Min(2 * size, LARGEST_BATCH))
+	{
+		int			n_batch = 0;
 
-		while (n_heap > 0 && n_batch < limit
-			   && (lr->n_best < lr->need || may_beat(&heap[0], &lr->best[lr->need - 1])))
-		{
-			batch[n_batch++] = heap[0];
-			heap[0] = heap[--n_heap];
-			sift_down(heap, n_heap, 0);
-		}
+		while (!binaryheap_empty(heap) && n_batch < limit
+			   && (lr->n_best < lr->need
+				   || may_beat((const Pending *) DatumGetPointer(binaryheap_first(heap)), &lr->best[lr->need - 1])))
+			batch[n_batch++] = *(Pending *) DatumGetPointer(binaryheap_remove_first(heap));
 		if (n_batch == 0)
 			break;
 		read_and_check(lr, batch, n_batch);
-		n_batch = 0;
 	}
 	for (int i = 0; i < lr->n_best; i++)
 	{

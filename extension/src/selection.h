@@ -82,10 +82,8 @@ extern int	modb_block_code(double x, float low, float high);
 extern void modb_store_block(const int64 *ids, const double (*x)[N_FEATURES],
 							 const double (*inputs)[N_OBJECTIVE_INPUTS], int n, const BlockSource *s,
 							 int pack_order);
+/* A snippet's id (column 1), begin features (column `features`) and objective inputs (the three after). */
 extern void modb_block_row(HeapTuple row, TupleDesc desc, int features, int64 *id, double *x, double *inputs);
-/* A snippet row's objective inputs from its net_translation, future_translation and future_heading. */
-extern void modb_objective_inputs(Datum net, bool net_null, Datum future, bool future_null, Datum heading,
-								  bool heading_null, double *inputs);
 extern BlockCandidate *modb_block_candidates(Oid relid, int64 generation, const char *pose_key, double fps,
 											 const double *lo, const double *hi, int *n, BlockStats *stats);
 

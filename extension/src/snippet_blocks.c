@@ -114,26 +114,27 @@ modb_store_block(const int64 *ids, const double (*x)[N_FEATURES], const double (
 	for (int i = 0; i < n; i++)
 		for (int d = 0; d < N_FEATURES; d++)
 			((uint8 *) VARDATA(codes))[i * N_FEATURES + d] = (uint8) modb_block_code(x[i][d], lo[d], hi[d]);
-	memset(nulls, pack_order < 0 ? ' ' : 'n', 12);
+	memset(nulls, ' ', sizeof(nulls));
+	if (pack_order < 0)
+		nulls[10] = 'n';
+	else
+		nulls[0] = nulls[1] = nulls[2] = nulls[5] = 'n';	/* no clip source */
 	args[0] = Int64GetDatum(s->clip_id);
 	args[1] = Int32GetDatum(s->version);
 	args[2] = BoolGetDatum(s->mirrored);
 	args[3] = CStringGetTextDatum(s->pose_key);
 	args[4] = Float8GetDatum(s->fps);
 	args[5] = Int64GetDatum(s->collection_id);
-	nulls[3] = nulls[4] = nulls[6] = nulls[7] = nulls[8] = nulls[9] = ' ';
 	args[6] = PointerGetDatum(construct_array(id_datums, n, INT8OID, 8, FLOAT8PASSBYVAL, TYPALIGN_DOUBLE));
 	args[7] = PointerGetDatum(construct_array(low, N_FEATURES, FLOAT4OID, 4, true, TYPALIGN_INT));
 	args[8] = PointerGetDatum(construct_array(high, N_FEATURES, FLOAT4OID, 4, true, TYPALIGN_INT));
 	args[9] = PointerGetDatum(codes);
 	args[10] = Int32GetDatum(pack_order);
-	nulls[10] = pack_order < 0 ? 'n' : ' ';
 	/* float4: two blocks fit a page; the reader allows for the rounding (selection.c) */
 	for (int i = 0; i < n * N_OBJECTIVE_INPUTS; i++)
 		input_datums[i] = Float4GetDatum((float) inputs[i / N_OBJECTIVE_INPUTS][i % N_OBJECTIVE_INPUTS]);
 	args[11] = PointerGetDatum(construct_array(input_datums, n * N_OBJECTIVE_INPUTS, FLOAT4OID, 4, true,
 											   TYPALIGN_INT));
-	nulls[11] = ' ';
 	if (at_010)
 		modb_kept_plan(&insert_010,
 					   "INSERT INTO modb.snippet_blocks (clip_id, version, mirrored, pose_key, fps, collection_id,"
@@ -149,8 +150,9 @@ modb_store_block(const int64 *ids, const double (*x)[N_FEATURES], const double (
 		elog(ERROR, "modb: storing a snippet block failed");
 }
 
-void
-modb_objective_inputs(Datum net, bool net_null, Datum future, bool future_null, Datum heading,
+/* A snippet row's objective inputs from its net_translation, future_translation and future_heading. */
+static void
+objective_inputs(Datum net, bool net_null, Datum future, bool future_null, Datum heading,
 					  bool heading_null, double *inputs)
 {
 	for (int i = 0; i < N_OBJECTIVE_INPUTS; i++)
@@ -192,7 +194,7 @@ modb_block_row(HeapTuple row, TupleDesc desc, int features, int64 *id, double *x
 		x[d] = LL_COORD(f, d);
 	for (int i = 0; i < 3; i++)
 		values[i] = SPI_getbinval(row, desc, features + 1 + i, &nulls[i]);
-	modb_objective_inputs(values[0], nulls[0], values[1], nulls[1], values[2], nulls[2], inputs);
+	objective_inputs(values[0], nulls[0], values[1], nulls[1], values[2], nulls[2], inputs);
 }
 
 /* Stores rows [first, first + n) of the SPI result (one source, clip order) as one block. */
