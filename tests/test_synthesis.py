@@ -441,7 +441,7 @@ def test_seam_blending_spreads_the_jump_and_keeps_the_placement(locomotion):
 def test_the_report_lists_goals_never_served(locomotion):
     with connect(locomotion) as conn:
         result = synthesize(conn, [(0.0, 40.0), (40.0, 40.0)], 3.0, Settings())
-        rep = report(conn, result, None)
+        rep = report(conn, result)
     assert [g.goal for g in rep.goals] == [1, 2]
     assert not rep.goals[1].reached and rep.goals[1].seconds is None
     # Neither goal was reached nor had its 2x straight line: nothing to measure, so neither met nor
@@ -484,7 +484,7 @@ def test_with_the_graph_a_chain_that_starts_toward_a_far_goal_can_still_turn(loc
     goals = [(0.0, 20.0), (0.0, 10.0)]
     with connect(locomotion) as conn:
         result = synthesize(conn, goals, 40.0, Settings(graph=GRAPH))
-        rep = report(conn, result, None)
+        rep = report(conn, result)
     assert [g.reached for g in rep.goals] == [True, True], [(g.goal, g.ratio) for g in rep.goals]
     assert rep.goals[1].ratio < 2.0, rep.goals[1]
 
@@ -498,7 +498,7 @@ def test_seeded_courses_reach_every_goal_within_the_aims(locomotion, seed):
     goals = seeded_course(seed, 8)
     with connect(locomotion) as conn:
         result = synthesize(conn, goals, 200.0, Settings(graph=GRAPH))
-        rep = report(conn, result, None)
+        rep = report(conn, result)
     figures = [
         (g.goal, round(g.distance_m, 1), g.behind, g.ratio and round(g.ratio, 2)) for g in rep.goals
     ]
@@ -516,7 +516,7 @@ def test_seeded_courses_reach_every_goal_within_the_aims(locomotion, seed):
 def test_a_course_of_right_angle_turns_reaches_every_goal_within_the_aims(locomotion):
     with connect(locomotion) as conn:
         result = synthesize(conn, COURSE, 60.0, Settings(graph=GRAPH))
-        rep = report(conn, result, None)
+        rep = report(conn, result)
     figures = (
         [g.ratio and round(g.ratio, 2) for g in rep.goals],
         f"seams r > 1: {rep.seam_share_over_one:.1%}",

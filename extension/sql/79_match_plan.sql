@@ -162,7 +162,7 @@ BEGIN
     plan.lookahead_distance := (settings->>'lookahead_distance')::float8;
     plan.graph_lookahead := coalesce((settings->>'graph_lookahead')::boolean, false);
     plan.graph_cost_to_go := coalesce((settings->>'graph_cost_to_go')::boolean, true);
-    IF settings ? 'graph' THEN
+    IF settings ? 'graph' AND lower(btrim(settings->>'graph')) <> 'none' THEN  -- 'none': no graph
         SELECT g.id INTO plan.graph_id FROM modb.graphs g WHERE g.name = settings->>'graph' AND g.kind = 'transitions';
         IF NOT FOUND THEN
             RAISE EXCEPTION 'no transition graph "%"', settings->>'graph'

@@ -26,6 +26,10 @@ T = kernel.transitions
 TRANSITION_SLACK = 1e-9
 if not name:
     plpy.error("a transition graph needs a name")
+if name.strip().lower() in ("none", "profile"):
+    plpy.error(f'"{name}" cannot name a graph: SET modb.graph = \'{name.strip().lower()}\' means '
+               + ("no graph" if name.strip().lower() == "none" else "the profile's graph"),
+               hint="choose another name")
 if min_turn_degrees is None or not 0 <= min_turn_degrees <= 180:
     plpy.error(f"min_turn_degrees must be between 0 and 180, got {min_turn_degrees}")
 plan = plpy.execute(plpy.prepare(

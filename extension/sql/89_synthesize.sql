@@ -93,10 +93,10 @@ $$;
 COMMENT ON FUNCTION modb.check_synthesis(float8[], int, bigint, float8[], float8, text, float8, float8) IS
     'Raises a clear error for a synthesize request that cannot be run (bad targets, sizes, start or profile)';
 
-CREATE OR REPLACE FUNCTION modb.synthesize(targets float8[], max_snippets int, start_snippet bigint DEFAULT NULL,
-                                start_position float8[] DEFAULT '{0,0,0}', start_heading float8 DEFAULT 0,
-                                profile text DEFAULT 'default', collection text DEFAULT NULL,
-                                arrival_radius float8 DEFAULT 0.5, exclude_seconds float8 DEFAULT 2)
+CREATE OR REPLACE FUNCTION modb.synthesis_chain(targets float8[], max_snippets int, start_snippet bigint,
+                                     start_position float8[], start_heading float8,
+                                     profile text, collection text,
+                                     arrival_radius float8, exclude_seconds float8)
 RETURNS TABLE (step int, snippet_id bigint, clip_id bigint, version int, mirrored boolean, first_frame int,
                n_frames int, fps float8, start_time float8, "position" float8[], heading float8,
                end_position float8[], end_heading float8, goal int, target float8[], reached boolean,
@@ -158,5 +158,56 @@ SELECT step, snippet_id, clip_id, version, mirrored, first_frame, n_frames, fps,
   FROM chain
  WHERE (SELECT ok FROM cfg)  -- a one-time filter, run first: bad requests raise even when no snippet matches
 $$;
+COMMENT ON FUNCTION modb.synthesis_chain(float8[], int, bigint, float8[], float8, text, text, float8, float8) IS
+    'modb.synthesize''s chain under the session''s settings as they are (synthesize chooses the collection and graph first): a chain of up to max_snippets snippets from start_position/start_heading (world metres, radians; 0 faces +Z) through the world goals in targets ({{x, z}, ...} or {{x, y, z}, ...}), in order: one row per snippet with where it is placed, where it ends, the goal it served and whether it reached it (pelvis within arrival_radius on the ground), and its selection (relaxation level, continuity, proximity). Its first frame stands in for the previous snippet''s last; start_time is the time of that frame. The chain ends early when nothing can follow (every candidate excluded)';
+
+CREATE OR REPLACE FUNCTION modb.synthesize(targets float8[], max_snippets int, start_snippet bigint DEFAULT NULL,
+                                start_position float8[] DEFAULT '{0,0,0}', start_heading float8 DEFAULT 0,
+                                profile text DEFAULT 'default', collection text DEFAULT NULL,
+                                arrival_radius float8 DEFAULT 0.5, exclude_seconds float8 DEFAULT 2)
+RETURNS TABLE (step int, snippet_id bigint, clip_id bigint, version int, mirrored boolean, first_frame int,
+               n_frames int, fps float8, start_time float8, "position" float8[], heading float8,
+               end_position float8[], end_heading float8, goal int, target float8[], reached boolean,
+               relax_level int, continuity float8, proximity float8)
+LANGUAGE plpgsql VOLATILE PARALLEL UNSAFE  -- it SETs modb.graph (transaction-local) for its own selections
+SET jit = off
+AS $$
+DECLARE
+    knob text := current_setting('modb.graph', true);
+    pool record;
+    graph text;
+BEGIN
+    -- Without a collection or start: the largest skeleton-and-rate pool (a chain never mixes them).
+    IF collection IS NULL AND start_snippet IS NULL THEN
+        SELECT p.*, count(*) OVER () AS pools INTO pool FROM modb.snippet_pools() p LIMIT 1;
+        collection := pool.collection;
+        IF pool.pools > 1 THEN
+            RAISE NOTICE 'modb: synthesizing from %: the largest skeleton-and-rate pool (% snippets at % fps)',
+                coalesce('collection ' || pool.collection, 'every collection'), pool.snippets, pool.fps
+                USING HINT = 'pass collection (or start_snippet) to choose';
+        END IF;
+    END IF;
+    -- Without a graph named by the session (or the profile): the newest current one over that data, so the
+    -- chain keeps to snippets it can keep moving and steering among. SET modb.graph = 'none' for the
+    -- paper's plain rule.
+    IF coalesce(lower(btrim(knob)), '') IN ('', 'profile')
+       AND NOT coalesce((SELECT p.settings ? 'graph' FROM modb.match_profiles p WHERE p.name = profile), false) THEN
+        graph := modb.default_graph(profile, collection);
+        IF graph IS NULL THEN
+            RAISE NOTICE 'modb: no current transition graph of profile "%" over %: choosing among all its snippets',
+                profile, coalesce('collection ' || collection, 'every collection')
+                USING HINT = format('a role that can write builds one with modb.build_transition_graph(name, %L, %L) or `modb graph build`; SET modb.graph = ''none'' for the plain rule without this notice',
+                                    profile, collection);
+        ELSE
+            PERFORM set_config('modb.graph', graph, true);
+        END IF;
+    END IF;
+    RETURN QUERY SELECT * FROM modb.synthesis_chain(targets, max_snippets, start_snippet, start_position, start_heading,
+                                                     profile, collection, arrival_radius, exclude_seconds);
+    IF graph IS NOT NULL THEN
+        PERFORM set_config('modb.graph', coalesce(knob, ''), true);
+    END IF;
+END
+$$;
 COMMENT ON FUNCTION modb.synthesize(float8[], int, bigint, float8[], float8, text, text, float8, float8) IS
-    'A chain of up to max_snippets snippets from start_position/start_heading (world metres, radians; 0 faces +Z) through the world goals in targets ({{x, z}, ...} or {{x, y, z}, ...}), in order: one row per snippet with where it is placed, where it ends, the goal it served and whether it reached it (pelvis within arrival_radius on the ground), and its selection (relaxation level, continuity, proximity). Its first frame stands in for the previous snippet''s last; start_time is the time of that frame. The chain ends early when nothing can follow (every candidate excluded)';
+    'A chain of up to max_snippets snippets from start_position/start_heading (world metres, radians; 0 faces +Z) through the world goals in targets ({{x, z}, ...} or {{x, y, z}, ...}), in order: one row per snippet with where it is placed, where it ends, the goal it served and whether it reached it (pelvis within arrival_radius on the ground), and its selection (relaxation level, continuity, proximity). Without collection or start_snippet it draws from the largest skeleton-and-rate pool (modb.snippet_pools); without a graph set (modb.graph) it chooses among the newest current transition graph over that data (modb.default_graph), or says with a NOTICE that there is none; SET modb.graph = ''none'' for the paper''s plain rule. Its first frame stands in for the previous snippet''s last; start_time is the time of that frame. The chain ends early when nothing can follow (every candidate excluded)';

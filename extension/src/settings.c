@@ -48,7 +48,7 @@ static const Knob knobs[N_KNOBS] = {
 	{"continuity_weight", KNOB_WEIGHT, "metres per unit of continuity ratio",
 	"Weight of the continuity ratio in the objective: the smoother candidate wins unless another leads clearly better"},
 	{"lookahead_distance", KNOB_DISTANCE, "metres", "A farther goal is scored as the point this far along the way to it"},
-	{"graph", KNOB_NAME, NULL, "Transition graph (modb.graphs name) whose snippets the selection chooses among"},
+	{"graph", KNOB_NAME, NULL, "Transition graph (modb.graphs name) whose snippets the selection chooses among; none: no graph, not even synthesis's default one"},
 	{"graph_lookahead", KNOB_BOOLEAN, NULL,
 	"Graphs without a cost-to-go: score a candidate also by its best successor (on or off)"},
 	{"graph_cost_to_go", KNOB_BOOLEAN, NULL, "With a graph that has one, rank level 0 by its cost-to-go (on or off)"},

@@ -8,14 +8,13 @@ not new captures, only denser coverage of the same motions.
 from __future__ import annotations
 
 import sys
-from dataclasses import replace
-
 import numpy as np
 import psycopg
 
 from modb.loader.ingest import store_motion
 
 from modb.clips import read_motion
+from modb.resample import sampled
 from modb.motion import Motion
 
 # Around 1x, alternating slower and faster, so each step adds gaits a little off the captured ones.
@@ -26,37 +25,12 @@ COLLECTION_PREFIX = "resampled-x"
 
 def at_speed(motion: Motion, speed: float) -> Motion:
     """The motion played `speed` times as fast at the same frame rate: frame k shows time k x speed
-    / fps of the original (rotations slerped joint by joint, translations interpolated linearly)."""
-    from scipy.spatial.transform import Rotation, Slerp
-
+    / fps of the original."""
     if not speed > 0:
         raise ValueError(f"speed must be positive, got {speed}")
-    original = np.arange(motion.n_frames, dtype=np.float64)
     last = motion.n_frames - 1
     # Never past the end by rounding.
-    times = np.minimum(np.arange(int(last / speed + 1e-9) + 1) * speed, last)
-    rotations = np.empty((len(times), motion.rotations.shape[1], 4))
-    for j in range(motion.rotations.shape[1]):
-        xyzw = Slerp(original, Rotation.from_quat(motion.rotations[:, j, [1, 2, 3, 0]]))(
-            times
-        ).as_quat()
-        rotations[:, j] = xyzw[:, [3, 0, 1, 2]]
-    rotations[rotations[:, :, 0] < 0] *= -1  # the model's sign convention: w >= 0
-    translations = (
-        np.stack(
-            [
-                np.stack(
-                    [np.interp(times, original, motion.translations[:, t, c]) for c in range(3)],
-                    axis=-1,
-                )
-                for t in range(motion.translations.shape[1])
-            ],
-            axis=1,
-        )
-        if motion.translations.shape[1]
-        else np.zeros((len(times), 0, 3))
-    )
-    return replace(motion, rotations=rotations, translations=translations)
+    return sampled(motion, np.minimum(np.arange(int(last / speed + 1e-9) + 1) * speed, last))
 
 
 def resampled_snippets(conn: psycopg.Connection) -> int:

@@ -137,7 +137,7 @@ def run_synth(args: argparse.Namespace) -> int:
     with connect(args) as conn:
         settings = Settings(profile=args.profile, collection=args.collection, graph=args.graph)
         result = synthesize(conn, goals, args.seconds, settings)
-        summary = format_summary(result, report(conn, result, args.collection))
+        summary = format_summary(result, report(conn, result))
     graph = f", graph {args.graph}" if args.graph else ""
     print(
         f"seeded course (seed {args.seed}, goals 1-20 m apart), {args.seconds:g} s, "

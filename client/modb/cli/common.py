@@ -9,6 +9,7 @@ import sys
 
 import psycopg
 
+from modb.loader.limits import FPS_RANGE
 from modb.synthesis.chain import checked_number, number_range
 
 
@@ -70,6 +71,9 @@ SEED = whole(0, 2**32 - 1)  # a random seed
 PORT = whole(1, 65535)  # a TCP port
 
 
+FPS = Number(*FPS_RANGE, unit="fps")  # a frame rate to write a file at
+
+
 def writable(command: str, path: str | None) -> bool:
     """Whether `path` (`-`: standard output; None: nothing to write) can be written, checked before
     any work is done: a directory or a folder that does not exist is refused at once, with the
@@ -96,6 +100,33 @@ def write_bvh_file(command: str, motion, path: str) -> bool:
         write_bvh_file(motion, path, allow_stdout=True)
     except BrokenPipeError:
         raise  # the reader left early (`modb export X | head`): main() exits 0
+    except OSError as e:
+        print(f"modb {command}: cannot write {path}: {e.strerror or e}", file=sys.stderr)
+        return False
+    return True
+
+
+def motion_format(path: str, asked: str | None = None) -> str:
+    """bvh or gltf: as asked, else by the file name (.glb, .gltf), else bvh."""
+    from modb.gltf_export import is_gltf_name
+
+    return asked or ("gltf" if is_gltf_name(path) else "bvh")
+
+
+def write_motion_file(command: str, motion, path: str, fmt: str = "bvh") -> bool:
+    """Writes `motion` to `path` as BVH or glTF (`-`: standard output; glTF there is .glb); if it
+    cannot, False, with the reason on stderr."""
+    if fmt == "bvh":
+        return write_bvh_file(command, motion, path)
+    from modb.gltf_export import write_gltf_file
+
+    try:
+        write_gltf_file(motion, path, allow_stdout=True)
+    except BrokenPipeError:
+        raise
+    except ValueError as e:  # a skeleton without bones to draw
+        print(f"modb {command}: cannot write {path} as glTF: {e}", file=sys.stderr)
+        return False
     except OSError as e:
         print(f"modb {command}: cannot write {path}: {e.strerror or e}", file=sys.stderr)
         return False

@@ -1,17 +1,17 @@
-"""`modb export`: a stored clip written as BVH."""
+"""`modb export`: a stored clip written as BVH or glTF."""
 
 from __future__ import annotations
 
 import argparse
 import sys
 
-from .common import connect, whole, writable, write_bvh_file
+from .common import FPS, connect, motion_format, whole, writable, write_motion_file
 
 VERSION = whole(1, 2**31 - 1)  # clip versions are int
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    export = sub.add_parser("export", help="write a clip as BVH")
+    export = sub.add_parser("export", help="write a clip as BVH or glTF")
     export.add_argument("clip", metavar="CLIP", help="clip id, name, or collection/name")
     export.add_argument(
         "--version", type=VERSION, dest="version", help="clip version (default: newest)"
@@ -22,11 +22,26 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="output file, - for standard output (the default); a device, FIFO or symlink's "
         "target is written into, a regular file replaced whole",
     )
+    export.add_argument(
+        "--format",
+        choices=["bvh", "gltf"],
+        help="bvh, or gltf (a skinned character with the animation; .gltf JSON, else .glb "
+        "binary); default: by the --out name (.glb, .gltf), else bvh",
+    )
+    export.add_argument("--fps", type=FPS, help=f"resample to this frame rate ({FPS.span})")
+    export.add_argument(
+        "--root-motion",
+        action="store_true",
+        help="carry the travel on the top joint as engines take it (default: the source's own "
+        "layout)",
+    )
     export.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from modb.clips import ClipNotFound, read_motion, resolve_clip
+    from modb.resample import at_fps
+    from modb.synthesis.root_motion import with_root_motion
 
     if not writable("export", args.out):
         return 1
@@ -36,7 +51,11 @@ def run(args: argparse.Namespace) -> int:
         except ClipNotFound as e:
             print(f"modb export: {e}", file=sys.stderr)
             return 1
-    if not write_bvh_file("export", motion, args.out):
+    if args.root_motion:
+        motion = with_root_motion(motion)
+    if args.fps:
+        motion = at_fps(motion, args.fps)
+    if not write_motion_file("export", motion, args.out, motion_format(args.out, args.format)):
         return 1
     if args.out != "-":
         print(

@@ -5,9 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from modb.loader.limits import FPS_RANGE
 
-from .common import Number, connect
+from .common import FPS, connect
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -22,7 +21,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="auto | m | cm | mm | in | metres per unit (default auto: judged from the figure's "
         "size)",
     )
-    fps = Number(*FPS_RANGE, unit="fps")
+    fps = FPS
     load.add_argument(
         "--fps", type=fps, help=f"AMC frame rate, {fps.span} (AMC files carry none; default 120)"
     )
@@ -108,6 +107,12 @@ def run(args: argparse.Namespace) -> int:
         if len(rules) > 3:
             print(f"... and {len(rules) - 3} more files with their own figures", file=sys.stderr)
         print(summary.describe())
+        if summary.count("loaded"):
+            from modb.synthesis.graphs import stale_graph_notes
+
+            with connect(args) as conn:
+                for note in stale_graph_notes(conn):
+                    print(note, file=sys.stderr)
     if summary.failed:
         if args.keep_going:
             print(f"{len(summary.failed)} file(s) not loaded:", file=sys.stderr)

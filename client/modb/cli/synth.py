@@ -14,7 +14,16 @@ from modb.synthesis.chain import (
     MAX_SECONDS,
 )
 
-from .common import Number, connect, positive, whole, writable, write_bvh_file
+from .common import (
+    FPS,
+    Number,
+    connect,
+    motion_format,
+    positive,
+    whole,
+    writable,
+    write_motion_file,
+)
 
 SECONDS = positive(MAX_SECONDS, "seconds")
 ARRIVAL_RADIUS = positive(MAX_ARRIVAL_RADIUS, "metres")
@@ -25,7 +34,9 @@ SNIPPET = whole(1, MAX_ID)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    synth = sub.add_parser("synth", help="synthesize a long strip toward goals and write it as BVH")
+    synth = sub.add_parser(
+        "synth", help="synthesize a long strip toward goals and write it as BVH or glTF"
+    )
     synth.add_argument(
         "--to",
         action="append",
@@ -41,9 +52,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     synth.add_argument(
         "--out",
         required=True,
-        help="the BVH file to write, - for standard output; a device, FIFO or symlink's target is "
+        help="the file to write: BVH, or glTF for a .glb or .gltf name (a skinned character with "
+        "the animation); - for BVH on standard output; a device, FIFO or symlink's target is "
         "written into, a regular file replaced whole",
     )
+    synth.add_argument("--fps", type=FPS, help=f"write at this frame rate ({FPS.span})")
     synth.add_argument(
         "--collection", help="draw snippets from this collection (and those below it)"
     )
@@ -53,8 +66,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="the first snippet, a modb.snippets id (default: the best one for the first goal)",
     )
     synth.add_argument("--profile", default="default", help="match profile (modb.match_profiles)")
-    synth.add_argument(
-        "--graph", help="choose among this transition graph's snippets only (`modb graph build`)"
+    graph = synth.add_mutually_exclusive_group()
+    graph.add_argument(
+        "--graph",
+        help="choose among this transition graph's snippets only (default: the newest current "
+        "graph over the data, built first when there is none and this role can)",
+    )
+    graph.add_argument(
+        "--no-graph",
+        action="store_true",
+        help="choose among every snippet (the paper's plain rule: goals missed more, rough seams)",
     )
     synth.add_argument(
         "--arrival-radius",
@@ -84,6 +105,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "captured)",
     )
     synth.add_argument(
+        "--in-place",
+        action="store_true",
+        help="keep the skeleton's own top joint as placed (default: root motion, the travel on "
+        "the top joint as engines take it; a top joint is added where the pelvis is the top)",
+    )
+    synth.add_argument(
         "--report", action="store_true", help="print the choices and the quality figures"
     )
     synth.add_argument(
@@ -95,8 +122,36 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     synth.set_defaults(func=run)
 
 
+def prepare_default_graph(conn, settings, start: int | None, quiet: bool) -> None:
+    """Builds the graph synthesis will use by default when there is none and this role can."""
+    from modb.synthesis.defaults import default_graph, largest_pool, profile_names_graph
+    from modb.synthesis.graphs import build_default_graph
+
+    if profile_names_graph(conn, settings.profile):
+        return
+    collection = settings.collection
+    if collection is None and start is None:
+        pool = largest_pool(conn)
+        collection = pool.collection if pool else None
+    if default_graph(conn, settings.profile, collection) is None:
+
+        def say(text: str) -> None:
+            print(f"modb synth: {text}", file=sys.stderr)
+
+        build_default_graph(
+            conn,
+            settings.profile,
+            collection,
+            say,
+            None if quiet else lambda text: print(f"  {text}", file=sys.stderr),
+        )
+
+
 def run(args: argparse.Namespace) -> int:
     from modb.synthesis.avatar import NoContinuation, Settings
+    from modb.synthesis.defaults import NO_GRAPH
+    from modb.resample import at_fps
+    from modb.synthesis.root_motion import with_root_motion
     from modb.synthesis.source_frames import UnplaceableSkeleton
     from modb.synthesis.synth import (
         clip_names,
@@ -144,7 +199,11 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as e:  # named by the setting: --lead-time is lead_time
         print(f"modb synth: {e}", file=sys.stderr)
         return 2
+    if args.no_graph:
+        settings.graph = NO_GRAPH
     with connect(args) as conn:
+        if settings.graph is None:
+            prepare_default_graph(conn, settings, args.start, args.quiet)
         try:
             result = synthesize(
                 conn,
@@ -157,12 +216,17 @@ def run(args: argparse.Namespace) -> int:
         except (NoContinuation, UnplaceableSkeleton, ValueError) as e:
             print(f"modb synth: {e}", file=sys.stderr)
             return 1
-        if not write_bvh_file("synth", result.strip, args.out):
+        for note in result.notes:
+            print(f"modb synth: {note}", file=sys.stderr)
+        strip = result.strip if args.in_place else with_root_motion(result.strip)
+        if args.fps:
+            strip = at_fps(strip, args.fps)
+        if not write_motion_file("synth", strip, args.out, motion_format(args.out)):
             return 1
         print(
             f"wrote {'the strip to standard output' if args.out == '-' else args.out}: "
-            f"{result.strip.n_frames} frames at {result.strip.fps:g} fps "
-            f"({(result.strip.n_frames - 1) / result.strip.fps:.1f} s), {len(result.chain)} "
+            f"{strip.n_frames} frames at {strip.fps:g} fps "
+            f"({(strip.n_frames - 1) / strip.fps:.1f} s), {len(result.chain)} "
             f"snippets",
             file=sys.stderr,
         )
@@ -170,7 +234,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"modb synth: the strip ended early: {result.stopped}", file=sys.stderr)
         if args.report or args.report_json:
             try:
-                rep = report(conn, result, args.collection)
+                rep = report(conn, result)
                 if args.report:
                     print(format_report(result, rep, clip_names(conn, result.chain)))
                 if args.report_json:

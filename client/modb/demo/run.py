@@ -13,6 +13,7 @@ import psycopg
 from modb.synthesis.avatar import NoContinuation, Settings
 from modb.bvh_export import write_bvh_file
 from .data import DemoDataError, cmu_01_01, locomotion_files
+from modb.synthesis.defaults import NO_GRAPH
 from modb.synthesis.graphs import describe, ensure_graph
 from modb.synthesis.source_frames import UnplaceableSkeleton
 from modb.synthesis.synth import clip_names, format_report, report, synthesize
@@ -94,13 +95,13 @@ def run_demo(
             )
             if not graph.kept:  # e.g. one short clip: no part of it leads back into itself
                 print("  it keeps no snippet: synthesizing without it")
-            settings = Settings(collection=collection, graph=graph.name if graph.kept else None)
+            settings = Settings(collection=collection, graph=graph.name if graph.kept else NO_GRAPH)
             result = synthesize(conn, COURSE, SECONDS, settings)
             out.parent.mkdir(parents=True, exist_ok=True)
             write_bvh_file(result.strip, out)
             print(
                 format_report(
-                    result, report(conn, result, collection), clip_names(conn, result.chain)
+                    result, report(conn, result), clip_names(conn, result.chain)
                 )
             )
         except (NoContinuation, UnplaceableSkeleton, ValueError, OSError, psycopg.Error) as e:

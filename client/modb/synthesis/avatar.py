@@ -34,6 +34,7 @@ from .chain import (
     checked_number,
     checked_position,
 )
+from .defaults import describe_pool, largest_pool, session_graph
 from .placement import Placement, after, ground_distance, place_root
 from .source_frames import FrameLibrary
 
@@ -84,6 +85,17 @@ class Avatar:
         # What this avatar last SET modb.<knob> to on its connection.
         self._knobs_set: dict[str, str] = {}
         configure_for_selection(self.conn)
+        # What the database chose where the settings say nothing (as modb.synthesize does), and
+        # why, for the caller to show: the collection of the largest pool, the graph per scope.
+        self.notes: list[str] = []
+        self._default_collection: str | None = None
+        if self.settings.collection is None and self.start_snippet is None:
+            pool = largest_pool(self.conn)
+            if pool is not None:
+                self._default_collection = pool.collection
+                if pool.pools > 1:
+                    self.notes.append(describe_pool(pool))
+        self._graphs: dict[tuple[str | None, str, str | None], str] = {}
 
     # Goals may change at any time (from another thread too): they apply to the next query issued.
     def set_goal(self, goal: Goal) -> None:
@@ -164,7 +176,7 @@ class Avatar:
             if self._goal_reached and self._goal_index < len(self._goals) - 1:
                 self._goal_index, self._goal_reached = self._goal_index + 1, False
             goal_index, target = self._goal_index, self._goals[self._goal_index]
-        s = self.settings
+        s, collection = self.settings, self.collection
         if previous is None:
             where = self.placement
             exclude = None
@@ -183,8 +195,8 @@ class Avatar:
             "heading": where.heading,
             "target": list(target),
             "profile": s.profile,
-            "collection": s.collection,
-            "knobs": s.session_knobs(),
+            "collection": collection,
+            "knobs": {**s.knobs, "graph": self._graph(s.graph, s.profile, collection)},
             "exclude": exclude,
             "count_candidates": s.count_candidates,
             "goal": goal_index + 1,
@@ -293,6 +305,22 @@ class Avatar:
             candidates=candidates,
         )
         return choice, rotations, translations
+
+    @property
+    def collection(self) -> str | None:
+        """The collection the next selection draws from."""
+        s = self.settings
+        return s.collection if s.collection is not None else self._default_collection
+
+    def _graph(self, graph: str | None, profile: str, collection: str | None) -> str:
+        """SET modb.graph for the next query: the settings' graph, else the scope's default one
+        (looked up once per scope; a note says when there is none)."""
+        key = (graph, profile, collection)
+        if key not in self._graphs:
+            self._graphs[key], note = session_graph(self.conn, graph, profile, collection)
+            if note:
+                self.notes.append(note)
+        return self._graphs[key]
 
     def _set_knobs(self, knobs: dict[str, str]) -> None:
         """The session's SET modb.<knob>, as in psql; a knob left out goes back to the profile's."""

@@ -65,7 +65,8 @@ class Settings:
 
     profile: str = "default"
     collection: str | None = None
-    # a transition graph (modb.build_transition_graph): choose among its snippets only
+    # a transition graph (modb.build_transition_graph): choose among its snippets only; None: the
+    # newest current one over the data (modb.default_graph), "none": every snippet (the plain rule)
     graph: str | None = None
     arrival_radius: float = 0.5  # metres, pelvis to goal on the ground, checked at snippet ends
     exclude_seconds: float = 2.0  # snippets played this recently are passed as `exclude`
@@ -75,10 +76,6 @@ class Settings:
     knobs: dict[str, str] = field(default_factory=dict)
     # report each choice's modb.candidates_examined (one more query, after it)
     count_candidates: bool = False
-
-    def session_knobs(self) -> dict[str, str]:
-        """The SET modb.<knob> of a session selecting with these settings ('' is the profile's)."""
-        return {**self.knobs, "graph": self.graph or ""}
 
     def __setattr__(self, name: str, value) -> None:
         # Checked on every assignment, in __init__ and after it: an avatar reads its settings live.

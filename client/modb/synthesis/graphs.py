@@ -7,6 +7,7 @@ terminators (minutes for tens of thousands of snippets) and passes on the server
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -55,18 +56,10 @@ def build_graph(
 
 
 def list_graphs(conn: psycopg.Connection) -> list[GraphSummary]:
-    # Loads replace snippets (new ids): the graph's rows of removed snippets go with them (ON DELETE
-    # CASCADE) and new snippets are not in it, so either count changing means it needs a rebuild. So
-    # does
-    # a graph built before 0.6.0, which stored no transitions (no transition_key) or no cost-to-go.
     rows = conn.execute(
         "SELECT g.name, g.data->>'profile', g.data->>'collection', (g.data->>'snippets')::int, "
         "       (g.data->>'kept')::int, (g.data->>'edges')::bigint, (g.data->>'dead_ends')::int, "
-        "       g.data ?& '{transition_key,cost_to_go}' AND (SELECT count(*) FROM "
-        "modb.graph_snippets gs WHERE gs.graph_id = g.id) = (g.data->>'kept')::int "
-        "       AND (SELECT count(*) FROM modb.snippets s WHERE g.data->>'collection' IS NULL "
-        "            OR s.collection_id = ANY (modb.collection_subtree(g.data->>'collection'))) "
-        "           = (g.data->>'snippets')::int "
+        "       modb.graph_is_current(g.id) "
         "  FROM modb.graphs g WHERE g.kind = 'transitions' ORDER BY g.name"
     ).fetchall()
     return [GraphSummary(*row) for row in rows]
@@ -105,3 +98,85 @@ def describe(g: GraphSummary) -> str:
         f"{g.name}: {g.kept:,} of {g.snippets:,} snippets kept ({scope}, profile {g.profile}; "
         f"{g.edges:,} level-0 transitions, {g.dead_ends:,} snippets with none){stale}"
     )
+
+
+# Building compares every snippet's end with the starts near it, so its time grows about with the
+# square of the scope: 7.5 min for 57,616 snippets here, 5 s for 8,390. A first synthesis builds
+# graphs of up to AUTO_BUILD_SNIPPETS itself and names the command for larger ones.
+AUTO_BUILD_SNIPPETS = 60_000
+
+
+def build_seconds(snippets: int) -> float:
+    """About how long building a graph over this many snippets takes here."""
+    return 450.0 * (snippets / 57_616) ** 2
+
+
+def auto_graph_name(profile: str, collection: str | None) -> str:
+    return f"auto {profile} {collection or '(every collection)'}"
+
+
+def build_default_graph(
+    conn: psycopg.Connection,
+    profile: str,
+    collection: str | None,
+    say: Callable[[str], None],
+    progress: Callable[[str], None] | None = None,
+) -> GraphSummary | None:
+    """The graph synthesis uses by default (modb.default_graph), built now when there is none, this
+    role may build graphs and the scope is small enough; else None, having said why."""
+    (may_build,) = conn.execute(
+        "SELECT has_function_privilege('modb.build_transition_graph(text, text, text, float8)', "
+        "'EXECUTE')"
+    ).fetchone()
+    (snippets,) = conn.execute(
+        "SELECT count(*) FROM modb.snippets s WHERE %(c)s::text IS NULL "
+        "OR s.collection_id = ANY (modb.collection_subtree(%(c)s))",
+        {"c": collection},
+    ).fetchone()
+    minutes = build_seconds(snippets) / 60
+    command = "modb graph build NAME" + (f" --collection {collection}" if collection else "")
+    if not may_build:
+        say(f"this role cannot build graphs; a loader builds one with `{command}`")
+        return None
+    if snippets > AUTO_BUILD_SNIPPETS:
+        say(f"building one over {snippets:,} snippets takes about {minutes:.0f} min: `{command}`")
+        return None
+    name = auto_graph_name(profile, collection)
+    say(
+        f"building transition graph {name!r} over {snippets:,} snippets first (once, and again "
+        f"after loads change its data; about {max(build_seconds(snippets), 1):.0f} s)"
+    )
+    started = time.perf_counter()
+    try:
+        graph = build_graph(conn, name, profile, collection, progress)
+    except psycopg.Error as e:  # e.g. no part of the data keeps walking and turns both ways
+        say(f"no graph: {e.diag.message_primary or e}")
+        return None
+    say(f"built in {time.perf_counter() - started:.0f} s: {describe(graph)}")
+    return graph
+
+
+def stale_graph_notes(conn: psycopg.Connection) -> list[str]:
+    """After a load: the graphs it made stale, and when they are rebuilt (not now: a rebuild reads
+    every snippet of its scope, minutes for tens of thousands, too much for a one-file load)."""
+    (known,) = conn.execute(
+        "SELECT to_regprocedure('modb.graph_is_current(bigint)') IS NOT NULL"
+    ).fetchone()
+    if not known:  # an extension before 0.12.0: `modb graph list` says which are stale
+        return []
+    notes = []
+    for g in list_graphs(conn):
+        if g.current:
+            continue
+        scope = f" --collection {g.collection}" if g.collection else ""
+        when = (
+            "the next `modb synth` over its data rebuilds it"
+            if g.name == auto_graph_name(g.profile, g.collection)
+            else f"`modb graph build {g.name}{scope}` rebuilds it"
+        )
+        notes.append(
+            f"transition graph {g.name!r} no longer covers its data: synthesis falls back to "
+            f"another graph or the plain rule until {when} "
+            f"(about {build_seconds(g.snippets) / 60:.0f} min)"
+        )
+    return notes

@@ -6,7 +6,7 @@ import contextlib
 import json
 import sys
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import psycopg
@@ -37,6 +37,8 @@ class Synthesis:
     chain: list[Choice]
     goals: list[Goal]
     stopped: str | None = None  # why the strip ended before `seconds`, if it did
+    collection: str | None = None  # drawn from (the database's choice when not given)
+    notes: list[str] = field(default_factory=list)  # what the database chose, and why
 
 
 def strip_motion(frames: Sequence[Frame], template: Motion, name: str) -> Motion:
@@ -85,7 +87,12 @@ def synthesize(
     first = avatar.choices[0]
     template = avatar.library.get(first.clip_id, first.version, first.mirrored).motion
     return Synthesis(
-        strip_motion(frames, template, "synthesized"), avatar.choices, list(goals), stopped
+        strip_motion(frames, template, "synthesized"),
+        avatar.choices,
+        list(goals),
+        stopped,
+        avatar.collection,
+        avatar.notes,
     )
 
 
@@ -128,8 +135,8 @@ def median_walking_speed(
     return float(speed)
 
 
-def report(conn: psycopg.Connection, result: Synthesis, collection: str | None) -> Report:
-    first = result.chain[0].snippet_id
+def report(conn: psycopg.Connection, result: Synthesis) -> Report:
+    first, collection = result.chain[0].snippet_id, result.collection
     natural = NaturalSteps.of(source_motions(conn, first, collection))
     return measure(
         result.strip,

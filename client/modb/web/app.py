@@ -26,13 +26,13 @@ from starlette.applications import Starlette
 from starlette.concurrency import run_in_threadpool
 from starlette.exceptions import HTTPException
 from starlette.requests import Request
-from starlette.responses import FileResponse, JSONResponse
+from starlette.responses import FileResponse, JSONResponse, Response
 from starlette.routing import Mount, Route, WebSocketRoute
 from starlette.staticfiles import StaticFiles
 
 from modb.database import pgarray
 from modb.database.connection import connect
-from . import api
+from . import api, downloads
 from .avatar_socket import avatar_endpoint
 from .guard import HostOriginGuard, allowed_hosts
 
@@ -119,7 +119,8 @@ View = Callable[[psycopg.Connection, Request], Any]
 def _endpoint(pool: ConnectionPool, view: View) -> Callable:
     def endpoint(request: Request) -> JSONResponse:  # sync: Starlette runs it in its thread pool
         with pool.connection() as conn:
-            return JSONResponse(view(conn, request))
+            answer = view(conn, request)
+        return answer if isinstance(answer, Response) else JSONResponse(answer)
 
     return endpoint
 
@@ -159,6 +160,20 @@ def _frames(conn: psycopg.Connection, r: Request) -> Any:
     return api.frames(conn, *_frames_args(r))
 
 
+def _download_args(r: Request) -> tuple[int, int | None, str]:
+    q = _query(r, "version", "format")
+    return _path_id(r, "clip"), _int("version", q.get("version")), q.get("format", "glb")
+
+
+def _download(conn: psycopg.Connection, r: Request) -> Response:
+    return downloads.clip_file(conn, *_download_args(r))
+
+
+def _character(conn: psycopg.Connection, r: Request) -> Response:
+    _query(r)
+    return downloads.skeleton_character(conn, _path_id(r, "skeleton"))
+
+
 def _listing(
     view: Callable[[psycopg.Connection], Any],
 ) -> Callable[[psycopg.Connection, Request], Any]:
@@ -194,6 +209,8 @@ VIEWS: dict[str, View] = {
 # path: (view, check of its arguments before it waits for a turn)
 HEAVY_VIEWS: dict[str, tuple[View, Callable[[Request], Any]]] = {
     "/api/clips/{ident}/frames": (_frames, _frames_args),
+    "/api/clips/{ident}/download": (_download, _download_args),
+    "/api/skeletons/{ident}/character.glb": (_character, lambda r: _path_id(r, "skeleton")),
 }
 
 

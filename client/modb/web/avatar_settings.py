@@ -86,7 +86,7 @@ def check_settings(conn: psycopg.Connection, settings: Settings) -> None:
     of its own, so that the database says what is wrong before any avatar uses them."""
     try:
         with conn.transaction():
-            for knob, value in settings.session_knobs().items():
+            for knob, value in {**settings.knobs, "graph": settings.graph or ""}.items():
                 conn.execute("SELECT set_config(%s, %s, true)", [f"modb.{knob}", value])
             conn.execute(
                 "SELECT modb.match_plan(%s), modb.check_request(NULL, '{0,1}', 1, %s)",

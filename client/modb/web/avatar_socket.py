@@ -89,10 +89,10 @@ def parse_message(received: dict[str, Any]) -> Any:
         raise MessageRefused("a number in the message has too many digits") from None
 
 
-def _defaults(choices: dict[str, Any]) -> Settings:
-    # The newest transition graph: the aims of synthesis (README "Synthesis quality") need one.
+def _defaults() -> Settings:
+    # The graph left to the Avatar: the newest current one over the data (modb.default_graph).
     # A lead time of 0.1 s hides a selection (~20-30 ms with a graph) behind the last frames.
-    return Settings(graph=choices["graphs"][0] if choices["graphs"] else None, lead_time=0.1)
+    return Settings(lead_time=0.1)
 
 
 def avatar_endpoint(conninfo: str, pool: ConnectionPool) -> Callable:
@@ -127,7 +127,7 @@ def avatar_endpoint(conninfo: str, pool: ConnectionPool) -> Callable:
         session: AvatarSession | None = None
         try:
             choices = await run_in_threadpool(offered)
-            session = AvatarSession(conninfo, send, check, _defaults(choices))
+            session = AvatarSession(conninfo, send, check, _defaults())
             await websocket.send_text(
                 json.dumps({"type": "ready", **choices, "settings": session.public_settings()})
             )

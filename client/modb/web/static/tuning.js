@@ -34,7 +34,7 @@ export class Tuning {
     ready.profiles.forEach((p) => this.profiles.set(p.name, p.settings));
     const $ = this.$;
     options($('profile'), ready.profiles.map((p) => p.name));
-    options($('graph'), ['', ...ready.graphs], ['none: every snippet', ...ready.graphs]);
+    options($('graph'), ['', 'none', ...ready.graphs], ['automatic: the newest current one over the data', 'none: every snippet (the plain rule)', ...ready.graphs]);
     options($('collection'), ['', ...ready.collections], ['all', ...ready.collections]);
     $('thresholds').replaceChildren(...THRESHOLDS.map(([knob, label]) => element('label', {}, [
       label, element('input', { id: knob, type: 'number', min: '0', step: 'any', placeholder: "profile's" })])));

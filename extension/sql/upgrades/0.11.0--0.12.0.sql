@@ -1,0 +1,8 @@
+-- 0.12.0: synthesis uses a transition graph by default. modb.synthesize draws from the largest
+-- skeleton-and-rate pool when given no collection or start (modb.snippet_pools) and chooses among the
+-- newest current graph over that data when the session names none (modb.default_graph,
+-- modb.graph_is_current); SET modb.graph = 'none' keeps the paper's plain rule, so no graph may be
+-- called "none" (or "profile").
+--@include 79_match_plan.sql
+--@include 89_synthesis_defaults.sql
+--@include 89_synthesize.sql
