@@ -575,3 +575,51 @@ def test_bad_settings_are_refused_with_the_reason_and_the_walk_goes_on(avatar_se
         while "frame" not in kinds and time.monotonic() < deadline:
             kinds.add(json.loads(ws.recv(10))["type"])
         assert {"goals", "skeleton", "choice", "frame"} <= kinds
+
+
+def test_the_avatar_is_a_skinned_character_and_its_walk_downloads_as_bvh_and_gltf(
+    avatar_server, browser, tmp_path
+):
+    import base64
+
+    from selenium.webdriver.common.by import By
+    from support.commands import run_modb
+    from support.gltf_validator import validate
+
+    address, dsn = avatar_server
+    open_avatar(browser, address)
+    look_at(browser, 0.0, 3.0)
+    click_ground(browser, 0.0, 3.0)
+    wait_until(browser, lambda s: len(s["choices"]) >= 3, 30, "three selections")
+    character = browser.execute_script(
+        "const s = window.modbAvatar; const c = s.state.character; if (!c) return null; "
+        "let skinned = 0; s.stage.scene.traverse((o) => { if (o.isSkinnedMesh) skinned += 1; }); "
+        "return {skinned, bones: c.bones.length, skeletonShown: s.stage.bones.visible}"
+    )
+    assert character == {"skinned": 1, "bones": 22, "skeletonShown": False}
+    browser.find_element(By.ID, "show-skeleton").click()
+    assert browser.execute_script("return window.modbAvatar.stage.bones.visible") is True
+    for fmt in ("bvh", "glb"):
+        browser.find_element(By.ID, f"download-{fmt}").click()
+        state = wait_until(
+            browser,
+            lambda s, fmt=fmt: any(
+                m["type"] == "file" and m["name"] == f"walk.{fmt}" for m in s["messages"]
+            ),
+            30,
+            f"the walk as {fmt}",
+        )
+        message = next(
+            m
+            for m in reversed(state["messages"])
+            if m["type"] == "file" and m["name"].endswith(fmt)
+        )
+        path = tmp_path / message["name"]
+        path.write_bytes(base64.b64decode(message["data"]))
+        assert message["seconds"] > 1.0
+        if fmt == "glb":
+            assert validate(path)["numErrors"] == 0
+        else:  # the loader reads it back: one clip of the walk's length
+            r = run_modb(dsn, "load", path, "--collection", "downloaded", "--no-snippets")
+            assert r.returncode == 0, r.stderr
+    assert severe_console_entries(browser) == []

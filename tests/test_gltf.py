@@ -6,28 +6,18 @@ joints stand where the database's forward kinematics (modb.world_positions) puts
 from __future__ import annotations
 
 import base64
-import json
-import shutil
-import subprocess
-from pathlib import Path
 
 import numpy as np
 import pytest
 from support.browser import chromium, serving
 from support.commands import run_modb
+from support.gltf_validator import validate
 from support.snippet_oracle import world_transforms
 
 from modb.database.connection import connect
 from modb.synthesis.avatar import Settings
 from modb.synthesis.root_motion import with_root_motion
 from modb.synthesis.synth import synthesize
-
-NODE_MODULES = Path(__file__).resolve().parents[1] / "client" / "modb" / "web" / "node_modules"
-VALIDATE = """
-const fs = require('fs');
-require(process.argv[1]).validateBytes(new Uint8Array(fs.readFileSync(process.argv[2])))
-  .then((r) => console.log(JSON.stringify(r.issues)));
-"""
 
 # In the page (its import map has three): load a glTF (from a URL, or the file's bytes in base64),
 # play its animation at the given times, and read back every bone's world position.
@@ -54,18 +44,6 @@ const [url, base64, times, done] = arguments;
          positions });
 })().catch((e) => done({ error: String(e) }));
 """
-
-
-def validate(path: Path) -> dict:
-    if not (shutil.which("node") and (NODE_MODULES / "gltf-validator").is_dir()):
-        pytest.skip("node and the pinned gltf-validator are not installed (`make setup` does)")
-    out = subprocess.run(
-        ["node", "-e", VALIDATE, str(NODE_MODULES / "gltf-validator"), str(path)],
-        capture_output=True,
-        text=True,
-        check=True,
-    )
-    return json.loads(out.stdout)
 
 
 def read_back(browser, address: str, times: list[float], url=None, data: bytes = b"") -> dict:

@@ -467,3 +467,36 @@ def test_an_empty_database_shows_how_to_load_data(fresh_db, browser):
     assert {c[1] for c in commands} == {"load", "demo"}
     load_help = run_modb(fresh_db, "load", "--help").stdout  # the options shown are real ones
     assert all(o in load_help for c in commands for o in c if o.startswith("--")), commands
+
+
+def test_a_clip_shows_as_a_skinned_character_and_downloads_as_bvh_and_gltf(server, browser):
+    from selenium.webdriver.common.by import By
+
+    address = server[0]
+    clip_id = clip_ids(address)["bvh"]
+    open_page(browser, address, f"?clip={clip_id}")
+    browser.execute_script("window.modbViewer.pause(); window.modbViewer.setFrame(5)")
+    shown = browser.execute_script(
+        "const v = window.modbViewer; let skinned = 0; "
+        "v.stage.scene.traverse((o) => { if (o.isSkinnedMesh && o.visible) skinned += 1; }); "
+        "const c = v.state.character; const p = c.bones.map((b) => b.getWorldPosition("
+        "  b.position.clone()).toArray()); "
+        "return {skinned, bones: v.stage.bones.visible, character: p, rig: v.jointWorldPositions()}"
+    )
+    # the character's bones stand where the rig's joints do (both posed from the same frame)
+    assert shown["skinned"] == 1 and shown["bones"] is False
+    assert np.abs(np.array(shown["character"]) - np.array(shown["rig"])).max() < 1e-5
+    browser.find_element(By.ID, "show-skeleton").click()
+    assert browser.execute_script("return window.modbViewer.stage.bones.visible") is True
+    for fmt, media in (("bvh", "text/plain"), ("glb", "model/gltf-binary")):
+        link = browser.find_element(By.ID, f"download-{fmt}").get_attribute("href")
+        status, headers = browser.execute_async_script(
+            "const done = arguments[1]; fetch(arguments[0]).then(async (r) => "
+            "done([r.status, {type: r.headers.get('content-type'), "
+            "disposition: r.headers.get('content-disposition'), "
+            "size: (await r.arrayBuffer()).byteLength}]))",
+            link,
+        )
+        assert status == 200 and headers["type"].startswith(media), headers
+        assert headers["disposition"].startswith("attachment;") and headers["size"] > 1000
+    assert severe_console_entries(browser) == []

@@ -9,9 +9,11 @@ with the previous ones.
 
 from __future__ import annotations
 
+import base64
 import logging
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import asdict, replace
 from typing import Any
@@ -19,15 +21,19 @@ from typing import Any
 import psycopg
 
 from modb.database.connection import connect
-from modb.synthesis.avatar import Avatar, Choice, NoContinuation, Settings, checked_goal
+from modb.synthesis.avatar import Avatar, Choice, Frame, NoContinuation, Settings, checked_goal
 from modb.synthesis.placement import Placement
+from modb.synthesis.root_motion import with_root_motion
+from modb.synthesis.synth import strip_motion
 
 from .avatar_messages import choice_message, frame_message
 from .avatar_settings import SettingsRefused, settings_from
+from .downloads import FORMATS, motion_bytes
 
 log = logging.getLogger("modb.web")
 
 STATEMENT_TIMEOUT = "10s"  # an avatar's query that takes longer stops it (and frees its slot)
+KEEP_SECONDS = 300  # a download holds the last 5 min of the walk (frames: ~10 MB at 30 fps)
 
 Send = Callable[[dict[str, Any]], None]
 Check = Callable[[Settings], None]
@@ -48,11 +54,15 @@ class AvatarSession:
         self._skeleton_sent: int | None = None
         # (clip, version) -> skeleton
         self._skeleton_of: dict[tuple[int, int], tuple[int, dict, str]] = {}
+        # The walk's frames, for downloads: the last KEEP_SECONDS of it (a deque drops the oldest).
+        self._walk: deque[Frame] = deque()
 
     def handle(self, message: dict[str, Any]) -> None:
         kind = message.get("type") if isinstance(message, dict) else None
         if kind == "goal":
             self._goal(message)
+        elif kind == "download":
+            self._download(message)
         elif kind == "settings":
             try:
                 settings = settings_from(message, self.settings)
@@ -70,7 +80,8 @@ class AvatarSession:
             self._send(
                 {
                     "type": "refused",
-                    "message": f"unknown message type {kind!r:.200}: send goal or settings",
+                    "message": f"unknown message type {kind!r:.200}: send goal, settings or "
+                    "download",
                 }
             )
 
@@ -140,6 +151,8 @@ class AvatarSession:
         """Frames at the source rate; a readout after every selection."""
         due = time.monotonic()
         reported = 0  # choices sent so far
+        notes_sent = 0
+        self._walk.clear()
         try:
             for frame in avatar.frames():
                 if self._stopping.is_set():
@@ -148,7 +161,11 @@ class AvatarSession:
                 if len(avatar.choices) > reported:  # the first frame of a new snippet
                     reported = len(avatar.choices)
                     self._skeleton(avatar, choice)
+                    if notes_sent < len(avatar.notes):  # what the database chose, and why
+                        self._send({"type": "note", "message": "; ".join(avatar.notes)})
+                        notes_sent = len(avatar.notes)
                     self._send(choice_message(choice, avatar.course, avatar.choices))
+                self._keep(frame, choice.fps)
                 due = max(due, time.monotonic())  # after a stall, on from now: no burst to catch up
                 if self._stopping.wait(max(0.0, due - time.monotonic())):
                     break
@@ -192,6 +209,37 @@ class AvatarSession:
                 {"type": "skeleton", "id": skeleton_id, "hierarchy": hierarchy, "pelvis": pelvis}
             )
             self._skeleton_sent = skeleton_id
+
+    def _keep(self, frame: Frame, fps: float) -> None:
+        self._walk.append(frame)
+        while len(self._walk) > KEEP_SECONDS * fps:
+            self._walk.popleft()
+
+    def _download(self, message: dict[str, Any]) -> None:
+        """The walk so far (its last KEEP_SECONDS), with root motion, as a file the page saves."""
+        fmt = message.get("format")
+        avatar, frames = self._avatar, list(self._walk)
+        if fmt not in FORMATS or avatar is None or not frames:
+            why = (
+                f"format is one of {', '.join(FORMATS)}, got {fmt!r:.50}"
+                if fmt not in FORMATS
+                else "nothing walked yet: click the ground first"
+            )
+            self._send({"type": "refused", "message": f"no download: {why}"})
+            return
+        first = avatar.choices[0]
+        template = avatar.library.get(first.clip_id, first.version, first.mirrored).motion
+        walk = with_root_motion(strip_motion(frames, template, "walk"))
+        media, extension = FORMATS[fmt]
+        self._send(
+            {
+                "type": "file",
+                "name": f"walk.{extension}",
+                "media_type": media,
+                "data": base64.b64encode(motion_bytes(walk, fmt)).decode(),
+                "seconds": (len(frames) - 1) / first.fps,
+            }
+        )
 
     def close(self) -> None:
         self._stopping.set()

@@ -1,6 +1,7 @@
 // Avatar mode: the server walks an Avatar toward the goals clicked here and streams its poses over a
 // WebSocket at the source rate; this page poses the figure, draws its trail and the goals, and tunes the
 // selection. window.modbAvatar is what tests (and the console) read.
+import { loadCharacter, saveFile } from './character.js';
 import { Course } from './course.js';
 import { Rig } from './rig.js';
 import { Stage } from './stage.js';
@@ -16,7 +17,7 @@ const stage = new Stage($('view'));
 const course = new Course(stage.scene);
 stage.look([0, 7, -7], [0, 0, 3]); // from above and behind the avatar, which starts at the origin facing +Z
 const state = {
-  connected: false, settings: null, rig: null, framed: false, frames: 0, frame: null,
+  connected: false, settings: null, rig: null, character: null, framed: false, frames: 0, frame: null,
   choices: [], goals: [], goalIndex: 0, messages: [], closed: null, pelvisAt: {},
 };
 
@@ -41,17 +42,28 @@ const handlers = {
     state.connected = true;
     state.settings = m.settings;
     tuning.build(m);
-    status(m.graphs.length ? 'click the ground to set a goal'
-      : 'click the ground to set a goal (no transition graph: `modb graph build` one for turns and smooth seams)');
+    status('click the ground to set a goal');
     resolveReady(true);
   },
   skeleton(m) {
     state.rig = new Rig(m.hierarchy, m.pelvis);
     state.framed = false;
+    state.character = null;
+    stage.setCharacter(null);
+    stage.showSkeleton(true); // until the character has loaded, or where the skeleton has none
+    loadCharacter(m.id, m.hierarchy.translated).then((character) => {
+      if (state.rig === null || state.rig.joints !== m.hierarchy.joints) return; // a newer skeleton came
+      state.character = character;
+      stage.setCharacter(character);
+      stage.showSkeleton($('show-skeleton').checked);
+    }).catch(() => {});
   },
+  note(m) { status(m.message); },
+  file(m) { saveFile(m.name, m.media_type, m.data); status(`saved ${m.name}`); },
   frame(m) {
     if (!state.rig) return;
     state.rig.pose(m.rotations, m.translations);
+    if (state.character) state.character.pose(m.rotations, m.translations);
     const positions = state.rig.worldPositions();
     const pelvis = positions[state.rig.pelvis];
     state.rig.abovePelvis.forEach((k) => { positions[k] = pelvis; }); // no sphere off the body (Bandai's joint_Root)
@@ -108,6 +120,15 @@ canvas.addEventListener('click', (e) => {
   const point = stage.groundPointAt(e.clientX, e.clientY);
   if (point) send({ type: 'goal', x: point.x, z: point.z, add: e.shiftKey });
 });
+
+$('show-skeleton').addEventListener('change', () => stage.showSkeleton($('show-skeleton').checked || !state.character));
+for (const format of ['bvh', 'glb']) {
+  $(`download-${format}`).addEventListener('click', () => {
+    if (!state.connected) return;
+    status('preparing the file…');
+    send({ type: 'download', format });
+  });
+}
 
 function tick() {
   stage.render();

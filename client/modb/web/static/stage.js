@@ -43,6 +43,11 @@ export class Stage {
     this.highlight.visible = false;
     this.scene.add(this.highlight);
     this.followed = null; // the last followed point, so the camera moves by the figure's travel
+    this.character = null; // a skinned mesh (character.js) shown beside or instead of the bones
+    const light = new THREE.HemisphereLight(0xffffff, 0x8a8a8a, 2.2);
+    const sun = new THREE.DirectionalLight(0xffffff, 1.6);
+    sun.position.set(3, 6, 2);
+    this.scene.add(light, sun);
 
     new ResizeObserver(() => this.resize()).observe(container);
     this.resize();
@@ -67,6 +72,7 @@ export class Stage {
     this.jointMesh = new THREE.InstancedMesh(new THREE.SphereGeometry(JOINT_RADIUS, 10, 8),
                                              new THREE.MeshBasicMaterial({ color: 0x333333 }), jointCount);
     this.jointMesh.frustumCulled = false;
+    this.jointMesh.visible = this.skeletonShown !== false;
     this.scene.add(this.jointMesh);
     const target = new THREE.Vector3(at[0], Math.max(at[1], 0.5), at[2]);
     if (!keepView) {
@@ -75,6 +81,20 @@ export class Stage {
       this.controls.update();
     }
     this.followed = target.clone();
+  }
+
+  // The character to show (null: none); the previous one goes.
+  setCharacter(character) {
+    if (this.character) this.scene.remove(this.character.object);
+    this.character = character;
+    if (character) this.scene.add(character.object);
+  }
+
+  // The bones and joint spheres: shown, or hidden behind the character.
+  showSkeleton(shown) {
+    this.bones.visible = shown;
+    if (this.jointMesh) this.jointMesh.visible = shown;
+    this.skeletonShown = shown;
   }
 
   // follow: the camera moves with `positions[pelvis]` on the ground.

@@ -1,13 +1,15 @@
 // Browse the motion database and play a clip at its own rate. The page opens playing the clip its address
 // names (?clip=ID), else the first clip (firstClip below), else says how to load data. window.modbViewer is
 // what tests (and the console) use to read the page's state; the page itself only uses the JSON endpoints.
+import { loadCharacter } from './character.js';
 import { Rig } from './rig.js';
 import { Stage } from './stage.js';
 import { getJSON, markSelected, showClips, showCollections, showSkeleton } from './panels.js';
 
 const $ = (id) => document.getElementById(id);
 const stage = new Stage($('view'));
-const state = { clip: null, fps: 0, frames: null, frame: 0, playing: false, time: 0, highlighted: null, rig: null };
+const state = { clip: null, fps: 0, frames: null, frame: 0, playing: false, time: 0, highlighted: null, rig: null,
+                character: null };
 
 function status(text, isError = false) {
   $('status').textContent = text;
@@ -32,23 +34,29 @@ async function loadClip(clipId) {
   const load = ++latestLoad;
   status(`loading clip ${clipId}…`);
   pause();
-  let clip, skeleton, frames;
+  let clip, skeleton, frames, character;
   try {
     clip = await getJSON(`/api/clips/${clipId}`);
     skeleton = await getJSON(`/api/skeletons/${clip.skeleton_id}`);
     frames = await allFrames(clipId, clip.n_frames);
+    // the skinned character; without one (no bone long enough to draw) the skeleton shows
+    character = await loadCharacter(clip.skeleton_id, skeleton.hierarchy.translated).catch(() => null);
   } catch (error) {
     if (load === latestLoad) status(`clip ${clipId}: ${error.message}`, true);
     return false;
   }
   if (load !== latestLoad) return false;
-  Object.assign(state, { clip, fps: clip.fps, frames, frame: 0, time: 0, highlighted: null,
+  Object.assign(state, { clip, fps: clip.fps, frames, frame: 0, time: 0, highlighted: null, character,
                          rig: new Rig(skeleton.hierarchy, skeleton.joint_map.pelvis) });
+  stage.setCharacter(character);
+  $('download-bvh').href = `/api/clips/${clip.id}/download?format=bvh&version=${clip.version}`;
+  $('download-glb').href = `/api/clips/${clip.id}/download?format=glb&version=${clip.version}`;
   $('skeleton-name').textContent = `(${skeleton.name || skeleton.id}, ${skeleton.hierarchy.joints.length} joints)`;
   showSkeleton($('skeleton'), skeleton.hierarchy.joints, (index) => { state.highlighted = index; setFrame(state.frame); });
   $('timeline').max = String(clip.n_frames - 1);
   state.rig.pose(frames.rotations[0], frames.translations[0]);
   stage.setFigure(skeleton.hierarchy.joints.length, state.rig.worldPositions()[state.rig.pelvis]);
+  stage.showSkeleton($('show-skeleton').checked || !character);
   setFrame(0);
   status('');
   document.title = `MoDB: ${clip.collection}/${clip.name}`;
@@ -62,6 +70,7 @@ function setFrame(index) {
   const n = state.clip.n_frames;
   state.frame = ((index % n) + n) % n;
   state.rig.pose(state.frames.rotations[state.frame], state.frames.translations[state.frame]);
+  if (state.character) state.character.pose(state.frames.rotations[state.frame], state.frames.translations[state.frame]);
   stage.draw(state.rig.boneSegments(), state.rig.worldPositions(), state.rig.pelvis, state.highlighted,
              $('follow').checked);
   $('timeline').value = String(state.frame);
@@ -140,6 +149,8 @@ async function start() {
     markSelected($('clips'), state.clip.id);
   }
 }
+
+$('show-skeleton').addEventListener('change', () => stage.showSkeleton($('show-skeleton').checked || !state.character));
 
 window.modbViewer = {
   stage,
