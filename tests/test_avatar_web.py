@@ -278,11 +278,11 @@ def walk_without_graph(driver, address: str, goal: tuple[float, float]) -> None:
     """A fresh page walking toward a far goal, choosing by the GiST box (no transition graph)."""
     open_avatar(driver, address)
     since = len(page_state(driver)["messages"])
-    set_in_panel(driver, "graph", "")
+    set_in_panel(driver, "graph", "none")  # the page starts with the newest current graph
     state = settings_changed(driver, since)
     assert (
         state["messages"][-1]["type"] == "settings"
-        and state["messages"][-1]["settings"]["graph"] is None
+        and state["messages"][-1]["settings"]["graph"] == "none"
     )
     click_ground(driver, *goal)
 
@@ -517,7 +517,8 @@ def test_every_panel_control_reaches_this_connections_settings(avatar_server, br
         answer("collection", "bandai-2/locomotion")["settings"]["collection"]
         == "bandai-2/locomotion"
     )
-    assert answer("graph", "")["settings"]["graph"] is None
+    assert answer("graph", "none")["settings"]["graph"] == "none"
+    assert answer("graph", "")["settings"]["graph"] is None  # automatic: the newest current graph
     refused = answer("position_threshold", "-1")
     assert refused["type"] == "refused" and "Thresholds must be positive" in refused["message"]
     assert browser.find_element(By.ID, "status").text == refused["message"]

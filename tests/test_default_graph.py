@@ -46,7 +46,8 @@ def test_synthesize_chooses_among_the_newest_current_graph_unless_told_none(loco
     assert set(default) <= kept and not set(plain) <= kept
     assert not [n for n in notices if "no current transition graph" in n]
     assert python.notes == []  # one pool, a graph: nothing to say
-    assert [c.snippet_id for c in python.chain] == default[: len(python.chain)]
+    n = min(len(python.chain), len(default))
+    assert [c.snippet_id for c in python.chain][:n] == default[:n] and n >= 20
 
 
 def test_without_a_graph_synthesis_says_so_and_uses_the_plain_rule(cmu):

@@ -33,7 +33,10 @@ const [url, base64, times, done] = arguments;
   gltf.scene.traverse((o) => { if (o.isSkinnedMesh) skinned.push(o); });
   const bones = skinned[0].skeleton.bones;
   const mixer = new THREE.AnimationMixer(gltf.scene);
-  mixer.clipAction(gltf.animations[0]).play();
+  const action = mixer.clipAction(gltf.animations[0]);
+  action.setLoop(THREE.LoopOnce);  // the last frame's time must not wrap round to the first
+  action.clampWhenFinished = true;
+  action.play();
   const positions = times.map((t) => {
     mixer.setTime(t);
     gltf.scene.updateMatrixWorld(true);
