@@ -22,7 +22,14 @@ from modb.bench.synth import seeded_course
 from modb.database.connection import connect
 from modb.synthesis.placement import Placement
 from modb.synthesis.root_motion import with_root_motion
-from modb.synthesis.quality import NaturalSteps, goal_reach, recombined, seam_steps, step_changes
+from modb.synthesis.quality import (
+    NaturalSteps,
+    goal_reach,
+    recombined,
+    roughness,
+    seam_steps,
+    step_changes,
+)
 from modb.synthesis.synth import format_summary, report, source_motions, synthesize
 
 # From the origin facing +Z: ahead, then a right turn of 90 degrees, then another, then one behind.
@@ -425,8 +432,8 @@ def test_a_waypoint_added_after_the_last_goal_was_reached_is_served_next(locomot
 
 def test_seam_blending_spreads_the_jump_and_keeps_the_placement(locomotion):
     with connect(locomotion) as conn:
-        plain = synthesize(conn, COURSE, 6.0, Settings())
-        blended = synthesize(conn, COURSE, 6.0, Settings(blend_frames=4))
+        plain = synthesize(conn, COURSE, 6.0, Settings(seam="none"))
+        blended = synthesize(conn, COURSE, 6.0, Settings(seam="blend", blend_frames=4))
     assert [c.snippet_id for c in plain.chain] == [c.snippet_id for c in blended.chain]
     touched = {c.start_frame + k for c in plain.chain[1:] for k in range(1, 5)}
     untouched = [f for f in range(plain.strip.n_frames) if f not in touched]
@@ -526,3 +533,60 @@ def test_a_course_of_right_angle_turns_reaches_every_goal_within_the_aims(locomo
     )
     assert all(g.reached for g in rep.goals), figures
     assert all(rep.aims.values()), (rep.aims, figures)
+
+
+def test_inertialization_removes_the_seams_jump_and_leaves_the_chain_and_the_frame_above_alone(
+    locomotion,
+):
+    with connect(locomotion) as conn:
+        plain = synthesize(conn, COURSE, 40.0, Settings(seam="none"))
+        smooth = synthesize(conn, COURSE, 40.0, Settings())  # the default
+    assert [c.snippet_id for c in plain.chain] == [c.snippet_id for c in smooth.chain]
+    sk = plain.strip.skeleton
+    # joint_Root, above the pelvis, stays as placed; the body moves
+    assert np.array_equal(plain.strip.rotations[:, 0], smooth.strip.rotations[:, 0])
+    # the seams that go to other motion (playing on within a clip has no jump to remove): rougher
+    # than a natural step (r > 1, the report's measure) far less often, and never as rough
+    with connect(locomotion) as conn:
+        natural = NaturalSteps.of(source_motions(conn, plain.chain[0].snippet_id, None))
+    seams = np.array(seam_steps(plain.chain))[recombined(plain.chain)]
+    assert len(seams) >= 5
+
+    def r(result):
+        angles, velocity = step_changes(result.strip)
+        after = np.minimum(seams + 1, len(velocity) - 1)
+        return np.maximum(
+            roughness(
+                angles[seams], velocity[seams], natural.joint_p99, natural.velocity_change_p99
+            ),
+            velocity[after] / natural.velocity_change_p99,
+        )
+
+    assert np.mean(r(smooth) > 1) <= 0.5 * np.mean(r(plain) > 1) and np.mean(r(plain) > 1) > 0
+    assert r(smooth).max() < r(plain).max()
+    # the offset is gone by the end of each snippet: the pelvis ends where the chain placed it
+    positions = independent_world(smooth.strip)[0][:, sk.index("Hips")]
+    placed = independent_world(plain.strip)[0][:, sk.index("Hips")]
+    ends = [c.end_frame for c in plain.chain if c.n_frames > 12]
+    assert np.abs(positions[ends] - placed[ends]).max() < 0.02
+
+
+def test_the_seams_offset_decays_as_a_critically_damped_spring():
+    """inertialize.decay against scipy's integration of x'' = -2 y x' - y^2 x."""
+    from scipy.integrate import solve_ivp
+
+    from modb.synthesis.inertialize import decay
+
+    halflife, x0, v0 = 0.1, np.array([0.3, -0.2]), np.array([-1.5, 4.0])
+    y = 2 * np.log(2) / halflife
+    times = np.linspace(0, 0.8, 25)
+    for k in range(2):
+        ode = solve_ivp(
+            lambda t, s: [s[1], -2 * y * s[1] - y * y * s[0]],
+            (0, 0.8),
+            [x0[k], v0[k]],
+            t_eval=times,
+            rtol=1e-10,
+            atol=1e-12,
+        )
+        assert np.abs(decay(x0, v0, times, halflife)[:, k] - ode.y[0]).max() < 1e-7

@@ -97,12 +97,18 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         f"({LEAD_TIME.span}; default 0)",
     )
     synth.add_argument(
+        "--seam",
+        choices=["inertialize", "blend", "none"],
+        help="how a seam's jump is smoothed: inertialize (a decaying offset, the default), blend "
+        "(spread over --blend frames), none (the snippets as captured)",
+    )
+    synth.add_argument(
         "--blend",
         type=BLEND,
         default=0,
         metavar="FRAMES",
-        help=f"blend each seam over this many frames ({BLEND.span}; default 0: snippets as "
-        "captured)",
+        help=f"with --seam blend: over this many frames ({BLEND.span}; given alone, it means "
+        "--seam blend)",
     )
     synth.add_argument(
         "--in-place",
@@ -195,6 +201,7 @@ def run(args: argparse.Namespace) -> int:
             exclude_seconds=args.exclude_seconds,
             lead_time=args.lead_time,
             blend_frames=args.blend,
+            seam=args.seam or ("blend" if args.blend else "inertialize"),
         )
     except ValueError as e:  # named by the setting: --lead-time is lead_time
         print(f"modb synth: {e}", file=sys.stderr)

@@ -22,6 +22,7 @@ import psycopg
 
 from modb.database.connection import configure_for_selection
 from .blend import blend_seam
+from .inertialize import Seams
 from .chain import (
     MAX_ID,
     Choice,
@@ -138,16 +139,26 @@ class Avatar:
         executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="modb-avatar")
         try:
             pending: Future | None = executor.submit(self._choose, None, self._request(None))
-            previous_last: Frame | None = None
+            played: list[Frame] = []  # the last two frames played: a seam's left side
+            seams: Seams | None = None
             while True:
                 started = time.perf_counter()
                 choice, rotations, translations = pending.result()
                 waited = (time.perf_counter() - started) * 1000.0
                 choice = replace(choice, waited_ms=waited if self.choices else 0.0)
                 self.choices.append(choice)
-                rotations, translations = blend_seam(
-                    previous_last, rotations, translations, self.settings.blend_frames
-                )
+                treatment = self.settings.seam
+                if treatment == "inertialize" and len(played) == 2:
+                    if seams is None:  # a chain has one skeleton
+                        source = self.library.get(choice.clip_id, choice.version, choice.mirrored)
+                        seams = Seams(source.skeleton)
+                    rotations, translations = seams.inertialize(
+                        (played[0], played[1]), rotations, translations, choice.fps
+                    )
+                elif treatment == "blend" and played:
+                    rotations, translations = blend_seam(
+                        played[-1], rotations, translations, self.settings.blend_frames
+                    )
                 skip = 0 if choice.step == 0 else 1
                 lead_frames = int(round(self.settings.lead_time * choice.fps))
                 pending = None
@@ -156,9 +167,9 @@ class Avatar:
                         choice.start_frame + k, choice.step, rotations[k], translations[k]
                     )
                     yield frame
+                    played = [*played[-1:], frame]
                     if pending is None and choice.n_frames - 1 - k <= lead_frames:
                         pending = executor.submit(self._choose, choice, self._request(choice))
-                previous_last = frame
         finally:
             executor.shutdown(wait=True, cancel_futures=True)
 

@@ -71,7 +71,10 @@ class Settings:
     arrival_radius: float = 0.5  # metres, pelvis to goal on the ground, checked at snippet ends
     exclude_seconds: float = 2.0  # snippets played this recently are passed as `exclude`
     lead_time: float = 0.0  # seconds before a snippet ends at which the next query is issued
-    blend_frames: int = 0  # seam blending over this many frames; 0 plays the snippets as captured
+    # the seam treatment: "inertialize" (a decaying offset, inertialize.py), "blend" (the jump
+    # spread linearly over blend_frames frames) or "none" (the snippets as captured)
+    seam: str = "inertialize"
+    blend_frames: int = 0
     # SET modb.<knob> for this avatar's session (modb.match_knobs())
     knobs: dict[str, str] = field(default_factory=dict)
     # report each choice's modb.candidates_examined (one more query, after it)
@@ -79,10 +82,14 @@ class Settings:
 
     def __setattr__(self, name: str, value) -> None:
         # Checked on every assignment, in __init__ and after it: an avatar reads its settings live.
+        if name == "seam" and value not in SEAM_TREATMENTS:
+            raise ValueError(f"seam must be one of {', '.join(SEAM_TREATMENTS)}, got {value!r:.50}")
         if name in _SETTINGS_BOUNDS:
             value = checked_number(name, value, *_SETTINGS_BOUNDS[name])
         super().__setattr__(name, value)
 
+
+SEAM_TREATMENTS = ("inertialize", "blend", "none")
 
 # Settings' numbers: (least, most, least excluded, whole numbers, unit).
 _SETTINGS_BOUNDS = {

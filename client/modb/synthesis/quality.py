@@ -50,6 +50,42 @@ def step_changes(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
     return angles, velocity_change
 
 
+CONTACT_HEIGHT_M = 0.02  # a foot within this of its lowest (its 2nd percentile) stands
+FEET = ("left_ankle", "left_toe", "right_ankle", "right_toe")
+
+
+def pose_jumps(motion: Motion) -> np.ndarray:
+    """Per step: the largest move of any joint relative to the pelvis's ground point (metres), so
+    the travel is left out and a seam's jump in pose is what shows."""
+    sk = motion.skeleton
+    pelvis = sk.index(sk.joint_map["pelvis"])
+    above = []  # frames of reference, not the body (Bandai's joint_Root at the capture origin)
+    k = sk.parents[pelvis]
+    while k >= 0:
+        above.append(k)
+        k = sk.parents[k]
+    body = [k for k in range(len(sk.joints)) if k not in above]
+    positions = motion.world_positions()
+    ground = positions[:, pelvis] * np.array([1.0, 0.0, 1.0])
+    pose = positions[:, body] - ground[:, None, :]
+    return np.linalg.norm(np.diff(pose, axis=0), axis=-1).max(axis=1)
+
+
+def foot_skating(motion: Motion) -> tuple[float, int]:
+    """The mean horizontal speed (m/s) of the ankles and toes while they stand (within
+    CONTACT_HEIGHT_M of their lowest), and in how many frames they stood."""
+    sk = motion.skeleton
+    positions = motion.world_positions()[:, [sk.index(sk.joint_map[f]) for f in FEET]]
+    if len(positions) < 3:
+        return 0.0, 0
+    height = positions[..., 1]
+    standing = height <= np.percentile(height, 2, axis=0) + CONTACT_HEIGHT_M
+    ground = positions[..., [0, 2]]
+    speed = np.linalg.norm(ground[2:] - ground[:-2], axis=-1) * motion.fps / 2  # central
+    standing = standing[1:-1]
+    return (float(speed[standing].mean()) if standing.any() else 0.0), int(standing.sum())
+
+
 @dataclass(frozen=True)
 class NaturalSteps:
     """The scale of roughness, from every frame-to-frame step of the source clips."""
@@ -59,6 +95,8 @@ class NaturalSteps:
     share_over_one: float  # natural steps with r > 1
     r_p999: float
     steps: int
+    pose_jump_p999: float = 0.0  # metres per step (pose_jumps)
+    foot_skating: float = 0.0  # m/s (foot_skating, over every standing frame of the sources)
 
     @classmethod
     def of(cls, motions: Sequence[Motion]) -> NaturalSteps:
@@ -73,8 +111,18 @@ class NaturalSteps:
         joint_p99 = np.maximum(np.percentile(angles, 99, axis=0), 1e-9)
         velocity_p99 = max(float(np.percentile(velocity, 99)), 1e-9)
         r = np.concatenate([roughness(a[1:], v[1:], joint_p99, velocity_p99) for a, v in changes])
+        used = [m for m in motions if m.n_frames > 2]
+        jumps = np.concatenate([pose_jumps(m) for m in used])
+        skating = [foot_skating(m) for m in used]
+        standing = sum(n for _, n in skating)
         return cls(
-            joint_p99, velocity_p99, float(np.mean(r > 1.0)), float(np.percentile(r, 99.9)), len(r)
+            joint_p99,
+            velocity_p99,
+            float(np.mean(r > 1.0)),
+            float(np.percentile(r, 99.9)),
+            len(r),
+            float(np.percentile(jumps, 99.9)),
+            sum(v * n for v, n in skating) / standing if standing else 0.0,
         )
 
 
@@ -215,6 +263,10 @@ class Report:
     latency_ms_p99: float | None
     walking_speed: float
     goals: list[GoalReach]
+    pose_jump_max: float = 0.0  # metres per step, the strip's largest (pose_jumps)
+    natural_pose_jump_p999: float = 0.0
+    foot_skating: float = 0.0  # m/s while standing (foot_skating)
+    natural_foot_skating: float = 0.0
 
     @property
     def aims(self) -> dict[str, bool | None]:
@@ -277,4 +329,8 @@ def measure(
         latency_ms_p99=float(np.percentile(latencies, 99)) if latencies else None,
         walking_speed=walking_speed,
         goals=goal_reach(chain, goals, walking_speed),
+        pose_jump_max=float(pose_jumps(strip).max()) if strip.n_frames > 1 else 0.0,
+        natural_pose_jump_p999=natural.pose_jump_p999,
+        foot_skating=foot_skating(strip)[0],
+        natural_foot_skating=natural.foot_skating,
     )

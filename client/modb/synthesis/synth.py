@@ -196,6 +196,9 @@ def format_summary(result: Synthesis, rep: Report) -> str:
         f"{rep.seam_r_p99:.2f} "
         f"(natural r p99.9 {rep.natural_r_p999:.2f})",
         f"recombination: {rep.recombination:.1%} of seams",
+        f"pose jump: largest {100 * rep.pose_jump_max:.1f} cm per frame (natural p99.9 "
+        f"{100 * rep.natural_pose_jump_p999:.1f} cm); foot skating {100 * rep.foot_skating:.1f} "
+        f"cm/s while standing (natural {100 * rep.natural_foot_skating:.1f} cm/s)",
         f"goal reach (straight line at the median walking speed, {rep.walking_speed:.2f} m/s):",
     ]
     served = [g for g in rep.goals if g.goal <= max(c.goal for c in result.chain)]
