@@ -126,7 +126,8 @@ WITH RECURSIVE cfg AS MATERIALIZED (
            0 AS start_frame, s.n_frames - 1 AS end_frame, start_position AS "position", start_heading AS heading,
            e.end_position, e.end_heading, 1 AS goal, g.target, e.reached, o.relax_level, o.continuity, o.proximity,
            ARRAY(SELECT s.id WHERE 0 < exclude_seconds * s.fps) AS recent_ids,
-           ARRAY(SELECT s.n_frames - 1 WHERE 0 < exclude_seconds * s.fps) AS recent_ends
+           ARRAY(SELECT s.n_frames - 1 WHERE 0 < exclude_seconds * s.fps) AS recent_ends,
+           e.reached AND (SELECT n_goals FROM cfg) = 1 AS resting  -- the last goal reached: come to rest
       FROM opening o
       JOIN modb.snippets s ON s.id = o.snippet_id
      CROSS JOIN LATERAL (SELECT modb.synthesis_goal(targets, 1) AS target) g
@@ -136,13 +137,13 @@ WITH RECURSIVE cfg AS MATERIALIZED (
     SELECT c.step + 1, s.id, s.clip_id, s.version, s.mirrored, s.first_frame, s.n_frames, s.fps,
            c.end_frame, f.end_frame, c.end_position, c.end_heading,
            e.end_position, e.end_heading, g.goal, g.target, e.reached, n.relax_level, n.continuity, n.proximity,
-           k.ids, k.ends
+           k.ids, k.ends, c.resting OR (e.reached AND g.goal = (SELECT n_goals FROM cfg))
       FROM chain c
      CROSS JOIN LATERAL (SELECT CASE WHEN c.reached AND c.goal < (SELECT n_goals FROM cfg) THEN c.goal + 1
                                      ELSE c.goal END AS goal) gi
      CROSS JOIN LATERAL (SELECT gi.goal, modb.synthesis_goal(targets, gi.goal) AS target) g
-     CROSS JOIN LATERAL modb.select_next_snippet_world(c.snippet_id, c.end_position, c.end_heading, g.target,
-                                                       profile, collection, c.recent_ids) n
+     CROSS JOIN LATERAL modb.select_synthesis_step(c.snippet_id, c.end_position, c.end_heading, g.target,
+                                                   profile, collection, c.recent_ids, c.resting) n
       JOIN modb.snippets s ON s.id = n.snippet_id
      CROSS JOIN LATERAL modb.synthesis_step_end(c.end_position, c.end_heading, s.net_translation, s.net_heading,
                                                 g.target, arrival_radius) e

@@ -49,6 +49,16 @@ SELECT n.snippet_id, n.clip_id, n.version, n.mirrored, n.first_frame, n.n_frames
   JOIN modb.snippets s ON s.id = n.snippet_id
   JOIN modb.terminators b ON b.id = s.begin_terminator
 """
+# Every step after the first (88_rest_selection.sql): coming to rest after the last goal, setting
+# off from standing, else select_next_snippet_world, as modb.synthesize steps.
+_STEP = _SELECT.replace(
+    "modb.select_next_snippet_world(", "modb.select_synthesis_step("
+).replace("%(exclude)s::bigint[])", "%(exclude)s::bigint[], %(resting)s)")
+_NO_REST = """
+SELECT NOT EXISTS (SELECT FROM modb.select_snippet_ending(%(prev)s::bigint,
+       %(position)s::float8[], %(heading)s::float8, %(target)s::float8[], %(profile)s,
+       %(collection)s, %(exclude)s::bigint[], true))
+"""
 _START = """
 SELECT s.id, s.clip_id, s.version, s.mirrored, s.first_frame, s.n_frames, NULL::int, NULL::float8,
        NULL::float8, s.net_translation, s.net_heading, s.fps, b.heading
@@ -97,6 +107,7 @@ class Avatar:
                 if pool.pools > 1:
                     self.notes.append(describe_pool(pool))
         self._graphs: dict[tuple[str | None, str, str | None], str] = {}
+        self._rest_checked = False
 
     # Goals may change at any time (from another thread too): they apply to the next query issued.
     def set_goal(self, goal: Goal) -> None:
@@ -187,6 +198,8 @@ class Avatar:
             if self._goal_reached and self._goal_index < len(self._goals) - 1:
                 self._goal_index, self._goal_reached = self._goal_index + 1, False
             goal_index, target = self._goal_index, self._goals[self._goal_index]
+            # the last goal reached: come to rest (modb.synthesize's rule)
+            resting = self._goal_reached and goal_index == len(self._goals) - 1
         s, collection = self.settings, self.collection
         if previous is None:
             where = self.placement
@@ -216,6 +229,7 @@ class Avatar:
             "step": 0 if previous is None else previous.step + 1,
             "arrival_radius": s.arrival_radius,
             "fps": None if previous is None else previous.fps,
+            "resting": resting and previous is not None,
         }
 
     def _choose(
@@ -244,7 +258,18 @@ class Avatar:
                     "exclude",
                 )
             }
-            row = self.conn.execute(_SELECT, query, prepare=True).fetchone()
+            if request["prev"] is None:
+                row = self.conn.execute(_SELECT, query, prepare=True).fetchone()
+            else:
+                query["resting"] = request["resting"]
+                row = self.conn.execute(_STEP, query, prepare=True).fetchone()
+            if request["resting"] and not self._rest_checked:  # once: can it come to rest?
+                self._rest_checked = True
+                if self.conn.execute(_NO_REST, query).fetchone()[0]:
+                    self.notes.append(
+                        "the data has no motion that stops or stands after this walk (snippets "
+                        "ending slower than 0.1 m/s): the avatar keeps walking about the last goal"
+                    )
             latency = (time.perf_counter() - t) * 1000.0
             if row is not None and request["count_candidates"]:
                 candidates = self.conn.execute(

@@ -2,7 +2,9 @@
 -- skeleton-and-rate pool when given no collection or start (modb.snippet_pools) and chooses among the
 -- newest current graph over that data when the session names none (modb.default_graph,
 -- modb.graph_is_current); SET modb.graph = 'none' keeps the paper's plain rule, so no graph may be
--- called "none" (or "profile").
+-- called "none" (or "profile"). After the last goal it comes to rest with stopping and standing motion
+-- from the data (modb.select_rest_snippet) where the data has some.
 --@include 79_match_plan.sql
+--@include 88_rest_selection.sql
 --@include 89_synthesis_defaults.sql
 --@include 89_synthesize.sql
