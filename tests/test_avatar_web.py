@@ -624,3 +624,39 @@ def test_the_avatar_is_a_skinned_character_and_its_walk_downloads_as_bvh_and_glt
             r = run_modb(dsn, "load", path, "--collection", "downloaded", "--no-snippets")
             assert r.returncode == 0, r.stderr
     assert severe_console_entries(browser) == []
+
+
+def test_at_the_goal_the_avatar_comes_to_rest_where_the_data_can_or_says_it_cannot(
+    avatar_server, cmu, browser
+):
+    """CMU 131 has stopping and standing motion: the page's avatar stands at the goal. Bandai's
+    locomotion takes have none: the page says so and the avatar walks on."""
+    for dsn, address in ((cmu, None), (avatar_server[1], avatar_server[0])):
+        with contextlib.ExitStack() as stack:
+            if address is None:
+                address = stack.enter_context(serving(dsn))
+            open_avatar(browser, address)
+            look_at(browser, 0.0, 2.0)
+            click_ground(browser, 0.0, 2.0)
+            state = wait_until(
+                browser, lambda s: any(c["reached"] for c in s["choices"]), 40, "the goal reached"
+            )
+            reached_at = next(c["end_frame"] for c in state["choices"] if c["reached"])
+            fps = state["choices"][-1]["fps"]
+            state = wait_until(
+                browser, lambda s: s["frame"]["index"] > reached_at + 4 * fps, 30, "4 s more"
+            )
+            pelvis = browser.execute_script("return window.modbAvatar.state.pelvisAt")
+            frames = sorted(int(k) for k in pelvis if int(k) >= reached_at + 2 * fps)
+            path = np.array([pelvis[str(k)] for k in frames])
+            speed = np.linalg.norm(np.diff(path[:, [0, 2]], axis=0), axis=1) * fps
+            quarter = max(1, int(fps / 4))
+            smooth = np.convolve(speed, np.ones(quarter) / quarter, mode="valid")
+            notes = [m["message"] for m in state["messages"] if m["type"] == "note"]
+            if dsn == cmu:
+                assert smooth.max() < 0.1, smooth.max()
+                assert np.hypot(path[:, 0], path[:, 2] - 2.0).max() < 0.75
+            else:
+                assert any("has no motion that stops or stands" in n for n in notes), notes
+                assert smooth.min() > 0.1
+    assert severe_console_entries(browser) == []

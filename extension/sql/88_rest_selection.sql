@@ -27,20 +27,19 @@ RETURN (SELECT sqrt(e.velocities[1] ^ 2 + e.velocities[3] ^ 2)
          WHERE s.id = snippet);
 COMMENT ON FUNCTION modb.end_speed(bigint) IS 'm/s: how fast a snippet''s pelvis moves over the ground at its end';
 
-CREATE OR REPLACE FUNCTION modb.select_snippet_ending(prev_snippet bigint, "position" float8[], heading float8,
-                                                     target_world float8[], profile text, collection text,
-                                                     exclude bigint[], standing boolean)
+CREATE OR REPLACE FUNCTION modb.snippets_ending_within(prev_snippet bigint, "position" float8[], heading float8,
+                                                      target_world float8[], profile text, collection text,
+                                                      exclude bigint[], standing boolean, scale float8)
 RETURNS TABLE (snippet_id bigint, clip_id bigint, version int, mirrored boolean, first_frame int, n_frames int,
                proximity float8, relax_level int, continuity float8, net_translation float8[],
                net_rotation float8[], net_heading float8)
 LANGUAGE sql STABLE PARALLEL SAFE
 AS $$
--- Of the snippets that follow prev within the widest relaxed box (level 3) and end standing (or
--- walking), the smoothest (lowest level), then the one that ends nearest the goal. No row when the
--- data has none.
+-- The snippets of prev's pool that follow it within ratio `scale` (in that relaxed box) and end
+-- standing (or walking), the smoothest level first, then the one ending nearest the goal.
 WITH prev AS MATERIALIZED (
     SELECT s.pose_key, s.fps, e AS terminator, p AS plan,
-           modb.check_world_request(select_snippet_ending."position", heading, target_world) AS target
+           modb.check_world_request(snippets_ending_within."position", heading, target_world) AS target
       FROM modb.snippets s
       JOIN modb.terminators e ON e.id = s.end_terminator
      CROSS JOIN modb.match_plan(profile) p
@@ -51,7 +50,7 @@ SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
        CASE WHEN r.ratio <= 1 THEN 0 ELSE ceil(log(2.0, r.ratio::numeric))::int END, r.ratio,
        c.net_translation, c.net_rotation, c.net_heading
   FROM prev
-  JOIN modb.snippets c ON c.begin_features <@ modb.match_box((prev.terminator).features, prev.plan, 8)
+  JOIN modb.snippets c ON c.begin_features <@ modb.match_box((prev.terminator).features, prev.plan, scale)
                       AND c.pose_key = prev.pose_key AND c.fps = prev.fps
   JOIN modb.terminators b ON b.id = c.begin_terminator
   JOIN modb.terminators e ON e.id = c.end_terminator
@@ -60,12 +59,42 @@ SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
  WHERE (collection IS NULL OR c.collection_id = ANY (modb.collection_subtree(collection)))
    AND c.id <> ALL (coalesce(exclude, '{}'))
    AND CASE WHEN standing THEN v.speed < modb.rest_speed() ELSE v.speed >= modb.walk_speed() END
-   AND r.ratio <= 8
+   AND r.ratio <= scale
  ORDER BY 8, 7, 1
- LIMIT 1
+$$;
+COMMENT ON FUNCTION modb.snippets_ending_within(bigint, float8[], float8, float8[], text, text, bigint[], boolean, float8) IS
+    'The snippets of prev''s pool that follow it with a continuity ratio of at most scale and end standing (pelvis slower than modb.rest_speed()) or, standing false, walking (at least modb.walk_speed()), by relaxation level, then nearest the goal at their end';
+
+CREATE OR REPLACE FUNCTION modb.select_snippet_ending(prev_snippet bigint, "position" float8[], heading float8,
+                                                     target_world float8[], profile text, collection text,
+                                                     exclude bigint[], standing boolean)
+RETURNS TABLE (snippet_id bigint, clip_id bigint, version int, mirrored boolean, first_frame int, n_frames int,
+               proximity float8, relax_level int, continuity float8, net_translation float8[],
+               net_rotation float8[], net_heading float8)
+LANGUAGE plpgsql STABLE PARALLEL SAFE
+AS $$
+BEGIN
+    -- Level by level (boxes 1, 2, 4, 8 x the thresholds): the first that has one answers, as a
+    -- search of the widest box ordered by level would, without reading it.
+    FOR level IN 0..3 LOOP
+        RETURN QUERY SELECT * FROM modb.snippets_ending_within(prev_snippet, "position", heading, target_world,
+                                                               profile, collection, exclude, standing, 2.0 ^ level)
+                      LIMIT 1;
+        EXIT WHEN FOUND;
+    END LOOP;
+END
 $$;
 COMMENT ON FUNCTION modb.select_snippet_ending(bigint, float8[], float8, float8[], text, text, bigint[], boolean) IS
     'The snippet that continues prev most smoothly (relaxation level 0-3) among those of its pool that end standing (pelvis slower than modb.rest_speed()) or, standing false, walking (at least modb.walk_speed()), then the one ending nearest the goal; the columns of select_next_snippet_world; no row when the data has none';
+
+CREATE OR REPLACE FUNCTION modb.can_rest(collection text DEFAULT NULL)
+RETURNS boolean
+LANGUAGE sql STABLE PARALLEL SAFE
+RETURN EXISTS (SELECT FROM modb.snippets s
+                WHERE (collection IS NULL OR s.collection_id = ANY (modb.collection_subtree(collection)))
+                  AND modb.end_speed(s.id) < modb.rest_speed());
+COMMENT ON FUNCTION modb.can_rest(text) IS
+    'Whether the collection (NULL: every one) has a snippet that ends standing: synthesis comes to rest after its last goal only then';
 
 CREATE OR REPLACE FUNCTION modb.select_synthesis_step(prev_snippet bigint, "position" float8[], heading float8,
                                                      target_world float8[], profile text, collection text,

@@ -96,7 +96,7 @@ COMMENT ON FUNCTION modb.check_synthesis(float8[], int, bigint, float8[], float8
 CREATE OR REPLACE FUNCTION modb.synthesis_chain(targets float8[], max_snippets int, start_snippet bigint,
                                      start_position float8[], start_heading float8,
                                      profile text, collection text,
-                                     arrival_radius float8, exclude_seconds float8)
+                                     arrival_radius float8, exclude_seconds float8, can_rest boolean)
 RETURNS TABLE (step int, snippet_id bigint, clip_id bigint, version int, mirrored boolean, first_frame int,
                n_frames int, fps float8, start_time float8, "position" float8[], heading float8,
                end_position float8[], end_heading float8, goal int, target float8[], reached boolean,
@@ -143,7 +143,7 @@ WITH RECURSIVE cfg AS MATERIALIZED (
                                      ELSE c.goal END AS goal) gi
      CROSS JOIN LATERAL (SELECT gi.goal, modb.synthesis_goal(targets, gi.goal) AS target) g
      CROSS JOIN LATERAL modb.select_synthesis_step(c.snippet_id, c.end_position, c.end_heading, g.target,
-                                                   profile, collection, c.recent_ids, c.resting) n
+                                                   profile, collection, c.recent_ids, c.resting AND can_rest) n
       JOIN modb.snippets s ON s.id = n.snippet_id
      CROSS JOIN LATERAL modb.synthesis_step_end(c.end_position, c.end_heading, s.net_translation, s.net_heading,
                                                 g.target, arrival_radius) e
@@ -159,8 +159,8 @@ SELECT step, snippet_id, clip_id, version, mirrored, first_frame, n_frames, fps,
   FROM chain
  WHERE (SELECT ok FROM cfg)  -- a one-time filter, run first: bad requests raise even when no snippet matches
 $$;
-COMMENT ON FUNCTION modb.synthesis_chain(float8[], int, bigint, float8[], float8, text, text, float8, float8) IS
-    'modb.synthesize''s chain under the session''s settings as they are (synthesize chooses the collection and graph first): a chain of up to max_snippets snippets from start_position/start_heading (world metres, radians; 0 faces +Z) through the world goals in targets ({{x, z}, ...} or {{x, y, z}, ...}), in order: one row per snippet with where it is placed, where it ends, the goal it served and whether it reached it (pelvis within arrival_radius on the ground), and its selection (relaxation level, continuity, proximity). Its first frame stands in for the previous snippet''s last; start_time is the time of that frame. The chain ends early when nothing can follow (every candidate excluded)';
+COMMENT ON FUNCTION modb.synthesis_chain(float8[], int, bigint, float8[], float8, text, text, float8, float8, boolean) IS
+    'modb.synthesize''s chain under the session''s settings as they are (synthesize chooses the collection and graph first, and whether it can come to rest: modb.can_rest): a chain of up to max_snippets snippets from start_position/start_heading (world metres, radians; 0 faces +Z) through the world goals in targets ({{x, z}, ...} or {{x, y, z}, ...}), in order: one row per snippet with where it is placed, where it ends, the goal it served and whether it reached it (pelvis within arrival_radius on the ground), and its selection (relaxation level, continuity, proximity). Its first frame stands in for the previous snippet''s last; start_time is the time of that frame. The chain ends early when nothing can follow (every candidate excluded)';
 
 CREATE OR REPLACE FUNCTION modb.synthesize(targets float8[], max_snippets int, start_snippet bigint DEFAULT NULL,
                                 start_position float8[] DEFAULT '{0,0,0}', start_heading float8 DEFAULT 0,
@@ -204,7 +204,8 @@ BEGIN
         END IF;
     END IF;
     RETURN QUERY SELECT * FROM modb.synthesis_chain(targets, max_snippets, start_snippet, start_position, start_heading,
-                                                     profile, collection, arrival_radius, exclude_seconds);
+                                                     profile, collection, arrival_radius, exclude_seconds,
+                                                     modb.can_rest(collection));
     IF graph IS NOT NULL THEN
         PERFORM set_config('modb.graph', coalesce(knob, ''), true);
     END IF;

@@ -26,7 +26,7 @@ SELECT volatility_is('modb', 'synthesize',
           'double precision', 'double precision'], 'volatile');
 SELECT volatility_is('modb', 'synthesis_chain',
     ARRAY['double precision[]', 'integer', 'bigint', 'double precision[]', 'double precision', 'text', 'text',
-          'double precision', 'double precision'], 'stable');
+          'double precision', 'double precision', 'boolean'], 'stable');
 
 -- The defaults synthesis takes (89_synthesis_defaults.sql), on collections and a graph row made here.
 SELECT is((SELECT count(*) FROM modb.snippet_pools()), 0::bigint, 'no snippets: no pools');

@@ -54,11 +54,6 @@ SELECT n.snippet_id, n.clip_id, n.version, n.mirrored, n.first_frame, n.n_frames
 _STEP = _SELECT.replace(
     "modb.select_next_snippet_world(", "modb.select_synthesis_step("
 ).replace("%(exclude)s::bigint[])", "%(exclude)s::bigint[], %(resting)s)")
-_NO_REST = """
-SELECT NOT EXISTS (SELECT FROM modb.select_snippet_ending(%(prev)s::bigint,
-       %(position)s::float8[], %(heading)s::float8, %(target)s::float8[], %(profile)s,
-       %(collection)s, %(exclude)s::bigint[], true))
-"""
 _START = """
 SELECT s.id, s.clip_id, s.version, s.mirrored, s.first_frame, s.n_frames, NULL::int, NULL::float8,
        NULL::float8, s.net_translation, s.net_heading, s.fps, b.heading
@@ -107,7 +102,7 @@ class Avatar:
                 if pool.pools > 1:
                     self.notes.append(describe_pool(pool))
         self._graphs: dict[tuple[str | None, str, str | None], str] = {}
-        self._rest_checked = False
+        self._rest_data: dict[str | None, bool] = {}  # collection: has motion that ends standing
 
     # Goals may change at any time (from another thread too): they apply to the next query issued.
     def set_goal(self, goal: Goal) -> None:
@@ -261,15 +256,8 @@ class Avatar:
             if request["prev"] is None:
                 row = self.conn.execute(_SELECT, query, prepare=True).fetchone()
             else:
-                query["resting"] = request["resting"]
+                query["resting"] = request["resting"] and self._can_rest(request["collection"])
                 row = self.conn.execute(_STEP, query, prepare=True).fetchone()
-            if request["resting"] and not self._rest_checked:  # once: can it come to rest?
-                self._rest_checked = True
-                if self.conn.execute(_NO_REST, query).fetchone()[0]:
-                    self.notes.append(
-                        "the data has no motion that stops or stands after this walk (snippets "
-                        "ending slower than 0.1 m/s): the avatar keeps walking about the last goal"
-                    )
             latency = (time.perf_counter() - t) * 1000.0
             if row is not None and request["count_candidates"]:
                 candidates = self.conn.execute(
@@ -357,6 +345,19 @@ class Avatar:
             if note:
                 self.notes.append(note)
         return self._graphs[key]
+
+    def _can_rest(self, collection: str | None) -> bool:
+        """Whether the data has motion that ends standing (modb.can_rest, once per collection, as
+        modb.synthesize asks once); a note says when it has none."""
+        if collection not in self._rest_data:
+            (can,) = self.conn.execute("SELECT modb.can_rest(%s)", [collection]).fetchone()
+            self._rest_data[collection] = can
+            if not can:
+                self.notes.append(
+                    "the data has no motion that stops or stands (no snippet ends slower than "
+                    "0.1 m/s): after the last goal the avatar keeps walking about it"
+                )
+        return self._rest_data[collection]
 
     def _set_knobs(self, knobs: dict[str, str]) -> None:
         """The session's SET modb.<knob>, as in psql; a knob left out goes back to the profile's."""
