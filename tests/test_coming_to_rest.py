@@ -6,25 +6,18 @@ none and the avatar keeps walking. Speeds from scipy's kinematics of the strip."
 from __future__ import annotations
 
 import numpy as np
-from support.snippet_oracle import world_transforms
+from support.snippet_oracle import motion_world
 
 from modb.database.connection import connect
 from modb.synthesis.avatar import Avatar, Settings
-from modb.synthesis.synth import synthesize
+from modb.synthesis.synth import strip_motion, synthesize
 
 GOAL = (0.0, 3.0)
 
 
 def pelvis_path(motion) -> np.ndarray:
     sk = motion.skeleton
-    positions, _ = world_transforms(
-        sk.parents,
-        [j.offset for j in sk.joints],
-        sk.translated,
-        motion.rotations,
-        motion.translations,
-    )
-    return positions[:, sk.index(sk.joint_map["pelvis"])]
+    return motion_world(motion)[0][:, sk.index(sk.joint_map["pelvis"])]
 
 
 def ground_speed(path: np.ndarray, fps: float) -> np.ndarray:
@@ -76,13 +69,8 @@ def test_a_new_goal_sets_it_walking_again_toward_it(cmu):
             if moved_at is not None and frame.index > moved_at + 3 * fps:
                 break
         motion = avatar.library.get(avatar.choices[0].clip_id, avatar.choices[0].version, False)
-    sk = motion.skeleton
-    rotations = np.stack([f.rotations for f in frames])
-    translations = np.stack([f.translations for f in frames])
-    positions, _ = world_transforms(
-        sk.parents, [j.offset for j in sk.joints], sk.translated, rotations, translations
-    )
-    path = positions[:, sk.index(sk.joint_map["pelvis"])]
+    strip = strip_motion(frames, motion.motion, "walk")
+    path = pelvis_path(strip)
     speed = ground_speed(path, fps)
     assert speed[moved_at - int(fps) : moved_at].max() < 0.1  # it stood
     assert speed[moved_at + int(2 * fps) : moved_at + int(3 * fps)].min() > 0.3  # it walks

@@ -27,18 +27,8 @@ def test_demo_with_the_shared_data(fresh_db, db, tmp_path):
     # Then the first thing a user runs, with no other flag (issue 24): the largest pool, the demo's
     # graph, root motion; every goal reached, no pose jump past the sources' p99.9, no root jump.
     out, report = tmp_path / "w.bvh", tmp_path / "w.json"
-    goals = ["3,0", "3,3", "0,4"]
-    r = run_modb(
-        fresh_db,
-        "synth",
-        *[a for g in goals for a in ("--to", g)],
-        "--seconds",
-        "40",
-        "--out",
-        out,
-        "--report-json",
-        report,
-    )
+    synth = ["synth", "--to", "3,0", "--to", "3,3", "--to", "0,4", "--seconds", "40"]
+    r = run_modb(fresh_db, *synth, "--out", out, "--report-json", report)
     assert r.returncode == 0, r.stderr
     assert "drawing from collection demo/bandai-2/locomotion" in r.stderr
     assert "building" not in r.stderr and "no current transition graph" not in r.stderr
@@ -51,16 +41,7 @@ def test_demo_with_the_shared_data(fresh_db, db, tmp_path):
         np.linalg.norm(np.diff(top, axis=0), axis=1).max() < 0.05 and np.abs(top[:, 1]).max() < 1e-6
     )
     glb = tmp_path / "w.glb"
-    r = run_modb(
-        fresh_db,
-        "synth",
-        *[a for g in goals for a in ("--to", g)],
-        "--seconds",
-        "40",
-        "--out",
-        glb,
-        "-q",
-    )
+    r = run_modb(fresh_db, *synth, "--out", glb, "-q")
     assert r.returncode == 0, r.stderr
     assert validate(glb)["numErrors"] == 0
 

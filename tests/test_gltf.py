@@ -12,7 +12,7 @@ import pytest
 from support.browser import chromium, serving
 from support.commands import run_modb
 from support.gltf_validator import validate
-from support.snippet_oracle import world_transforms
+from support.snippet_oracle import motion_world
 
 from modb.database.connection import connect
 from modb.synthesis.avatar import Settings
@@ -108,14 +108,7 @@ def test_synth_writes_a_walk_as_glb_and_gltf_with_root_motion(locomotion, browse
         assert validate(out)["numErrors"] == 0
     with connect(locomotion) as conn:
         strip = with_root_motion(synthesize(conn, goals, 10.0, Settings()).strip)
-    sk = strip.skeleton
-    positions, _ = world_transforms(  # scipy's forward kinematics of the same strip
-        sk.parents,
-        [j.offset for j in sk.joints],
-        sk.translated,
-        strip.rotations,
-        strip.translations,
-    )
+    positions, _ = motion_world(strip)  # scipy's forward kinematics of the same strip
     frames = [0, strip.n_frames // 2, strip.n_frames - 1]
     with serving(locomotion) as address:
         result = read_back(browser, address, [k / 30 for k in frames], data=outs[0].read_bytes())

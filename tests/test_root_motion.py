@@ -10,7 +10,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 from support.commands import run_modb
 from support.bvh_oracle import bvhio_world_positions
-from support.snippet_oracle import world_transforms
+from support.snippet_oracle import motion_world
 
 from modb.database.connection import connect
 from modb.synthesis.avatar import Settings
@@ -18,17 +18,6 @@ from modb.synthesis.root_motion import with_root_motion
 from modb.synthesis.synth import source_motions, synthesize
 
 COURSE = [(0.0, 5.0), (5.0, 5.0), (5.0, 0.0)]
-
-
-def oracle_world(motion) -> tuple[np.ndarray, list[Rotation]]:
-    sk = motion.skeleton
-    return world_transforms(
-        sk.parents,
-        [j.offset for j in sk.joints],
-        sk.translated,
-        motion.rotations,
-        motion.translations,
-    )
 
 
 def yaw(orientations: list[Rotation], joint: int) -> np.ndarray:
@@ -43,7 +32,7 @@ def pelvis_limits(conn, first_snippet: int, collection) -> tuple[float, float]:
     steps, turns = [], []
     for m in source_motions(conn, first_snippet, collection):
         sk = m.skeleton
-        positions, _ = oracle_world(m)
+        positions, _ = motion_world(m)
         pelvis = positions[:, sk.index(sk.joint_map["pelvis"])] * [1, 0, 1]
         steps.append(np.linalg.norm(np.diff(pelvis, axis=0), axis=1))
         axis = (
@@ -61,8 +50,8 @@ def check_root_motion(conn, result, collection) -> None:
     moved = with_root_motion(strip)
     sk, new = strip.skeleton, moved.skeleton
     added = len(new.joints) - len(sk.joints)
-    before, _ = oracle_world(strip)
-    after, orientations = oracle_world(moved)
+    before, _ = motion_world(strip)
+    after, orientations = motion_world(moved)
     # every joint of the source skeleton where it was (the top one too when a joint was added)
     kept = slice(0 if added else 1, None)
     assert np.abs(after[:, added:][:, kept] - before[:, kept]).max() < 1e-9

@@ -15,7 +15,7 @@ from scipy.spatial.transform import Rotation
 from support.bvh_oracle import bvhio_world_positions, in_order
 from support.commands import run_modb
 from support.databases import GRAPH
-from support.snippet_oracle import STANDARD, world_transforms
+from support.snippet_oracle import STANDARD, motion_world
 
 from modb.synthesis.avatar import Avatar, Choice, Settings
 from modb.bench.synth import seeded_course
@@ -157,7 +157,7 @@ def test_the_strip_is_placed_where_the_chain_says(locomotion):
     with connect(locomotion) as conn:
         result = synthesize(conn, COURSE, 15.0, Settings())
     sk, strip = result.strip.skeleton, result.strip
-    pelvis = independent_world(strip)[0][:, sk.index(sk.joint_map["pelvis"])]
+    pelvis = motion_world(strip)[0][:, sk.index(sk.joint_map["pelvis"])]
     for c in result.chain:
         assert abs(pelvis[c.end_frame, 0] - c.end.position[0]) < 1e-3
         assert abs(pelvis[c.end_frame, 2] - c.end.position[2]) < 1e-3
@@ -224,7 +224,7 @@ def test_synth_writes_a_bvh_that_reads_back_into_the_same_world_positions(locomo
     with connect(locomotion) as conn:  # the same request in process: the chain is deterministic
         result = synthesize(conn, [(0.0, 6.0), (6.0, 6.0)], 12.0, Settings())
     assert [c["snippet_id"] for c in chain] == [c.snippet_id for c in result.chain]
-    expected = independent_world(with_root_motion(result.strip))[0]  # as written: root motion
+    expected = motion_world(with_root_motion(result.strip))[0]  # as written: root motion
     names, positions = bvhio_world_positions(str(out), result.strip.skeleton.unit_m)
     ours = in_order(result.strip.skeleton.names, names, expected)
     assert positions.shape == ours.shape
@@ -243,19 +243,6 @@ def test_synth_writes_a_bvh_that_reads_back_into_the_same_world_positions(locomo
     assert (n_frames, fps) == (result.strip.n_frames, 30.0) and same_skeleton
 
 
-def independent_world(motion) -> tuple[np.ndarray, list[Rotation]]:
-    """World positions and orientations with scipy (snippet_oracle's kinematics), from the Motion's
-    arrays."""
-    sk = motion.skeleton
-    return world_transforms(
-        sk.parents,
-        [j.offset for j in sk.joints],
-        sk.translated,
-        motion.rotations,
-        motion.translations,
-    )
-
-
 def test_roughness_matches_an_independent_computation(locomotion):
     """Per-step joint rotation changes and pelvis velocity changes, recomputed with scipy."""
     with connect(locomotion) as conn:
@@ -263,7 +250,7 @@ def test_roughness_matches_an_independent_computation(locomotion):
         sources = source_motions(conn, result.chain[0].snippet_id, None)
     angles, velocity_change = step_changes(result.strip)
     sk = result.strip.skeleton
-    positions, world = independent_world(result.strip)
+    positions, world = motion_world(result.strip)
     for column, name in enumerate(STANDARD):
         k = sk.index(sk.joint_map[name])
         r = (
@@ -565,8 +552,8 @@ def test_inertialization_removes_the_seams_jump_and_leaves_the_chain_and_the_fra
     assert np.mean(r(smooth) > 1) <= 0.5 * np.mean(r(plain) > 1) and np.mean(r(plain) > 1) > 0
     assert r(smooth).max() < r(plain).max()
     # the offset is gone by the end of each snippet: the pelvis ends where the chain placed it
-    positions = independent_world(smooth.strip)[0][:, sk.index("Hips")]
-    placed = independent_world(plain.strip)[0][:, sk.index("Hips")]
+    positions = motion_world(smooth.strip)[0][:, sk.index("Hips")]
+    placed = motion_world(plain.strip)[0][:, sk.index("Hips")]
     ends = [c.end_frame for c in plain.chain if c.n_frames > 12]
     assert np.abs(positions[ends] - placed[ends]).max() < 0.02
 

@@ -103,6 +103,18 @@ def world_transforms(
     return world_p, world_r
 
 
+def motion_world(motion) -> tuple[np.ndarray, list[Rotation]]:
+    """world_transforms of a Motion's own arrays (skeleton, rotations, translations)."""
+    sk = motion.skeleton
+    return world_transforms(
+        sk.parents,
+        [j.offset for j in sk.joints],
+        sk.translated,
+        motion.rotations,
+        motion.translations,
+    )
+
+
 def clip_terms(
     hierarchy: dict, joint_map: dict, rotations: np.ndarray, translations, fps: float
 ) -> ClipTerms:
