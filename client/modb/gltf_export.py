@@ -67,7 +67,12 @@ def character_mesh(motion: Motion, rest: np.ndarray) -> tuple[np.ndarray, np.nda
     is bound to."""
     sk = motion.skeleton
     height = float(np.ptp(rest[:, 1])) or 1.0
-    bones = [(j.parent, rest[j.parent], rest[k]) for k, j in enumerate(sk.joints) if j.parent >= 0]
+    above = set(sk.above_pelvis())  # no limb from these: frames of reference, not the body
+    bones = [
+        (j.parent, rest[j.parent], rest[k])
+        for k, j in enumerate(sk.joints)
+        if j.parent >= 0 and j.parent not in above
+    ]
     bones += [
         (k, rest[k], rest[k] + np.asarray(j.end_site))
         for k, j in enumerate(sk.joints)

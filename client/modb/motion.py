@@ -63,6 +63,18 @@ class Skeleton:
     def index(self, name: str) -> int:
         return self.names.index(name)
 
+    def above_pelvis(self) -> list[int]:
+        """The pelvis's ancestors, nearest first: frames of reference (Bandai's joint_Root on the
+        ground at the capture origin), not the body. Empty when the pelvis is the top joint or the
+        joint map names none."""
+        if "pelvis" not in self.joint_map:
+            return []
+        out, k = [], self.parents[self.index(self.joint_map["pelvis"])]
+        while k >= 0:
+            out.append(k)
+            k = self.parents[k]
+        return out
+
     def rest_positions(self) -> np.ndarray:
         return kinematics.rest_positions(self.parents, self.offsets)
 

@@ -59,11 +59,7 @@ def pose_jumps(motion: Motion) -> np.ndarray:
     the travel is left out and a seam's jump in pose is what shows."""
     sk = motion.skeleton
     pelvis = sk.index(sk.joint_map["pelvis"])
-    above = []  # frames of reference, not the body (Bandai's joint_Root at the capture origin)
-    k = sk.parents[pelvis]
-    while k >= 0:
-        above.append(k)
-        k = sk.parents[k]
+    above = sk.above_pelvis()  # frames of reference, not the body
     body = [k for k in range(len(sk.joints)) if k not in above]
     positions = motion.world_positions()
     ground = positions[:, pelvis] * np.array([1.0, 0.0, 1.0])
