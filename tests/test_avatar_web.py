@@ -615,7 +615,7 @@ def test_the_avatar_is_a_skinned_character_and_its_walk_downloads_as_bvh_and_glt
             for m in reversed(state["messages"])
             if m["type"] == "file" and m["name"].endswith(fmt)
         )
-        path = tmp_path / message["name"]
+        path = tmp_path / f"avatar-{message['name']}"  # its own clip name when loaded back
         path.write_bytes(base64.b64decode(message["data"]))
         assert message["seconds"] > 1.0
         if fmt == "glb":
