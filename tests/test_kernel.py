@@ -60,6 +60,18 @@ def test_canonical_sign_and_angle_between():
     assert np.allclose(quaternion.angle_between(qa, tiny), 1e-7, rtol=1e-3)
 
 
+def test_rotation_vectors_and_powers_match_scipy():
+    r = Rotation.random(300, random_state=8)
+    q = scipy_quat(r)
+    assert np.allclose(quaternion.to_rotation_vector(q), r.as_rotvec(), atol=1e-12)
+    assert np.allclose(quaternion.to_rotation_vector(-q), r.as_rotvec(), atol=1e-12)
+    assert np.allclose(quaternion.from_rotation_vector(r.as_rotvec()), q, atol=1e-12)
+    # q^t is the slerp from the identity: scipy's rotation vector scaled by t.
+    expected = scipy_quat(Rotation.from_rotvec(0.3 * r.as_rotvec()))
+    assert np.allclose(quaternion.canonical(quaternion.power(q, 0.3)), expected, atol=1e-12)
+    assert np.allclose(quaternion.to_rotation_vector(np.array([1.0, 0, 0, 0])), 0.0)
+
+
 def test_forward_kinematics_two_bone_chain():
     # Root at (0,1,0) turned 90 degrees about Y; child one metre along +X in the root frame.
     rot_y = quaternion.from_euler([[np.pi / 2]], "Y")[0]

@@ -40,20 +40,26 @@ from .placement import Placement, after, ground_distance, place_root
 from .source_frames import FrameLibrary
 
 
-_SELECT = """
+_ARGUMENTS = """%(prev)s::bigint, %(position)s::float8[], %(heading)s::float8, %(target)s::float8[],
+    %(profile)s, %(collection)s, %(exclude)s::bigint[]"""
+
+
+def _chosen(selection: str) -> str:
+    """The query reading the row of the snippet that `selection` (a call of a selection function)
+    chooses."""
+    return f"""
 SELECT n.snippet_id, n.clip_id, n.version, n.mirrored, n.first_frame, n.n_frames, n.relax_level,
        n.continuity, n.proximity, n.net_translation, n.net_heading, s.fps, b.heading
-  FROM modb.select_next_snippet_world(%(prev)s::bigint, %(position)s::float8[], %(heading)s::float8,
-                                      %(target)s::float8[], %(profile)s, %(collection)s,
-                                      %(exclude)s::bigint[]) n
+  FROM {selection} n
   JOIN modb.snippets s ON s.id = n.snippet_id
   JOIN modb.terminators b ON b.id = s.begin_terminator
 """
+
+
+_SELECT = _chosen(f"modb.select_next_snippet_world({_ARGUMENTS})")
 # Every step after the first (88_rest_selection.sql): coming to rest after the last goal, setting
 # off from standing, else select_next_snippet_world, as modb.synthesize steps.
-_STEP = _SELECT.replace(
-    "modb.select_next_snippet_world(", "modb.select_synthesis_step("
-).replace("%(exclude)s::bigint[])", "%(exclude)s::bigint[], %(resting)s)")
+_STEP = _chosen(f"modb.select_synthesis_step({_ARGUMENTS}, %(resting)s)")
 _START = """
 SELECT s.id, s.clip_id, s.version, s.mirrored, s.first_frame, s.n_frames, NULL::int, NULL::float8,
        NULL::float8, s.net_translation, s.net_heading, s.fps, b.heading

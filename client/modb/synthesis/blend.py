@@ -23,15 +23,8 @@ def blend_seam(
     shift = previous_last.translations - translations[0]  # the arrays are _choose's own copies
     for k in range(1, n + 1):
         weight = 1.0 - k / (n + 1)
-        rotations[k] = quaternion.canonical(quaternion.multiply(_power(jump, weight), rotations[k]))
+        rotations[k] = quaternion.canonical(
+            quaternion.multiply(quaternion.power(jump, weight), rotations[k])
+        )
         translations[k] = translations[k] + weight * shift
     return rotations, translations
-
-
-def _power(q: np.ndarray, t: float) -> np.ndarray:
-    """q^t: the same axis, t times the angle (slerp from the identity)."""
-    q = quaternion.canonical(q)
-    s = np.linalg.norm(q[..., 1:], axis=-1, keepdims=True)
-    half = np.arctan2(s, q[..., :1])
-    axis = np.where(s > 1e-12, q[..., 1:] / np.maximum(s, 1e-300), 0.0)
-    return np.concatenate([np.cos(t * half), axis * np.sin(t * half)], axis=-1)

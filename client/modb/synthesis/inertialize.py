@@ -24,20 +24,6 @@ from .chain import Frame
 HALFLIFE_SECONDS = 0.1  # the offset halves in this time: gone (< 1%) within about 0.7 s
 
 
-def rotation_vector(q: np.ndarray) -> np.ndarray:
-    """Axis times angle of unit quaternions (w, x, y, z), the shorter way round."""
-    q = quaternion.canonical(q)
-    s = np.linalg.norm(q[..., 1:], axis=-1, keepdims=True)
-    angle = 2.0 * np.arctan2(s, q[..., :1])
-    return np.where(s > 1e-12, q[..., 1:] / np.maximum(s, 1e-300) * angle, 2.0 * q[..., 1:])
-
-
-def from_rotation_vector(v: np.ndarray) -> np.ndarray:
-    angle = np.linalg.norm(v, axis=-1, keepdims=True)
-    axis = np.where(angle > 1e-12, v / np.maximum(angle, 1e-300), 0.0)
-    return np.concatenate([np.cos(angle / 2), axis * np.sin(angle / 2)], axis=-1)
-
-
 def decay(
     offset: np.ndarray, velocity: np.ndarray, times: np.ndarray, halflife: float
 ) -> np.ndarray:
@@ -89,11 +75,19 @@ class Seams:
 
         def rotation_offsets(old: np.ndarray, new: np.ndarray) -> np.ndarray:
             """Per frame of the new snippet: its rotations turned by the decaying offset."""
-            offset = rotation_vector(quaternion.multiply(old[1], quaternion.conjugate(new[0])))
-            old_turn = rotation_vector(quaternion.multiply(old[1], quaternion.conjugate(old[0])))
-            new_turn = rotation_vector(quaternion.multiply(new[1], quaternion.conjugate(new[0])))
+            offset = quaternion.to_rotation_vector(
+                quaternion.multiply(old[1], quaternion.conjugate(new[0]))
+            )
+            old_turn = quaternion.to_rotation_vector(
+                quaternion.multiply(old[1], quaternion.conjugate(old[0]))
+            )
+            new_turn = quaternion.to_rotation_vector(
+                quaternion.multiply(new[1], quaternion.conjugate(new[0]))
+            )
             moved = decay(offset, (old_turn - new_turn) * fps, times, halflife)
-            return quaternion.canonical(quaternion.multiply(from_rotation_vector(moved), new))
+            return quaternion.canonical(
+                quaternion.multiply(quaternion.from_rotation_vector(moved), new)
+            )
 
         def translation_offsets(old: np.ndarray, new: np.ndarray) -> np.ndarray:
             velocity = (old[1] - old[0]) * fps - (new[1] - new[0]) * fps

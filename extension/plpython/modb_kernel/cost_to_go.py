@@ -119,7 +119,9 @@ def cost_to_go(grid: Grid, net_x, net_z, heading, duration, src, dst, seam, prog
     starts = np.r_[0, np.flatnonzero(np.diff(src)) + 1] if len(src) else np.zeros(0, dtype=np.int64)
     ends = np.r_[starts[1:], len(src)]
     # Runs of whole sources of about GATHER_ROWS transitions each.
-    bounds = np.unique(np.r_[np.searchsorted(starts, np.arange(0, len(src), GATHER_ROWS)), len(starts)])
+    bounds = np.unique(
+        np.r_[np.searchsorted(starts, np.arange(0, len(src), GATHER_ROWS)), len(starts)]
+    )
     widest = max((ends[hi - 1] - starts[lo] for lo, hi in zip(bounds[:-1], bounds[1:])), default=0)
     gathered = np.empty((widest, size), dtype=np.float32)
     ring0 = np.tile(np.arange(grid.rings), grid.angles) == 0

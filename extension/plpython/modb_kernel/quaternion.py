@@ -187,3 +187,24 @@ def from_matrix(m):
     )
     q = np.take_along_axis(cands, best[..., None, None], axis=-2)[..., 0, :]
     return canonical(q)
+
+
+def to_rotation_vector(q):
+    """Axis times angle (radians) of unit quaternions (w, x, y, z), the shorter way round."""
+    q = canonical(q)
+    v = q[..., 1:]
+    s = np.linalg.norm(v, axis=-1, keepdims=True)
+    angle = 2.0 * np.arctan2(s, q[..., :1])
+    return np.where(s > 1e-12, v / np.maximum(s, 1e-300) * angle, 2.0 * v)
+
+
+def from_rotation_vector(v):
+    """Unit quaternions (w, x, y, z) of rotation vectors (axis times angle)."""
+    angle = np.linalg.norm(v, axis=-1, keepdims=True)
+    axis = np.where(angle > 1e-12, v / np.maximum(angle, 1e-300), 0.0)
+    return np.concatenate([np.cos(angle / 2), axis * np.sin(angle / 2)], axis=-1)
+
+
+def power(q, t):
+    """q^t: the same axis, t times the angle (slerp from the identity)."""
+    return from_rotation_vector(t * to_rotation_vector(q))

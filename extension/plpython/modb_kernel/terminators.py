@@ -45,15 +45,6 @@ def _about_y(theta):
     return quaternion.about_axis("Y", theta)
 
 
-def _rotvec(q):
-    """Rotation vectors (axis * angle) of quaternions."""
-    q = quaternion.canonical(q)
-    v = q[..., 1:]
-    s = np.linalg.norm(v, axis=-1, keepdims=True)
-    angle = 2.0 * np.arctan2(s, q[..., :1])
-    return np.where(s > 1e-12, v / np.maximum(s, 1e-300) * angle, 2.0 * v)
-
-
 def rotation_features(rotations):
     """The rotation part of the features: for each of joints.FEATURE_ROTATIONS, R e_x then R e_y of
     its rotation (rotations: (..., 19, 4) as stored, standard joint order)."""
@@ -115,14 +106,14 @@ def compute(parents, offsets, rotations, translations, translated, std, fps):
     pelvis_local = quaternion.canonical(quaternion.multiply(h_inv[:, 0], orientations[:, pelvis]))
     local_rotations[:, pelvis_s] = pelvis_local
     angular = (
-        _rotvec(
+        quaternion.to_rotation_vector(
             quaternion.multiply(
                 quaternion.conjugate(rotations[before][:, std]), rotations[after][:, std]
             )
         )
         * rate
     )
-    pelvis_world = _rotvec(
+    pelvis_world = quaternion.to_rotation_vector(
         quaternion.multiply(
             orientations[after, pelvis], quaternion.conjugate(orientations[before, pelvis])
         )
