@@ -1,5 +1,6 @@
 """Seam treatments side by side (README "Synthesis", seams): the same seeded courses synthesized
-with no treatment, the linear blend and inertialization, on the default graph, and the figures:
+with no treatment, the linear blend, inertialization, and inertialization with foot locking, on the
+default graph, and the figures:
 seams rougher than a natural step (r > 1), their 99th percentile of r, the worst pose jump, and foot
 skating, beside the source clips' own.
 
@@ -14,10 +15,16 @@ import numpy as np
 from modb.bench.synth import seeded_course
 from modb.database.connection import connect
 from modb.synthesis.avatar import Settings
+from modb.synthesis.foot_lock import lock_feet
 from modb.synthesis.quality import NaturalSteps, measure
 from modb.synthesis.synth import source_motions, synthesize
 
-TREATMENTS = (("none", 0), ("blend", 5), ("inertialize", 0))
+TREATMENTS = (
+    ("none", 0, False),
+    ("blend", 5, False),
+    ("inertialize", 0, False),
+    ("inertialize", 0, True),
+)
 
 
 def main(dsn: str, seconds: float, seeds: list[int]) -> None:
@@ -25,7 +32,7 @@ def main(dsn: str, seconds: float, seeds: list[int]) -> None:
         natural = None
         print("| seam | seams with r > 1 | seam r p99 | worst pose jump | foot skating |")
         print("|---|---|---|---|---|")
-        for seam, frames in TREATMENTS:
+        for seam, frames, locked in TREATMENTS:
             rows = []
             for seed in seeds:
                 goals = seeded_course(seed, n_goals=int(seconds // 5) + 1)
@@ -33,12 +40,14 @@ def main(dsn: str, seconds: float, seeds: list[int]) -> None:
                 if natural is None:
                     first = result.chain[0].snippet_id
                     natural = NaturalSteps.of(source_motions(conn, first, result.collection))
-                rep = measure(result.strip, result.chain, goals, natural, 1.0)
+                strip = lock_feet(result.strip) if locked else result.strip
+                rep = measure(strip, result.chain, goals, natural, 1.0)
                 rows.append(
                     (rep.seam_share_over_one, rep.seam_r_p99, rep.pose_jump_max, rep.foot_skating)
                 )
             a = np.array(rows)
             label = f"{seam}, {frames} frames" if frames else seam
+            label += ", foot lock" if locked else ""
             print(
                 f"| {label} | {a[:, 0].mean():.1%} | {a[:, 1].mean():.2f} | "
                 f"{100 * a[:, 2].max():.1f} cm | {100 * a[:, 3].mean():.1f} cm/s |"

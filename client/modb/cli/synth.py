@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 
 from modb.synthesis.chain import (
@@ -111,6 +112,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--seam blend)",
     )
     synth.add_argument(
+        "--foot-lock",
+        action="store_true",
+        help="hold each standing foot where it stood (two-bone IK on the legs): less foot "
+        "skating, seams as rough as without",
+    )
+    synth.add_argument(
         "--in-place",
         action="store_true",
         help="keep the skeleton's own top joint as placed (default: root motion, the travel on "
@@ -157,6 +164,7 @@ def run(args: argparse.Namespace) -> int:
     from modb.synthesis.avatar import NoContinuation, Settings
     from modb.synthesis.defaults import NO_GRAPH
     from modb.resample import at_fps
+    from modb.synthesis.foot_lock import lock_feet
     from modb.synthesis.root_motion import with_root_motion
     from modb.synthesis.source_frames import UnplaceableSkeleton
     from modb.synthesis.synth import (
@@ -225,6 +233,8 @@ def run(args: argparse.Namespace) -> int:
             return 1
         for note in result.notes:
             print(f"modb synth: {note}", file=sys.stderr)
+        if args.foot_lock:
+            result = dataclasses.replace(result, strip=lock_feet(result.strip))
         strip = result.strip if args.in_place else with_root_motion(result.strip)
         if args.fps:
             strip = at_fps(strip, args.fps)
