@@ -468,21 +468,29 @@ def read_cost(table: np.ndarray, grid: dict, xz: np.ndarray) -> np.ndarray:
     """A cost-to-go table (angles x rings) read at goals (x, z): linear in (angle, log radius) by
     scipy, 0 within the inner radius, the outer ring plus the distance beyond it at the grid's
     speed."""
+    return read_costs(table[None], grid, xz[None])[0]
+
+
+def read_costs(tables: np.ndarray, grid: dict, xz: np.ndarray) -> np.ndarray:
+    """read_cost of many tables (n, angles, rings), each at its own goals xz (n, goals, 2), in one
+    scipy call: the table's index is one more grid axis, read at whole numbers only."""
     angles, rings, inner, outer = (
         grid["angles"],
         grid["rings"],
         grid["inner_radius"],
         grid["outer_radius"],
     )
-    r = np.hypot(xz[:, 0], xz[:, 1])
+    r = np.hypot(xz[..., 0], xz[..., 1])
     u = np.clip(
         np.log(np.maximum(r, 1e-12) / inner) / np.log(outer / inner) * (rings - 1), 0, rings - 1
     )
-    a = np.mod(np.arctan2(xz[:, 0], xz[:, 1]), 2 * np.pi) / (2 * np.pi / angles)
-    wrapped = np.vstack([table, table[:1]])  # angle A is angle 0 again
-    value = RegularGridInterpolator((np.arange(angles + 1), np.arange(rings)), wrapped)(
-        np.stack([a, u], axis=1)
-    )
+    a = np.mod(np.arctan2(xz[..., 0], xz[..., 1]), 2 * np.pi) / (2 * np.pi / angles)
+    wrapped = np.concatenate([tables, tables[:, :1]], axis=1)  # angle A is angle 0 again
+    wrapped = np.concatenate([wrapped, wrapped[-1:]])  # (scipy's linear needs two on every axis)
+    which = np.broadcast_to(np.arange(len(tables))[:, None], r.shape)
+    value = RegularGridInterpolator(
+        (np.arange(len(tables) + 1), np.arange(angles + 1), np.arange(rings)), wrapped
+    )(np.stack([which, a, u], axis=-1))
     return np.where(r <= inner, 0.0, value + np.maximum(r - outer, 0) / grid["speed"])
 
 
@@ -498,22 +506,22 @@ def cost_to_go(
     points = np.stack(
         [np.outer(np.sin(theta), radii).ravel(), np.outer(np.cos(theta), radii).ravel()], axis=1
     )
-    seen = {i: _seen_from_end(space, i, points) for i in successors}
-    duration = {i: duration_of(space, i) for i in successors}
-    values = {i: np.zeros((angles, rings)) for i in successors}
+    order = list(successors)
+    row = {i: k for k, i in enumerate(order)}
+    seen = np.stack([_seen_from_end(space, i, points) for i in order])
+    duration = np.array([duration_of(space, i) for i in order])[:, None]
+    nexts = [np.array([row[int(t)] for t in successors[i]]) for i in order]
+    seams = [np.array([seam[i, int(t)] for t in successors[i]])[:, None] for i in order]
+    values = np.zeros((len(order), angles, rings))
     while True:
-        through = {
-            i: duration[i] + read_cost(values[i], grid, seen[i]).reshape(angles, rings)
-            for i in successors
-        }
-        new = {}
-        for i, nexts in successors.items():
-            new[i] = np.min([through[int(t)] + seam[i, int(t)] for t in nexts], axis=0)
-            new[i][:, 0] = 0.0
-        change = max(np.abs(new[i] - values[i]).max() for i in successors)
+        through = duration + read_costs(values, grid, seen)
+        new = np.stack([(through[n] + c).min(axis=0) for n, c in zip(nexts, seams)])
+        new = new.reshape(values.shape)
+        new[:, :, 0] = 0.0
+        change = np.abs(new - values).max()
         values = new
         if change < tolerance:
-            return values
+            return {i: values[row[i]] for i in order}
 
 
 def select(

@@ -1,3 +1,0 @@
--- 0.13.0: transition graphs build about 3x faster (the same graph): the box search's k-d tree spans the
--- features that spread most, and the cost-to-go gathers transitions in cache-sized runs. The PL/Python
--- functions are re-created with the new kernel (build_sql.py).
