@@ -6,7 +6,7 @@ import hashlib
 import json
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import psycopg
@@ -312,6 +312,8 @@ def _load_one(
                 added = build_snippets(conn, hit[0], mirrored) if snippets else 0
             return FileResult(job.path, "unchanged", clip_id=hit[0], version=hit[1], snippets=added)
         motion = read_job(job, options)
+        if job.source_name and motion.source:
+            motion = replace(motion, source=replace(motion.source, path=job.source_name))
         clip_id, version, added = store_motion(
             conn, motion, job.collection, key, snippets, mirrored
         )

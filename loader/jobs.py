@@ -19,6 +19,7 @@ class FileJob:
     path: Path
     collection: str
     asf: Path | None = None  # the skeleton of an AMC file
+    source_name: str | None = None  # what to store as the source file (an upload's own name)
 
 
 def _walk(directory: Path) -> Iterable[Path]:

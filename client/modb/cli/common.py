@@ -68,6 +68,7 @@ def positive(most: float, unit: str = "") -> Number:
 
 
 SEED = whole(0, 2**32 - 1)  # a random seed
+VERSION = whole(1, 2**31 - 1)  # clip versions are int
 PORT = whole(1, 65535)  # a TCP port
 
 

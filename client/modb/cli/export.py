@@ -5,9 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .common import FPS, connect, motion_format, whole, writable, write_motion_file
-
-VERSION = whole(1, 2**31 - 1)  # clip versions are int
+from .common import FPS, VERSION, connect, motion_format, writable, write_motion_file
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:

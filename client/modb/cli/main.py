@@ -12,11 +12,11 @@ import psycopg
 
 from modb.version import __version__
 
-from . import bench, db, demo, export, graph, load, serve, synth
+from . import annotate, bench, db, demo, export, graph, load, serve, synth, token
 from . import list as list_clips
 
 # In `modb --help`'s order.
-COMMANDS = (load, export, synth, list_clips, demo, bench, graph, serve, db)
+COMMANDS = (load, export, synth, list_clips, annotate, demo, bench, graph, serve, token, db)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -5,7 +5,9 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .common import PORT
+from .common import PORT, whole
+
+UPLOAD_MB = whole(1, 4096)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -26,6 +28,25 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="also answer requests that name this server NAME (e.g. the machine's DNS name when "
         "--host 0.0.0.0); repeatable",
     )
+    serve.add_argument(
+        "--require-token",
+        action="store_true",
+        help="reads need a token too (writes always do: `modb token create NAME --role loader`)",
+    )
+    serve.add_argument(
+        "--max-upload-mb",
+        type=UPLOAD_MB,
+        default=100,
+        metavar="MB",
+        help=f"the largest upload accepted ({UPLOAD_MB.span}; default 100)",
+    )
+    serve.add_argument(
+        "--write-user",
+        default="modb_web",
+        metavar="ROLE",
+        help="the login role writes run as: a member of modb_loader, not a superuser (default "
+        "modb_web, which the embedded database has)",
+    )
     serve.set_defaults(func=run)
 
 
@@ -39,7 +60,15 @@ def run(args: argparse.Namespace) -> int:
 
     conninfo, origin = resolve(args.dsn)
     try:
-        app = create_app(conninfo, args.host, args.port, tuple(args.allow_host))
+        app = create_app(
+            conninfo,
+            args.host,
+            args.port,
+            tuple(args.allow_host),
+            require_token=args.require_token,
+            max_upload_mb=args.max_upload_mb,
+            writer_role=args.write_user,
+        )
     except ThreeMissing as e:
         print(f"modb serve: {e}", file=sys.stderr)
         return 2

@@ -189,6 +189,7 @@ class Cluster:
                 # tables are vacuumed and the index rebuilt here.
                 conn.execute("VACUUM ANALYZE modb.snippets, modb.terminators")
                 conn.execute("REINDEX INDEX modb.snippets_begin_features_idx")
+            ensure_writer_role(conn)
             if before < [0, 11, 0] <= conn.execute(version).fetchone()[0]:
                 # 0.11.0 packs the blocks of consecutive snippets that loads left (a few seconds).
                 from modb.loader.ingest import pack_blocks
@@ -204,3 +205,16 @@ class Cluster:
             return f"not created (MODB_HOME={self.home}); `modb db start` creates it"
         state = "running" if self.is_running() else "stopped"
         return f"{state}: data {self.datadir}, socket {self.socket_dir}, log {self.logfile}"
+
+
+WRITER_ROLE = "modb_web"
+
+
+def ensure_writer_role(conn) -> None:
+    """The login role `modb serve` writes as: a member of modb_loader, not a superuser (the
+    embedded cluster trusts its local socket; on other servers, give it a password)."""
+    if not conn.execute("SELECT 1 FROM pg_roles WHERE rolname = %s", [WRITER_ROLE]).fetchone():
+        conn.execute(
+            f"CREATE ROLE {WRITER_ROLE} LOGIN NOSUPERUSER NOCREATEDB NOCREATEROLE "
+            "IN ROLE modb_loader"
+        )

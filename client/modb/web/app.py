@@ -32,9 +32,11 @@ from starlette.staticfiles import StaticFiles
 
 from modb.database import pgarray
 from modb.database.connection import connect
-from . import api, downloads
+from . import api, downloads, openapi
 from .avatar_socket import avatar_endpoint
+from .auth import Tokens
 from .guard import HostOriginGuard, allowed_hosts
+from .writes import MAX_UPLOAD_MB, WRITER_ROLE, Writer, meta_endpoints, upload_endpoint
 
 HERE = Path(__file__).parent
 STATIC = HERE / "static"
@@ -116,8 +118,9 @@ class Gate:
 View = Callable[[psycopg.Connection, Request], Any]
 
 
-def _endpoint(pool: ConnectionPool, view: View) -> Callable:
+def _endpoint(pool: ConnectionPool, view: View, tokens: Tokens) -> Callable:
     def endpoint(request: Request) -> JSONResponse:  # sync: Starlette runs it in its thread pool
+        tokens.reader(request)
         with pool.connection() as conn:
             answer = view(conn, request)
         return answer if isinstance(answer, Response) else JSONResponse(answer)
@@ -126,11 +129,11 @@ def _endpoint(pool: ConnectionPool, view: View) -> Callable:
 
 
 def _gated_endpoint(
-    pool: ConnectionPool, view: View, check: Callable[[Request], Any], gate: Gate
+    pool: ConnectionPool, view: View, check: Callable[[Request], Any], gate: Gate, tokens: Tokens
 ) -> Callable:
     """A heavy view: its arguments checked first (a bad request waits for nothing), then its turn
     at the gate, then a thread and a pooled connection."""
-    answer = _endpoint(pool, view)
+    answer = _endpoint(pool, view, tokens)
 
     async def endpoint(request: Request) -> JSONResponse:
         check(request)
@@ -267,7 +270,13 @@ def _configure(conn: psycopg.Connection) -> None:
 
 
 def create_app(
-    conninfo: str, host: str = "127.0.0.1", port: int = 8765, allow_hosts: tuple[str, ...] = ()
+    conninfo: str,
+    host: str = "127.0.0.1",
+    port: int = 8765,
+    allow_hosts: tuple[str, ...] = (),
+    require_token: bool = False,
+    max_upload_mb: int = MAX_UPLOAD_MB,
+    writer_role: str = WRITER_ROLE,
 ) -> HostOriginGuard:
     if not (THREE / "build" / "three.module.js").exists():
         raise ThreeMissing(
@@ -285,20 +294,31 @@ def create_app(
         check=ConnectionPool.check_connection,  # a restarted server costs no failed request
     )
 
+    tokens = Tokens(pool, require_token)
+    writer = Writer.for_server(conninfo, writer_role)
+
     @contextlib.asynccontextmanager
     async def lifespan(app: Starlette):
         pool.open(wait=True, timeout=10)
         yield
+        writer.close()
         pool.close()
 
     frames_gate = Gate("clip frame requests", HEAVY_SLOTS, HEAVY_QUEUE, HEAVY_WAIT_S)
     routes = [
         Route("/", lambda request: FileResponse(STATIC / "index.html")),
-        *(Route(path, _endpoint(pool, view)) for path, view in VIEWS.items()),
+        *(Route(path, _endpoint(pool, view, tokens)) for path, view in VIEWS.items()),
         *(
-            Route(path, _gated_endpoint(pool, view, check, frames_gate))
+            Route(path, _gated_endpoint(pool, view, check, frames_gate, tokens))
             for path, (view, check) in HEAVY_VIEWS.items()
         ),
+        Route(
+            "/api/clips/{clip_id}/versions/{version}/meta",
+            meta_endpoints(pool, tokens, writer),
+            methods=["GET", "PUT"],
+        ),
+        Route("/api/uploads", upload_endpoint(tokens, writer, max_upload_mb), methods=["POST"]),
+        Route("/api/openapi.json", lambda request: JSONResponse(openapi.schema())),
         Route("/avatar", lambda request: FileResponse(STATIC / "avatar.html")),
         WebSocketRoute("/ws/avatar", avatar_endpoint(conninfo, pool)),
         Mount("/static", StaticFiles(directory=STATIC)),

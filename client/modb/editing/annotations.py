@@ -1,0 +1,77 @@
+"""Annotation segments: named frame ranges of a clip version (meta "annotations": [{"name", "start",
+"end"}], frames 0-based and inclusive, as modb.annotations_ok checks them)."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import asdict, dataclass
+from typing import Any
+
+NAME = re.compile(r"^[^\x00-\x1f,!:]{1,64}$")  # no control characters; , ! : separate and negate
+SEGMENT = re.compile(r"^(?P<name>[^:]+):(?P<start>\d+)-(?P<end>\d+)$")
+
+
+class AnnotationError(ValueError):
+    pass
+
+
+@dataclass(frozen=True, order=True)
+class Segment:
+    start: int
+    end: int
+    name: str
+
+    def as_json(self) -> dict[str, Any]:
+        return {"name": self.name, "start": self.start, "end": self.end}
+
+
+def parse_segment(text: str) -> Segment:
+    """NAME:START-END (frames, 0-based, inclusive), as `modb annotate --segment` takes it."""
+    m = SEGMENT.match(text.strip())
+    if not m:
+        raise AnnotationError(
+            f"a segment is NAME:START-END (frames, e.g. walk:0-120), got {text!r:.80}"
+        )
+    return Segment(int(m["start"]), int(m["end"]), m["name"].strip())
+
+
+def segments_of(meta: dict[str, Any]) -> list[Segment]:
+    return sorted(
+        Segment(int(a["start"]), int(a["end"]), str(a["name"])) for a in meta.get("annotations", [])
+    )
+
+
+def checked(segments: list[Any], n_frames: int) -> list[Segment]:
+    """Segments from JSON objects or Segment values, each checked, sorted by start; the error names
+    the segment (its index in the list given) and what is wrong."""
+    out = []
+    for i, seg in enumerate(segments):
+        if isinstance(seg, Segment):
+            seg = asdict(seg)
+        if not isinstance(seg, dict) or set(seg) - {"name", "start", "end"}:
+            raise AnnotationError(
+                f"segment {i}: an object with name, start and end, got {seg!r:.80}"
+            )
+        name, start, end = seg.get("name"), seg.get("start"), seg.get("end")
+        if not isinstance(name, str) or not NAME.match(name):
+            raise AnnotationError(
+                f"segment {i}: a name is 1 to 64 characters without control characters, ',', '!' "
+                f"or ':', got {name!r:.80}"
+            )
+        if not all(isinstance(v, int) and not isinstance(v, bool) for v in (start, end)):
+            raise AnnotationError(f"segment {i} ({name}): start and end are whole frame numbers")
+        if not 0 <= start <= end < n_frames:
+            raise AnnotationError(
+                f"segment {i} ({name}): frames {start}-{end} do not lie within 0-{n_frames - 1} "
+                f"with start <= end"
+            )
+        out.append(Segment(start, end, name))
+    return sorted(out)
+
+
+def with_segments(meta: dict[str, Any], segments: list[Segment]) -> dict[str, Any]:
+    """meta with its annotations replaced (the key dropped when there are none)."""
+    out = {k: v for k, v in meta.items() if k != "annotations"}
+    if segments:
+        out["annotations"] = [s.as_json() for s in sorted(segments)]
+    return out

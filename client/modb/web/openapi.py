@@ -1,0 +1,203 @@
+"""The OpenAPI 3.1 description of `modb serve`'s JSON interface, served at /api/openapi.json
+(tests/test_rest_writes.py checks that it names every route the app has)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from modb.version import __version__
+
+ERROR = {"type": "object", "properties": {"error": {"type": "string"}}, "required": ["error"]}
+ANY = {"type": "object"}
+
+
+def _id(name: str, about: str) -> dict[str, Any]:
+    return {"name": name, "in": "path", "required": True, "description": about,
+            "schema": {"type": "integer", "minimum": 0}}  # fmt: skip
+
+
+def _query(name: str, about: str, schema: dict[str, Any]) -> dict[str, Any]:
+    return {"name": name, "in": "query", "required": False, "description": about, "schema": schema}
+
+
+def _responses(ok: str, *errors: int, body: dict[str, Any] = ANY) -> dict[str, Any]:
+    why = {
+        400: "bad input (the message says which and why)",
+        401: "no token, or an unknown or revoked one",
+        403: "a reader's token on a write",
+        404: "no such object",
+        409: "the meta changed since it was read (the body holds the current meta and ETag)",
+        411: "no Content-Length",
+        413: "larger than the server's upload limit",
+        428: "no If-Match",
+        503: "busy, or writes are off on this server (the message says why)",
+    }
+    out: dict[str, Any] = {
+        "200": {"description": ok, "content": {"application/json": {"schema": body}}}
+    }
+    for status in errors:
+        out[str(status)] = {
+            "description": why[status],
+            "content": {"application/json": {"schema": ERROR}},
+        }
+    return out
+
+
+READ = "Open on loopback; with `modb serve --require-token`, any live token."
+WRITE = "Needs a loader token (`modb token create NAME --role loader`)."
+CLIP = _id("ident", "clip id")
+SEGMENTS = {
+    "type": "array",
+    "items": {
+        "type": "object",
+        "required": ["name", "start", "end"],
+        "properties": {
+            "name": {"type": "string", "maxLength": 64},
+            "start": {"type": "integer", "minimum": 0, "description": "first frame, 0-based"},
+            "end": {"type": "integer", "description": "last frame, inclusive"},
+        },
+    },
+}
+META = {
+    "type": "object",
+    "properties": {
+        "annotations": SEGMENTS,
+        "tags": {"type": "array", "items": {"type": "string"}},
+    },
+}
+
+
+def _read(summary: str, *params: dict[str, Any], media: str = "application/json") -> dict:
+    op: dict[str, Any] = {
+        "summary": summary,
+        "description": READ,
+        "parameters": list(params),
+        "responses": _responses("the answer", 400, 401, 404, 503),
+    }
+    if media != "application/json":
+        op["responses"]["200"] = {"description": "the file", "content": {media: {}}}
+    return {"get": op}
+
+
+def schema() -> dict[str, Any]:
+    version_params = [_id("clip_id", "clip id"), _id("version", "clip version")]
+    paths: dict[str, Any] = {
+        "/api/collections": _read("every collection, with its clips' count"),
+        "/api/clips": _read(
+            "clips (newest versions)",
+            _query("collection", "only this collection's (id)", {"type": "integer"}),
+        ),
+        "/api/clips/{ident}": _read("one clip: versions, skeleton, meta", CLIP),
+        "/api/clips/{ident}/frames": _read(
+            "a version's frames as world positions",
+            CLIP,
+            _query("version", "clip version (default: newest)", {"type": "integer"}),
+            _query("start", "first frame", {"type": "integer"}),
+            _query("count", "frames (at most 20,000)", {"type": "integer"}),
+        ),
+        "/api/clips/{ident}/download": _read(
+            "a version as a file",
+            CLIP,
+            _query("version", "clip version (default: newest)", {"type": "integer"}),
+            _query("format", "bvh, glb or gltf", {"enum": ["bvh", "glb", "gltf"]}),
+            media="application/octet-stream",
+        ),
+        "/api/skeletons": _read("every skeleton"),
+        "/api/skeletons/{ident}": _read("one skeleton", _id("ident", "skeleton id")),
+        "/api/skeletons/{ident}/character.glb": _read(
+            "a skinned capsule character of the skeleton",
+            _id("ident", "skeleton id"),
+            media="model/gltf-binary",
+        ),
+        "/api/models": _read("every model"),
+        "/api/models/{ident}": _read("one model", _id("ident", "model id")),
+        "/api/graphs": _read("every graph"),
+        "/api/graphs/{ident}": _read("one graph", _id("ident", "graph id")),
+        "/api/profiles": _read("the match profiles"),
+        "/api/clips/{clip_id}/versions/{version}/meta": {
+            "get": {
+                "summary": "a version's meta (annotations, tags) and its ETag",
+                "description": READ,
+                "parameters": version_params,
+                "responses": _responses("the meta; the ETag header names it", 401, 404),
+            },
+            "put": {
+                "summary": "replace a version's meta",
+                "description": WRITE + " Send If-Match with the ETag of the meta you read: a "
+                "write over a meta that changed since is refused (409), so no edit is lost.",
+                "security": [{"token": []}],
+                "parameters": [
+                    *version_params,
+                    {
+                        "name": "If-Match",
+                        "in": "header",
+                        "required": True,
+                        "schema": {"type": "string"},
+                    },  # fmt: skip
+                ],
+                "requestBody": {
+                    "required": True,
+                    "content": {
+                        "application/json": {
+                            "schema": {
+                                "type": "object",
+                                "required": ["meta"],
+                                "properties": {"meta": META},
+                            }
+                        }
+                    },
+                },
+                "responses": _responses(
+                    "the stored meta; the ETag header names it", 400, 401, 403, 404, 409, 428, 503
+                ),
+            },
+        },
+        "/api/uploads": {
+            "post": {
+                "summary": "load BVH files, or AMC files with their ASF, as `modb load` does",
+                "description": WRITE + " One transaction per file; an unchanged file stores "
+                "nothing, a changed one a new version. 200 when a file was stored or unchanged, "
+                "else 400; each file's result either way.",
+                "security": [{"token": []}],
+                "requestBody": {
+                    "required": True,
+                    "content": {
+                        "multipart/form-data": {
+                            "schema": {
+                                "type": "object",
+                                "properties": {
+                                    "collection": {"type": "string", "default": "uploads"},
+                                    "file": {
+                                        "type": "array",
+                                        "items": {"type": "string", "format": "binary"},
+                                    },
+                                },
+                            }
+                        }
+                    },
+                },
+                "responses": _responses("each file's result", 400, 401, 403, 411, 413, 503),
+            }
+        },
+        "/api/openapi.json": {
+            "get": {"summary": "this description", "responses": _responses("OpenAPI 3.1")}
+        },
+    }
+    return {
+        "openapi": "3.1.0",
+        "info": {
+            "title": "MoDB for PostgreSQL",
+            "version": __version__,
+            "description": "The motion database's REST interface (`modb serve`).",
+        },
+        "components": {
+            "securitySchemes": {
+                "token": {
+                    "type": "http",
+                    "scheme": "bearer",
+                    "description": "`modb token create NAME --role loader|reader`",
+                }
+            }
+        },
+        "paths": paths,
+    }

@@ -1,0 +1,269 @@
+"""The REST interface's writes: uploads through the loader's own path, and a clip version's meta
+(annotations, tags) with optimistic concurrency. Each needs a loader token (auth.py), runs on a
+connection of the writer role (a non-superuser login role that is a member of modb_loader; never a
+superuser's SET ROLE) and is recorded in modb.audit_log in the same transaction."""
+
+from __future__ import annotations
+
+import json
+import re
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import psycopg
+from psycopg.conninfo import make_conninfo
+from psycopg_pool import ConnectionPool
+from starlette.concurrency import run_in_threadpool
+from starlette.exceptions import HTTPException
+from starlette.requests import Request
+from starlette.responses import JSONResponse
+
+from modb.access import audit
+from modb.database import pgarray
+from modb.database.cluster import WRITER_ROLE
+from modb.editing.annotations import AnnotationError
+from modb.editing.meta import MetaNotFound, StaleMeta, VersionMeta, read_meta, write_meta
+
+from .api import NotFound
+from .auth import Tokens
+
+MAX_UPLOAD_MB = 100  # a request's body; `modb serve --max-upload-mb` changes it
+MAX_UPLOAD_FILES = 500
+UPLOAD_SUFFIXES = (".bvh", ".amc", ".asf")
+SAFE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._ -]{0,200}$")
+WRITE_TIMEOUT = "10min"  # a large file's snippets take a while
+
+
+class WritesOff(HTTPException):
+    def __init__(self, why: str) -> None:
+        super().__init__(503, f"writes are off on this server: {why}")
+
+
+@dataclass
+class Writer:
+    """The writer role's connections, opened at the first write; refused (503, saying why) when the
+    role cannot log in, is a superuser or is not a member of modb_loader."""
+
+    conninfo: str
+    role: str
+    _pool: ConnectionPool | None = None
+    _why_not: str | None = None
+
+    @classmethod
+    def for_server(cls, conninfo: str, role: str = WRITER_ROLE) -> Writer:
+        return cls(make_conninfo(conninfo, user=role), role)
+
+    def _configure(self, conn: psycopg.Connection) -> None:
+        conn.autocommit = True
+        pgarray.register(conn)  # the loader sends its arrays as binary float4
+        conn.execute("SELECT set_config('statement_timeout', %s, false)", [WRITE_TIMEOUT])
+
+    def pool(self) -> ConnectionPool:
+        if self._why_not:
+            raise WritesOff(self._why_not)
+        if self._pool is None:
+            try:
+                with psycopg.connect(self.conninfo) as conn:
+                    superuser, loader = conn.execute(
+                        "SELECT rolsuper, pg_has_role(current_user, 'modb_loader', 'MEMBER') "
+                        "FROM pg_roles WHERE rolname = current_user"
+                    ).fetchone()
+            except psycopg.Error as e:
+                self._why_not = (
+                    f"the writer role {self.role} cannot connect ({str(e).strip()[:200]}); "
+                    f"create it: CREATE ROLE {self.role} LOGIN IN ROLE modb_loader"
+                )
+                raise WritesOff(self._why_not) from None
+            if superuser or not loader:
+                self._why_not = (
+                    f"the writer role {self.role} must be a member of modb_loader and not a "
+                    f"superuser"
+                )
+                raise WritesOff(self._why_not)
+            self._pool = ConnectionPool(
+                self.conninfo, min_size=0, max_size=2, configure=self._configure, open=True
+            )
+        return self._pool
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.close()
+
+
+def _version_meta_body(m: VersionMeta) -> JSONResponse:
+    return JSONResponse(
+        {"clip_id": m.clip_id, "version": m.version, "n_frames": m.n_frames, "meta": m.meta},
+        headers={"ETag": m.etag},
+    )
+
+
+def _path_ints(request: Request) -> tuple[int, int]:
+    try:
+        return int(request.path_params["clip_id"]), int(request.path_params["version"])
+    except ValueError:
+        raise HTTPException(400, "clip and version are whole numbers") from None
+
+
+def meta_endpoints(read_pool: ConnectionPool, tokens: Tokens, writer: Writer):
+    """GET and PUT /api/clips/{clip_id}/versions/{version}/meta."""
+
+    def get(request: Request) -> JSONResponse:
+        tokens.reader(request)
+        clip_id, version = _path_ints(request)
+        with read_pool.connection() as conn:
+            try:
+                return _version_meta_body(read_meta(conn, clip_id, version))
+            except MetaNotFound as e:
+                raise NotFound(str(e)) from None
+
+    def put(request: Request, body: Any) -> JSONResponse:
+        grant = tokens.writer(request)
+        clip_id, version = _path_ints(request)
+        if_match = request.headers.get("if-match")
+        if not if_match:
+            raise HTTPException(
+                428, "send If-Match with the ETag of the meta you read, so no edit is lost"
+            )
+        if not isinstance(body, dict) or not isinstance(body.get("meta"), dict):
+            raise HTTPException(400, 'the body is {"meta": {...}}: the whole new meta')
+
+        def audited(conn: psycopg.Connection, written: VersionMeta) -> None:
+            audit.record(
+                conn,
+                grant.name,
+                "meta",
+                f"clip {clip_id} version {version}",
+                {"annotations": len(written.meta.get("annotations", [])), "etag": written.etag},
+            )
+
+        with writer.pool().connection() as conn:
+            try:
+                written = write_meta(conn, clip_id, version, body["meta"], if_match, audited)
+            except MetaNotFound as e:
+                raise NotFound(str(e)) from None
+            except StaleMeta as e:
+                return JSONResponse(
+                    {"error": str(e), "meta": e.current.meta},
+                    status_code=409,
+                    headers={"ETag": e.current.etag},
+                )
+            except AnnotationError as e:
+                raise HTTPException(400, str(e)) from None
+        return _version_meta_body(written)
+
+    async def endpoint(request: Request) -> JSONResponse:
+        if request.method == "GET":
+            return await run_in_threadpool(get, request)
+        try:
+            body = json.loads(await request.body())
+        except (ValueError, UnicodeDecodeError):
+            raise HTTPException(400, "the body is not JSON") from None
+        return await run_in_threadpool(put, request, body)
+
+    return endpoint
+
+
+def _saved_uploads(form, folder: Path) -> list[tuple[str, Path]]:
+    """The form's files written into `folder` under their own names (checked: no paths)."""
+    saved = []
+    for field_name, value in form.multi_items():
+        if isinstance(value, str):
+            continue
+        name = Path(value.filename or "").name
+        if not SAFE_NAME.match(name) or not name.lower().endswith(UPLOAD_SUFFIXES):
+            raise HTTPException(
+                400,
+                f"{name or field_name!r:.80}: upload .bvh, .amc or .asf files named with letters, "
+                f"digits, '.', '_', '-' or spaces",
+            )
+        target = folder / name
+        if target.exists():
+            raise HTTPException(400, f"{name}: given twice")
+        with target.open("wb") as out:
+            value.file.seek(0)
+            while chunk := value.file.read(1 << 20):
+                out.write(chunk)
+        saved.append((name, target))
+    return saved
+
+
+def upload_endpoint(tokens: Tokens, writer: Writer, max_upload_mb: int):
+    """POST /api/uploads: multipart files (BVH, or AMC with their ASF) and a `collection` field."""
+    limit = max_upload_mb << 20
+
+    def load(grant, collection: str, saved: list[tuple[str, Path]], folder: Path) -> dict:
+        from modb.loader.errors import MotionFileError
+        from modb.loader.ingest import load_files
+        from modb.loader.jobs import find_jobs
+        from modb.loader.reading import ReadOptions
+
+        motion_files = [str(p) for name, p in saved if not name.lower().endswith(".asf")]
+        if not motion_files:
+            raise HTTPException(400, "no motion file (.bvh, .amc) in the upload")
+        try:
+            jobs = find_jobs(
+                [*motion_files, *(str(p) for n, p in saved if n.lower().endswith(".asf"))],
+                collection,
+            )
+        except MotionFileError as e:
+            raise HTTPException(400, str(e).replace(f"{folder}/", "")) from None
+        results = []
+        with writer.pool().connection() as conn:
+            for job in jobs:
+                job.source_name = f"upload:{job.path.name}"
+                with conn.transaction():  # the file, its snippets and its audit row together
+                    r = load_files(conn, [job], ReadOptions(), keep_going=True).results[0]
+                    if r.status == "loaded":
+                        audit.record(
+                            conn,
+                            grant.name,
+                            "upload",
+                            f"clip {r.clip_id} version {r.version}",
+                            {"file": job.path.name, "collection": collection, "frames": r.frames},
+                        )
+                results.append(
+                    {
+                        "file": job.path.name,
+                        "status": r.status,
+                        "clip_id": r.clip_id,
+                        "version": r.version,
+                        "frames": r.frames,
+                        "snippets": r.snippets,
+                        "message": r.message.replace(f"{folder}/", ""),
+                    }
+                )
+        return {"collection": collection, "results": results}
+
+    async def endpoint(request: Request) -> JSONResponse:
+        grant = await run_in_threadpool(tokens.writer, request)
+        length = request.headers.get("content-length")
+        if length is None or not length.isdigit():
+            raise HTTPException(411, "send Content-Length")
+        if int(length) > limit:
+            raise HTTPException(
+                413, f"the upload is larger than this server's limit of {max_upload_mb} MB"
+            )
+        if not request.headers.get("content-type", "").startswith("multipart/form-data"):
+            raise HTTPException(400, "upload files as multipart/form-data")
+        try:
+            form = await request.form(max_files=MAX_UPLOAD_FILES, max_fields=10)
+        except HTTPException:
+            raise
+        except Exception as e:  # python-multipart's parse errors
+            raise HTTPException(400, f"a malformed multipart body: {e}") from None
+        try:
+            collection = str(form.get("collection") or "uploads").strip().strip("/")
+            if not collection or len(collection) > 200:
+                raise HTTPException(400, "collection: 1 to 200 characters")
+            with tempfile.TemporaryDirectory(prefix="modb-upload-") as tmp:
+                folder = Path(tmp)
+                saved = _saved_uploads(form, folder)
+                answer = await run_in_threadpool(load, grant, collection, saved, folder)
+        finally:
+            await form.close()
+        stored = any(r["status"] in ("loaded", "unchanged") for r in answer["results"])
+        return JSONResponse(answer, status_code=200 if stored else 400)
+
+    return endpoint

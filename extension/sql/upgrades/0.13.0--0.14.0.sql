@@ -1,0 +1,5 @@
+-- 0.14.0: the write side of the REST interface. Access tokens, stored as their sha256 only
+-- (modb.access_tokens, read through modb.token_grant), and an insert-only audit log of every write
+-- (modb.audit_log).
+--@include 93_access_tokens.sql
+--@include 94_audit_log.sql
