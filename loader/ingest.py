@@ -6,6 +6,7 @@ import hashlib
 import json
 import time
 from collections.abc import Callable
+from typing import NamedTuple
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -16,6 +17,7 @@ from modb.motion import Motion
 from .errors import MotionFileError
 from .jobs import FileJob
 from .reading import ReadOptions, read_job, read_key
+from .sidecars import file_meta
 
 
 @dataclass
@@ -29,6 +31,13 @@ class FileResult:
     units_rule: str = ""
     snippets: int = 0
     message: str = ""
+
+
+class Stored(NamedTuple):
+    clip_id: int
+    version: int | None  # None: the same motion is stored already
+    snippets: int
+    note: str = ""
 
 
 @dataclass
@@ -154,9 +163,11 @@ def store_motion(
     key: str,
     snippets: bool = False,
     mirrored: bool = False,
-) -> tuple[int, int | None, int]:
-    """Store a parsed clip as a new version in one transaction, with its snippets when asked:
-    (clip_id, version or None if unchanged, snippets added)."""
+    meta: dict | None = None,
+) -> Stored:
+    """Store a parsed clip as a new version in one transaction, with its snippets when asked. Its
+    meta: `meta` when given (the files beside it), else the previous version's (its annotations
+    only when it has as many frames: they are frame numbers; the note says where they stay)."""
     sk = motion.skeleton
     hierarchy = json.dumps(sk.hierarchy_json())
     src = motion.source
@@ -200,7 +211,8 @@ def store_motion(
             [clip_id],
         ).fetchone()
         if latest == (content, skeleton_id):  # e.g. --units auto, then cm: the same motion
-            return clip_id, None, 0
+            return Stored(clip_id, None, 0)
+        meta, note = _new_version_meta(conn, clip_id, motion.n_frames, meta)
         load_params = {
             "read_key": key,
             "content_key": content,
@@ -211,8 +223,8 @@ def store_motion(
         translations = motion.translations if motion.translations.shape[1] else None
         (version,) = conn.execute(
             "INSERT INTO modb.clip_versions (clip_id, skeleton_id, fps, n_frames, rotations, "
-            "translations, source_file, source_sha256, load_params) "
-            "VALUES (%s, %s, %s, %s, %b, %b, %s, %s, %s::jsonb) RETURNING version",
+            "translations, source_file, source_sha256, load_params, meta) "
+            "VALUES (%s, %s, %s, %s, %b, %b, %s, %s, %s::jsonb, %s::jsonb) RETURNING version",
             [
                 clip_id,
                 skeleton_id,
@@ -223,10 +235,36 @@ def store_motion(
                 src.path if src else None,
                 src.sha256 if src else None,
                 json.dumps(load_params),
+                json.dumps(meta),
             ],
         ).fetchone()
         added = build_snippets(conn, clip_id, mirrored) if snippets else 0
-        return clip_id, version, added
+        return Stored(clip_id, version, added, note)
+
+
+def _new_version_meta(
+    conn: psycopg.Connection, clip_id: int, n_frames: int, given: dict | None
+) -> tuple[dict, str]:
+    """A new version's meta and what to say about the previous version's (see store_motion)."""
+    previous = conn.execute(
+        "SELECT version, n_frames, meta FROM modb.clip_versions WHERE clip_id = %s "
+        "ORDER BY version DESC LIMIT 1",
+        [clip_id],
+    ).fetchone()
+    if given:
+        return given, ""
+    if previous is None or not previous[2]:
+        return {}, ""
+    version, frames, meta = previous
+    if frames == n_frames:
+        return meta, f"annotations and tags carried over from version {version}"
+    kept = {k: v for k, v in meta.items() if k != "annotations"}  # tags are not frame numbers
+    if "annotations" not in meta:
+        return kept, ""
+    return kept, (
+        f"version {version}'s annotations stay with it: it has {frames} frames, this one "
+        f"{n_frames}"
+    )
 
 
 def load_files(
@@ -314,8 +352,9 @@ def _load_one(
         motion = read_job(job, options)
         if job.source_name and motion.source:
             motion = replace(motion, source=replace(motion.source, path=job.source_name))
-        clip_id, version, added = store_motion(
-            conn, motion, job.collection, key, snippets, mirrored
+        meta = file_meta(job.path, motion.n_frames)
+        clip_id, version, added, note = store_motion(
+            conn, motion, job.collection, key, snippets, mirrored, meta
         )
     except MotionFileError as e:
         return FileResult(job.path, "failed", message=str(e))
@@ -349,4 +388,5 @@ def _load_one(
         seconds_of_motion=motion.n_frames / motion.fps,
         units_rule=motion.source.units_rule if motion.source else "",
         snippets=added,
+        message=note,
     )

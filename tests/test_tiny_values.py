@@ -15,7 +15,7 @@ from modb.loader.ingest import store_motion
 def test_a_clip_whose_terminators_underflow_float4_gets_its_snippets(db):
     motion = at_speed(read_bvh(str(mocap("bandai-1", "data", "dataset-1_bow_normal_001.bvh"))), 0.8)
     with connect(db.info.dsn) as conn:
-        _, _, added = store_motion(conn, motion, "bow", "0.8x", snippets=True, mirrored=True)
+        added = store_motion(conn, motion, "bow", "0.8x", snippets=True, mirrored=True).snippets
         assert added > 0
         (smallest,) = conn.execute(
             "SELECT min(abs(p)) FILTER (WHERE p <> 0) FROM modb.terminators, "

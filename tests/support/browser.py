@@ -35,12 +35,12 @@ def _free_port() -> int:
 
 
 @contextlib.contextmanager
-def serving(dsn: str):
-    """The real `modb serve` on a free port; yields its host:port."""
+def serving(dsn: str, *options: str):
+    """The real `modb serve` (with `options`) on a free port; yields its host:port."""
     port = _free_port()
     log = tempfile.TemporaryFile()
     proc = subprocess.Popen(
-        [sys.executable, "-m", "modb.cli", "--dsn", dsn, "serve", "--port", str(port)],
+        [sys.executable, "-m", "modb.cli", "--dsn", dsn, "serve", "--port", str(port), *options],
         stdout=log,
         stderr=subprocess.STDOUT,
     )

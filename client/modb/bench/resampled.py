@@ -67,14 +67,14 @@ def add_resampled_clips(conn: psycopg.Connection, size: int, seed: int, progress
                 clip_id, path, mirrored = originals[k]
                 motion = at_speed(read_motion(conn, clip_id), speed)
                 motion.meta = {"resampled_from": {"clip": clip_id, "speed": speed}}
-                _, _, added = store_motion(
+                added = store_motion(
                     conn,
                     motion,
                     f"{COLLECTION_PREFIX}{speed:.2f}/{path}",
                     f"speed {speed}",
                     snippets=True,
                     mirrored=mirrored,
-                )
+                ).snippets
                 total += added
                 bar.update(added)
     return total

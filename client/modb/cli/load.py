@@ -83,6 +83,8 @@ def run(args: argparse.Namespace) -> int:
             bar.update(1)
             if result.status == "failed":
                 bar.write(f"error: {result.message}", file=sys.stderr)
+            elif result.message:
+                bar.write(f"note: {result.path}: {result.message}", file=sys.stderr)
 
         options = ReadOptions(
             units=units,

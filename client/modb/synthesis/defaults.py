@@ -38,9 +38,7 @@ def describe_pool(pool: Pool) -> str:
 
 def default_graph(conn: psycopg.Connection, profile: str, collection: str | None) -> str | None:
     """The newest current graph of the profile over the collection (or one containing it)."""
-    return conn.execute(
-        "SELECT modb.default_graph(%s, %s)", [profile, collection]
-    ).fetchone()[0]
+    return conn.execute("SELECT modb.default_graph(%s, %s)", [profile, collection]).fetchone()[0]
 
 
 def profile_names_graph(conn: psycopg.Connection, profile: str) -> bool:

@@ -31,7 +31,7 @@ from .auth import Tokens
 
 MAX_UPLOAD_MB = 100  # a request's body; `modb serve --max-upload-mb` changes it
 MAX_UPLOAD_FILES = 500
-UPLOAD_SUFFIXES = (".bvh", ".amc", ".asf")
+UPLOAD_SUFFIXES = (".bvh", ".amc", ".asf", ".annotations.json")  # loader/sidecars.py
 SAFE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._ -]{0,200}$")
 WRITE_TIMEOUT = "10min"  # a large file's snippets take a while
 
@@ -175,8 +175,8 @@ def _saved_uploads(form, folder: Path) -> list[tuple[str, Path]]:
         if not SAFE_NAME.match(name) or not name.lower().endswith(UPLOAD_SUFFIXES):
             raise HTTPException(
                 400,
-                f"{name or field_name!r:.80}: upload .bvh, .amc or .asf files named with letters, "
-                f"digits, '.', '_', '-' or spaces",
+                f"{name or field_name!r:.80}: upload .bvh, .amc with .asf, and .annotations.json "
+                f"files named with letters, digits, '.', '_', '-' or spaces",
             )
         target = folder / name
         if target.exists():
@@ -199,14 +199,12 @@ def upload_endpoint(tokens: Tokens, writer: Writer, max_upload_mb: int):
         from modb.loader.jobs import find_jobs
         from modb.loader.reading import ReadOptions
 
-        motion_files = [str(p) for name, p in saved if not name.lower().endswith(".asf")]
+        motion_files = [str(p) for name, p in saved if name.lower().endswith((".bvh", ".amc"))]
         if not motion_files:
             raise HTTPException(400, "no motion file (.bvh, .amc) in the upload")
+        skeletons = [str(p) for name, p in saved if name.lower().endswith(".asf")]
         try:
-            jobs = find_jobs(
-                [*motion_files, *(str(p) for n, p in saved if n.lower().endswith(".asf"))],
-                collection,
-            )
+            jobs = find_jobs([*motion_files, *skeletons], collection)
         except MotionFileError as e:
             raise HTTPException(400, str(e).replace(f"{folder}/", "")) from None
         results = []

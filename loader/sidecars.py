@@ -1,0 +1,74 @@
+"""What a motion file's neighbours say about it, stored in its version's meta.
+
+- X.annotations.json beside X.bvh or X.amc: {"annotations": [{"name", "start", "end"}, ...],
+  "tags": ["...", ...]} (frames 0-based, inclusive, as stored; both keys optional).
+- Bandai Namco's X.json ({"content": i, "style": j}) with ../cfg/content_label.txt and
+  style_label.txt: the clip's tags are the two labels without the dataset prefix (e.g. "walk",
+  "chimpira").
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from modb.editing.annotations import AnnotationError, checked
+
+from .errors import MotionFileError
+
+SIDECAR = ".annotations.json"
+
+
+def sidecar_path(motion_file: Path) -> Path:
+    return motion_file.with_name(motion_file.stem + SIDECAR)
+
+
+def _json(path: Path) -> Any:
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError) as e:
+        raise MotionFileError(str(path), None, f"cannot read: {e}") from None
+    except json.JSONDecodeError as e:
+        raise MotionFileError(str(path), e.lineno, f"not JSON: {e.msg}") from None
+
+
+def _bandai_tags(motion_file: Path) -> list[str]:
+    labels = motion_file.with_suffix(".json")
+    cfg = motion_file.parent.parent / "cfg"
+    if not (labels.is_file() and (cfg / "content_label.txt").is_file()):
+        return []
+    ids = _json(labels)
+    if not isinstance(ids, dict):
+        return []
+    tags = []
+    for key in ("content", "style"):
+        names = (cfg / f"{key}_label.txt").read_text(encoding="utf-8").split()
+        i = ids.get(key)
+        if isinstance(i, int) and 0 <= i < len(names):
+            tags.append(names[i].split("_", 1)[-1])
+    return tags
+
+
+def file_meta(motion_file: Path, n_frames: int) -> dict[str, Any]:
+    """The meta the files beside `motion_file` give its new version ({} when none)."""
+    meta: dict[str, Any] = {}
+    tags = _bandai_tags(motion_file)
+    side = sidecar_path(motion_file)
+    if side.is_file():
+        given = _json(side)
+        if not isinstance(given, dict) or set(given) - {"annotations", "tags"}:
+            raise MotionFileError(str(side), None, 'expected {"annotations": [...], "tags": [...]}')
+        try:
+            if "annotations" in given:
+                segments = checked(given["annotations"], n_frames)
+                meta["annotations"] = [s.as_json() for s in segments]
+        except AnnotationError as e:
+            raise MotionFileError(str(side), None, str(e)) from None
+        extra = given.get("tags", [])
+        if not (isinstance(extra, list) and all(isinstance(t, str) for t in extra)):
+            raise MotionFileError(str(side), None, "tags is a list of strings")
+        tags += [t for t in extra if t not in tags]
+    if tags:
+        meta["tags"] = tags
+    return meta

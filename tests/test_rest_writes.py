@@ -1,0 +1,282 @@
+"""The REST interface's writes (issue 25) on the real `modb serve`: tokens (401 without, 403 for a
+reader's, a revoked one refused), uploads of real capture through the loader's path (one
+transaction per file, idempotent, a new version for a changed file, file and line in errors,
+nothing stored for a bad or oversized upload), a version's meta with ETag/If-Match (409 for a stale
+write), the audit log (insert-only), the writer role (never a superuser), hostile names stored as
+text, and the OpenAPI description naming every route."""
+
+from __future__ import annotations
+
+import hashlib
+import os
+
+import httpx
+import psycopg
+import pytest
+from support.browser import serving
+from support.commands import run_modb
+from support.data import mocap
+from support.databases import scratch_database
+
+from modb.database.cluster import ensure_writer_role
+
+HOSTILE = "x'); DROP TABLE modb.clips; --"
+
+
+@pytest.fixture(scope="module")
+def rest(cluster):
+    """A database with a loader and a reader token, served twice: with the default limits and with
+    a 1 MB upload limit; (dsn, tokens, client, small-limit client)."""
+    with scratch_database(cluster, f"rest_{os.getpid()}") as dsn:
+        with psycopg.connect(dsn, autocommit=True) as conn:
+            ensure_writer_role(conn)
+        tokens = {}
+        for name, role in (("editor", "loader"), ("viewer", "reader"), ("gone", "loader")):
+            r = run_modb(dsn, "token", "create", name, "--role", role)
+            assert r.returncode == 0, r.stderr
+            tokens[name] = r.stdout.strip()
+        assert run_modb(dsn, "token", "revoke", "gone").returncode == 0
+        with serving(dsn) as address, serving(dsn, "--max-upload-mb", "1") as small:
+            with httpx.Client(base_url=f"http://{address}", timeout=120) as client:
+                with httpx.Client(base_url=f"http://{small}", timeout=120) as limited:
+                    yield dsn, tokens, client, limited
+
+
+def bearer(token: str) -> dict[str, str]:
+    return {"Authorization": f"Bearer {token}"}
+
+
+def scalar(dsn: str, query: str, params=()):
+    with psycopg.connect(dsn) as conn:
+        return conn.execute(query, params).fetchone()[0]
+
+
+def walk_files(n: int = 2):
+    files = sorted(mocap("bandai-2-dev", "data").glob("dataset-2_walk_active_*.bvh"))[:n]
+    assert len(files) == n
+    return files
+
+
+def upload(client, token, paths, collection="rest/walks", names=None):
+    files = [
+        ("file", (name or p.name, p.read_bytes(), "application/octet-stream"))
+        for p, name in zip(paths, names or [None] * len(paths))
+    ]
+    return client.post(
+        "/api/uploads", data={"collection": collection}, files=files, headers=bearer(token)
+    )
+
+
+def test_tokens_are_stored_as_their_sha256_only(rest):
+    dsn, tokens, _, _ = rest
+    with psycopg.connect(dsn) as conn:
+        rows = conn.execute("SELECT name, role, token_sha256 FROM modb.access_tokens").fetchall()
+        text = conn.execute("SELECT string_agg(t::text, ' ') FROM modb.access_tokens t").fetchone()
+    stored = {name: (role, bytes(h)) for name, role, h in rows}
+    assert stored["editor"] == ("loader", hashlib.sha256(tokens["editor"].encode()).digest())
+    assert stored["viewer"][0] == "reader"
+    assert not any(token in text[0] for token in tokens.values())
+    listing = run_modb(dsn, "token", "list").stdout
+    assert "editor" in listing and "revoked" in listing and tokens["editor"] not in listing
+    # a reader role may ask about one hash, not read the table
+    with psycopg.connect(dsn) as conn:
+        conn.execute("SET ROLE modb_reader")
+        with pytest.raises(psycopg.errors.InsufficientPrivilege):
+            conn.execute("SELECT * FROM modb.access_tokens")
+
+
+def test_writes_need_a_live_loader_token(rest):
+    dsn, tokens, client, _ = rest
+    path = walk_files(1)
+    before = scalar(dsn, "SELECT count(*) FROM modb.clip_versions")
+    r = client.post("/api/uploads", files=[("file", (path[0].name, path[0].read_bytes()))])
+    assert r.status_code == 401 and r.headers["www-authenticate"].startswith("Bearer")
+    assert upload(client, tokens["viewer"], path).status_code == 403
+    assert upload(client, tokens["gone"], path).status_code == 401
+    assert upload(client, tokens["editor"] + "x", path).status_code == 401
+    r = client.post(
+        "/api/uploads", files=[("file", (path[0].name, b""))], headers={"Authorization": "Basic x"}
+    )
+    assert r.status_code == 401
+    assert scalar(dsn, "SELECT count(*) FROM modb.clip_versions") == before
+    # reads stay open on loopback
+    assert client.get("/api/collections").status_code == 200
+
+
+def test_an_upload_loads_through_the_loader_once_and_a_changed_file_is_a_new_version(rest):
+    dsn, tokens, client, _ = rest
+    first, second = walk_files(2)
+    r = upload(client, tokens["editor"], [first, second])
+    assert r.status_code == 200, r.text
+    results = r.json()["results"]
+    assert [x["status"] for x in results] == ["loaded", "loaded"]
+    clip = results[0]["clip_id"]
+    frames = scalar(dsn, "SELECT n_frames FROM modb.clip_versions WHERE clip_id = %s", [clip])
+    assert results[0]["frames"] == frames > 0 and results[0]["snippets"] > 0
+    assert (
+        scalar(dsn, "SELECT count(*) FROM modb.snippets s WHERE s.clip_id = %s", [clip])
+        == results[0]["snippets"]
+    )
+    source = scalar(dsn, "SELECT source_file FROM modb.clip_versions WHERE clip_id = %s", [clip])
+    assert source == f"upload:{first.name}"
+    # a collection named to inject SQL is only a name
+    r = upload(client, tokens["editor"], [first], collection=HOSTILE)
+    assert r.status_code == 200 and r.json()["results"][0]["status"] == "loaded"
+    assert scalar(dsn, "SELECT count(*) FROM modb.collections WHERE name = %s", [HOSTILE]) == 1
+    # the same bytes again: nothing stored
+    again = upload(client, tokens["editor"], [first]).json()["results"][0]
+    assert again["status"] == "unchanged" and again["clip_id"] == clip
+    # other bytes under the same name: a new version of the same clip
+    changed = upload(client, tokens["editor"], [second], names=[first.name]).json()["results"][0]
+    assert changed["status"] == "loaded" and (changed["clip_id"], changed["version"]) == (clip, 2)
+    with psycopg.connect(dsn) as conn:
+        audit = conn.execute(
+            "SELECT token_name, db_role, action, object FROM modb.audit_log "
+            "WHERE action = 'upload' ORDER BY id"
+        ).fetchall()
+    assert audit[-1] == ("editor", "modb_web", "upload", f"clip {clip} version 2")
+    assert len([a for a in audit if a[3].startswith(f"clip {clip} ")]) == 2
+
+
+def test_a_bad_file_is_refused_with_its_line_and_stores_nothing(rest, tmp_path):
+    dsn, tokens, client, _ = rest
+    good = walk_files(1)[0]
+    lines = good.read_text().splitlines()
+    frame = next(i for i, line in enumerate(lines) if line.startswith("Frame Time")) + 5
+    lines[frame] = lines[frame].replace(" ", " nan ", 1)
+    bad = tmp_path / "broken_walk.bvh"
+    bad.write_text("\n".join(lines) + "\n")
+    before = scalar(dsn, "SELECT count(*) FROM modb.clip_versions")
+    r = upload(client, tokens["editor"], [bad], collection="rest/bad")
+    assert r.status_code == 400
+    (result,) = r.json()["results"]
+    assert result["status"] == "failed"
+    assert result["message"].startswith(f"broken_walk.bvh:{frame + 1}:"), result["message"]
+    assert str(tmp_path) not in result["message"] and "modb-upload-" not in result["message"]
+    assert scalar(dsn, "SELECT count(*) FROM modb.clip_versions") == before
+    # not a motion file at all, and a name with a path in it
+    r = client.post(
+        "/api/uploads", files=[("file", ("notes.txt", b"hello"))], headers=bearer(tokens["editor"])
+    )
+    assert r.status_code == 400 and "notes.txt" in r.json()["error"]
+    r = client.post(
+        "/api/uploads",
+        files=[("file", ("../../etc/walk.bvh", good.read_bytes()))],
+        headers=bearer(tokens["editor"]),
+    )
+    assert r.status_code in (200, 400)
+    assert scalar(dsn, "SELECT count(*) FROM modb.clip_versions") <= before + 1
+    assert (
+        scalar(dsn, "SELECT count(*) FROM modb.clip_versions WHERE source_file LIKE '%%..%%'") == 0
+    )
+
+
+def test_an_oversized_upload_is_413_and_stores_nothing(rest):
+    dsn, tokens, _, limited = rest
+    big = sorted(mocap("bandai-2-dev", "data").glob("*.bvh"), key=lambda p: p.stat().st_size)[-1]
+    assert big.stat().st_size > 1 << 20
+    before = scalar(dsn, "SELECT count(*) FROM modb.clip_versions")
+    r = upload(limited, tokens["editor"], [big])
+    assert r.status_code == 413 and "1 MB" in r.json()["error"]
+    assert scalar(dsn, "SELECT count(*) FROM modb.clip_versions") == before
+
+
+def test_meta_writes_need_the_etag_and_a_stale_one_is_409(rest):
+    dsn, tokens, client, _ = rest
+    clip = upload(client, tokens["editor"], walk_files(1)).json()["results"][0]["clip_id"]
+    url = f"/api/clips/{clip}/versions/1/meta"
+    read = client.get(url)
+    assert read.status_code == 200
+    etag = read.headers["etag"]
+    segments = [{"name": "walk", "start": 0, "end": 20}, {"name": HOSTILE, "start": 5, "end": 9}]
+    meta = {"annotations": segments, "tags": ["walk", HOSTILE]}
+    editor = bearer(tokens["editor"])
+    assert client.put(url, json={"meta": meta}, headers=editor).status_code == 428
+    viewer = {**bearer(tokens["viewer"]), "If-Match": etag}
+    assert client.put(url, json={"meta": meta}, headers=viewer).status_code == 403
+    first = client.put(url, json={"meta": meta}, headers={**editor, "If-Match": etag})
+    assert first.status_code == 200, first.text
+    assert first.headers["etag"] != etag
+    # a second editor who read the old meta is refused, and shown the current one
+    stale = client.put(url, json={"meta": {"tags": []}}, headers={**editor, "If-Match": etag})
+    assert stale.status_code == 409 and stale.json()["meta"]["tags"] == ["walk", HOSTILE]
+    assert stale.headers["etag"] == first.headers["etag"]
+    with psycopg.connect(dsn) as conn:
+        (stored,) = conn.execute(
+            "SELECT meta FROM modb.clip_versions WHERE clip_id = %s AND version = 1", [clip]
+        ).fetchone()
+        assert conn.execute("SELECT to_regclass('modb.clips')").fetchone()[0] is not None
+    assert sorted(a["name"] for a in stored["annotations"]) == sorted(s["name"] for s in segments)
+    # bad segments: 400, nothing changed
+    n = client.get(url).json()["n_frames"]
+    for bad in (
+        [{"name": "late", "start": 0, "end": n}],
+        [{"name": "back", "start": 9, "end": 3}],
+        [{"name": "a:b", "start": 0, "end": 1}],
+        [{"name": "x", "start": 0, "end": 1, "extra": 1}],
+        "walk",
+    ):
+        now = client.get(url).headers["etag"]
+        r = client.put(
+            url, json={"meta": {"annotations": bad}}, headers={**editor, "If-Match": now}
+        )
+        assert r.status_code == 400, bad
+    assert client.get(url).headers["etag"] == first.headers["etag"]
+    assert client.get(f"/api/clips/{clip}/versions/99/meta").status_code == 404
+    r = client.put(url, content=b"{", headers={**editor, "If-Match": etag})
+    assert r.status_code == 400
+
+
+def test_the_audit_log_is_insert_only_for_every_role(rest):
+    dsn, tokens, client, _ = rest
+    assert scalar(dsn, "SELECT count(*) FROM modb.audit_log") > 0
+    for role in ("modb_web", None):  # the writer, and the table's owner
+        with psycopg.connect(dsn, autocommit=True) as conn:
+            if role:
+                conn.execute(f"SET ROLE {role}")
+            for statement in (
+                "UPDATE modb.audit_log SET token_name = 'someone'",
+                "DELETE FROM modb.audit_log",
+                "TRUNCATE modb.audit_log",
+            ):
+                with pytest.raises(psycopg.errors.InsufficientPrivilege):
+                    conn.execute(statement)
+
+
+def test_writes_never_run_as_a_superuser(rest, cluster):
+    dsn, tokens, _, _ = rest
+    with serving(dsn, "--write-user", cluster.os_user) as address:
+        with httpx.Client(base_url=f"http://{address}", timeout=60) as client:
+            r = upload(client, tokens["editor"], walk_files(1))
+    assert r.status_code == 503 and "not a superuser" in r.json()["error"]
+
+
+def test_openapi_names_every_route(rest):
+    _, _, client, _ = rest
+    described = client.get("/api/openapi.json").json()
+    assert described["openapi"].startswith("3.1")
+    from modb.web.app import HEAVY_VIEWS, VIEWS
+
+    paths = set(described["paths"])
+    routes = {p for p in (*VIEWS, *HEAVY_VIEWS)} | {
+        "/api/uploads",
+        "/api/clips/{clip_id}/versions/{version}/meta",
+    }
+    assert routes <= paths, routes - paths
+
+
+def test_modb_annotate_adds_lists_and_removes_segments(rest):
+    dsn, tokens, client, _ = rest
+    clip = upload(client, tokens["editor"], walk_files(1)).json()["results"][0]["clip_id"]
+    r = run_modb(dsn, "annotate", str(clip), "--segment", "step:2-10", "--segment", "turn:8-12")
+    assert r.returncode == 0, r.stderr
+    assert "step:2-10" in r.stdout and "turn:8-12" in r.stdout
+    r = run_modb(dsn, "annotate", str(clip), "--segment", "late:0-999999")
+    assert r.returncode == 2 and "late" in r.stderr
+    assert run_modb(dsn, "annotate", str(clip), "--remove", "turn").returncode == 0
+    with psycopg.connect(dsn) as conn:
+        (meta,) = conn.execute(
+            "SELECT meta FROM modb.clip_versions WHERE clip_id = %s ORDER BY version DESC LIMIT 1",
+            [clip],
+        ).fetchone()
+    assert [a["name"] for a in meta["annotations"]] == ["step"]
