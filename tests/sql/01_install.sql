@@ -1,13 +1,14 @@
 -- The extension installs, drops and re-installs cleanly; objects, comments and declarations as documented.
 BEGIN;
 CREATE EXTENSION IF NOT EXISTS pgtap;
-SELECT plan(25);
+SELECT plan(26);
 
 SELECT has_extension('modb');
 SELECT has_schema('modb');
 SELECT tables_are('modb', ARRAY['collections', 'skeletons', 'clips', 'clip_versions', 'models', 'graphs',
                                'snippet_sources', 'terminators', 'snippets', 'match_profiles', 'graph_snippets',
-                               'graph_transitions', 'graph_names', 'snippet_blocks', 'generations']);
+                               'graph_transitions', 'graph_names', 'snippet_blocks', 'generations', 'access_tokens',
+                               'audit_log']);
 SELECT views_are('modb', ARRAY['current_clips']);
 SELECT functions_are('modb', ARRAY[
     'skeleton_identity', 'unit_quaternions_ok', 'finite_ok', 'skeleton_joint_names', 'joint_map_ok', 'mirror_pairs_ok',
@@ -21,7 +22,8 @@ SELECT functions_are('modb', ARRAY[
     'check_world_request', 'frame_key', 'select_next_snippets_reference', 'explain_selection',
     'add_snippet_blocks', 'next_generation', 'snippets_inserted', 'snippets_updated', 'pack_snippet_blocks',
     'synthesis_chain', 'graph_is_current', 'snippet_pools', 'default_graph', 'rest_speed', 'walk_speed', 'end_speed',
-    'select_snippet_ending', 'select_synthesis_step', 'snippets_ending_within', 'can_rest']);
+    'select_snippet_ending', 'select_synthesis_step', 'snippets_ending_within', 'can_rest', 'token_grant',
+    'audit_log_refuse']);
 SELECT is((SELECT o.opcname::text FROM pg_index i JOIN pg_opclass o ON o.oid = i.indclass[0]
             WHERE i.indexrelid = 'modb.snippets_begin_features_idx'::regclass), 'cube_feature_ops',
           'the feature index uses modb''s operator class');
@@ -41,8 +43,11 @@ SET LOCAL force_parallel_mode = on;  -- PL/Python that used SPI would fail here 
 SELECT ok(modb.unit_quaternions_ok('{{{1,0,0,0}}}') AND modb.finite_ok('{1,2}'),
           'PL/Python functions run inside parallel queries');
 RESET force_parallel_mode;
-SELECT is((SELECT count(*) FROM pg_proc WHERE pronamespace = 'modb'::regnamespace AND prosecdef), 0::bigint,
-          'no SECURITY DEFINER function');
+SELECT is((SELECT count(*) FROM pg_proc WHERE pronamespace = 'modb'::regnamespace AND prosecdef
+             AND proname <> 'token_grant'), 0::bigint, 'no SECURITY DEFINER function but token_grant');
+SELECT ok((SELECT l.lanname = 'sql' AND p.proconfig = ARRAY['search_path=pg_catalog, pg_temp']
+             FROM pg_proc p JOIN pg_language l ON l.oid = p.prolang WHERE p.oid = 'modb.token_grant(bytea)'::regprocedure),
+          'token_grant (SECURITY DEFINER: it answers for one hash, so no role reads the tokens) is SQL with a fixed search_path');
 SELECT volatility_is('modb', 'unit_quaternions_ok', ARRAY['real[]', 'double precision'], 'immutable');
 SELECT volatility_is('modb', 'world_positions', ARRAY['bigint', 'integer'], 'stable');
 SELECT is_strict('modb', 'unit_quaternions_ok', ARRAY['real[]', 'double precision']);
@@ -53,7 +58,8 @@ SELECT set_eq(
           'modb.clips', 'modb.clips_id_seq', 'modb.clip_versions', 'modb.models', 'modb.models_id_seq',
           'modb.graphs', 'modb.graphs_id_seq', 'modb.snippet_sources', 'modb.terminators', 'modb.terminators_id_seq',
           'modb.snippets', 'modb.snippets_id_seq', 'modb.match_profiles', 'modb.graph_snippets', 'modb.graph_transitions',
-          'modb.graph_names'],
+          'modb.graph_names', 'modb.access_tokens', 'modb.access_tokens_id_seq', 'modb.audit_log',
+          'modb.audit_log_id_seq'],
     'every data table and id sequence is registered for pg_dump');
 
 DROP EXTENSION modb;

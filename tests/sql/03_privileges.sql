@@ -1,7 +1,7 @@
 -- Least privilege: modb_reader reads, modb_loader writes (and reads); neither can rewrite motion.
 BEGIN;
 CREATE EXTENSION IF NOT EXISTS pgtap;
-SELECT plan(28);
+SELECT plan(33);
 
 SELECT table_privs_are('modb', t, 'modb_reader', ARRAY['SELECT'], 'modb_reader may only SELECT modb.' || t)
   FROM unnest(ARRAY['collections', 'skeletons', 'clips', 'clip_versions', 'models', 'graphs', 'current_clips']) AS t;
@@ -52,6 +52,18 @@ SELECT ok(has_function_privilege('modb_loader', 'modb.pack_snippet_blocks(float8
           AND has_table_privilege('modb_loader', 'modb.snippet_blocks', 'DELETE')
           AND NOT has_table_privilege('modb_reader', 'modb.snippet_blocks', 'DELETE'),
           'the loader packs snippet blocks, a reader cannot');
+SELECT ok(NOT has_table_privilege('modb_reader', 'modb.access_tokens', 'SELECT')
+          AND NOT has_table_privilege('modb_loader', 'modb.access_tokens', 'SELECT'),
+          'no modb role reads the tokens'' table');
+SELECT ok(has_function_privilege('modb_reader', 'modb.token_grant(bytea)', 'EXECUTE')
+          AND NOT has_function_privilege('public', 'modb.token_grant(bytea)', 'EXECUTE'),
+          'a reader may ask about one token''s hash; PUBLIC may not');
+SET LOCAL ROLE modb_loader;
+SELECT lives_ok($$INSERT INTO modb.audit_log (token_name, action, object) VALUES ('t', 'test', 'nothing')$$,
+                'the loader records writes');
+SELECT throws_ok($$UPDATE modb.audit_log SET token_name = 'other'$$, '42501', NULL, 'the loader cannot edit the log');
+RESET ROLE;
+SELECT throws_ok($$DELETE FROM modb.audit_log$$, '42501', NULL, 'not even the owner deletes from the log');
 
 SELECT * FROM finish();
 ROLLBACK;
