@@ -5,9 +5,22 @@ import { loadCharacter } from './character.js';
 import { Rig } from './rig.js';
 import { Stage } from './stage.js';
 import { getJSON, markSelected, showClips, showCollections, showSkeleton } from './panels.js';
+import { AnnotationEditor } from './annotations.js';
+import { tokenPanel } from './token.js';
+import { uploadPanel } from './uploads.js';
 
 const $ = (id) => document.getElementById(id);
 const stage = new Stage($('view'));
+const editor = new AnnotationEditor({
+  bar: $('segments'), plot: $('plot'), plotRange: $('plot-range'), name: $('segment-name'), tags: $('tags'),
+  status: $('annotation-status'), joint: $('plot-joint'), quantity: $('plot-quantity'),
+  buttons: Object.fromEntries([...document.querySelectorAll('#annotations [data-action]')].map((b) => [b.dataset.action, b])),
+}, {
+  frame: () => state.frame,
+  setFrame: (i) => { pause(); setFrame(i); },
+  positions: () => (state.frames ? state.frames.positions : null),
+  jointNames: () => (state.rig ? state.rig.joints.map((j) => j.name) : []),
+});
 const state = { clip: null, fps: 0, frames: null, frame: 0, playing: false, time: 0, highlighted: null, rig: null,
                 character: null };
 
@@ -24,7 +37,8 @@ async function allFrames(clipId, nFrames) {
   }
   return {
     rotations: pages.flatMap((p) => p.rotations),
-    translations: pages.flatMap((p) => p.translations), // the server's positions are not used: the rig poses itself
+    translations: pages.flatMap((p) => p.translations), // the rig poses itself from these
+    positions: pages.flatMap((p) => p.positions), // the server's, for the annotation editor's plot
   };
 }
 
@@ -61,6 +75,7 @@ async function loadClip(clipId) {
   status('');
   document.title = `MoDB: ${clip.collection}/${clip.name}`;
   history.replaceState(null, '', `?clip=${clip.id}`); // reload and share open this clip
+  await editor.open(clip);
   play(); // a chosen clip plays: the page shows something that moves
   return true;
 }
@@ -74,6 +89,7 @@ function setFrame(index) {
   stage.draw(state.rig.boneSegments(), state.rig.worldPositions(), state.rig.pelvis, state.highlighted,
              $('follow').checked);
   $('timeline').value = String(state.frame);
+  editor.drawCursor();
   $('frame').textContent = `${state.frame} / ${n - 1}  ${(state.frame / state.fps).toFixed(2)} s`;
 }
 
@@ -136,9 +152,27 @@ function showEmpty() {
   status('');
 }
 
-async function start() {
+async function showCollectionTree() {
   const collections = await getJSON('/api/collections');
   showCollections($('collections'), collections, (c) => showCollection(c.id));
+  return collections;
+}
+
+// An uploaded clip: the panels show it, and it plays.
+async function showUploaded(clipId) {
+  await showCollectionTree();
+  $('view').hidden = false;
+  document.querySelector('main > footer').hidden = false;
+  $('empty').hidden = true;
+  if (await loadClip(clipId)) {
+    markSelected($('collections'), state.clip.collection_id);
+    await showCollection(state.clip.collection_id);
+    markSelected($('clips'), state.clip.id);
+  }
+}
+
+async function start() {
+  const collections = await showCollectionTree();
   if (!collections.some((c) => c.clips > 0)) return showEmpty();
   const wanted = new URLSearchParams(location.search).get('clip');
   const clip = wanted ? { id: wanted } : await firstClip(collections);
@@ -152,9 +186,13 @@ async function start() {
 
 $('show-skeleton').addEventListener('change', () => stage.showSkeleton($('show-skeleton').checked || !state.character));
 
+tokenPanel($('token'), $('token-use'), $('token-forget'), $('token-state'));
+uploadPanel($('drop'), $('upload-files'), $('upload-collection'), $('uploads'), showUploaded);
+
 window.modbViewer = {
   stage,
   state,
+  editor,
   loadClip,
   setFrame,
   play,
