@@ -34,7 +34,9 @@ export class AnnotationEditor {
     const body = await response.json();
     if (!response.ok) return this.say(body.error || `HTTP ${response.status}`, true);
     this.take(body.meta, response.headers.get('ETag'));
-    this.ui.joint.replaceChildren(...this.viewer.jointNames().map((name, i) => new Option(name, i)));
+    const names = this.viewer.jointNames();
+    this.ui.joint.replaceChildren(...names.map((name, i) => new Option(name, i)));
+    if (names.includes(this.viewer.plotJoint())) this.ui.joint.value = String(names.indexOf(this.viewer.plotJoint()));
     this.drawPlot();
     this.say('');
   }

@@ -20,6 +20,7 @@ const editor = new AnnotationEditor({
   setFrame: (i) => { pause(); setFrame(i); },
   positions: () => (state.frames ? state.frames.positions : null),
   jointNames: () => (state.rig ? state.rig.joints.map((j) => j.name) : []),
+  plotJoint: () => (state.jointMap ? state.jointMap.left_ankle : null), // a foot: where it plants
 });
 const state = { clip: null, fps: 0, frames: null, frame: 0, playing: false, time: 0, highlighted: null, rig: null,
                 character: null };
@@ -61,6 +62,7 @@ async function loadClip(clipId) {
   }
   if (load !== latestLoad) return false;
   Object.assign(state, { clip, fps: clip.fps, frames, frame: 0, time: 0, highlighted: null, character,
+                         jointMap: skeleton.joint_map,
                          rig: new Rig(skeleton.hierarchy, skeleton.joint_map.pelvis) });
   stage.setCharacter(character);
   $('download-bvh').href = `/api/clips/${clip.id}/download?format=bvh&version=${clip.version}`;

@@ -1,0 +1,188 @@
+"""The web view's write side in headless Chromium (issue 25): the token pasted once (session
+storage, never a cookie or URL), uploads by the file chooser with each file's result, and the
+timeline annotation editor's operations by keyboard, saved through the REST interface and read back
+from the database; a save over someone else's newer edit is refused."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import time
+
+import psycopg
+import pytest
+from selenium.webdriver import ActionChains
+from selenium.webdriver.common.by import By
+from support.browser import chromium, serving, severe_console_entries
+from support.commands import run_modb
+from support.data import mocap
+from support.databases import scratch_database
+
+from modb.database.cluster import ensure_writer_role
+
+
+@pytest.fixture(scope="module")
+def site(cluster):
+    """An empty database served, and a loader token; (address, dsn, token)."""
+    with scratch_database(cluster, f"editing_{os.getpid()}") as dsn:
+        with psycopg.connect(dsn, autocommit=True) as conn:
+            ensure_writer_role(conn)
+        r = run_modb(dsn, "token", "create", "browser", "--role", "loader")
+        assert r.returncode == 0, r.stderr
+        with serving(dsn) as address:
+            yield address, dsn, r.stdout.strip()
+
+
+@pytest.fixture(scope="module")
+def browser():
+    with chromium() as driver:
+        yield driver
+
+
+def wait_for(browser, script: str, timeout: float = 60.0):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        value = browser.execute_script(script)
+        if value:
+            return value
+        time.sleep(0.2)
+    raise AssertionError(f"timed out waiting for: {script}")
+
+
+def open_page(browser, address: str, query: str = "") -> None:
+    browser.get(f"http://{address}/{query}")
+    assert (
+        browser.execute_async_script(
+            "const done = arguments[0]; "
+            "window.modbViewer.ready.then(() => done('ok'), (e) => done(String(e)))"
+        )
+        == "ok"
+    )
+
+
+def use_token(browser, token: str) -> None:
+    browser.find_element(By.ID, "token").send_keys(token)
+    browser.find_element(By.ID, "token-use").click()
+
+
+def stored_segments(dsn: str, clip: int) -> list[tuple[str, int, int]]:
+    with psycopg.connect(dsn) as conn:
+        (meta,) = conn.execute(
+            "SELECT meta FROM modb.clip_versions WHERE clip_id = %s ORDER BY version DESC LIMIT 1",
+            [clip],
+        ).fetchone()
+    return sorted((a["start"], a["end"], a["name"]) for a in meta.get("annotations", []))
+
+
+def test_upload_by_the_file_chooser_reports_each_file(site, browser, tmp_path):
+    address, dsn, token = site
+    good = mocap("bandai-2-dev", "data", "dataset-2_walk_active_003.bvh")
+    lines = good.read_text().splitlines()
+    frame = next(i for i, line in enumerate(lines) if line.startswith("Frame Time")) + 3
+    lines[frame] = "1 2 three"
+    bad = tmp_path / "cut_short.bvh"
+    bad.write_text("\n".join(lines) + "\n")
+    copy = tmp_path / good.name
+    shutil.copy(good, copy)
+    open_page(browser, address)
+    use_token(browser, token)
+    assert browser.execute_script("return document.cookie") == ""
+    browser.find_element(By.ID, "upload-collection").clear()
+    browser.find_element(By.ID, "upload-collection").send_keys("web/uploads")
+    chooser = browser.find_element(By.ID, "upload-files")
+    chooser.send_keys(f"{copy}\n{bad}")
+    rows = wait_for(
+        browser,
+        "const r = [...document.querySelectorAll('#uploads li')]; "
+        "return r.length === 2 && r.every((li) => li.dataset.status) && "
+        "r.map((li) => [li.querySelector('span').textContent, li.dataset.status, "
+        "li.querySelector('.result').textContent]);",
+    )
+    by_name = {name: (status, text) for name, status, text in rows}
+    assert by_name[good.name][0] == "loaded"
+    assert by_name["cut_short.bvh"][0] == "failed"
+    assert by_name["cut_short.bvh"][1].startswith(f"cut_short.bvh:{frame + 1}:")
+    with psycopg.connect(dsn) as conn:
+        names = [r[0] for r in conn.execute("SELECT name FROM modb.current_clips").fetchall()]
+    assert names == [good.stem]
+    # the uploaded clip opens and plays
+    wait_for(browser, f"return window.modbViewer.state.clip?.name === '{good.stem}'")
+    assert not severe_console_entries(browser)
+
+
+def test_the_editor_adds_moves_cuts_merges_renames_deletes_and_saves(site, browser):
+    address, dsn, token = site
+    with psycopg.connect(dsn) as conn:
+        clip, n = conn.execute("SELECT id, n_frames FROM modb.current_clips LIMIT 1").fetchone()
+    open_page(browser, address, f"?clip={clip}")
+    wait_for(browser, "return window.modbViewer.editor.etag")
+    if not browser.execute_script("return sessionStorage.getItem('modb-token')"):
+        use_token(browser, token)
+    keys = ActionChains(browser)
+
+    def at(frame: int, *pressed: str) -> None:
+        browser.execute_script(f"window.modbViewer.pause(); window.modbViewer.setFrame({frame})")
+        browser.find_element(By.ID, "view").click()  # keys go to the page, not a field
+        browser.execute_script(f"window.modbViewer.pause(); window.modbViewer.setFrame({frame})")
+        for key in pressed:
+            keys.send_keys(key).perform()
+
+    name = browser.find_element(By.ID, "segment-name")
+    name.clear()
+    name.send_keys("stride")
+    at(10, "n")  # new: 10-39
+    at(50, "]")  # its end moves to 50
+    at(30, "c")  # cut: 10-29 and 30-50
+    at(70, "n")  # another: 70-99
+    # select the first (Tab from the last selected wraps to it) and merge it with the next
+    browser.execute_script("window.modbViewer.editor.select(0)")
+    at(10, "m")  # 10-50 again
+    browser.execute_script("window.modbViewer.editor.select(1)")
+    name.clear()
+    name.send_keys("turn\n")  # rename 70-99
+    browser.execute_script("window.modbViewer.editor.select(0)")
+    at(20, "[")  # start of 10-50 moves to 20
+    tags = browser.find_element(By.ID, "tags")
+    tags.clear()
+    tags.send_keys("walk, web\n")
+    at(20, "s")
+    wait_for(browser, "return document.getElementById('annotation-status').textContent === 'saved'")
+    assert stored_segments(dsn, clip) == [(20, 50, "stride"), (70, 99, "turn")]
+    with psycopg.connect(dsn) as conn:
+        (meta,) = conn.execute(
+            "SELECT meta FROM modb.clip_versions WHERE clip_id = %s", [clip]
+        ).fetchone()
+        audit = conn.execute(
+            "SELECT token_name, action FROM modb.audit_log ORDER BY id DESC LIMIT 1"
+        ).fetchone()
+    assert meta["tags"] == ["walk", "web"] and audit == ("browser", "meta")
+    # delete the second, save: the database holds one
+    browser.execute_script("window.modbViewer.editor.select(1)")
+    at(0, "Delete", "s")
+    wait_for(browser, "return document.getElementById('annotation-status').textContent === 'saved'")
+    assert stored_segments(dsn, clip) == [(20, 50, "stride")]
+    assert n > 100
+
+
+def test_a_save_over_a_newer_edit_is_refused(site, browser):
+    address, dsn, token = site
+    with psycopg.connect(dsn) as conn:
+        (clip,) = conn.execute("SELECT id FROM modb.current_clips LIMIT 1").fetchone()
+    open_page(browser, address, f"?clip={clip}")
+    wait_for(browser, "return window.modbViewer.editor.etag")
+    before = stored_segments(dsn, clip)
+    r = run_modb(dsn, "annotate", str(clip), "--segment", "theirs:1-5")  # someone else, meanwhile
+    assert r.returncode == 0, r.stderr
+    browser.execute_script("window.modbViewer.pause(); window.modbViewer.setFrame(60)")
+    browser.find_element(By.ID, "view").click()
+    ActionChains(browser).send_keys("n").send_keys("s").perform()
+    wait_for(
+        browser,
+        "return document.getElementById('annotation-status').textContent.includes('someone saved')",
+    )
+    assert stored_segments(dsn, clip) == sorted([*before, (1, 5, "theirs")])
+    # the token lives in this tab's session storage, never in the address or a cookie
+    assert browser.execute_script("return sessionStorage.getItem('modb-token')") == token
+    assert (
+        token not in browser.current_url and browser.execute_script("return document.cookie") == ""
+    )
