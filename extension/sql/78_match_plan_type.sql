@@ -15,10 +15,11 @@ CREATE TYPE modb.match_plan AS (
     lookahead_distance         float8,
     graph_id                   bigint,
     graph_lookahead            boolean,
-    graph_cost_to_go           boolean
+    graph_cost_to_go           boolean,
+    annotations                text[]
 );
 COMMENT ON TYPE modb.match_plan IS
-    'A profile resolved for one query: included joints (0-based standard indices), thresholds per standard joint (Infinity when not included), the half-widths of the search box per feature, the objective''s weights, the transition graph (modb.graphs id) candidates must belong to, if any, whether the objective looks one snippet further through it, and whether it ranks by the graph''s cost-to-go';
+    'A profile resolved for one query: included joints (0-based standard indices), thresholds per standard joint (Infinity when not included), the half-widths of the search box per feature, the objective''s weights, the transition graph (modb.graphs id) candidates must belong to, if any, whether the objective looks one snippet further through it, whether it ranks by the graph''s cost-to-go, and the annotation names candidates keep to (modb.annotation_spec), if any';
 
 CREATE FUNCTION modb.session_settings()
 RETURNS text[]

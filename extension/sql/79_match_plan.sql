@@ -6,7 +6,7 @@ RETURNS text[]
 LANGUAGE sql IMMUTABLE STRICT PARALLEL SAFE
 RETURN ARRAY['joints', 'norm', 'position_threshold', 'angle_threshold', 'velocity_threshold',
              'angular_velocity_threshold', 'velocity_terms', 'heading_weight', 'continuity_weight', 'lookahead_distance',
-             'graph', 'graph_lookahead', 'graph_cost_to_go'];
+             'graph', 'graph_lookahead', 'graph_cost_to_go', 'annotations'];
 COMMENT ON FUNCTION modb.match_knobs() IS 'Settings a session may override with SET modb.<knob> = ...';
 
 -- The ranges of the numeric knobs, checked at every selection (the knobs are placeholder settings, which
@@ -115,6 +115,7 @@ BEGIN
             WHEN knob = 'joints' THEN to_jsonb(string_to_array(replace(value, ' ', ''), ','))
             WHEN knob = 'norm' THEN to_jsonb(lower(btrim(value)))
             WHEN knob = 'graph' THEN to_jsonb(value)
+            WHEN knob = 'annotations' THEN coalesce(to_jsonb(modb.annotation_spec(value)), '[]')
             WHEN knob IN ('velocity_terms', 'graph_lookahead', 'graph_cost_to_go') THEN to_jsonb(modb._knob_boolean(knob, value, NULL))
             WHEN knob LIKE '%threshold' THEN jsonb_build_object('default', modb._knob_number(knob, value, NULL))  -- one value for every joint
             ELSE to_jsonb(modb._knob_number(knob, value, NULL)) END);
@@ -162,6 +163,11 @@ BEGIN
     plan.lookahead_distance := (settings->>'lookahead_distance')::float8;
     plan.graph_lookahead := coalesce((settings->>'graph_lookahead')::boolean, false);
     plan.graph_cost_to_go := coalesce((settings->>'graph_cost_to_go')::boolean, true);
+    plan.annotations := CASE jsonb_typeof(settings->'annotations')  -- a profile's: a list or 'walk, !run'
+        WHEN 'array' THEN modb.annotation_spec(array_to_string(ARRAY(SELECT jsonb_array_elements_text(settings->'annotations')), ','),
+                                               format('profile "%s": annotations', profile))
+        WHEN 'string' THEN modb.annotation_spec(settings->>'annotations', format('profile "%s": annotations', profile))
+        END;
     IF settings ? 'graph' AND lower(btrim(settings->>'graph')) <> 'none' THEN  -- 'none': no graph
         SELECT g.id INTO plan.graph_id FROM modb.graphs g WHERE g.name = settings->>'graph' AND g.kind = 'transitions';
         IF NOT FOUND THEN

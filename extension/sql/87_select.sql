@@ -65,6 +65,9 @@ WITH cfg AS MATERIALIZED (
        AND ((SELECT (plan).graph_id FROM cfg) IS NULL
             OR EXISTS (SELECT FROM modb.graph_snippets g
                         WHERE g.graph_id = (SELECT (plan).graph_id FROM cfg) AND g.snippet_id = s.id))
+       -- the annotation names the plan keeps to (modb.annotated), when it names any
+       AND ((SELECT (plan).annotations FROM cfg) IS NULL
+            OR modb.annotated(s.clip_id, s.version, s.first_frame, s.n_frames, (SELECT (plan).annotations FROM cfg)))
        -- A candidate from a clip source nothing played is in (a hashed look-up); one from a played source
        -- when its frames miss the played ones (a binary search): time linear in the length of exclude,
        -- where testing every id against every candidate (before 0.9.0) was quadratic. An anti-join with

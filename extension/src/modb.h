@@ -8,7 +8,7 @@
 #include "standard_joints.h"	/* N_JOINTS, N_FEATURES, STANDARD_JOINT_NAMES */
 
 /* settings.c: the session knobs, in modb.match_knobs() order. */
-#define N_KNOBS 13
+#define N_KNOBS 14
 extern void modb_define_settings(void);
 extern const char *modb_knob_value(int knob);
 extern const char *modb_knob_name(int knob);

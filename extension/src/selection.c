@@ -476,6 +476,7 @@ typedef struct LevelRead
 	SPIPlanPtr	query;
 	Datum		graph_id;
 	bool		no_graph;
+	Datum		annotations;	/* the plan's, as text[] ($3); unused when it has none */
 	const double *lo;			/* the box; NULL for stored transitions */
 	const double *hi;
 	double		low;			/* low < ratio <= high */
@@ -493,8 +494,8 @@ read_and_check(LevelRead *lr, const Pending *pending, int n)
 	const Request *r = lr->r;
 	bool		stored = lr->lo == NULL;
 	Datum	   *ids = palloc(sizeof(Datum) * n);
-	Datum		args[2];
-	char		nulls[2] = {' ', lr->no_graph ? 'n' : ' '};
+	Datum		args[3];
+	char		nulls[3] = {' ', lr->no_graph ? 'n' : ' ', r->plan->annotations ? ' ' : 'n'};
 	TupleDesc	desc;
 	Row		   *rows;
 
@@ -502,6 +503,7 @@ read_and_check(LevelRead *lr, const Pending *pending, int n)
 		ids[i] = Int64GetDatum(pending[i].id);
 	args[0] = PointerGetDatum(construct_array(ids, n, INT8OID, 8, FLOAT8PASSBYVAL, TYPALIGN_DOUBLE));
 	args[1] = lr->graph_id;
+	args[2] = lr->annotations;
 	if (SPI_execute_plan(lr->query, args, nulls, true, 0) != SPI_OK_SELECT)
 		elog(ERROR, "modb: a selection query failed");
 	desc = SPI_tuptable->tupdesc;
@@ -682,15 +684,50 @@ box_of(const Request *r, double scale, double *lo, double *hi, LevelStats *stats
 }
 
 /* Levels 0-3 of the reference's rule; false when they found fewer than k rows (level 4 is needed). */
+/*
+ * The candidates' rows by id: with the graph's cost-to-go when `stored`, restricted to the graph's snippets
+ * when one is named ($2) and, when the plan names annotations ($3), to the snippets modb.annotated passes.
+ * Four kept plans; the annotated ones only where the plan has annotations (0.14.0 and later), so an older
+ * version's SQL, which lacks modb.annotated, never plans them.
+ */
+static SPIPlanPtr
+candidates_query(bool stored, bool annotated)
+{
+	static SPIPlanPtr kept[2][2];
+	Oid			types[3] = {INT8ARRAYOID, INT8OID, TEXTARRAYOID};
+	const char *filter = annotated
+		? " AND modb.annotated(c.clip_id, c.version, c.first_frame, c.n_frames, $3)" : "";
+
+	if (stored)
+		return modb_kept_plan(&kept[1][annotated],
+							  psprintf("SELECT " CANDIDATE_COLUMNS ", ce.cost_to_go"
+									   "  FROM unnest($1::bigint[]) AS n(id) JOIN modb.snippets c ON c.id = n.id"
+									   "  JOIN modb.graph_transitions ce ON ce.graph_id = $2 AND ce.from_snippet = c.id"
+									   "  JOIN modb.terminators b ON b.id = c.begin_terminator"
+									   " WHERE EXISTS (SELECT FROM modb.graph_snippets g WHERE g.graph_id = $2 AND g.snippet_id = c.id)%s",
+									   filter),
+							  3, types);
+	return modb_kept_plan(&kept[0][annotated],
+						  psprintf("SELECT " CANDIDATE_COLUMNS
+								   "  FROM unnest($1::bigint[]) AS n(id) JOIN modb.snippets c ON c.id = n.id"
+								   "  JOIN modb.terminators b ON b.id = c.begin_terminator"
+								   " WHERE ($2 IS NULL OR EXISTS (SELECT FROM modb.graph_snippets g"
+								   "                              WHERE g.graph_id = $2 AND g.snippet_id = c.id))%s",
+								   filter),
+						  3, types);
+}
+
+/* Levels 0-3 of the reference's rule; false when they found fewer than k rows (level 4 is needed). */
 static bool
 fast_path(Request *r, Tuplestorestate *store, TupleDesc out, SelectionStats *stats)
 {
 	static SPIPlanPtr stored_query;
-	static SPIPlanPtr stored_candidates;
-	static SPIPlanPtr candidates_by_id;
-	Oid			types[2] = {INT8ARRAYOID, INT8OID};
 	int			emitted = 0;
 	bool		stored = false;
+	bool		annotated = r->plan->annotations != NULL;
+	Datum		annotations = annotated ? DirectFunctionCall3(array_in, CStringGetDatum(r->plan->annotations),
+															  ObjectIdGetDatum(TEXTOID), Int32GetDatum(-1))
+		: (Datum) 0;
 
 	if (r->plan->has_graph && r->plan->stored_key)
 	{
@@ -706,19 +743,13 @@ fast_path(Request *r, Tuplestorestate *store, TupleDesc out, SelectionStats *sta
 		{
 			bool		isnull;
 			ArrayType  *to = DatumGetArrayTypeP(SPI_getbinval(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 1, &isnull));
-			LevelRead	lr = {.r = r, .graph_id = Int64GetDatum(r->plan->graph_id), .low = -INFINITY, .high = 1.0,
-			.stats = stats ? &stats->levels[0] : NULL};
+			LevelRead	lr = {.r = r, .graph_id = Int64GetDatum(r->plan->graph_id), .annotations = annotations,
+				.low = -INFINITY, .high = 1.0, .stats = stats ? &stats->levels[0] : NULL};
 
 			stored = true;
 			if (ARR_NDIM(to) > 1 || ARR_HASNULL(to))
 				elog(ERROR, "modb: a graph's stored transitions are not a list of snippets");
-			lr.query = modb_kept_plan(&stored_candidates,
-									  "SELECT " CANDIDATE_COLUMNS ", ce.cost_to_go"
-									  "  FROM unnest($1::bigint[]) AS n(id) JOIN modb.snippets c ON c.id = n.id"
-									  "  JOIN modb.graph_transitions ce ON ce.graph_id = $2 AND ce.from_snippet = c.id"
-									  "  JOIN modb.terminators b ON b.id = c.begin_terminator"
-									  " WHERE EXISTS (SELECT FROM modb.graph_snippets g WHERE g.graph_id = $2 AND g.snippet_id = c.id)",
-									  2, types);
+			lr.query = candidates_query(true, annotated);
 			run_level(&lr, NULL, (const int64 *) ARR_DATA_PTR(to), ARR_NDIM(to) ? ARR_DIMS(to)[0] : 0, 0, store,
 					  out, &emitted);
 		}
@@ -731,19 +762,13 @@ fast_path(Request *r, Tuplestorestate *store, TupleDesc out, SelectionStats *sta
 		int			n;
 		BlockCandidate *candidates;
 		LevelRead	lr = {.r = r, .graph_id = Int64GetDatum(r->plan->graph_id), .no_graph = !r->plan->has_graph,
-			.lo = lo, .hi = hi, .low = level == 0 ? -INFINITY : scale / 2, .high = scale,
+			.annotations = annotations, .lo = lo, .hi = hi, .low = level == 0 ? -INFINITY : scale / 2, .high = scale,
 		.stats = stats ? &stats->levels[level] : NULL};
 
 		box_of(r, scale, lo, hi, lr.stats);
 		candidates = modb_block_candidates(r->blocks_relid, r->blocks_generation, r->pose_key, r->fps, lo, hi, &n,
 										   lr.stats ? &lr.stats->blocks : NULL);
-		lr.query = modb_kept_plan(&candidates_by_id,
-								  "SELECT " CANDIDATE_COLUMNS
-								  "  FROM unnest($1::bigint[]) AS n(id) JOIN modb.snippets c ON c.id = n.id"
-								  "  JOIN modb.terminators b ON b.id = c.begin_terminator"
-								  " WHERE ($2 IS NULL OR EXISTS (SELECT FROM modb.graph_snippets g"
-								  "                              WHERE g.graph_id = $2 AND g.snippet_id = c.id))",
-								  2, types);
+		lr.query = candidates_query(false, annotated);
 		run_level(&lr, candidates, NULL, n, level, store, out, &emitted);
 	}
 	return emitted >= r->k;

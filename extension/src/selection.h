@@ -25,6 +25,7 @@ typedef struct MatchPlan
 	bool		stored_key;		/* the graph's stored transitions were built for these thresholds */
 	bool		has_grid;		/* rank level 0 by the graph's cost-to-go */
 	CostGrid	grid;
+	char	   *annotations;	/* the annotation names candidates keep to, a text[] literal; NULL: none */
 	char	   *shown;			/* the plan as jsonb text, for explain_selection */
 	bool		cached;			/* taken from this session's cache, not resolved now */
 } MatchPlan;

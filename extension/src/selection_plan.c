@@ -83,7 +83,10 @@ resolve(text *profile, MatchPlan *plan)
 				   "       (c.grid->>'speed')::float8, (c.grid->>'rings')::int, (c.grid->>'angles')::int,"
 				   "       ((c.grid->>'rings')::int - 1 - 1e-9)::float8,"
 				   "       ln((c.grid->>'outer_radius')::float8 / (c.grid->>'inner_radius')::float8),"
-				   "       (to_jsonb(p) - 'box_half_width')::text"
+				   "       (to_jsonb(p) - 'box_half_width')::text,"
+				   /* to_jsonb: a version before 0.14.0 has no annotations in its plan (NULL then) */
+				   "       CASE WHEN jsonb_typeof(to_jsonb(p)->'annotations') = 'array' THEN"
+				   "            (SELECT array_agg(n)::text FROM jsonb_array_elements_text(to_jsonb(p)->'annotations') AS n) END"
 				   "  FROM modb.match_plan($1) p"
 				   "  LEFT JOIN LATERAL (SELECT g.data->'cost_to_go' AS grid FROM modb.graphs g"
 				   "                      WHERE g.id = p.graph_id AND p.graph_cost_to_go) c ON true",
@@ -121,6 +124,8 @@ resolve(text *profile, MatchPlan *plan)
 		plan->grid.log_radius_ratio = get_double(row, desc, 21, &isnull);
 	}
 	plan->shown = MemoryContextStrdup(TopMemoryContext, SPI_getvalue(row, desc, 22));
+	SPI_getbinval(row, desc, 23, &isnull);
+	plan->annotations = isnull ? NULL : MemoryContextStrdup(TopMemoryContext, SPI_getvalue(row, desc, 23));
 }
 
 /* What the plan depends on: the profile's name, the generation of profiles and graphs, the knobs. */
@@ -154,6 +159,8 @@ modb_match_plan(text *profile, int64 generation)
 	{
 		pfree(entry->key);
 		pfree(entry->plan.shown);
+		if (entry->plan.annotations)
+			pfree(entry->plan.annotations);
 		entry->key = NULL;
 	}
 	resolve(profile, &entry->plan);		/* raises the profile's errors (no such profile included) */

@@ -23,7 +23,8 @@ typedef enum KnobKind
 	KNOB_WEIGHT,				/* 0, or 1e-300 to 1e300 */
 	KNOB_DISTANCE,				/* positive, like a threshold */
 	KNOB_BOOLEAN,
-	KNOB_NAME
+	KNOB_NAME,
+	KNOB_ANNOTATIONS			/* names, comma-separated, ! before one to exclude it */
 } KnobKind;
 
 typedef struct Knob
@@ -52,6 +53,8 @@ static const Knob knobs[N_KNOBS] = {
 	{"graph_lookahead", KNOB_BOOLEAN, NULL,
 	"Graphs without a cost-to-go: score a candidate also by its best successor (on or off)"},
 	{"graph_cost_to_go", KNOB_BOOLEAN, NULL, "With a graph that has one, rank level 0 by its cost-to-go (on or off)"},
+	{"annotations", KNOB_ANNOTATIONS, NULL,
+	"Annotation names, comma-separated (! before one excludes it): candidates lie wholly in segments with one of the names, and in none with an excluded one"},
 };
 
 static char *values[N_KNOBS];
@@ -181,6 +184,14 @@ check_knob(const Knob *knob, const char *value)
 			return ok;
 		case KNOB_NAME:
 			return true;
+		case KNOB_ANNOTATIONS:
+			for (const char *c = value; *c; c++)
+				if (*c == ':' || iscntrl((unsigned char) *c))
+				{
+					GUC_check_errdetail("modb.annotations is a list of names separated by commas, without ':' or control characters.");
+					return false;
+				}
+			return true;
 		default:
 			return check_number(knob, value);
 	}
@@ -193,11 +204,11 @@ check_knob(const Knob *knob, const char *value)
 		return check_knob(&knobs[i], *newval); \
 	}
 KNOB_HOOK(0) KNOB_HOOK(1) KNOB_HOOK(2) KNOB_HOOK(3) KNOB_HOOK(4) KNOB_HOOK(5) KNOB_HOOK(6)
-KNOB_HOOK(7) KNOB_HOOK(8) KNOB_HOOK(9) KNOB_HOOK(10) KNOB_HOOK(11) KNOB_HOOK(12)
+KNOB_HOOK(7) KNOB_HOOK(8) KNOB_HOOK(9) KNOB_HOOK(10) KNOB_HOOK(11) KNOB_HOOK(12) KNOB_HOOK(13)
 
 static GucStringCheckHook hooks[N_KNOBS] = {
 	check_knob_0, check_knob_1, check_knob_2, check_knob_3, check_knob_4, check_knob_5, check_knob_6,
-	check_knob_7, check_knob_8, check_knob_9, check_knob_10, check_knob_11, check_knob_12,
+	check_knob_7, check_knob_8, check_knob_9, check_knob_10, check_knob_11, check_knob_12, check_knob_13,
 };
 
 /* Called from _PG_init: defines the knobs and reserves the prefix (earlier placeholders are checked then). */

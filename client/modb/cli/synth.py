@@ -112,6 +112,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--seam blend)",
     )
     synth.add_argument(
+        "--annotation",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="draw only snippets that lie wholly in segments named NAME (any of those given; "
+        "!NAME: none of whose frames lie in one); repeatable",
+    )
+    synth.add_argument(
         "--foot-lock",
         action="store_true",
         help="hold each standing foot where it stood (two-bone IK on the legs): less foot "
@@ -214,6 +222,8 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as e:  # named by the setting: --lead-time is lead_time
         print(f"modb synth: {e}", file=sys.stderr)
         return 2
+    if args.annotation:
+        settings.knobs = {**settings.knobs, "annotations": ",".join(args.annotation)}
     if args.no_graph:
         settings.graph = NO_GRAPH
     with connect(args) as conn:
