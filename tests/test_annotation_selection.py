@@ -95,7 +95,8 @@ def test_selection_keeps_to_the_annotation_and_equals_the_reference(annotated_db
                     [prev, target],
                 ).fetchall()
                 reference = conn.execute(
-                    "SELECT snippet_id, relax_level FROM modb.select_next_snippets_reference(%s, %s, 5)",
+                    "SELECT snippet_id, relax_level "
+                    "FROM modb.select_next_snippets_reference(%s, %s, 5)",
                     [prev, target],
                 ).fetchall()
                 assert fast == reference, (spec, prev, target)
