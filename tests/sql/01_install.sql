@@ -23,7 +23,7 @@ SELECT functions_are('modb', ARRAY[
     'add_snippet_blocks', 'next_generation', 'snippets_inserted', 'snippets_updated', 'pack_snippet_blocks',
     'synthesis_chain', 'graph_is_current', 'snippet_pools', 'default_graph', 'rest_speed', 'walk_speed', 'end_speed',
     'select_snippet_ending', 'select_synthesis_step', 'snippets_ending_within', 'can_rest', 'token_grant',
-    'audit_log_refuse']);
+    'audit_log_refuse', 'annotation_spec', 'annotated']);
 SELECT is((SELECT o.opcname::text FROM pg_index i JOIN pg_opclass o ON o.oid = i.indclass[0]
             WHERE i.indexrelid = 'modb.snippets_begin_features_idx'::regclass), 'cube_feature_ops',
           'the feature index uses modb''s operator class');

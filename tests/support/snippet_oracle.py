@@ -52,6 +52,7 @@ KNOBS = (
     "graph",
     "graph_lookahead",
     "graph_cost_to_go",
+    "annotations",
 )
 
 
