@@ -23,6 +23,7 @@ TUNABLE_KNOBS = (
     "norm",
     "joints",
     "velocity_terms",
+    "annotations",
 )
 # Seconds: longer than any snippet, the next query would start before this one plays.
 MAX_LEAD_TIME = 2.0

@@ -64,6 +64,7 @@ export class Tuning {
     THRESHOLDS.forEach(([knob]) => { $(knob).value = settings.knobs[knob] || ''; });
     $('norm').value = settings.knobs.norm || '';
     $('velocity_terms').value = settings.knobs.velocity_terms || '';
+    $('annotations').value = settings.knobs.annotations || '';
     this.showJoints(settings.knobs.joints ? settings.knobs.joints.split(',') : this.profileJoints());
     this.settings = settings;
   }
@@ -74,7 +75,8 @@ export class Tuning {
     const chosen = [...this.root.querySelectorAll('input[name=joint]:checked')].map((b) => b.value);
     const own = this.profileJoints();
     const sameJoints = chosen.length === own.length && own.every((j) => chosen.includes(j));
-    const knobs = { norm: $('norm').value, velocity_terms: $('velocity_terms').value, joints: sameJoints ? '' : chosen.join(',') };
+    const knobs = { norm: $('norm').value, velocity_terms: $('velocity_terms').value, joints: sameJoints ? '' : chosen.join(','),
+                    annotations: $('annotations').value.trim() };
     THRESHOLDS.forEach(([knob]) => { knobs[knob] = $(knob).value; });
     const message = {
       type: 'settings', profile: $('profile').value, graph: $('graph').value || null,
