@@ -113,7 +113,7 @@ def test_upload_by_the_file_chooser_reports_each_file(site, browser, tmp_path):
 def test_the_editor_adds_moves_cuts_merges_renames_deletes_and_saves(site, browser):
     address, dsn, token = site
     with psycopg.connect(dsn) as conn:
-        clip, n = conn.execute("SELECT id, n_frames FROM modb.current_clips LIMIT 1").fetchone()
+        clip, n = conn.execute("SELECT clip_id, n_frames FROM modb.current_clips LIMIT 1").fetchone()
     open_page(browser, address, f"?clip={clip}")
     wait_for(browser, "return window.modbViewer.editor.etag")
     if not browser.execute_script("return sessionStorage.getItem('modb-token')"):
@@ -167,7 +167,7 @@ def test_the_editor_adds_moves_cuts_merges_renames_deletes_and_saves(site, brows
 def test_a_save_over_a_newer_edit_is_refused(site, browser):
     address, dsn, token = site
     with psycopg.connect(dsn) as conn:
-        (clip,) = conn.execute("SELECT id FROM modb.current_clips LIMIT 1").fetchone()
+        (clip,) = conn.execute("SELECT clip_id FROM modb.current_clips LIMIT 1").fetchone()
     open_page(browser, address, f"?clip={clip}")
     wait_for(browser, "return window.modbViewer.editor.etag")
     before = stored_segments(dsn, clip)

@@ -476,7 +476,7 @@ typedef struct LevelRead
 	SPIPlanPtr	query;
 	Datum		graph_id;
 	bool		no_graph;
-	Datum		annotations;	/* the plan's, as text[] ($3); unused when it has none */
+	Datum		annotations;	/* the plan's, a text[] literal ($3); unused when it has none */
 	const double *lo;			/* the box; NULL for stored transitions */
 	const double *hi;
 	double		low;			/* low < ratio <= high */
@@ -694,9 +694,9 @@ static SPIPlanPtr
 candidates_query(bool stored, bool annotated)
 {
 	static SPIPlanPtr kept[2][2];
-	Oid			types[3] = {INT8ARRAYOID, INT8OID, TEXTARRAYOID};
+	Oid			types[3] = {INT8ARRAYOID, INT8OID, TEXTOID};
 	const char *filter = annotated
-		? " AND modb.annotated(c.clip_id, c.version, c.first_frame, c.n_frames, $3)" : "";
+		? " AND modb.annotated(c.clip_id, c.version, c.first_frame, c.n_frames, $3::text[])" : "";
 
 	if (stored)
 		return modb_kept_plan(&kept[1][annotated],
@@ -725,9 +725,7 @@ fast_path(Request *r, Tuplestorestate *store, TupleDesc out, SelectionStats *sta
 	int			emitted = 0;
 	bool		stored = false;
 	bool		annotated = r->plan->annotations != NULL;
-	Datum		annotations = annotated ? DirectFunctionCall3(array_in, CStringGetDatum(r->plan->annotations),
-															  ObjectIdGetDatum(TEXTOID), Int32GetDatum(-1))
-		: (Datum) 0;
+	Datum		annotations = annotated ? CStringGetTextDatum(r->plan->annotations) : (Datum) 0;
 
 	if (r->plan->has_graph && r->plan->stored_key)
 	{
