@@ -28,7 +28,9 @@ def annotated_db(cluster):
         r = run_modb(dsn, "load", *files, "--collection", "cmu/131", "--mirror", "-q")
         assert r.returncode == 0, r.stderr
         with psycopg.connect(dsn, autocommit=True) as conn:
-            for clip, n in conn.execute("SELECT clip_id, n_frames FROM modb.current_clips").fetchall():
+            for clip, n in conn.execute(
+                "SELECT clip_id, n_frames FROM modb.current_clips"
+            ).fetchall():
                 segments = [
                     {"name": "walk", "start": 0, "end": n * 2 // 3},
                     {"name": "walk", "start": n * 2 // 3 + 1, "end": n - 40},  # touching: one run
@@ -110,7 +112,9 @@ def test_an_edit_counts_on_the_next_call_and_profiles_carry_the_field(annotated_
         conn.execute("SET modb.annotations = 'stand'")
         none = "SELECT snippet_id FROM modb.select_next_snippets(%s, '{1, 0}', 1)"
         assert conn.execute(none, [prev]).fetchall() == []  # nothing is named stand yet
-        clip = conn.execute("SELECT clip_id FROM modb.current_clips ORDER BY clip_id LIMIT 1").fetchone()[0]
+        clip = conn.execute(
+            "SELECT clip_id FROM modb.current_clips ORDER BY clip_id LIMIT 1"
+        ).fetchone()[0]
         r = run_modb(annotated_db, "annotate", str(clip), "--segment", "stand:100-400")
         assert r.returncode == 0, r.stderr
         (chosen,) = conn.execute(
