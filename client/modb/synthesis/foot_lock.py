@@ -2,8 +2,8 @@
 
 A seam joins two takes whose feet slide against each other, and inertialization (the default seam
 treatment) moves the body back onto the new take over a few frames: a foot that stands through the
-seam slides with it. Here each foot, while it stands (its ankle, else its toe, within
-quality.CONTACT_HEIGHT_M of its lowest: the report's own definition), is held where it stood when it
+seam slides with it. Here each foot, while it is down (its ankle, else its toe, within
+quality.CONTACT_HEIGHT_M of its lowest, whatever its speed), is held where it stood when it
 touched down: a horizontal offset from the strip's foot to the held point, reached by two-bone IK
 on the hip and knee, the foot's world orientation kept. When the foot lifts (or the offset would
 pass UNLOCK_DISTANCE, more than the leg can give without a visible stretch), the offset decays like
@@ -69,8 +69,8 @@ def lock_feet(motion: Motion) -> Motion:
 
 
 def standing(height: np.ndarray) -> np.ndarray:
-    """Frames in which a joint stands: within CONTACT_HEIGHT_M of its lowest (its 2nd
-    percentile), as quality.foot_skating counts them."""
+    """Frames in which a joint is down: within CONTACT_HEIGHT_M of its lowest (its 2nd
+    percentile). (quality.foot_skating also asks it to be slow: a sliding foot is what to hold.)"""
     return height <= np.percentile(height, 2) + CONTACT_HEIGHT_M
 
 

@@ -50,7 +50,11 @@ def step_changes(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
     return angles, velocity_change
 
 
-CONTACT_HEIGHT_M = 0.02  # a foot within this of its lowest (its 2nd percentile) stands
+# A foot stands when within this of its lowest (its 2nd percentile) and slower than
+# CONTACT_SPEED_M_S: a foot passing low in its swing (2-4 m/s) is not standing; one sliding on the
+# ground at walking pace is.
+CONTACT_HEIGHT_M = 0.02
+CONTACT_SPEED_M_S = 1.0
 FEET = ("left_ankle", "left_toe", "right_ankle", "right_toe")
 
 
@@ -69,16 +73,17 @@ def pose_jumps(motion: Motion) -> np.ndarray:
 
 def foot_skating(motion: Motion) -> tuple[float, int]:
     """The mean horizontal speed (m/s) of the ankles and toes while they stand (within
-    CONTACT_HEIGHT_M of their lowest), and in how many frames they stood."""
+    CONTACT_HEIGHT_M of their lowest and slower than CONTACT_SPEED_M_S), and in how many frames they
+    stood."""
     sk = motion.skeleton
     positions = motion.world_positions()[:, [sk.index(sk.joint_map[f]) for f in FEET]]
     if len(positions) < 3:
         return 0.0, 0
     height = positions[..., 1]
-    standing = height <= np.percentile(height, 2, axis=0) + CONTACT_HEIGHT_M
+    low = height <= np.percentile(height, 2, axis=0) + CONTACT_HEIGHT_M
     ground = positions[..., [0, 2]]
     speed = np.linalg.norm(ground[2:] - ground[:-2], axis=-1) * motion.fps / 2  # central
-    standing = standing[1:-1]
+    standing = low[1:-1] & (speed < CONTACT_SPEED_M_S)
     return (float(speed[standing].mean()) if standing.any() else 0.0), int(standing.sum())
 
 
