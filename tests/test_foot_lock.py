@@ -23,8 +23,8 @@ LEG_PARTS = ("hip", "knee", "ankle", "toe")
 
 def skating(motion) -> float:
     """Mean horizontal speed (m/s) of ankles and toes in the frames where each is within 2 cm of its
-    own 2nd-percentile height and slower than 1 m/s, central differences: computed here from scipy's
-    kinematics."""
+    own 2nd-percentile height and rises or sinks slower than 0.15 m/s, central differences:
+    computed here from scipy's kinematics."""
     sk = motion.skeleton
     positions, _ = motion_world(motion)
     speeds = []
@@ -32,7 +32,8 @@ def skating(motion) -> float:
         for part in ("ankle", "toe"):
             p = positions[:, sk.index(sk.joint_map[f"{side}_{part}"])]
             speed = np.linalg.norm((p[2:] - p[:-2])[:, [0, 2]], axis=1) * motion.fps / 2
-            standing = (p[1:-1, 1] <= np.percentile(p[:, 1], 2) + 0.02) & (speed < 1.0)
+            rising = np.abs(p[2:, 1] - p[:-2, 1]) * motion.fps / 2
+            standing = (p[1:-1, 1] <= np.percentile(p[:, 1], 2) + 0.02) & (rising < 0.15)
             speeds.append(speed[standing])
     return float(np.concatenate(speeds).mean())
 

@@ -80,16 +80,19 @@ def held_offsets(
     """Per frame, the horizontal offset (metres) from the strip's ankle to where the held foot's
     ankle goes: the ankle held while it stands, else the toe (the foot rolls over it) while it
     does, as long as the offset is within UNLOCK_DISTANCE and the ankle within `reach` of the
-    hip; in between, the last offset decaying."""
+    hip. A hold that would go further keeps its offset until the foot lifts (the foot moves as
+    the strip's, sliding no more than it); one that would straighten the leg eases back at once;
+    a lifted foot's offset decays."""
     pivots = np.where(standing(ankle[:, 1]), 0, np.where(standing(toe[:, 1]), 1, -1))
     joints = (ankle, toe)
     offsets = np.zeros_like(ankle)
     offset = np.zeros(3)
     velocity = np.zeros(3)
     held = None  # (pivot, the point it is held at)
+    let_go = False  # a hold that went too far: the foot moves as the strip's until it lifts
     released = None  # (frame, offset, velocity) when the last hold ended
     for t, pivot in enumerate(pivots):
-        if pivot >= 0:
+        if pivot >= 0 and not let_go:
             shown = joints[pivot][t] * (1.0, 0.0, 1.0)
             if held is None or held[0] != pivot:
                 held = (pivot, shown + offset)  # from where the foot is shown: no jump
@@ -101,7 +104,15 @@ def held_offsets(
                 released = None
                 offsets[t] = offset
                 continue
-        held = None
+            if within:  # too far: let go till it lifts; a leg too straight: ease back at once
+                let_go, velocity = True, np.zeros(3)
+            else:
+                pivot = -1
+        if pivot >= 0:  # let go while down: the offset stays, the foot slides as the strip's
+            held, released = None, None
+            offsets[t] = offset
+            continue
+        held, let_go = None, False
         if released is None:
             released = (t - 1, offset, velocity)
         start, offset0, velocity0 = released

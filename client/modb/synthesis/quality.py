@@ -50,11 +50,11 @@ def step_changes(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
     return angles, velocity_change
 
 
-# A foot stands when within this of its lowest (its 2nd percentile) and slower than
-# CONTACT_SPEED_M_S: a foot passing low in its swing (2-4 m/s) is not standing; one sliding on the
-# ground at walking pace is.
+# A foot stands when within this of its lowest (its 2nd percentile) and it rises or sinks slower
+# than CONTACT_SPEED_M_S: one lifting off or landing is not standing. (A horizontal speed limit
+# would count a foot sliding slowly and drop one sliding fast.)
 CONTACT_HEIGHT_M = 0.02
-CONTACT_SPEED_M_S = 1.0
+CONTACT_SPEED_M_S = 0.15
 FEET = ("left_ankle", "left_toe", "right_ankle", "right_toe")
 
 
@@ -73,8 +73,8 @@ def pose_jumps(motion: Motion) -> np.ndarray:
 
 def foot_skating(motion: Motion) -> tuple[float, int]:
     """The mean horizontal speed (m/s) of the ankles and toes while they stand (within
-    CONTACT_HEIGHT_M of their lowest and slower than CONTACT_SPEED_M_S), and in how many frames they
-    stood."""
+    CONTACT_HEIGHT_M of their lowest, rising or sinking slower than CONTACT_SPEED_M_S), and in how
+    many frames they stood."""
     sk = motion.skeleton
     positions = motion.world_positions()[:, [sk.index(sk.joint_map[f]) for f in FEET]]
     if len(positions) < 3:
@@ -83,7 +83,8 @@ def foot_skating(motion: Motion) -> tuple[float, int]:
     low = height <= np.percentile(height, 2, axis=0) + CONTACT_HEIGHT_M
     ground = positions[..., [0, 2]]
     speed = np.linalg.norm(ground[2:] - ground[:-2], axis=-1) * motion.fps / 2  # central
-    standing = low[1:-1] & (speed < CONTACT_SPEED_M_S)
+    rising = np.abs(height[2:] - height[:-2]) * motion.fps / 2
+    standing = low[1:-1] & (rising < CONTACT_SPEED_M_S)
     return (float(speed[standing].mean()) if standing.any() else 0.0), int(standing.sum())
 
 
