@@ -10,7 +10,7 @@ SUDO := $(if $(filter 0,$(shell id -u)),,sudo)
 # cube ships in postgresql-15 itself.
 APT_PACKAGES := postgresql-15 postgresql-plpython3-15 postgresql-15-pgtap gcc make \
 	libtap-parser-sourcehandler-pgtap-perl postgresql-server-dev-15 python3-numpy python3-scipy python3-venv \
-	chromium chromium-driver
+	chromium chromium-driver curl
 WEB := client/modb/web
 EXTVERSION := $(shell sed -n "s/^default_version *= *'\(.*\)'/\1/p" extension/modb.control)
 
