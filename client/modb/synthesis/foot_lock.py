@@ -10,15 +10,15 @@ pass UNLOCK_DISTANCE, more than the leg can give without a visible stretch), the
 an inertialized seam (critically damped, the same half-life), so nothing jumps: a hold starts where
 the foot is shown, and ends moving as it moved.
 
-Measured (bench/seam_treatments.py: three seeded courses each, against inertialization alone): on
-Bandai's locomotion (60 s), foot skating 48.8 -> 44.3 cm/s (the sources: 41.4), seams with r > 1,
-seam r p99 and the worst pose jump unchanged (2.2%, 1.11, 11.4 cm); on CMU 131 (30 s, 120 fps),
-skating 21.3 -> 11.7 cm/s (sources 14.7), seams with r > 1 unchanged (15.8%), r p99 1.46 -> 1.44,
-worst pose jump unchanged (7.7 cm). Holding on while the leg is straighter (REACH 0.99) lowers
-Bandai's skating to 41.4 cm/s but raised the roughest seam of a CMU course by 2%; holds that may go
-further (0.15 m) or a quicker catch-up (half-life 0.025 s) raise the share of rough seams; a bend
-axis taken frame by frame from a nearly straight leg popped the knee (worst pose jump on CMU 7.7 ->
-16.3 cm).
+Measured (bench/seam_treatments.py: three seeded courses each, against inertialization alone; foot
+skating as quality.foot_skating defines it): on Bandai's locomotion (60 s), 32.5 -> 27.9 cm/s (the
+sources: 24.3), seams with r > 1 and seam r p99 unchanged (2.2%, 1.11), worst pose jump 11.4 ->
+11.5 cm; on CMU 131 (30 s, 120 fps), 17.8 -> 11.6 cm/s (sources 12.2), seams with r > 1 unchanged
+(15.8%), r p99 1.46 -> 1.44, worst pose jump unchanged (7.7 cm). Tried and measured worse: letting a
+hold that went too far go at once (the foot slid back while down: Bandai 32.5 -> 32.4 only); holds
+that may go further (0.15 m) or a quicker catch-up (half-life 0.025 s) raise the share of rough
+seams; a bend axis taken frame by frame from a nearly straight leg popped the knee (worst pose jump
+on CMU 7.7 -> 16.3 cm).
 """
 
 from __future__ import annotations
