@@ -18,7 +18,6 @@ from modb.synthesis.quality import NaturalSteps, measure
 from modb.synthesis.synth import source_motions, synthesize
 
 COURSE = [(0.0, 4.0), (4.0, 4.0), (4.0, 0.0), (0.0, 0.0)]
-LEG_PARTS = ("hip", "knee", "ankle", "toe")
 
 
 def skating(motion) -> float:
@@ -60,20 +59,14 @@ def check_foot_lock(conn, result, least_drop: float) -> None:
         foot = sk.index(sk.joint_map[f"{side}_ankle"])
         change = (turned_after[foot] * turned_before[foot].inv()).magnitude()
         assert change.max() < 1e-6, (side, change.max())
-    # bones keep their lengths (scipy's positions, not the code's)
-    for side in ("left", "right"):
-        hip, knee, ankle, _ = (sk.index(sk.joint_map[f"{side}_{p}"]) for p in LEG_PARTS)
-        for a, b in ((hip, knee), (knee, ankle)):
-            length = np.linalg.norm(after[:, a] - after[:, b], axis=1)
-            assert np.allclose(length, np.linalg.norm(before[:, a] - before[:, b], axis=1))
     drop = 1 - skating(locked) / skating(strip)
     assert drop >= least_drop, (skating(strip), skating(locked))
     natural = NaturalSteps.of(source_motions(conn, result.chain[0].snippet_id, result.collection))
     plain = measure(strip, result.chain, result.goals, natural, 1.0)
     held = measure(locked, result.chain, result.goals, natural, 1.0)
     assert held.seam_share_over_one <= plain.seam_share_over_one
-    assert held.seam_r_p99 <= plain.seam_r_p99 * 1.01
-    assert held.pose_jump_max <= plain.pose_jump_max * 1.05
+    assert held.seam_r_p99 <= plain.seam_r_p99 * 1.001
+    assert held.pose_jump_max <= plain.pose_jump_max + 0.002  # metres: Bandai's rises 1 mm
 
 
 def test_foot_lock_on_bandai(locomotion):
@@ -98,4 +91,5 @@ def test_synth_foot_lock_reports_less_skating(locomotion, tmp_path):
         assert r.returncode == 0, r.stderr
         figures[bool(flag)] = json.loads(report.read_text())["report"]
     assert figures[True]["foot_skating"] < 0.95 * figures[False]["foot_skating"]
+    assert figures[True]["natural_foot_skating"] == figures[False]["natural_foot_skating"] > 0
     assert figures[True]["seam_share_over_one"] <= figures[False]["seam_share_over_one"]

@@ -53,6 +53,8 @@ def lock_feet(motion: Motion) -> Motion:
         hip, knee, ankle, toe = (
             sk.index(sk.joint_map[f"{side}_{part}"]) for part in ("hip", "knee", "ankle", "toe")
         )
+        # (Letting a hold ask for a leg as straight as the strip's own, not REACH of its length,
+        # held Bandai's feet no better and raised CMU's rough seams 15.8 -> 16.4%.)
         reach = REACH * (
             np.linalg.norm(positions[:, knee] - positions[:, hip], axis=-1)
             + np.linalg.norm(positions[:, ankle] - positions[:, knee], axis=-1)
@@ -132,7 +134,8 @@ def _knee_hinge(positions, orientations, leg) -> np.ndarray:
 
 def _reach(parents, positions, orientations, rotations, chain, hinge, offsets, frames) -> None:
     """Two-bone IK in place on `rotations`: in `frames`, hip and knee turned about the knee's
-    hinge so the ankle reaches its position plus `offsets`, the ankle's world orientation kept."""
+    hinge so the ankle reaches its position plus `offsets`, the ankle's world orientation kept
+    (a target beyond the leg's length, which only a decaying offset asks for, falls short)."""
     hip, knee, ankle = chain
     a, b, c = (positions[frames, j] for j in chain)
     target = c + offsets[frames]
@@ -151,15 +154,17 @@ def _reach(parents, positions, orientations, rotations, chain, hinge, offsets, f
     bend_axis = quaternion.rotate(orientations[frames, knee], hinge)
     hip_turn = law_of_cosines(upper, reach, lower) - angle(c - a, b - a)
     knee_turn = law_of_cosines(upper, lower, reach) - angle(a - b, c - b)
-    # Then swing the whole leg from the ankle's direction to the target's.
-    swing_axis = _unit(np.cross(c - a, target - a))
-    swing = quaternion.from_rotation_vector(swing_axis * angle(c - a, target - a)[:, None])
-    hip_delta = quaternion.multiply(
-        swing, quaternion.from_rotation_vector(bend_axis * hip_turn[:, None])
+    hip_bend = quaternion.from_rotation_vector(bend_axis * hip_turn[:, None])
+    knee_bend = quaternion.multiply(
+        hip_bend, quaternion.from_rotation_vector(bend_axis * knee_turn[:, None])
     )
-    knee_delta = quaternion.multiply(
-        hip_delta, quaternion.from_rotation_vector(bend_axis * knee_turn[:, None])
-    )
+    # Then swing the whole leg from where the bent ankle is to the target (the hinge need not be
+    # normal to the leg's plane: a three-channel knee bends a little out of it).
+    bent = a + quaternion.rotate(hip_bend, b - a) + quaternion.rotate(knee_bend, c - b)
+    swing_axis = _unit(np.cross(bent - a, target - a))
+    swing = quaternion.from_rotation_vector(swing_axis * angle(bent - a, target - a)[:, None])
+    hip_delta = quaternion.multiply(swing, hip_bend)
+    knee_delta = quaternion.multiply(swing, knee_bend)
     # New world orientations, then back to local ones (each joint's parent turned as it is).
     hip_world = quaternion.multiply(hip_delta, orientations[frames, hip])
     knee_world = quaternion.multiply(knee_delta, orientations[frames, knee])
