@@ -133,11 +133,18 @@ def test_a_click_sets_a_goal_the_avatar_reaches_and_one_behind_it_turns_it_aroun
     )
     # Streamed at the capture's rate (30 fps here), by this test's clock: never ahead; behind only
     # by the queries that playback waits for (lead time 0) and a loaded machine.
-    before, t0 = page_state(browser)["frames"], time.monotonic()
+    # (Each count is taken somewhere inside its script call: the bounds use the call's start or end,
+    # whichever is safe, so a slow call on a loaded machine is not mistaken for running ahead.)
+    asked0 = time.monotonic()
+    before = page_state(browser)["frames"]
+    answered0 = time.monotonic()
     time.sleep(3)
-    after, t1 = page_state(browser)["frames"], time.monotonic()
+    asked1 = time.monotonic()
+    after = page_state(browser)["frames"]
+    answered1 = time.monotonic()
     fps = page_state(browser)["choices"][-1]["fps"]
-    assert 0.5 * fps * (t1 - t0) <= after - before <= fps * (t1 - t0) + 2, (after - before, t1 - t0)
+    shortest, longest = asked1 - answered0, answered1 - asked0
+    assert 0.5 * fps * shortest <= after - before <= fps * longest + 2, (after - before, longest)
     state = page_state(browser)
     # Behind: from where the pelvis is, against the direction of its last half metre of travel.
     trail = np.asarray(state["trail"])
