@@ -58,14 +58,24 @@ SELECT c.id, c.name, c.collection_id, modb.collection_path(c.collection_id) AS c
 """
 
 
-def clips(conn: psycopg.Connection, collection_id: int | None) -> list[dict[str, Any]]:
-    """The clips of one collection (all when None), newest versions."""
+def clips(
+    conn: psycopg.Connection,
+    collection_id: int | None,
+    tag: str | None = None,
+    annotation: str | None = None,
+) -> list[dict[str, Any]]:
+    """The clips of one collection (all when None), newest versions; with `tag`, those whose newest
+    version has it, with `annotation`, those whose newest version has a segment so named."""
     if collection_id is not None:
         _one(conn, "collection", "SELECT id FROM modb.collections WHERE id = %s", collection_id)
     return _rows(
         conn,
-        _CLIP_LIST + " WHERE %s::bigint IS NULL OR c.collection_id = %s ORDER BY c.name, c.id",
-        [collection_id, collection_id],
+        _CLIP_LIST + " WHERE (%(c)s::bigint IS NULL OR c.collection_id = %(c)s)"
+        "   AND (%(tag)s::text IS NULL OR v.meta->'tags' ? %(tag)s)"
+        "   AND (%(name)s::text IS NULL OR v.meta->'annotations' @> jsonb_build_array("
+        "        jsonb_build_object('name', %(name)s::text)))"
+        " ORDER BY c.name, c.id",
+        {"c": collection_id, "tag": tag, "name": annotation},
     )
 
 

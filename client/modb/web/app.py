@@ -148,7 +148,10 @@ def _path_id(request: Request, what: str) -> int:
 
 
 def _clips(conn: psycopg.Connection, r: Request) -> Any:
-    return api.clips(conn, _int("collection", _query(r, "collection").get("collection")))
+    q = _query(r, "collection", "tag", "annotation")
+    return api.clips(
+        conn, _int("collection", q.get("collection")), q.get("tag"), q.get("annotation")
+    )
 
 
 def _frames_args(r: Request) -> tuple[int, int | None, int, int | None]:

@@ -86,6 +86,8 @@ def schema() -> dict[str, Any]:
         "/api/clips": _read(
             "clips (newest versions)",
             _query("collection", "only this collection's (id)", {"type": "integer"}),
+            _query("tag", "only those tagged so", {"type": "string"}),
+            _query("annotation", "only those with a segment so named", {"type": "string"}),
         ),
         "/api/clips/{ident}": _read("one clip: versions, skeleton, meta", CLIP),
         "/api/clips/{ident}/frames": _read(
