@@ -135,3 +135,17 @@ def test_an_edit_counts_on_the_next_call_and_profiles_carry_the_field(annotated_
         assert by_profile == chosen
         with pytest.raises(psycopg.errors.InvalidParameterValue):
             conn.execute("SET modb.annotations = 'a:b'")
+
+
+def test_synthesize_takes_annotations_for_its_chain_only(annotated_db):
+    with psycopg.connect(annotated_db, autocommit=True) as conn:
+        conn.execute("SET modb.graph = 'none'")
+        rows = conn.execute(
+            "SELECT s.first_frame, s.n_frames, v.meta FROM modb.synthesize('{{0,3},{3,3}}', 12, "
+            "collection => 'cmu/131', annotations => 'turn') c JOIN modb.snippets s "
+            "ON s.id = c.snippet_id JOIN modb.clip_versions v ON (v.clip_id, v.version) = "
+            "(s.clip_id, s.version)"
+        ).fetchall()
+        assert len(rows) == 12
+        assert all(passes(meta, first, n, ["turn"]) for first, n, meta in rows)
+        assert conn.execute("SHOW modb.annotations").fetchone()[0] == ""  # the session's as it was

@@ -165,7 +165,8 @@ COMMENT ON FUNCTION modb.synthesis_chain(float8[], int, bigint, float8[], float8
 CREATE OR REPLACE FUNCTION modb.synthesize(targets float8[], max_snippets int, start_snippet bigint DEFAULT NULL,
                                 start_position float8[] DEFAULT '{0,0,0}', start_heading float8 DEFAULT 0,
                                 profile text DEFAULT 'default', collection text DEFAULT NULL,
-                                arrival_radius float8 DEFAULT 0.5, exclude_seconds float8 DEFAULT 2)
+                                arrival_radius float8 DEFAULT 0.5, exclude_seconds float8 DEFAULT 2,
+                                annotations text DEFAULT NULL)
 RETURNS TABLE (step int, snippet_id bigint, clip_id bigint, version int, mirrored boolean, first_frame int,
                n_frames int, fps float8, start_time float8, "position" float8[], heading float8,
                end_position float8[], end_heading float8, goal int, target float8[], reached boolean,
@@ -175,6 +176,7 @@ SET jit = off
 AS $$
 DECLARE
     knob text := current_setting('modb.graph', true);
+    annotations_knob text := current_setting('modb.annotations', true);
     pool record;
     graph text;
 BEGIN
@@ -203,13 +205,19 @@ BEGIN
             PERFORM set_config('modb.graph', graph, true);
         END IF;
     END IF;
+    IF annotations IS NOT NULL THEN  -- as SET LOCAL modb.annotations would, for this chain only
+        PERFORM set_config('modb.annotations', annotations, true);
+    END IF;
     RETURN QUERY SELECT * FROM modb.synthesis_chain(targets, max_snippets, start_snippet, start_position, start_heading,
                                                      profile, collection, arrival_radius, exclude_seconds,
                                                      modb.can_rest(collection));
     IF graph IS NOT NULL THEN
         PERFORM set_config('modb.graph', coalesce(knob, ''), true);
     END IF;
+    IF annotations IS NOT NULL THEN
+        PERFORM set_config('modb.annotations', coalesce(annotations_knob, ''), true);
+    END IF;
 END
 $$;
-COMMENT ON FUNCTION modb.synthesize(float8[], int, bigint, float8[], float8, text, text, float8, float8) IS
-    'A chain of up to max_snippets snippets from start_position/start_heading (world metres, radians; 0 faces +Z) through the world goals in targets ({{x, z}, ...} or {{x, y, z}, ...}), in order: one row per snippet with where it is placed, where it ends, the goal it served and whether it reached it (pelvis within arrival_radius on the ground), and its selection (relaxation level, continuity, proximity). Without collection or start_snippet it draws from the largest skeleton-and-rate pool (modb.snippet_pools); without a graph set (modb.graph) it chooses among the newest current transition graph over that data (modb.default_graph), or says with a NOTICE that there is none; SET modb.graph = ''none'' for the paper''s plain rule. Its first frame stands in for the previous snippet''s last; start_time is the time of that frame. The chain ends early when nothing can follow (every candidate excluded)';
+COMMENT ON FUNCTION modb.synthesize(float8[], int, bigint, float8[], float8, text, text, float8, float8, text) IS
+    'A chain of up to max_snippets snippets from start_position/start_heading (world metres, radians; 0 faces +Z) through the world goals in targets ({{x, z}, ...} or {{x, y, z}, ...}), in order: one row per snippet with where it is placed, where it ends, the goal it served and whether it reached it (pelvis within arrival_radius on the ground), and its selection (relaxation level, continuity, proximity). Without collection or start_snippet it draws from the largest skeleton-and-rate pool (modb.snippet_pools); without a graph set (modb.graph) it chooses among the newest current transition graph over that data (modb.default_graph), or says with a NOTICE that there is none; SET modb.graph = ''none'' for the paper''s plain rule. annotations (''walk, !run'') keeps the chain to snippets so annotated, as modb.annotations does. Its first frame stands in for the previous snippet''s last; start_time is the time of that frame. The chain ends early when nothing can follow (every candidate excluded)';

@@ -10,3 +10,6 @@ COMMENT ON TYPE modb.match_plan IS
 --@include 78_annotations.sql
 --@include 79_match_plan.sql
 --@include 87_select.sql
+-- modb.synthesize takes annotations (a new last parameter: the old signature goes, or calls would be ambiguous)
+DROP FUNCTION modb.synthesize(float8[], int, bigint, float8[], float8, text, text, float8, float8);
+--@include 89_synthesize.sql
