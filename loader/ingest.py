@@ -262,8 +262,7 @@ def _new_version_meta(
     if "annotations" not in meta:
         return kept, ""
     return kept, (
-        f"version {version}'s annotations stay with it: it has {frames} frames, this one "
-        f"{n_frames}"
+        f"version {version}'s annotations stay with it: it has {frames} frames, this one {n_frames}"
     )
 
 

@@ -183,8 +183,9 @@ def test_an_oversized_upload_is_413_and_stores_nothing(rest):
 
 def test_meta_writes_need_the_etag_and_a_stale_one_is_409(rest):
     dsn, tokens, client, _ = rest
-    clip = upload(client, tokens["editor"], walk_files(1)).json()["results"][0]["clip_id"]
-    url = f"/api/clips/{clip}/versions/1/meta"
+    stored = upload(client, tokens["editor"], walk_files(1)).json()["results"][0]
+    clip = stored["clip_id"]  # (an earlier test may have made this file a later version)
+    url = f"/api/clips/{clip}/versions/{stored['version']}/meta"
     read = client.get(url)
     assert read.status_code == 200
     etag = read.headers["etag"]
@@ -202,11 +203,12 @@ def test_meta_writes_need_the_etag_and_a_stale_one_is_409(rest):
     assert stale.status_code == 409 and stale.json()["meta"]["tags"] == ["walk", HOSTILE]
     assert stale.headers["etag"] == first.headers["etag"]
     with psycopg.connect(dsn) as conn:
-        (stored,) = conn.execute(
-            "SELECT meta FROM modb.clip_versions WHERE clip_id = %s AND version = 1", [clip]
+        (meta,) = conn.execute(
+            "SELECT meta FROM modb.clip_versions WHERE clip_id = %s AND version = %s",
+            [clip, stored["version"]],
         ).fetchone()
         assert conn.execute("SELECT to_regclass('modb.clips')").fetchone()[0] is not None
-    assert sorted(a["name"] for a in stored["annotations"]) == sorted(s["name"] for s in segments)
+    assert sorted(a["name"] for a in meta["annotations"]) == sorted(s["name"] for s in segments)
     # bad segments: 400, nothing changed
     n = client.get(url).json()["n_frames"]
     for bad in (
@@ -272,7 +274,8 @@ def test_openapi_names_every_route(rest):
 
 def test_modb_annotate_adds_lists_and_removes_segments(rest):
     dsn, tokens, client, _ = rest
-    clip = upload(client, tokens["editor"], walk_files(1)).json()["results"][0]["clip_id"]
+    third = walk_files(3)[2:]  # a clip no other test annotates
+    clip = upload(client, tokens["editor"], third).json()["results"][0]["clip_id"]
     r = run_modb(dsn, "annotate", str(clip), "--segment", "step:2-10", "--segment", "turn:8-12")
     assert r.returncode == 0, r.stderr
     assert "step:2-10" in r.stdout and "turn:8-12" in r.stdout
