@@ -698,6 +698,8 @@ candidates_query(bool stored, bool annotated)
 	const char *filter = annotated
 		? " AND modb.annotated(c.clip_id, c.version, c.first_frame, c.n_frames, $3::text[])" : "";
 
+	if (kept[stored][annotated] != NULL)	/* planned: no query text to make again */
+		return kept[stored][annotated];
 	if (stored)
 		return modb_kept_plan(&kept[1][annotated],
 							  psprintf("SELECT " CANDIDATE_COLUMNS ", ce.cost_to_go"
