@@ -13,7 +13,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from modb.editing.annotations import AnnotationError, checked
+from modb.editing.annotations import AnnotationError, checked, checked_tags
 
 from .errors import MotionFileError
 
@@ -63,11 +63,9 @@ def file_meta(motion_file: Path, n_frames: int) -> dict[str, Any]:
             if "annotations" in given:
                 segments = checked(given["annotations"], n_frames)
                 meta["annotations"] = [s.as_json() for s in segments]
+            extra = checked_tags(given.get("tags", []))
         except AnnotationError as e:
             raise MotionFileError(str(side), None, str(e)) from None
-        extra = given.get("tags", [])
-        if not (isinstance(extra, list) and all(isinstance(t, str) for t in extra)):
-            raise MotionFileError(str(side), None, "tags is a list of strings")
         tags += [t for t in extra if t not in tags]
     if tags:
         meta["tags"] = tags

@@ -44,6 +44,8 @@ def segments_of(meta: dict[str, Any]) -> list[Segment]:
 def checked(segments: list[Any], n_frames: int) -> list[Segment]:
     """Segments from JSON objects or Segment values, each checked, sorted by start; the error names
     the segment (its index in the list given) and what is wrong."""
+    if not isinstance(segments, list):
+        raise AnnotationError("annotations is a list of {name, start, end} segments")
     out = []
     for i, seg in enumerate(segments):
         if isinstance(seg, Segment):
@@ -67,6 +69,13 @@ def checked(segments: list[Any], n_frames: int) -> list[Segment]:
             )
         out.append(Segment(start, end, name))
     return sorted(out)
+
+
+def checked_tags(tags: Any) -> list[str]:
+    """Tags: a list of strings."""
+    if not (isinstance(tags, list) and all(isinstance(t, str) for t in tags)):
+        raise AnnotationError("tags is a list of strings")
+    return tags
 
 
 def with_segments(meta: dict[str, Any], segments: list[Segment]) -> dict[str, Any]:

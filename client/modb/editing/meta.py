@@ -13,7 +13,7 @@ from typing import Any
 import psycopg
 from psycopg.types.json import Jsonb
 
-from .annotations import AnnotationError, checked
+from .annotations import AnnotationError, checked, checked_tags
 
 MAX_META_BYTES = 1 << 20  # a version's meta as JSON: annotations and tags, not data
 
@@ -86,13 +86,9 @@ def write_meta(
         if if_match is not None and if_match != current.etag:
             raise StaleMeta(current)
         if "annotations" in meta:
-            if not isinstance(meta["annotations"], list):
-                raise AnnotationError("annotations is a list of {name, start, end} segments")
             checked(meta["annotations"], current.n_frames)
-        if "tags" in meta and not (
-            isinstance(meta["tags"], list) and all(isinstance(t, str) for t in meta["tags"])
-        ):
-            raise AnnotationError("tags is a list of strings")
+        if "tags" in meta:
+            checked_tags(meta["tags"])
         (stored,) = conn.execute(
             "UPDATE modb.clip_versions SET meta = %s WHERE clip_id = %s AND version = %s "
             "RETURNING meta",

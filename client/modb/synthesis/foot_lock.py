@@ -31,7 +31,7 @@ from modb.motion import Motion
 from modb_kernel import kinematics, quaternion
 
 from .inertialize import HALFLIFE_SECONDS, decay
-from .quality import CONTACT_HEIGHT_M
+from .quality import near_lowest
 
 UNLOCK_DISTANCE = 0.1  # metres: a held foot this far from the strip's foot is let go
 # Of the leg's length: a hold that needs a straighter leg is let go (a straight knee pops).
@@ -70,12 +70,6 @@ def lock_feet(motion: Motion) -> Motion:
     return replace(motion, rotations=rotations)
 
 
-def standing(height: np.ndarray) -> np.ndarray:
-    """Frames in which a joint is down: within CONTACT_HEIGHT_M of its lowest (its 2nd
-    percentile). (quality.foot_skating also asks it to be slow: a sliding foot is what to hold.)"""
-    return height <= np.percentile(height, 2) + CONTACT_HEIGHT_M
-
-
 def held_offsets(
     ankle: np.ndarray, toe: np.ndarray, fps: float, hip: np.ndarray, reach: np.ndarray
 ) -> np.ndarray:
@@ -85,7 +79,9 @@ def held_offsets(
     hip. A hold that would go further keeps its offset until the foot lifts (the foot moves as
     the strip's, sliding no more than it); one that would straighten the leg eases back at once;
     a lifted foot's offset decays."""
-    pivots = np.where(standing(ankle[:, 1]), 0, np.where(standing(toe[:, 1]), 1, -1))
+    # Down: near its lowest, whatever its speed (quality.foot_skating also asks it to be still
+    # vertically; a sliding foot is what to hold).
+    pivots = np.where(near_lowest(ankle[:, 1]), 0, np.where(near_lowest(toe[:, 1]), 1, -1))
     joints = (ankle, toe)
     offsets = np.zeros_like(ankle)
     offset = np.zeros(3)

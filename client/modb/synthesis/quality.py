@@ -73,6 +73,12 @@ def pose_jumps(motion: Motion) -> np.ndarray:
     return np.linalg.norm(np.diff(pose, axis=0), axis=-1).max(axis=1)
 
 
+def near_lowest(height: np.ndarray) -> np.ndarray:
+    """Per frame (and joint, along the last axis): within CONTACT_HEIGHT_M of the joint's lowest
+    (its 2nd percentile over the frames)."""
+    return height <= np.percentile(height, 2, axis=0) + CONTACT_HEIGHT_M
+
+
 def foot_skating(motion: Motion) -> tuple[float, int]:
     """The mean horizontal speed (m/s) of the ankles and toes while they stand (within
     CONTACT_HEIGHT_M of their lowest, rising or sinking slower than CONTACT_SPEED_M_S), and in how
@@ -82,7 +88,7 @@ def foot_skating(motion: Motion) -> tuple[float, int]:
     if len(positions) < 3:
         return 0.0, 0
     height = positions[..., 1]
-    low = height <= np.percentile(height, 2, axis=0) + CONTACT_HEIGHT_M
+    low = near_lowest(height)
     ground = positions[..., [0, 2]]
     speed = np.linalg.norm(ground[2:] - ground[:-2], axis=-1) * motion.fps / 2  # central
     rising = np.abs(height[2:] - height[:-2]) * motion.fps / 2
