@@ -225,7 +225,9 @@ def test_meta_writes_need_the_etag_and_a_stale_one_is_409(rest):
         assert r.status_code == 400, bad
     assert client.get(url).headers["etag"] == first.headers["etag"]
     assert client.get(f"/api/clips/{clip}/versions/99/meta").status_code == 404
-    # listing by tag and by annotation name finds it, and only what matches
+    # listing by tag and by annotation name finds it, and only what matches (another clip stored)
+    upload(client, tokens["editor"], walk_files(3)[2:])
+    assert len(client.get("/api/clips").json()) > 1
     tagged = [c["id"] for c in client.get("/api/clips", params={"tag": HOSTILE}).json()]
     named = [c["id"] for c in client.get("/api/clips", params={"annotation": "walk"}).json()]
     assert tagged == [clip] and clip in named
