@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import psycopg
 
@@ -50,7 +52,31 @@ def resolve_clip(conn: psycopg.Connection, spec: str) -> int:
 
 
 def read_motion(conn: psycopg.Connection, clip_id: int, version: int | None = None) -> Motion:
-    """The given version of a clip (the newest when None) as a Motion (float64 arrays)."""
+    """The given version of a clip (the newest when None) as a Motion (float64 arrays); for a clip
+    cut at an annotated segment (modb.clip_segments), its frames of the source version."""
+    (has_segments,) = conn.execute(  # modb 0.14.0 and later
+        "SELECT to_regclass('modb.clip_segments') IS NOT NULL"
+    ).fetchone()
+    segment = (
+        has_segments
+        and conn.execute(
+            "SELECT c.name, s.source_clip, s.source_version, s.first_frame, s.last_frame, "
+            "s.annotation "
+            "FROM modb.clip_segments s JOIN modb.clips c ON c.id = s.clip_id WHERE s.clip_id = %s",
+            [clip_id],
+        ).fetchone()
+    )
+    if segment and version is None:
+        name, source_clip, source_version, first, last, annotation = segment
+        whole = read_motion(conn, source_clip, source_version)
+        cut_from = {"clip_id": source_clip, "version": source_version, "annotation": annotation}
+        return dataclasses.replace(
+            whole,
+            rotations=whole.rotations[first : last + 1],
+            translations=whole.translations[first : last + 1],
+            name=name,
+            meta={"cut_from": cut_from, "first_frame": first, "last_frame": last},
+        )
     with conn.cursor(binary=True) as cur:
         row = cur.execute(
             "SELECT c.name, v.version, v.fps, v.rotations, v.translations, v.source_file, "

@@ -1,14 +1,14 @@
 -- The extension installs, drops and re-installs cleanly; objects, comments and declarations as documented.
 BEGIN;
 CREATE EXTENSION IF NOT EXISTS pgtap;
-SELECT plan(26);
+SELECT plan(27);
 
 SELECT has_extension('modb');
 SELECT has_schema('modb');
 SELECT tables_are('modb', ARRAY['collections', 'skeletons', 'clips', 'clip_versions', 'models', 'graphs',
                                'snippet_sources', 'terminators', 'snippets', 'match_profiles', 'graph_snippets',
                                'graph_transitions', 'graph_names', 'snippet_blocks', 'generations', 'access_tokens',
-                               'audit_log']);
+                               'audit_log', 'clip_segments']);
 SELECT views_are('modb', ARRAY['current_clips']);
 SELECT functions_are('modb', ARRAY[
     'skeleton_identity', 'unit_quaternions_ok', 'finite_ok', 'skeleton_joint_names', 'joint_map_ok', 'mirror_pairs_ok',
@@ -23,7 +23,9 @@ SELECT functions_are('modb', ARRAY[
     'add_snippet_blocks', 'next_generation', 'snippets_inserted', 'snippets_updated', 'pack_snippet_blocks',
     'synthesis_chain', 'graph_is_current', 'snippet_pools', 'default_graph', 'rest_speed', 'walk_speed', 'end_speed',
     'select_snippet_ending', 'select_synthesis_step', 'snippets_ending_within', 'can_rest', 'token_grant',
-    'audit_log_refuse', 'annotation_spec', 'annotated']);
+    'audit_log_refuse', 'annotation_spec', 'annotated', 'collections_before_update', '_collection_id',
+    'rename_collection', 'move_collection', 'delete_collection', 'delete_clip', 'delete_clip_version',
+    'restore_clip_version', 'clip_segments_after_delete', 'clip_versions_not_segment', 'split_by_annotation']);
 SELECT is((SELECT o.opcname::text FROM pg_index i JOIN pg_opclass o ON o.oid = i.indclass[0]
             WHERE i.indexrelid = 'modb.snippets_begin_features_idx'::regclass), 'cube_feature_ops',
           'the feature index uses modb''s operator class');
@@ -44,10 +46,18 @@ SELECT ok(modb.unit_quaternions_ok('{{{1,0,0,0}}}') AND modb.finite_ok('{1,2}'),
           'PL/Python functions run inside parallel queries');
 RESET force_parallel_mode;
 SELECT is((SELECT count(*) FROM pg_proc WHERE pronamespace = 'modb'::regnamespace AND prosecdef
-             AND proname <> 'token_grant'), 0::bigint, 'no SECURITY DEFINER function but token_grant');
+             AND proname NOT IN ('token_grant', 'delete_collection', 'delete_clip', 'delete_clip_version')), 0::bigint,
+    'no SECURITY DEFINER function but token_grant and the deleting functions');
 SELECT ok((SELECT l.lanname = 'sql' AND p.proconfig = ARRAY['search_path=pg_catalog, pg_temp']
              FROM pg_proc p JOIN pg_language l ON l.oid = p.prolang WHERE p.oid = 'modb.token_grant(bytea)'::regprocedure),
           'token_grant (SECURITY DEFINER: it answers for one hash, so no role reads the tokens) is SQL with a fixed search_path');
+SELECT is((SELECT array_agg(p.proname::text ORDER BY p.proname) FROM pg_proc p JOIN pg_language l ON l.oid = p.prolang
+            WHERE p.pronamespace = 'modb'::regnamespace AND p.prosecdef AND p.proname LIKE 'delete%'
+              AND l.lanname = 'plpgsql' AND p.proconfig = ARRAY['search_path=pg_catalog, pg_temp']
+              AND has_function_privilege('modb_loader', p.oid, 'EXECUTE')
+              AND NOT has_function_privilege('modb_reader', p.oid, 'EXECUTE')),
+          ARRAY['delete_clip', 'delete_clip_version', 'delete_collection'],
+          'the deleting functions (SECURITY DEFINER: no table-level DELETE for the loader) are PL/pgSQL with a fixed search_path, for modb_loader only');
 SELECT volatility_is('modb', 'unit_quaternions_ok', ARRAY['real[]', 'double precision'], 'immutable');
 SELECT volatility_is('modb', 'world_positions', ARRAY['bigint', 'integer'], 'stable');
 SELECT is_strict('modb', 'unit_quaternions_ok', ARRAY['real[]', 'double precision']);
@@ -56,7 +66,7 @@ SELECT set_eq(
     $$SELECT c::regclass::text FROM pg_extension, unnest(extconfig) AS c WHERE extname = 'modb'$$,
     ARRAY['modb.collections', 'modb.collections_id_seq', 'modb.skeletons', 'modb.skeletons_id_seq',
           'modb.clips', 'modb.clips_id_seq', 'modb.clip_versions', 'modb.models', 'modb.models_id_seq',
-          'modb.graphs', 'modb.graphs_id_seq', 'modb.snippet_sources', 'modb.terminators', 'modb.terminators_id_seq',
+          'modb.graphs', 'modb.graphs_id_seq', 'modb.clip_segments', 'modb.snippet_sources', 'modb.terminators', 'modb.terminators_id_seq',
           'modb.snippets', 'modb.snippets_id_seq', 'modb.match_profiles', 'modb.graph_snippets', 'modb.graph_transitions',
           'modb.graph_names', 'modb.access_tokens', 'modb.access_tokens_id_seq', 'modb.audit_log',
           'modb.audit_log_id_seq'],

@@ -12,11 +12,25 @@ import psycopg
 
 from modb.version import __version__
 
-from . import annotate, bench, db, demo, export, graph, load, serve, synth, token
+from . import annotate, bench, catalog, db, demo, export, graph, load, serve, split, synth, token
 from . import list as list_clips
 
 # In `modb --help`'s order.
-COMMANDS = (load, export, synth, list_clips, annotate, demo, bench, graph, serve, token, db)
+COMMANDS = (
+    load,
+    export,
+    synth,
+    list_clips,
+    annotate,
+    split,
+    catalog,
+    demo,
+    bench,
+    graph,
+    serve,
+    token,
+    db,
+)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -18,6 +18,12 @@ from .annotations import AnnotationError, checked, checked_tags
 MAX_META_BYTES = 1 << 20  # a version's meta as JSON: annotations and tags, not data
 
 
+def entity_tag(document: Any) -> str:
+    """A strong entity tag of a JSON document's content (jsonb keeps no key order or spacing)."""
+    text = json.dumps(document, sort_keys=True, separators=(",", ":"), ensure_ascii=False)
+    return '"' + hashlib.sha256(text.encode()).hexdigest()[:32] + '"'
+
+
 class MetaNotFound(LookupError):
     pass
 
@@ -42,9 +48,7 @@ class VersionMeta:
 
     @property
     def etag(self) -> str:
-        """A strong entity tag of the meta's content (jsonb keeps no key order or spacing)."""
-        text = json.dumps(self.meta, sort_keys=True, separators=(",", ":"), ensure_ascii=False)
-        return '"' + hashlib.sha256(text.encode()).hexdigest()[:32] + '"'
+        return entity_tag(self.meta)
 
 
 _READ = (

@@ -13,3 +13,6 @@ COMMENT ON TYPE modb.match_plan IS
 -- modb.synthesize takes annotations (a new last parameter: the old signature goes, or calls would be ambiguous)
 DROP FUNCTION modb.synthesize(float8[], int, bigint, float8[], float8, text, text, float8, float8);
 --@include 89_synthesize.sql
+-- Editing the catalogue (collections, clips, versions) and clips cut at annotated segments
+--@include 95_catalog_edits.sql
+--@include 96_clip_segments.sql
