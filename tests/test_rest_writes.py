@@ -271,12 +271,20 @@ def test_openapi_names_every_route(rest):
     assert described["openapi"].startswith("3.1")
     from modb.web.app import HEAVY_VIEWS, VIEWS
 
-    paths = set(described["paths"])
-    routes = {p for p in (*VIEWS, *HEAVY_VIEWS)} | {
-        "/api/uploads",
-        "/api/clips/{clip_id}/versions/{version}/meta",
+    from modb.web.catalog_writes import routes as write_routes
+
+    described_ops = {
+        (path.replace("{path}", "{path:path}"), method.upper())
+        for path, ops in described["paths"].items()
+        for method in ops
     }
-    assert routes <= paths, routes - paths
+    routes = {(p, "GET") for p in (*VIEWS, *HEAVY_VIEWS)} | {
+        ("/api/uploads", "POST"),
+        ("/api/clips/{clip_id}/versions/{version}/meta", "GET"),
+        ("/api/clips/{clip_id}/versions/{version}/meta", "PUT"),
+    }
+    routes |= {(r.path, m) for r in write_routes(None, None, None) for m in r.methods - {"HEAD"}}
+    assert routes <= described_ops, routes - described_ops
 
 
 def test_modb_annotate_adds_lists_and_removes_segments(rest):

@@ -42,6 +42,10 @@ def _snippets(conn: psycopg.Connection, clip_id: int) -> int:
     ).fetchone()[0]
 
 
+def find_collection(conn: psycopg.Connection, path: str) -> int | None:
+    return conn.execute("SELECT modb.find_collection(%s)", [path]).fetchone()[0]
+
+
 def create_collection(conn: psycopg.Connection, path: str) -> tuple[int, str]:
     (found,) = conn.execute("SELECT modb.ensure_collection(%s)", [path]).fetchone()
     return found, conn.execute("SELECT modb.collection_path(%s)", [found]).fetchone()[0]

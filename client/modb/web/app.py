@@ -32,7 +32,7 @@ from starlette.staticfiles import StaticFiles
 
 from modb.database import pgarray
 from modb.database.connection import connect
-from . import api, downloads, openapi
+from . import api, catalog_writes, downloads, openapi
 from .avatar_socket import avatar_endpoint
 from .auth import Tokens
 from .guard import HostOriginGuard, allowed_hosts
@@ -321,6 +321,7 @@ def create_app(
             methods=["GET", "PUT"],
         ),
         Route("/api/uploads", upload_endpoint(tokens, writer, max_upload_mb), methods=["POST"]),
+        *catalog_writes.routes(pool, tokens, writer),
         Route("/api/openapi.json", lambda request: JSONResponse(openapi.schema())),
         Route("/avatar", lambda request: FileResponse(STATIC / "avatar.html")),
         WebSocketRoute("/ws/avatar", avatar_endpoint(conninfo, pool)),

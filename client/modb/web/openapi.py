@@ -79,6 +79,130 @@ def _read(summary: str, *params: dict[str, Any], media: str = "application/json"
     return {"get": op}
 
 
+def _write(
+    summary: str,
+    *params: dict[str, Any],
+    body: dict | None = None,
+    ok: str = "done",
+    errors: tuple[int, ...] = (400, 401, 403, 404, 409, 503),
+    about: str = "",
+) -> dict:
+    op: dict[str, Any] = {
+        "summary": summary,
+        "description": f"{WRITE} {about}".strip(),
+        "security": [{"token": []}],
+        "parameters": list(params),
+        "responses": _responses(ok, *errors),
+    }
+    if body is not None:
+        op["requestBody"] = {"required": True, "content": {"application/json": {"schema": body}}}
+    return op
+
+
+def _object(required: list[str], **properties: dict[str, Any]) -> dict[str, Any]:
+    return {"type": "object", "required": required, "properties": properties}
+
+
+TEXT = {"type": "string", "minLength": 1, "maxLength": 200}
+ROW = {"name": TEXT, "kind": TEXT, "data": {}, "meta": {"type": "object"},
+       "skeleton_id": {"type": ["integer", "null"]}}  # fmt: skip
+IF_MATCH = {"name": "If-Match", "in": "header", "required": True, "schema": {"type": "string"}}
+COLLECTION_PATH = {"name": "path", "in": "path", "required": True, "schema": {"type": "string"},
+                   "description": 'a path like "bandai/walks", URL-encoded'}  # fmt: skip
+
+
+def catalog_writes() -> dict[str, dict[str, Any]]:
+    """The catalogue writes (catalog_writes.py), by path and method."""
+    version_params = [_id("clip_id", "clip id"), _id("version", "clip version")]
+    out: dict[str, dict[str, Any]] = {
+        "/api/collections": {
+            "post": _write(
+                "create a collection (and the levels above it)",
+                body=_object(["path"], path=TEXT),
+                ok="its id and path (201 when new)",
+            )
+        },
+        "/api/collections/{path}": {
+            "patch": _write(
+                "rename and/or move a collection",
+                COLLECTION_PATH,
+                body=_object([], name=TEXT, parent={"type": ["string", "null"]}),
+                ok="its new path",
+                about='"parent": "" moves it to the top.',
+            ),
+            "delete": _write(
+                "delete a collection and those below it",
+                COLLECTION_PATH,
+                _query("with_clips", "delete the clips in it too", {"type": "boolean"}),
+                ok="how many clips went",
+                about="Without with_clips it must hold no clips (409).",
+            ),
+        },
+        "/api/clips/{ident}": {
+            "delete": _write(
+                "delete a clip: every version, its snippets (graphs over them become stale)",
+                CLIP,
+                ok="how many versions went",
+            )
+        },
+        "/api/clips/{clip_id}/versions/{version}": {
+            "delete": _write(
+                "delete one version (not the only one); the one before becomes current and is cut",
+                *version_params,
+                ok="the version now current and its snippets",
+            )
+        },
+        "/api/clips/{clip_id}/versions/{version}/current": {
+            "post": _write(
+                "make an older version current again (a new version with its motion and meta)",
+                *version_params,
+                ok="the new version's number and snippets",
+            )
+        },
+        "/api/skeletons/{skeleton_id}/maps": {
+            "get": {
+                "summary": "a skeleton's joint map and mirror pairs, and their ETag",
+                "description": READ,
+                "parameters": [_id("skeleton_id", "skeleton id")],
+                "responses": _responses("the maps; the ETag header names them", 401, 404),
+            },
+            "put": _write(
+                "replace a skeleton's joint map and mirror pairs",
+                _id("skeleton_id", "skeleton id"),
+                IF_MATCH,
+                body=_object(
+                    ["joint_map", "mirror_pairs"],
+                    joint_map={"type": "object"},
+                    mirror_pairs={"type": "array"},
+                ),
+                ok="the stored maps, and how many clips were cut again",
+                errors=(400, 401, 403, 404, 409, 428, 503),
+                about="Every clip on the skeleton is cut into snippets again.",
+            ),
+        },
+    }
+    for table in ("models", "graphs"):
+        one = _id("ident", f"{table[:-1]} id")
+        note = " (not transition graphs: `modb graph build`)" if table == "graphs" else ""
+        out[f"/api/{table}"] = {
+            "post": _write(
+                f"create a {table[:-1]} row{note}",
+                body=_object(["name", "kind", "data"], **ROW),
+                ok="its id (201)",
+            )
+        }
+        out[f"/api/{table}/{{ident}}"] = {
+            "put": _write(
+                f"replace fields of a {table[:-1]} row{note}",
+                one,
+                body=_object([], **ROW),
+                ok="the fields replaced",
+            ),
+            "delete": _write(f"delete a {table[:-1]} row", one, ok="its id"),
+        }
+    return out
+
+
 def schema() -> dict[str, Any]:
     version_params = [_id("clip_id", "clip id"), _id("version", "clip version")]
     paths: dict[str, Any] = {
@@ -185,6 +309,8 @@ def schema() -> dict[str, Any]:
             "get": {"summary": "this description", "responses": _responses("OpenAPI 3.1")}
         },
     }
+    for path, operations in catalog_writes().items():
+        paths.setdefault(path, {}).update(operations)
     return {
         "openapi": "3.1.0",
         "info": {
