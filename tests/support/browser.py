@@ -47,7 +47,7 @@ def serving(dsn: str, *options: str):
     address = f"127.0.0.1:{port}"
     for _ in range(150):
         try:
-            if get(address, "/api/collections")[0] == 200:
+            if get(address, "/api/collections")[0] in (200, 401):  # 401: --require-token
                 break
         except OSError:
             if proc.poll() is not None:

@@ -324,7 +324,7 @@ def create_app(
         *catalog_writes.routes(pool, tokens, writer),
         Route("/api/openapi.json", lambda request: JSONResponse(openapi.schema())),
         Route("/avatar", lambda request: FileResponse(STATIC / "avatar.html")),
-        WebSocketRoute("/ws/avatar", avatar_endpoint(conninfo, pool)),
+        WebSocketRoute("/ws/avatar", avatar_endpoint(conninfo, pool, tokens)),
         Mount("/static", StaticFiles(directory=STATIC)),
         Mount("/vendor/three", StaticFiles(directory=THREE)),
     ]

@@ -41,7 +41,10 @@ class Tokens:
         self.require_for_reads = require_for_reads
 
     def _grant(self, request: Request) -> Grant:
-        token = presented_token(request)
+        return self.check(presented_token(request))
+
+    def check(self, token: str | None) -> Grant:
+        """The grant of a live token, else 401 (none, unknown or revoked)."""
         if token is None:
             raise Unauthorized(
                 "this needs an access token: send 'Authorization: Bearer <token>' "

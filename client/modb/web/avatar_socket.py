@@ -18,10 +18,12 @@ from typing import Any
 
 from psycopg_pool import ConnectionPool
 from starlette.concurrency import run_in_threadpool
+from starlette.exceptions import HTTPException
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from modb.synthesis.avatar import Settings
 from . import api
+from .auth import Tokens
 from .avatar_session import AvatarSession
 from .avatar_settings import check_settings
 
@@ -30,6 +32,8 @@ MAX_AVATARS = 8  # open avatar sockets (walking or not) per server
 SEND_TIMEOUT_S = 30  # a page that reads nothing for this long stops its avatar
 MAX_MESSAGE_BYTES = 64 * 1024  # the page's messages (goals, settings) are well under 1 KiB
 MAX_MESSAGE_DEPTH = 8  # arrays and objects within each other; the protocol's messages need 2
+AUTH_WAIT_S = 10  # with --require-token: how long the page has to send its token
+CLOSE_UNAUTHORIZED = 4401  # a close code of the application's range (4000-4999): 401's meaning
 _SPECIAL = re.compile(r'[\\"\[\]{}]')  # what the depth scan looks at: quotes, escapes, brackets
 
 
@@ -95,7 +99,28 @@ def _defaults() -> Settings:
     return Settings(lead_time=0.1)
 
 
-def avatar_endpoint(conninfo: str, pool: ConnectionPool) -> Callable:
+async def _authorized(websocket: WebSocket, tokens: Tokens) -> bool:
+    """With --require-token, the page's first message is {"type": "auth", "token": ...} (a browser
+    cannot set headers on a WebSocket, and a token never goes in a URL); else the socket closes."""
+    if not tokens.require_for_reads:
+        return True
+    try:
+        received = await asyncio.wait_for(websocket.receive(), AUTH_WAIT_S)
+        message = parse_message(received)
+        token = message.get("token") if isinstance(message, dict) else None
+        if not (isinstance(message, dict) and message.get("type") == "auth"):
+            raise MessageRefused('send {"type": "auth", "token": ...} first')
+        await run_in_threadpool(tokens.check, token if isinstance(token, str) else None)
+        return True
+    except (asyncio.TimeoutError, MessageRefused, HTTPException, KeyError) as e:
+        why = getattr(e, "detail", None) or str(e) or "no token sent in time"
+        await websocket.close(
+            code=CLOSE_UNAUTHORIZED, reason=f"this server needs a token: {why}"[:120]
+        )
+        return False
+
+
+def avatar_endpoint(conninfo: str, pool: ConnectionPool, tokens: Tokens) -> Callable:
     slots = threading.BoundedSemaphore(MAX_AVATARS)
 
     def check(settings: Settings) -> None:
@@ -108,6 +133,8 @@ def avatar_endpoint(conninfo: str, pool: ConnectionPool) -> Callable:
 
     async def endpoint(websocket: WebSocket) -> None:
         await websocket.accept()
+        if not await _authorized(websocket, tokens):
+            return
         if not slots.acquire(blocking=False):
             await websocket.close(
                 code=1013, reason=f"{MAX_AVATARS} avatars are walking already: try again later"
@@ -140,6 +167,8 @@ def avatar_endpoint(conninfo: str, pool: ConnectionPool) -> Callable:
                 except MessageRefused as e:
                     await websocket.send_text(json.dumps({"type": "refused", "message": str(e)}))
                     continue
+                if isinstance(message, dict) and message.get("type") == "auth":
+                    continue  # the page sends its token whether or not the server asks for one
                 try:
                     await run_in_threadpool(session.handle, message)
                 except Exception:  # a bug: the server's log has it; the page may go on

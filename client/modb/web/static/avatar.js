@@ -5,6 +5,7 @@ import { loadCharacter, saveFile } from './character.js';
 import { Course } from './course.js';
 import { Rig } from './rig.js';
 import { Stage } from './stage.js';
+import { token } from './token.js';
 import { Tuning } from './tuning.js';
 
 const $ = (id) => document.getElementById(id);
@@ -28,6 +29,8 @@ function status(text, isError = false) {
 
 const socket = new WebSocket(`${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/ws/avatar`);
 const send = (message) => socket.send(JSON.stringify(message));
+// The tab's token (token.js), first thing: a server started with --require-token needs it, others ignore it.
+socket.addEventListener('open', () => { if (token.get()) send({ type: 'auth', token: token.get() }); });
 const tuning = new Tuning($('tuning'), send);
 let resolveReady;
 const ready = new Promise((resolve) => { resolveReady = resolve; });

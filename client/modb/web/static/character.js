@@ -3,6 +3,7 @@
 // frames the rig is posed from. Its bones are the glTF's joints in skeleton order.
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 import { clone } from 'three/addons/utils/SkeletonUtils.js';
+import { token } from './token.js';
 
 const loaded = new Map(); // skeleton id -> Promise of the glTF (each skeleton's file is fetched once)
 
@@ -25,7 +26,7 @@ export class Character {
 }
 
 export async function loadCharacter(skeletonId, translated) {
-  if (!loaded.has(skeletonId)) loaded.set(skeletonId, new GLTFLoader().loadAsync(`/api/skeletons/${skeletonId}/character.glb`));
+  if (!loaded.has(skeletonId)) loaded.set(skeletonId, new GLTFLoader().setRequestHeader(token.headers()).loadAsync(`/api/skeletons/${skeletonId}/character.glb`));
   const gltf = await loaded.get(skeletonId);
   // a fresh copy of the scene each time (a clip and the next of the same skeleton do not share bones)
   return new Character({ scene: clone(gltf.scene) }, translated);

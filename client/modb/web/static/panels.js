@@ -1,7 +1,8 @@
 // The side panels: the collection hierarchy, a collection's clips, and the skeleton's joint tree.
+import { token } from './token.js';
 
 export async function getJSON(url) {
-  const response = await fetch(url);
+  const response = await fetch(url, { headers: token.headers() }); // a server with --require-token needs it
   const body = await response.json();
   if (!response.ok) throw new Error(body.error || `${url}: HTTP ${response.status}`);
   return body;

@@ -6,7 +6,7 @@ import { Rig } from './rig.js';
 import { Stage } from './stage.js';
 import { getJSON, markSelected, showClips, showCollections, showSkeleton } from './panels.js';
 import { AnnotationEditor } from './annotations.js';
-import { tokenPanel } from './token.js';
+import { token, tokenPanel } from './token.js';
 import { uploadPanel } from './uploads.js';
 
 const $ = (id) => document.getElementById(id);
@@ -187,6 +187,21 @@ async function start() {
 }
 
 $('show-skeleton').addEventListener('change', () => stage.showSkeleton($('show-skeleton').checked || !state.character));
+// A link cannot carry the Authorization header: with a token set, a download is fetched with it and saved.
+for (const link of [$('download-bvh'), $('download-glb')]) {
+  link.addEventListener('click', async (e) => {
+    if (!token.get()) return;
+    e.preventDefault();
+    const response = await fetch(link.href, { headers: token.headers() });
+    if (!response.ok) { status(`download: HTTP ${response.status}`, true); return; }
+    const named = /filename="([^"]+)"/.exec(response.headers.get('Content-Disposition') || '');
+    const saved = document.createElement('a');
+    saved.href = URL.createObjectURL(await response.blob());
+    saved.download = named ? named[1] : 'clip';
+    saved.click();
+    URL.revokeObjectURL(saved.href);
+  });
+}
 
 tokenPanel($('token'), $('token-use'), $('token-forget'), $('token-state'));
 uploadPanel($('drop'), $('upload-files'), $('upload-collection'), $('uploads'), showUploaded);
