@@ -69,13 +69,14 @@ def read_motion(conn: psycopg.Connection, clip_id: int, version: int | None = No
     if segment and version is None:
         name, source_clip, source_version, first, last, annotation = segment
         whole = read_motion(conn, source_clip, source_version)
-        cut_from = {"clip_id": source_clip, "version": source_version, "annotation": annotation}
+        cut_from = {"clip_id": source_clip, "version": source_version, "annotation": annotation,
+                    "first_frame": first, "last_frame": last}  # fmt: skip
         return dataclasses.replace(
             whole,
             rotations=whole.rotations[first : last + 1],
             translations=whole.translations[first : last + 1],
             name=name,
-            meta={"cut_from": cut_from, "first_frame": first, "last_frame": last},
+            meta={**whole.meta, "cut_from": cut_from},
         )
     with conn.cursor(binary=True) as cur:
         row = cur.execute(
