@@ -163,6 +163,18 @@ def test_the_editor_adds_moves_cuts_merges_renames_deletes_and_saves(site, brows
             "SELECT token_name, action FROM modb.audit_log ORDER BY id DESC LIMIT 1"
         ).fetchone()
     assert meta["tags"] == ["walk", "web"] and audit == ("browser", "meta")
+    # the selection, in SQL, keeps to the segment just saved: every answer lies within frames 20-50
+    with psycopg.connect(dsn) as conn:
+        conn.execute("SET modb.annotations = 'stride'")
+        (prev,) = conn.execute(
+            "SELECT id FROM modb.snippets WHERE clip_id = %s ORDER BY first_frame LIMIT 1", [clip]
+        ).fetchone()
+        chosen = conn.execute(
+            "SELECT clip_id, first_frame, n_frames "
+            "FROM modb.select_next_snippets(%s, ARRAY[1.0, 0.0, 2.0], 8)",
+            [prev],
+        ).fetchall()
+    assert chosen and all(c == clip and f >= 20 and f + n - 1 <= 50 for c, f, n in chosen), chosen
     # delete the second, save: the database holds one
     browser.execute_script("window.modbViewer.editor.select(1)")
     at(0, Keys.DELETE, "s")
