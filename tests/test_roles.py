@@ -106,6 +106,25 @@ def test_every_loader_command_works_as_a_loader_login(cluster, fresh_db, db, tmp
         ).fetchone() == (0, 0)
         (created_by,) = db.execute("SELECT DISTINCT created_by FROM modb.clip_versions").fetchone()
         assert created_by == "test_loader_cli"
+        # the catalogue edits, as the loader: version 1 current again (3), then gone again; a
+        # segment cut; the collection renamed; a clip deleted
+        for args in (
+            ["clip", "restore", f"walks/{walk.stem}", "--version", "1"],
+            ["clip", "delete", f"walks/{walk.stem}", "--version", "3"],
+            ["annotate", f"walks/{walk.stem}", "--segment", "step:0-40"],
+            ["split", f"walks/{walk.stem}", "--by-annotation"],
+            ["collection", "rename", "walks", "strolls"],
+            ["clip", "delete", f"strolls/{other.stem}"],
+        ):
+            r = run_modb(as_loader, *args)
+            assert r.returncode == 0 and "warning" not in r.stderr, (args, r.stderr)
+        kept = db.execute(
+            "SELECT c.name, modb.collection_path(c.collection_id), array_agg(DISTINCT v.version), "
+            "array_agg(DISTINCT s.version) FROM modb.clips c JOIN modb.clip_versions v "
+            "ON v.clip_id = c.id LEFT JOIN modb.snippets s ON s.clip_id = c.id GROUP BY 1, 2"
+        ).fetchall()
+        assert kept == [(walk.stem, "strolls", [1, 2], [2])]
+        assert db.execute("SELECT count(*) FROM modb.clip_segments").fetchone()[0] == 1
     finally:
         db.execute("DROP OWNED BY test_loader_cli")
         db.execute("DROP ROLE test_loader_cli")
@@ -158,6 +177,9 @@ def test_loader_gets_only_what_loading_needs(cluster, fresh_db, db):
                 "VALUES ('x', '{}', true)",
                 "DELETE FROM modb.snippets",
                 "UPDATE modb.snippets SET net_heading = 0",
+                "DELETE FROM modb.clip_versions",  # modb.delete_clip_version deletes one
+                "DELETE FROM modb.clips",
+                "DELETE FROM modb.collections",
             ):
                 with pytest.raises(psycopg.errors.InsufficientPrivilege), conn.transaction():
                     conn.execute(statement)
@@ -173,6 +195,17 @@ def test_loader_gets_only_what_loading_needs(cluster, fresh_db, db):
         assert db.execute(
             "SELECT settings->>'position_threshold' FROM modb.match_profiles WHERE name = 'mine'"
         ).fetchone() == ("0.5",)
+        as_reader = _login(db, fresh_db, "test_reader_limits", "modb_reader")
+        with psycopg.connect(as_reader) as conn:
+            for statement in (
+                "SELECT modb.delete_clip(1)",
+                "SELECT modb.delete_collection('x')",
+                "SELECT modb.restore_clip_version(1, 1)",
+                "SELECT modb.rename_collection('x', 'y')",
+            ):
+                with pytest.raises(psycopg.errors.InsufficientPrivilege), conn.transaction():
+                    conn.execute(statement)
     finally:
-        db.execute("DROP OWNED BY test_loader_limits")
-        db.execute("DROP ROLE test_loader_limits")
+        for role in ("test_loader_limits", "test_reader_limits"):
+            db.execute(f"DROP OWNED BY {role}")
+            db.execute(f"DROP ROLE IF EXISTS {role}")
