@@ -1,0 +1,249 @@
+"""Retargeting between skeletons, after the DFKI motion database's Algorithm 1: each mapped joint
+has a coordinate system of two axes, a twist axis (toward the joint it moves: the knee for the
+hip) and a swing axis (across it); the destination joint's world rotation is the one that lays
+its axes on the source joint's axes in the source's pose, parents first. Bone directions between
+mapped joints are then the source's; lengths stay the destination's. The travel is the source
+pelvis's, scaled by the legs' length ratio, and the clip is lifted or lowered so its lowest foot
+is as high as the source's.
+
+Axes are derived automatically (joint_axes): no T-pose is needed. Plain numpy (server and
+client)."""
+
+import numpy as np
+
+from . import kinematics, quaternion
+
+# Where each standard joint's twist axis points: the first of these joints lying away from it in the
+# standing pose
+# (None: along the joint's own children, its End Site, else on from its parent).
+TWIST_TOWARD = {
+    "pelvis": ("spine", "chest", "neck"),
+    "spine": ("chest", "neck"),
+    "chest": ("neck", "head"),
+    "neck": ("head",),
+    "head": None,
+    "left_hip": ("left_knee",),
+    "left_knee": ("left_ankle",),
+    "left_ankle": ("left_toe",),
+    "left_toe": None,
+    "right_hip": ("right_knee",),
+    "right_knee": ("right_ankle",),
+    "right_ankle": ("right_toe",),
+    "right_toe": None,
+    "left_shoulder": ("left_elbow",),
+    "left_elbow": ("left_wrist",),
+    "left_wrist": None,
+    "right_shoulder": ("right_elbow",),
+    "right_elbow": ("right_wrist",),
+    "right_wrist": None,
+}
+# The swing axis: the body's left (hip to hip) for the trunk and legs, its forward for the arms
+# (which may point left in a T-pose or down in an A-pose; forward is across both), made square to
+# the twist.
+SWING_ALONG_FORWARD = {
+    "left_shoulder",
+    "left_elbow",
+    "left_wrist",
+    "right_shoulder",
+    "right_elbow",
+    "right_wrist",
+}
+MIN_BONE_M = 0.01  # a joint nearer than this to its target gives no direction
+
+
+def _unit(v):
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / np.where(n > 0, n, 1.0)
+
+
+def _children(parents, j):
+    return [k for k, p in enumerate(parents) if p == j]
+
+
+def _body_axes(positions, at):
+    """The body's left, up and forward (world, unit) in a pose: hip to hip, pelvis to neck."""
+    left = _unit(positions[at["left_hip"]] - positions[at["right_hip"]])
+    up = positions[at["neck"] if "neck" in at else at["chest"]] - positions[at["pelvis"]]
+    up = _unit(up - left * np.dot(up, left))
+    return left, up, np.cross(left, up)
+
+
+def upright(parents, offsets, names, joint_map):
+    """Whether the rest pose stands: the trunk within 30 degrees of +Y and the ankles below the hips
+    (Bandai's BVH rest pose folds every bone along +X, for one)."""
+    rest = kinematics.rest_positions(parents, offsets)
+    index = {n: i for i, n in enumerate(names)}
+    at = {s: index[j] for s, j in joint_map.items() if j in index}
+    _, up, _ = _body_axes(rest, at)
+    legs = [rest[at[f"{side}_hip"], 1] - rest[at[f"{side}_ankle"], 1] for side in ("left", "right")]
+    return bool(
+        up[1] > np.cos(np.radians(30))
+        and min(legs) > 0.5 * leg_length(parents, offsets, names, joint_map)
+    )
+
+
+def joint_axes(parents, offsets, end_sites, names, joint_map, reference=None):
+    """{standard name: {"joint", "twist", "swing"}} for every mapped standard joint, unit vectors in
+    the joint's own frame. Both come from a standing pose: the rest pose, or `reference` =
+    (rotations (joints, 4), translations (translated, 3), translated) of one captured frame when
+    the rest pose does not stand (upright()); retarget() gives unmapped joints that pose's
+    rotations. The twist points toward the mapped joint the joint moves (else its children or End
+    Site), the swing along the body's left (trunk, legs) or forward (arms)."""
+    index = {n: i for i, n in enumerate(names)}
+    at = {s: index[j] for s, j in joint_map.items() if j in index}
+    if reference is None:
+        positions = kinematics.rest_positions(parents, offsets)
+        orientations = np.tile([1.0, 0.0, 0.0, 0.0], (len(parents), 1))
+    else:
+        rotations, translations, translated = reference
+        positions, orientations = kinematics.world_transforms(
+            parents,
+            offsets,
+            np.asarray(rotations)[None],
+            np.asarray(translations)[None],
+            translated,
+        )
+        positions, orientations = positions[0], orientations[0]
+    left, _, forward = _body_axes(positions, at)
+    out = {}
+    for standard, toward in TWIST_TOWARD.items():
+        if standard not in at:
+            continue
+        j = at[standard]
+        twist = None
+        for target in (t for t in toward or () if t in at):
+            ahead = positions[at[target]] - positions[j]  # through unmapped joints in this pose
+            if np.linalg.norm(ahead) > MIN_BONE_M:
+                twist = quaternion.rotate(quaternion.conjugate(orientations[j]), ahead)
+                break
+        if twist is None:
+            ahead = [np.asarray(offsets[k], dtype=np.float64) for k in _children(parents, j)]
+            if end_sites[j] is not None:
+                ahead.append(np.asarray(end_sites[j], dtype=np.float64))
+            ahead = [v for v in ahead if np.linalg.norm(v) > MIN_BONE_M]
+            twist = (
+                np.mean([_unit(v) for v in ahead], axis=0)
+                if ahead
+                else np.asarray(offsets[j], dtype=np.float64)
+            )
+        twist = _unit(twist)
+        across = forward if standard in SWING_ALONG_FORWARD else left
+        across = quaternion.rotate(
+            quaternion.conjugate(orientations[j]), across
+        )  # into the joint's frame
+        swing = across - twist * np.dot(across, twist)
+        if np.linalg.norm(swing) < 0.1:  # the twist lies along it: the other body axis
+            other = left if standard in SWING_ALONG_FORWARD else forward
+            other = quaternion.rotate(quaternion.conjugate(orientations[j]), other)
+            swing = other - twist * np.dot(other, twist)
+        out[standard] = {"joint": names[j], "twist": twist.tolist(), "swing": _unit(swing).tolist()}
+    return out
+
+
+def _frame(twist, swing):
+    """Rotation matrices (..., 3, 3): columns twist, swing (made square) and their cross."""
+    t = _unit(twist)
+    s = _unit(swing - t * np.sum(swing * t, axis=-1, keepdims=True))
+    return np.stack([t, s, np.cross(t, s)], axis=-1)
+
+
+def leg_length(parents, offsets, names, joint_map):
+    rest = kinematics.rest_positions(parents, offsets)
+    index = {n: i for i, n in enumerate(names)}
+
+    def at(s):
+        return rest[index[joint_map[s]]]
+
+    return np.mean(
+        [
+            np.linalg.norm(at(f"{side}_hip") - at(f"{side}_knee"))
+            + np.linalg.norm(at(f"{side}_knee") - at(f"{side}_ankle"))
+            for side in ("left", "right")
+        ]
+    )
+
+
+def _feet(skeleton):
+    index = {n: i for i, n in enumerate(skeleton["names"])}
+    return [
+        index[skeleton["joint_map"][f"{side}_{part}"]]
+        for side in ("left", "right")
+        for part in ("ankle", "toe")
+    ]
+
+
+def retarget(source, destination, rotations, translations):
+    """The source's frames on the destination skeleton: (rotations, translations) as the destination
+    stores them. source and destination: dicts with parents, offsets, end_sites, names, joint_map,
+    translated (indices of joints with position channels), axes (joint_axes(...)) and pose (the
+    local
+    rotations (joints, 4) of the pose the axes came from); rotations and translations: the source's
+    frames."""
+    src_pos, src_rot = kinematics.world_transforms(
+        source["parents"], source["offsets"], rotations, translations, source["translated"]
+    )
+    n_frames = src_rot.shape[0]
+    d_parents, d_offsets = (
+        destination["parents"],
+        np.asarray(destination["offsets"], dtype=np.float64),
+    )
+    d_index = {n: i for i, n in enumerate(destination["names"])}
+    s_index = {n: i for i, n in enumerate(source["names"])}
+    mapped = {
+        d_index[a["joint"]]: (standard, a)
+        for standard, a in destination["axes"].items()
+        if standard in source["axes"]
+    }
+    world = np.empty((n_frames, len(d_parents), 4))
+    local = np.empty_like(world)
+    for j, p in enumerate(d_parents):
+        if j in mapped:
+            standard, axes = mapped[j]
+            s_axes = source["axes"][standard]
+            g = src_rot[:, s_index[s_axes["joint"]]]
+            target = _frame(
+                quaternion.rotate(g, np.asarray(s_axes["twist"])),
+                quaternion.rotate(g, np.asarray(s_axes["swing"])),
+            )
+            rest = _frame(np.asarray(axes["twist"]), np.asarray(axes["swing"]))
+            world[:, j] = quaternion.from_matrix(target @ rest.T)
+            local[:, j] = (
+                world[:, j]
+                if p < 0
+                else quaternion.multiply(quaternion.conjugate(world[:, p]), world[:, j])
+            )
+        else:  # unmapped joints keep the standing pose's rotation (joint_axes' reference)
+            local[:, j] = destination["pose"][j]
+            world[:, j] = local[:, j] if p < 0 else quaternion.multiply(world[:, p], local[:, j])
+    local = quaternion.canonical(local)
+    d_translated = list(destination["translated"])
+    d_trans = np.broadcast_to(d_offsets[d_translated], (n_frames, len(d_translated), 3)).copy()
+
+    # The travel: the destination pelvis where the source pelvis is, scaled by the legs' ratio.
+    scale = leg_length(
+        d_parents, d_offsets, destination["names"], destination["joint_map"]
+    ) / leg_length(source["parents"], source["offsets"], source["names"], source["joint_map"])
+    pelvis = d_index[destination["joint_map"]["pelvis"]]
+    goal = src_pos[:, s_index[source["joint_map"]["pelvis"]]] * scale
+    carrier = pelvis
+    while carrier >= 0 and carrier not in d_translated:
+        carrier = d_parents[carrier]
+    if carrier >= 0:
+        k = d_translated.index(carrier)
+        positions = kinematics.world_positions(d_parents, d_offsets, local, d_trans, d_translated)
+        parent_rot = (
+            world[:, d_parents[carrier]]
+            if d_parents[carrier] >= 0
+            else np.tile([1.0, 0.0, 0.0, 0.0], (n_frames, 1))
+        )
+        d_trans[:, k] += quaternion.rotate(
+            quaternion.conjugate(parent_rot), goal - positions[:, pelvis]
+        )
+        # Feet on the floor: the lowest foot joint over the clip as high as the source's, scaled.
+        positions = kinematics.world_positions(d_parents, d_offsets, local, d_trans, d_translated)
+        lowest = positions[:, _feet(destination), 1].min()
+        wanted = src_pos[:, _feet(source), 1].min() * scale
+        d_trans[:, k] += quaternion.rotate(
+            quaternion.conjugate(parent_rot), np.array([0.0, wanted - lowest, 0.0])
+        )
+    return local, d_trans
