@@ -12,13 +12,28 @@ import psycopg
 
 from modb.version import __version__
 
-from . import annotate, bench, catalog, db, demo, export, graph, load, serve, split, synth, token
+from . import (
+    annotate,
+    bench,
+    catalog,
+    db,
+    demo,
+    export,
+    graph,
+    load,
+    retarget,
+    serve,
+    split,
+    synth,
+    token,
+)
 from . import list as list_clips
 
 # In `modb --help`'s order.
 COMMANDS = (
     load,
     export,
+    retarget,
     synth,
     list_clips,
     annotate,

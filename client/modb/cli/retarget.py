@@ -1,0 +1,104 @@
+"""`modb retarget SOURCE... --to SKELETON`: clips onto another skeleton, as new clips."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from .common import FPS, connect
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    retarget = sub.add_parser(
+        "retarget",
+        help="retarget clips onto another skeleton (new clips, linked to their source)",
+    )
+    retarget.add_argument(
+        "sources",
+        nargs="+",
+        metavar="SOURCE",
+        help="a clip (id, name, collection/name) or a collection",
+    )
+    retarget.add_argument(
+        "--to",
+        required=True,
+        metavar="SKELETON",
+        help="a skeleton id, or a clip whose skeleton to use",
+    )
+    retarget.add_argument(
+        "--collection", help="where the new clips go (default: SOURCE_COLLECTION on skeleton N)"
+    )
+    retarget.add_argument(
+        "--fps", type=FPS, help="frame rate (default: the rate most of the skeleton's clips have)"
+    )
+    retarget.add_argument("--mirror", action="store_true", help="cut mirrored snippets too")
+    retarget.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    retarget.set_defaults(func=run)
+
+
+def _clips(conn, spec: str) -> list[int]:
+    """A collection's clips (with those below it), else the one clip `spec` names."""
+    from modb.clips import resolve_clip
+
+    in_collection = conn.execute(
+        "SELECT clip_id FROM modb.current_clips c JOIN modb.clips k ON k.id = c.clip_id "
+        "WHERE k.collection_id = ANY (modb.collection_subtree(%s)) ORDER BY 1",
+        [spec],
+    ).fetchall()
+    return [r[0] for r in in_collection] or [resolve_clip(conn, spec)]
+
+
+def _skeleton(conn, spec: str) -> int:
+    from modb.clips import resolve_clip
+
+    if (
+        spec.isdigit()
+        and conn.execute("SELECT 1 FROM modb.skeletons WHERE id = %s", [int(spec)]).fetchone()
+    ):
+        return int(spec)
+    clip = resolve_clip(conn, spec)
+    return conn.execute(
+        "SELECT skeleton_id FROM modb.current_clips WHERE clip_id = %s", [clip]
+    ).fetchone()[0]
+
+
+def run(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from modb.clips import ClipNotFound
+    from modb.editing.retarget import RetargetError, retarget_clip
+
+    with connect(args) as conn:
+        try:
+            skeleton = _skeleton(conn, args.to)
+            clips = [c for spec in args.sources for c in _clips(conn, spec)]
+        except ClipNotFound as e:
+            print(f"modb retarget: {e}", file=sys.stderr)
+            return 2
+        made = 0
+        with tqdm(clips, unit="clip", disable=args.quiet or len(clips) < 2, file=sys.stderr) as bar:
+            for clip in bar:
+                collection = args.collection or (
+                    conn.execute(
+                        "SELECT collection FROM modb.current_clips WHERE clip_id = %s", [clip]
+                    ).fetchone()[0]
+                    + f" on skeleton {skeleton}"
+                )
+                try:
+                    stored, motion = retarget_clip(
+                        conn, clip, skeleton, collection, args.fps, mirrored=args.mirror
+                    )
+                except RetargetError as e:
+                    print(f"modb retarget: clip {clip}: {e}", file=sys.stderr)
+                    return 2
+                made += stored.version is not None
+                if not args.quiet:
+                    state = "unchanged" if stored.version is None else f"version {stored.version}"
+                    bar.write(
+                        f"clip {clip} -> {collection}/{motion.name} (clip {stored.clip_id}, "
+                        f"{state}, {motion.n_frames} frames at {motion.fps:g} fps, "
+                        f"{stored.snippets} snippets)"
+                    )
+    if not args.quiet:
+        print(f"{len(clips)} clips retargeted onto skeleton {skeleton} ({made} stored)")
+    return 0
