@@ -4,9 +4,9 @@ import itertools
 
 import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
+from scipy.spatial.transform import Rotation, Slerp
 
-from modb_kernel import kinematics, quaternion
+from modb_kernel import kinematics, quaternion, resample
 
 ORDERS = ["".join(p) for p in itertools.permutations("XYZ")]
 
@@ -92,3 +92,20 @@ def test_to_euler_at_gimbal_lock(order, middle):
     q = quaternion.from_euler(angles, order)
     back = quaternion.from_euler(quaternion.to_euler(q, order), order)
     assert np.allclose(quaternion.angle_between(back, q), 0.0, atol=1e-6)
+
+
+def test_resampling_matches_scipy_slerp_and_numpy_interp():
+    rng = np.random.default_rng(5)
+    q = Rotation.random(60 * 4, random_state=6).as_quat().reshape(60, 4, 4)[..., [3, 0, 1, 2]]
+    q[q[..., 0] < 0] *= -1
+    t = rng.normal(size=(60, 2, 3))
+    frames = np.concatenate([np.linspace(0, 59, 211), [0, 59, 30.5]])
+    rotations, translations = resample.sampled(q, t, frames)
+    for j in range(4):
+        want = Slerp(np.arange(60), Rotation.from_quat(q[:, j][:, [1, 2, 3, 0]]))(frames)
+        assert np.allclose(Rotation.from_quat(rotations[:, j][:, [1, 2, 3, 0]]).as_matrix(),
+                           want.as_matrix(), atol=1e-12)  # fmt: skip
+    for k, c in itertools.product(range(2), range(3)):
+        assert np.allclose(translations[:, k, c], np.interp(frames, np.arange(60), t[:, k, c]))
+    assert np.all(rotations[..., 0] >= 0)
+    assert np.allclose(resample.fps_frames(9, 120.0, 30.0), [0, 4, 8])
