@@ -82,7 +82,8 @@ def read_motion(conn: psycopg.Connection, clip_id: int, version: int | None = No
         row = cur.execute(
             "SELECT c.name, v.version, v.fps, v.rotations, v.translations, v.source_file, "
             "v.source_sha256, "
-            "       v.load_params, v.meta, s.name, s.hierarchy, s.joint_map, s.mirror_pairs "
+            "       v.load_params, v.meta, s.name, s.hierarchy, s.joint_map, s.mirror_pairs, "
+            "       to_jsonb(s)->'joint_axes' "  # modb 0.15.0 and later; NULL before
             "FROM modb.clips c JOIN modb.clip_versions v ON v.clip_id = c.id "
             "JOIN modb.skeletons s ON s.id = v.skeleton_id "
             "WHERE c.id = %s AND v.version = coalesce(%s, (SELECT max(version) FROM "
@@ -107,8 +108,11 @@ def read_motion(conn: psycopg.Connection, clip_id: int, version: int | None = No
         hierarchy,
         joint_map,
         mirror_pairs,
+        joint_axes,
     ) = row
-    skeleton = Skeleton.from_row(hierarchy, joint_map, mirror_pairs, name=skeleton_name)
+    skeleton = Skeleton.from_row(
+        hierarchy, joint_map, mirror_pairs, name=skeleton_name, joint_axes=joint_axes
+    )
     n_frames = rotations.shape[0]
     translations = (
         np.zeros((n_frames, 0, 3))

@@ -42,6 +42,9 @@ class Skeleton:
     joint_map: dict[str, str] = field(default_factory=dict)  # standard name -> joint name
     mirror_pairs: list[tuple[str, str]] = field(default_factory=list)  # (left, right)
     name: str = ""
+    # standard name -> twist and swing axes, and the pose they come from (modb_kernel.retarget);
+    # empty: derived when needed
+    joint_axes: dict[str, Any] = field(default_factory=dict)
 
     @property
     def names(self) -> list[str]:
@@ -105,6 +108,7 @@ class Skeleton:
         joint_map: dict[str, str],
         mirror_pairs: list[list[str]],
         name: str = "",
+        joint_axes: dict[str, Any] | None = None,
     ) -> Skeleton:
         joints = [
             Joint(
@@ -124,6 +128,7 @@ class Skeleton:
             joint_map=dict(joint_map),
             mirror_pairs=[(a, b) for a, b in mirror_pairs],
             name=name,
+            joint_axes=dict(joint_axes or {}),
         )
 
 

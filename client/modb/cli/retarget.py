@@ -1,4 +1,5 @@
-"""`modb retarget SOURCE... --to SKELETON`: clips onto another skeleton, as new clips."""
+"""`modb retarget SOURCE... --to SKELETON`: clips onto another skeleton, as new clips
+(modb.retarget, one transaction per clip)."""
 
 from __future__ import annotations
 
@@ -41,7 +42,7 @@ def _clips(conn, spec: str) -> list[int]:
     from modb.clips import resolve_clip
 
     in_collection = conn.execute(
-        "SELECT clip_id FROM modb.current_clips c JOIN modb.clips k ON k.id = c.clip_id "
+        "SELECT c.clip_id FROM modb.current_clips c JOIN modb.clips k ON k.id = c.clip_id "
         "WHERE k.collection_id = ANY (modb.collection_subtree(%s)) ORDER BY 1",
         [spec],
     ).fetchall()
@@ -66,7 +67,6 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from modb.clips import ClipNotFound
-    from modb.editing.retarget import RetargetError, retarget_clip
 
     with connect(args) as conn:
         try:
@@ -75,30 +75,25 @@ def run(args: argparse.Namespace) -> int:
         except ClipNotFound as e:
             print(f"modb retarget: {e}", file=sys.stderr)
             return 2
-        made = 0
         with tqdm(clips, unit="clip", disable=args.quiet or len(clips) < 2, file=sys.stderr) as bar:
             for clip in bar:
-                collection = args.collection or (
-                    conn.execute(
-                        "SELECT collection FROM modb.current_clips WHERE clip_id = %s", [clip]
-                    ).fetchone()[0]
-                    + f" on skeleton {skeleton}"
-                )
-                try:
-                    stored, motion = retarget_clip(
-                        conn, clip, skeleton, collection, args.fps, mirrored=args.mirror
-                    )
-                except RetargetError as e:
-                    print(f"modb retarget: clip {clip}: {e}", file=sys.stderr)
-                    return 2
-                made += stored.version is not None
+                with conn.transaction():
+                    (made,) = conn.execute(
+                        "SELECT modb.retarget(%s, %s, %s, %s, %s)",
+                        [clip, skeleton, args.collection, args.fps, args.mirror],
+                    ).fetchone()
+                    row = conn.execute(
+                        "SELECT collection || '/' || name, version, n_frames, fps, "
+                        "(SELECT count(*) FROM modb.snippets s WHERE s.clip_id = c.clip_id) "
+                        "FROM modb.current_clips c WHERE clip_id = %s",
+                        [made],
+                    ).fetchone()
                 if not args.quiet:
-                    state = "unchanged" if stored.version is None else f"version {stored.version}"
+                    path, version, frames, fps, snippets = row
                     bar.write(
-                        f"clip {clip} -> {collection}/{motion.name} (clip {stored.clip_id}, "
-                        f"{state}, {motion.n_frames} frames at {motion.fps:g} fps, "
-                        f"{stored.snippets} snippets)"
+                        f"clip {clip} -> {path} (clip {made} version {version}, {frames} frames "
+                        f"at {fps:g} fps, {snippets} snippets)"
                     )
     if not args.quiet:
-        print(f"{len(clips)} clips retargeted onto skeleton {skeleton} ({made} stored)")
+        print(f"{len(clips)} clips retargeted onto skeleton {skeleton}")
     return 0

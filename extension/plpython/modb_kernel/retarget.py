@@ -140,6 +140,63 @@ def joint_axes(parents, offsets, end_sites, names, joint_map, reference=None):
     return out
 
 
+class RetargetError(ValueError):
+    """A skeleton that cannot be retargeted to or from, and what to do."""
+
+
+NEEDED = ("pelvis", "left_hip", "right_hip", "left_knee", "right_knee", "left_ankle", "right_ankle",
+          "left_toe", "right_toe")  # fmt: skip
+
+
+def skeleton(hierarchy, joint_map, joint_axes=None):
+    """What retarget() needs of a skeleton, from its modb.skeletons row (hierarchy as stored)."""
+    joints = hierarchy["joints"]
+    return {
+        "parents": [j["parent"] for j in joints],
+        "offsets": np.array([j["offset"] for j in joints], dtype=np.float64),
+        "end_sites": [j.get("end_site") for j in joints],
+        "names": [j["name"] for j in joints],
+        "joint_map": dict(joint_map),
+        "translated": list(hierarchy.get("translated", [])),
+        "stored_axes": joint_axes or {},
+    }
+
+
+def with_axes(sk, reference=None):
+    """The skeleton with its axes and the pose they come from: its stored joint_axes when it has
+    them, else derived from the rest pose when it stands, else from `reference` = (rotations,
+    translations) of one captured frame (a clip of this skeleton)."""
+    missing = [s for s in NEEDED if s not in sk["joint_map"]]
+    if missing:
+        raise RetargetError(f"its joint map lacks {', '.join(missing)}: complete it first")
+    stored = sk["stored_axes"]
+    identity = np.tile([1.0, 0.0, 0.0, 0.0], (len(sk["parents"]), 1))
+    if stored.get("joints"):
+        pose = (
+            identity if stored.get("pose") is None else np.asarray(stored["pose"], dtype=np.float64)
+        )
+        return dict(sk, axes=stored["joints"], pose=pose)
+    shape = (sk["parents"], sk["offsets"], sk["names"], sk["joint_map"])
+    if upright(*shape):
+        frame, pose = None, identity
+    elif reference is None:
+        raise RetargetError("its rest pose does not stand and it has no clip to take a standing "
+                            "pose from: load one first, or store its joint_axes")  # fmt: skip
+    else:
+        frame = (reference[0], reference[1], sk["translated"])
+        pose = np.asarray(reference[0], dtype=np.float64)
+    axes = joint_axes(
+        sk["parents"], sk["offsets"], sk["end_sites"], sk["names"], sk["joint_map"], frame
+    )
+    return dict(sk, axes=axes, pose=pose)
+
+
+def stored_form(sk):
+    """The skeleton's axes as modb.skeletons.joint_axes keeps them."""
+    identity = np.allclose(sk["pose"], [1.0, 0.0, 0.0, 0.0])
+    return {"joints": sk["axes"], "pose": None if identity else np.round(sk["pose"], 9).tolist()}
+
+
 def _frame(twist, swing):
     """Rotation matrices (..., 3, 3): columns twist, swing (made square) and their cross."""
     t = _unit(twist)

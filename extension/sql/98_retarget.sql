@@ -1,0 +1,93 @@
+-- Retargeting in SQL (0.15.0): a clip's current motion onto another skeleton, stored as a new clip linked
+-- to its source, cut into snippets (modb_kernel/retarget.py; `modb retarget` calls this). CREATE OR
+-- REPLACE: upgrades include this file when it changes.
+CREATE OR REPLACE FUNCTION modb.retarget(clip bigint, skeleton bigint, collection text DEFAULT NULL,
+                                         fps float8 DEFAULT NULL, mirrored boolean DEFAULT false)
+RETURNS bigint
+LANGUAGE plpython3u VOLATILE PARALLEL UNSAFE
+AS $py$
+#@modb_kernel
+import json
+import numpy as np
+
+R = kernel.retarget
+if clip is None or skeleton is None:
+    plpy.error("modb.retarget needs a clip and a skeleton")
+if fps is not None and not (0 < fps < 10000):
+    plpy.error(f"fps must be between 0 and 10000, got {fps}")
+source = plpy.execute(plpy.prepare(
+    """SELECT c.name, modb.collection_path(c.collection_id) AS collection, v.version, v.fps, v.rotations,
+              v.translations, v.meta, s.id AS skeleton_id, s.hierarchy, s.joint_map, s.joint_axes
+         FROM modb.clips c JOIN modb.clip_versions v ON v.clip_id = c.id JOIN modb.skeletons s ON s.id = v.skeleton_id
+        WHERE c.id = $1 ORDER BY v.version DESC LIMIT 1""", ["bigint"]), [clip])
+if not source:
+    plpy.error(f"no clip {clip} with a version", hint="modb.current_clips lists the stored clips")
+source = source[0]
+target = plpy.execute(plpy.prepare(
+    "SELECT id, hierarchy, joint_map, joint_axes FROM modb.skeletons WHERE id = $1", ["bigint"]), [skeleton])
+if not target:
+    plpy.error(f"no skeleton {skeleton}", hint="SELECT DISTINCT skeleton_id FROM modb.current_clips lists them")
+target = target[0]
+first_frame = plpy.execute(plpy.prepare(
+    """SELECT v.rotations[1:1] AS rotations, v.translations[1:1] AS translations FROM modb.current_clips c
+         JOIN modb.clip_versions v USING (clip_id, version) WHERE c.skeleton_id = $1 ORDER BY c.clip_id LIMIT 1""",
+    ["bigint"]), [skeleton])
+store_axes = plpy.prepare("UPDATE modb.skeletons SET joint_axes = $2::jsonb WHERE id = $1 AND joint_axes = '{}'",
+                          ["bigint", "text"])
+
+def frames(rotations, translations):
+    r = np.asarray(rotations, dtype=np.float64)
+    return r, (np.zeros((r.shape[0], 0, 3)) if translations is None else np.asarray(translations, dtype=np.float64))
+
+def prepared(row, skeleton_id, reference):
+    found = R.skeleton(json.loads(row["hierarchy"]), json.loads(row["joint_map"]), json.loads(row["joint_axes"]))
+    try:
+        ready = R.with_axes(found, reference)
+    except R.RetargetError as e:
+        plpy.error(f"skeleton {skeleton_id}: {e}",
+                   hint="edit modb.skeletons.joint_map (or joint_axes) for it, then call modb.retarget again")
+    if not found["stored_axes"].get("joints"):  # derived now: kept with the skeleton, and editable there
+        plpy.execute(store_axes, [skeleton_id, json.dumps(R.stored_form(ready))])
+    return ready
+
+rotations, translations = frames(source["rotations"], source["translations"])
+src = prepared(source, source["skeleton_id"], (rotations[0], translations[0]))
+dst = prepared(target, skeleton, frames(first_frame[0]["rotations"], first_frame[0]["translations"]) if first_frame else None)
+if fps is None:  # the rate most of the skeleton's clips have: chains need one rate
+    rates = plpy.execute(plpy.prepare(
+        "SELECT fps FROM modb.current_clips WHERE skeleton_id = $1 GROUP BY fps ORDER BY count(*) DESC, fps LIMIT 1",
+        ["bigint"]), [skeleton])
+    fps = rates[0]["fps"] if rates else source["fps"]
+if fps != source["fps"]:
+    wanted = kernel.resample.fps_frames(rotations.shape[0], source["fps"], fps)
+    rotations, translations = kernel.resample.sampled(rotations, translations, wanted)
+rotations, translations = R.retarget(src, dst, rotations, translations)
+
+link = {"clip_id": clip, "version": source["version"], "skeleton_id": skeleton, "fps": fps}
+place = collection or f'{source["collection"]} on skeleton {skeleton}'
+collection_id = plpy.execute(plpy.prepare("SELECT modb.ensure_collection($1) AS id", ["text"]), [place])[0]["id"]
+plpy.execute(plpy.prepare("INSERT INTO modb.clips (collection_id, name) VALUES ($1, $2) ON CONFLICT DO NOTHING",
+                          ["bigint", "text"]), [collection_id, source["name"]])
+made = plpy.execute(plpy.prepare("SELECT id FROM modb.clips WHERE collection_id = $1 AND name = $2 FOR UPDATE",
+                                 ["bigint", "text"]), [collection_id, source["name"]])[0]["id"]
+newest = plpy.execute(plpy.prepare(
+    "SELECT load_params->'retargeted_from' AS link FROM modb.clip_versions WHERE clip_id = $1 ORDER BY version DESC LIMIT 1",
+    ["bigint"]), [made])
+if newest and newest[0]["link"] is not None and json.loads(newest[0]["link"]) == link:
+    return made  # retargeted so before: nothing new
+tags = json.loads(source["meta"]).get("tags", [])
+plpy.execute(plpy.prepare(
+    """INSERT INTO modb.clip_versions (clip_id, skeleton_id, fps, n_frames, rotations, translations, load_params, meta)
+       VALUES ($1, $2, $3, $4, $5, $6, $7::jsonb, $8::jsonb)""",
+    ["bigint", "bigint", "float8", "int", "real[]", "real[]", "text", "text"]),
+    [made, skeleton, fps, rotations.shape[0], rotations.astype(np.float32).tolist(),
+     translations.astype(np.float32).tolist() if translations.shape[1] else None,
+     json.dumps({"retargeted_from": link}), json.dumps({"retargeted_from": link, "tags": tags})])
+plpy.execute(plpy.prepare("SELECT modb.build_snippets(clip => $1, mirrored => $2)", ["bigint", "boolean"]),
+             [made, bool(mirrored)])
+return made
+$py$;
+COMMENT ON FUNCTION modb.retarget(bigint, bigint, text, float8, boolean) IS
+    'Retargets the clip''s current motion onto the skeleton (its joint_axes: twist and swing aligned joint by joint, parents first; travel scaled by the legs'' length ratio; the feet as low as the source''s), resampled to fps (default: the rate most of the skeleton''s clips have), and stores it as a clip of collection (default: "SOURCE_COLLECTION on skeleton N") named as the source, linked to it in meta and load_params.retargeted_from, cut into snippets (and mirrored ones when asked); a retargeting done before stores nothing. Returns the new clip''s id';
+REVOKE EXECUTE ON FUNCTION modb.retarget(bigint, bigint, text, float8, boolean) FROM PUBLIC;
+GRANT EXECUTE ON FUNCTION modb.retarget(bigint, bigint, text, float8, boolean) TO modb_loader;

@@ -1,0 +1,4 @@
+-- 0.15.0: retargeting between skeletons: joint coordinate systems stored with the skeleton
+-- (modb.skeletons.joint_axes) and modb.retarget.
+--@include 97_joint_axes.sql
+--@include 98_retarget.sql
