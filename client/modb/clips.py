@@ -51,6 +51,16 @@ def resolve_clip(conn: psycopg.Connection, spec: str) -> int:
     )
 
 
+def clips_in(conn: psycopg.Connection, spec: str) -> list[int]:
+    """The clips of the collection at path `spec` and those below it, else the one clip it names."""
+    in_collection = conn.execute(
+        "SELECT c.clip_id FROM modb.current_clips c JOIN modb.clips k ON k.id = c.clip_id "
+        "WHERE k.collection_id = ANY (modb.collection_subtree(%s)) ORDER BY 1",
+        [spec],
+    ).fetchall()
+    return [r[0] for r in in_collection] or [resolve_clip(conn, spec)]
+
+
 def read_motion(conn: psycopg.Connection, clip_id: int, version: int | None = None) -> Motion:
     """The given version of a clip (the newest when None) as a Motion (float64 arrays); for a clip
     cut at an annotated segment (modb.clip_segments), its frames of the source version."""

@@ -52,18 +52,20 @@ def prepared(row, skeleton_id, reference):
 
 rotations, translations = frames(source["rotations"], source["translations"])
 src = prepared(source, source["skeleton_id"], (rotations[0], translations[0]))
-dst = prepared(target, skeleton, frames(first_frame[0]["rotations"], first_frame[0]["translations"]) if first_frame else None)
-if fps is None:  # the rate most of the skeleton's clips have: chains need one rate
+reference = frames(first_frame[0]["rotations"], first_frame[0]["translations"]) if first_frame else None
+dst = prepared(target, skeleton, None if reference is None else (reference[0][0], reference[1][0]))
+rate = fps
+if rate is None:  # the rate most of the skeleton's clips have: chains need one rate
     rates = plpy.execute(plpy.prepare(
         "SELECT fps FROM modb.current_clips WHERE skeleton_id = $1 GROUP BY fps ORDER BY count(*) DESC, fps LIMIT 1",
         ["bigint"]), [skeleton])
-    fps = rates[0]["fps"] if rates else source["fps"]
-if fps != source["fps"]:
-    wanted = kernel.resample.fps_frames(rotations.shape[0], source["fps"], fps)
+    rate = rates[0]["fps"] if rates else source["fps"]
+if rate != source["fps"]:
+    wanted = kernel.resample.fps_frames(rotations.shape[0], source["fps"], rate)
     rotations, translations = kernel.resample.sampled(rotations, translations, wanted)
 rotations, translations = R.retarget(src, dst, rotations, translations)
 
-link = {"clip_id": clip, "version": source["version"], "skeleton_id": skeleton, "fps": fps}
+link = {"clip_id": clip, "version": source["version"], "skeleton_id": skeleton, "fps": rate}
 place = collection or f'{source["collection"]} on skeleton {skeleton}'
 collection_id = plpy.execute(plpy.prepare("SELECT modb.ensure_collection($1) AS id", ["text"]), [place])[0]["id"]
 plpy.execute(plpy.prepare("INSERT INTO modb.clips (collection_id, name) VALUES ($1, $2) ON CONFLICT DO NOTHING",
@@ -80,7 +82,7 @@ plpy.execute(plpy.prepare(
     """INSERT INTO modb.clip_versions (clip_id, skeleton_id, fps, n_frames, rotations, translations, load_params, meta)
        VALUES ($1, $2, $3, $4, $5, $6, $7::jsonb, $8::jsonb)""",
     ["bigint", "bigint", "float8", "int", "real[]", "real[]", "text", "text"]),
-    [made, skeleton, fps, rotations.shape[0], rotations.astype(np.float32).tolist(),
+    [made, skeleton, rate, rotations.shape[0], rotations.astype(np.float32).tolist(),
      translations.astype(np.float32).tolist() if translations.shape[1] else None,
      json.dumps({"retargeted_from": link}), json.dumps({"retargeted_from": link, "tags": tags})])
 plpy.execute(plpy.prepare("SELECT modb.build_snippets(clip => $1, mirrored => $2)", ["bigint", "boolean"]),

@@ -37,18 +37,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     retarget.set_defaults(func=run)
 
 
-def _clips(conn, spec: str) -> list[int]:
-    """A collection's clips (with those below it), else the one clip `spec` names."""
-    from modb.clips import resolve_clip
-
-    in_collection = conn.execute(
-        "SELECT c.clip_id FROM modb.current_clips c JOIN modb.clips k ON k.id = c.clip_id "
-        "WHERE k.collection_id = ANY (modb.collection_subtree(%s)) ORDER BY 1",
-        [spec],
-    ).fetchall()
-    return [r[0] for r in in_collection] or [resolve_clip(conn, spec)]
-
-
 def _skeleton(conn, spec: str) -> int:
     from modb.clips import resolve_clip
 
@@ -66,12 +54,12 @@ def _skeleton(conn, spec: str) -> int:
 def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from modb.clips import ClipNotFound
+    from modb.clips import ClipNotFound, clips_in
 
     with connect(args) as conn:
         try:
             skeleton = _skeleton(conn, args.to)
-            clips = [c for spec in args.sources for c in _clips(conn, spec)]
+            clips = [c for spec in args.sources for c in clips_in(conn, spec)]
         except ClipNotFound as e:
             print(f"modb retarget: {e}", file=sys.stderr)
             return 2

@@ -148,8 +148,8 @@ NEEDED = ("pelvis", "left_hip", "right_hip", "left_knee", "right_knee", "left_an
           "left_toe", "right_toe")  # fmt: skip
 
 
-def skeleton(hierarchy, joint_map, joint_axes=None):
-    """What retarget() needs of a skeleton, from its modb.skeletons row (hierarchy as stored)."""
+def skeleton(hierarchy, joint_map, joint_axes=None, mirror_pairs=()):
+    """What retarget() (and an edit script) needs of a skeleton, from its modb.skeletons row."""
     joints = hierarchy["joints"]
     return {
         "parents": [j["parent"] for j in joints],
@@ -159,6 +159,7 @@ def skeleton(hierarchy, joint_map, joint_axes=None):
         "joint_map": dict(joint_map),
         "translated": list(hierarchy.get("translated", [])),
         "stored_axes": joint_axes or {},
+        "mirror_pairs": [list(p) for p in mirror_pairs],
     }
 
 

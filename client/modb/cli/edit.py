@@ -1,0 +1,85 @@
+"""`modb edit`: edit scripts (modb.edit_scripts): save one, list them, apply one to clips or
+collections (modb.apply_edit_script: a new version per clip, in one transaction)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from .common import connect
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    edit = sub.add_parser(
+        "edit", help="edit scripts: save, list, apply (each result a new version)"
+    )
+    actions = edit.add_subparsers(dest="action", required=True)
+    save = actions.add_parser("save", help="store a script (replacing one of that name)")
+    save.add_argument("name", metavar="NAME")
+    given = save.add_mutually_exclusive_group(required=True)
+    given.add_argument("--file", type=Path, help="a JSON file holding the list of commands")
+    given.add_argument("--commands", metavar="JSON", help='the list, e.g. \'[{"op": "mirror"}]\'')
+    save.add_argument("--comment", help="what the script is for")
+    actions.add_parser("list", help="every stored script")
+    apply = actions.add_parser("apply", help="apply a script to clips and collections")
+    apply.add_argument("name", metavar="NAME")
+    apply.add_argument(
+        "targets",
+        nargs="+",
+        metavar="TARGET",
+        help="a clip (id, name, collection/name) or a collection",
+    )
+    edit.set_defaults(func=run)
+
+
+def _commands(args: argparse.Namespace) -> list:
+    where = str(args.file) if args.file else "--commands"
+    try:
+        text = args.file.read_text() if args.file else args.commands
+        commands = json.loads(text)
+    except OSError as e:
+        raise SystemExit(f"modb edit: {where}: {e.strerror}") from None
+    except json.JSONDecodeError as e:
+        raise SystemExit(f"modb edit: {where}:{e.lineno}: not JSON: {e.msg}") from None
+    if not isinstance(commands, list) or not commands:
+        raise SystemExit(f"modb edit: {where}: a script is a non-empty JSON list of commands")
+    return commands
+
+
+def run(args: argparse.Namespace) -> int:
+    from psycopg.types.json import Jsonb
+
+    from modb.clips import ClipNotFound, clips_in
+
+    with connect(args) as conn:
+        if args.action == "save":
+            commands = _commands(args)
+            conn.execute(
+                "INSERT INTO modb.edit_scripts (name, commands, comment) VALUES (%s, %s, %s) "
+                "ON CONFLICT (name) DO UPDATE SET commands = EXCLUDED.commands, "
+                "comment = EXCLUDED.comment",
+                [args.name, Jsonb(commands), args.comment],
+            )
+            print(f"saved {args.name!r}: {len(commands)} commands")
+            return 0
+        if args.action == "list":
+            for name, commands, comment in conn.execute(
+                "SELECT name, commands, comment FROM modb.edit_scripts ORDER BY name"
+            ):
+                ops = ", ".join(c.get("op", "?") for c in commands)
+                print(f"{name}: {ops}" + (f"  ({comment})" if comment else ""))
+            return 0
+        try:
+            clips = [c for target in args.targets for c in clips_in(conn, target)]
+        except ClipNotFound as e:
+            print(f"modb edit: {e}", file=sys.stderr)
+            return 2
+        with conn.transaction():
+            rows = conn.execute(
+                "SELECT * FROM modb.apply_edit_script(%s, %s)", [args.name, clips]
+            ).fetchall()
+    for clip_id, version, frames, snippets in rows:
+        print(f"clip {clip_id}: version {version} ({frames} frames, {snippets} snippets)")
+    return 0
