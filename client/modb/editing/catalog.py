@@ -107,10 +107,12 @@ class SkeletonMaps:
     skeleton_id: int
     joint_map: dict[str, str]
     mirror_pairs: list[list[str]]
+    joint_axes: dict[str, Any] | None  # None: an extension before 0.15.0
 
     @property
     def document(self) -> dict[str, Any]:
-        return {"joint_map": self.joint_map, "mirror_pairs": self.mirror_pairs}
+        out = {"joint_map": self.joint_map, "mirror_pairs": self.mirror_pairs}
+        return out if self.joint_axes is None else {**out, "joint_axes": self.joint_axes}
 
     @property
     def etag(self) -> str:
@@ -119,8 +121,8 @@ class SkeletonMaps:
 
 def read_maps(conn: psycopg.Connection, skeleton_id: int, lock: bool = False) -> SkeletonMaps:
     row = conn.execute(
-        "SELECT id, joint_map, mirror_pairs FROM modb.skeletons WHERE id = %s"
-        + (" FOR NO KEY UPDATE" if lock else ""),
+        "SELECT id, joint_map, mirror_pairs, to_jsonb(s)->'joint_axes' FROM modb.skeletons s "
+        "WHERE id = %s" + (" FOR NO KEY UPDATE" if lock else ""),
         [skeleton_id],
     ).fetchone()
     if row is None:
@@ -134,10 +136,12 @@ def write_maps(
     joint_map: dict[str, str],
     mirror_pairs: list[list[str]],
     if_match: str | None,
+    joint_axes: dict[str, Any] | None = None,
 ) -> tuple[SkeletonMaps, list[Recut]]:
-    """Replaces the skeleton's joint map and mirror pairs when their entity tag is still `if_match`
-    (None: whatever they are; the table's checks refuse unknown joints) and cuts every clip whose
-    current version uses the skeleton again: its snippets' features come from the map."""
+    """Replaces the skeleton's joint map and mirror pairs (and joint axes, when given) when their
+    entity tag is still `if_match` (None: whatever they are; the table's checks refuse unknown
+    joints) and, when the map or pairs changed, cuts every clip whose current version uses the
+    skeleton again: its snippets' features come from them."""
     with conn.transaction():
         current = read_maps(conn, skeleton_id, lock=True)
         if if_match is not None and if_match != current.etag:
@@ -146,6 +150,13 @@ def write_maps(
             "UPDATE modb.skeletons SET joint_map = %s, mirror_pairs = %s WHERE id = %s",
             [Jsonb(joint_map), Jsonb(mirror_pairs), skeleton_id],
         )
+        if joint_axes is not None:
+            conn.execute(
+                "UPDATE modb.skeletons SET joint_axes = %s WHERE id = %s",
+                [Jsonb(joint_axes), skeleton_id],
+            )
+        if (joint_map, mirror_pairs) == (current.joint_map, current.mirror_pairs):
+            return read_maps(conn, skeleton_id), []
         cut = conn.execute(
             "SELECT ss.clip_id, bool_or(ss.mirrored) "
             "FROM modb.snippet_sources ss JOIN modb.clip_versions v USING (clip_id, version) "

@@ -226,6 +226,15 @@ def graph(conn: psycopg.Connection, graph_id: int) -> dict[str, Any]:
     return out
 
 
+def edit_scripts(conn: psycopg.Connection) -> list[dict[str, Any]]:
+    """The stored edit scripts (modb.apply_edit_script runs one)."""
+    return _rows(
+        conn,
+        "SELECT name, commands, comment, created_at::text, created_by FROM modb.edit_scripts "
+        "ORDER BY name",
+    )
+
+
 def profiles(conn: psycopg.Connection) -> list[dict[str, Any]]:
     """select_next_snippet's match profiles and settings: the avatar panel's starting values."""
     return _rows(

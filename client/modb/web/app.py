@@ -211,6 +211,7 @@ VIEWS: dict[str, View] = {
     "/api/graphs": _listing(api.graphs),
     "/api/graphs/{ident}": _by_id(api.graph, "graph"),
     "/api/profiles": _listing(api.profiles),
+    "/api/edit-scripts": _listing(api.edit_scripts),
 }
 # path: (view, check of its arguments before it waits for a turn)
 HEAVY_VIEWS: dict[str, tuple[View, Callable[[Request], Any]]] = {

@@ -225,9 +225,12 @@ def _put_maps(conn, request, body) -> Done:
     if not if_match:
         raise HTTPException(428, "send If-Match with the ETag of the maps you read")
     body = _object(body, "joint_map", "mirror_pairs")
+    axes = body.get("joint_axes")
+    if axes is not None and not isinstance(axes, dict):
+        raise HTTPException(400, 'joint_axes: {} or {"joints": {...}, "pose": ...}')
     try:
         maps, recut = catalog.write_maps(
-            conn, skeleton_id, body["joint_map"], body["mirror_pairs"], if_match
+            conn, skeleton_id, body["joint_map"], body["mirror_pairs"], if_match, axes
         )
     except catalog.SkeletonNotFound as e:
         raise HTTPException(404, str(e)) from None
@@ -366,6 +369,97 @@ def _delete_row(table: str):
     return handler
 
 
+# Edit scripts and retargeting (modb.apply_edit_script, modb.retarget)
+
+
+def _put_script(conn, request, body) -> Done:
+    name = request.path_params["name"]
+    body = _object(body, "commands")
+    if not isinstance(body["commands"], list) or not body["commands"]:
+        raise HTTPException(400, "commands: a non-empty list of commands")
+    comment = body.get("comment")
+    if comment is not None and not isinstance(comment, str):
+        raise HTTPException(400, "comment: a string")
+    (made,) = conn.execute(
+        "INSERT INTO modb.edit_scripts (name, commands, comment) VALUES (%s, %s, %s) "
+        "ON CONFLICT (name) DO UPDATE SET commands = EXCLUDED.commands, "
+        "comment = EXCLUDED.comment RETURNING xmax = 0",
+        [name, Jsonb(body["commands"]), comment],
+    ).fetchone()
+    return Done(
+        {"name": name, "commands": len(body["commands"])},
+        "edit script save",
+        name,
+        {"commands": body["commands"]},
+        201 if made else 200,
+    )
+
+
+def _delete_script(conn, request, body) -> Done:
+    name = request.path_params["name"]
+    if conn.execute("DELETE FROM modb.edit_scripts WHERE name = %s", [name]).rowcount == 0:
+        raise HTTPException(404, f"no edit script {name!r}")
+    return Done({"deleted": name}, "edit script delete", name, {})
+
+
+def _target_clips(conn, body) -> list[int]:
+    if "collection" in body:
+        path = _text(body, "collection")
+        (clips,) = conn.execute(
+            "SELECT coalesce(array_agg(c.clip_id ORDER BY c.clip_id), '{}') "
+            "FROM modb.current_clips c JOIN modb.clips k ON k.id = c.clip_id "
+            "WHERE k.collection_id = ANY (modb.collection_subtree(%s))",
+            [path],
+        ).fetchone()
+        if not clips:
+            raise HTTPException(404, f"no clips in collection {path!r}")
+        return clips
+    clips = body.get("clips")
+    if not isinstance(clips, list) or not clips or not all(type(c) is int for c in clips):
+        raise HTTPException(400, 'give "clips": [ids] or "collection": "path"')
+    return clips
+
+
+def _apply_script(conn, request, body) -> Done:
+    name = request.path_params["name"]
+    clips = _target_clips(conn, _object(body))
+    rows = conn.execute("SELECT * FROM modb.apply_edit_script(%s, %s)", [name, clips]).fetchall()
+    results = [{"clip_id": c, "version": v, "n_frames": n, "snippets": k} for c, v, n, k in rows]
+    return Done({"script": name, "results": results}, "edit script apply", name, {"clips": clips})
+
+
+def _retarget(conn, request, body) -> Done:
+    clip_id = _int(request, "ident")
+    body = _object(body, "skeleton")
+    skeleton, fps = body["skeleton"], body.get("fps")
+    if type(skeleton) is not int:
+        raise HTTPException(400, "skeleton: a skeleton's id")
+    if fps is not None and (isinstance(fps, bool) or not isinstance(fps, (int, float))):
+        raise HTTPException(400, "fps: a number")
+    collection = _text(body, "collection", required=False)
+    (made,) = conn.execute(
+        "SELECT modb.retarget(%s, %s, %s, %s, %s)",
+        [clip_id, skeleton, collection, fps, bool(body.get("mirror", False))],
+    ).fetchone()
+    version, n_frames, rate, path = conn.execute(
+        "SELECT version, n_frames, fps, collection FROM modb.current_clips WHERE clip_id = %s",
+        [made],
+    ).fetchone()
+    return Done(
+        {
+            "clip_id": made,
+            "version": version,
+            "n_frames": n_frames,
+            "fps": rate,
+            "collection": path,
+        },
+        "retarget",
+        f"clip {clip_id}",
+        {"skeleton": skeleton, "made": made},
+        201,
+    )
+
+
 def routes(read_pool, tokens: Tokens, writer: Writer) -> list[Route]:
     def write(path: str, method: str, handler: Handler, with_body: bool = True) -> Route:
         return Route(path, write_endpoint(tokens, writer, handler, with_body), methods=[method])
@@ -388,6 +482,10 @@ def routes(read_pool, tokens: Tokens, writer: Writer) -> list[Route]:
             "/api/clips/{clip_id}/versions/{version}", "DELETE", _delete_version, with_body=False
         ),
         write("/api/clips/{clip_id}/versions/{version}/current", "POST", _restore_version, False),
+        write("/api/clips/{ident}/retarget", "POST", _retarget),
+        write("/api/edit-scripts/{name}", "PUT", _put_script),
+        write("/api/edit-scripts/{name}", "DELETE", _delete_script, with_body=False),
+        write("/api/edit-scripts/{name}/apply", "POST", _apply_script),
         Route(
             "/api/skeletons/{skeleton_id}/maps",
             maps_endpoint(read_pool, tokens, writer),

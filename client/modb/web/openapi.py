@@ -181,6 +181,23 @@ def catalog_writes() -> dict[str, dict[str, Any]]:
             ),
         },
     }
+    script = {"name": "name", "in": "path", "required": True, "schema": {"type": "string"},
+              "description": "the edit script's name"}  # fmt: skip
+    out["/api/clips/{ident}/retarget"] = {"post": _write(
+        "retarget the clip onto another skeleton, as a new clip linked to it", CLIP,
+        body=_object(["skeleton"], skeleton={"type": "integer"}, collection=TEXT,
+                     fps={"type": "number"}, mirror={"type": "boolean"}),
+        ok="the new clip (201)")}  # fmt: skip
+    out["/api/edit-scripts/{name}"] = {
+        "put": _write("store an edit script (replacing one of that name)", script,
+                      body=_object(["commands"], commands={"type": "array"}, comment=TEXT),
+                      ok="stored (201 when new)"),
+        "delete": _write("delete an edit script", script, ok="its name"),
+    }  # fmt: skip
+    out["/api/edit-scripts/{name}/apply"] = {"post": _write(
+        "apply an edit script: a new version of each clip (one transaction)", script,
+        body=_object([], clips={"type": "array", "items": {"type": "integer"}}, collection=TEXT),
+        ok="each clip's new version")}  # fmt: skip
     for table in ("models", "graphs"):
         one = _id("ident", f"{table[:-1]} id")
         note = " (not transition graphs: `modb graph build`)" if table == "graphs" else ""
@@ -240,6 +257,7 @@ def schema() -> dict[str, Any]:
         "/api/graphs": _read("every graph"),
         "/api/graphs/{ident}": _read("one graph", _id("ident", "graph id")),
         "/api/profiles": _read("the match profiles"),
+        "/api/edit-scripts": _read("the stored edit scripts"),
         "/api/clips/{clip_id}/versions/{version}/meta": {
             "get": {
                 "summary": "a version's meta (annotations, tags) and its ETag",
