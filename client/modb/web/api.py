@@ -179,8 +179,9 @@ def skeleton(conn: psycopg.Connection, skeleton_id: int) -> dict[str, Any]:
     return _one(
         conn,
         "skeleton",
-        "SELECT id, name, hierarchy, joint_map, mirror_pairs, meta "
-        "  FROM modb.skeletons WHERE id = %s",
+        "SELECT id, name, hierarchy, joint_map, mirror_pairs, meta, "
+        "       coalesce(to_jsonb(s)->'joint_axes', '{}') AS joint_axes "  # modb 0.15.0 on
+        "  FROM modb.skeletons s WHERE id = %s",
         skeleton_id,
     )
 

@@ -43,6 +43,22 @@ export class Rig {
     return this.nodes.map((node) => node.getWorldPosition(new THREE.Vector3()).toArray());
   }
 
+  // The joint coordinate systems (modb.skeletons.joint_axes: per mapped joint a twist and a swing axis in
+  // its own frame) as world segments [from, to, colour] of `length` metres: twist red, swing green.
+  axisSegments(jointAxes, length = 0.12) {
+    const out = [];
+    Object.values((jointAxes && jointAxes.joints) || {}).forEach((axes) => {
+      const node = this.nodes[this.joints.findIndex((j) => j.name === axes.joint)];
+      if (!node) return;
+      const at = node.getWorldPosition(new THREE.Vector3());
+      const turn = node.getWorldQuaternion(new THREE.Quaternion());
+      [[axes.twist, 0xd03020], [axes.swing, 0x20a040]].forEach(([v, colour]) => {
+        out.push([at, new THREE.Vector3().fromArray(v).applyQuaternion(turn).multiplyScalar(length).add(at), colour]);
+      });
+    });
+    return out;
+  }
+
   // Bone segments as pairs of world points: every joint to its parent (the pelvis aside), and every end
   // site to its joint.
   boneSegments() {

@@ -38,6 +38,14 @@ export class Stage {
     this.bones.frustumCulled = false;
     this.scene.add(this.bones);
     this.jointMesh = null;
+    const axes = new THREE.BufferGeometry();
+    axes.setAttribute('position', new THREE.BufferAttribute(new Float32Array(MAX_BONES * 6), 3));
+    axes.setAttribute('color', new THREE.BufferAttribute(new Float32Array(MAX_BONES * 6), 3));
+    this.axes = new THREE.LineSegments(axes, new THREE.LineBasicMaterial({ vertexColors: true, depthTest: false }));
+    this.axes.frustumCulled = false;
+    this.axes.renderOrder = 1; // over the character: the axes sit inside its limbs
+    this.axes.visible = false;
+    this.scene.add(this.axes);
     this.highlight = new THREE.Mesh(new THREE.SphereGeometry(JOINT_RADIUS * 2, 16, 12),
                                     new THREE.MeshBasicMaterial({ color: 0xe0402a }));
     this.highlight.visible = false;
@@ -117,6 +125,25 @@ export class Stage {
       }
       this.followed = now;
     }
+  }
+
+  // The joint axes (Rig.axisSegments), or none.
+  drawAxes(segments) {
+    const position = this.axes.geometry.attributes.position;
+    const colour = this.axes.geometry.attributes.color;
+    const shown = (segments || []).slice(0, MAX_BONES);
+    const c = new THREE.Color();
+    shown.forEach(([a, b, hex], i) => {
+      position.setXYZ(2 * i, a.x, a.y, a.z);
+      position.setXYZ(2 * i + 1, b.x, b.y, b.z);
+      c.setHex(hex);
+      colour.setXYZ(2 * i, c.r, c.g, c.b);
+      colour.setXYZ(2 * i + 1, c.r, c.g, c.b);
+    });
+    position.needsUpdate = true;
+    colour.needsUpdate = true;
+    this.axes.geometry.setDrawRange(0, 2 * shown.length);
+    this.axes.visible = shown.length > 0;
   }
 
   // The joint spheres' centres and the bone lines' end points, read back from the scene's buffers.

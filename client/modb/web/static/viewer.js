@@ -62,7 +62,7 @@ async function loadClip(clipId) {
   }
   if (load !== latestLoad) return false;
   Object.assign(state, { clip, fps: clip.fps, frames, frame: 0, time: 0, highlighted: null, character,
-                         jointMap: skeleton.joint_map,
+                         jointMap: skeleton.joint_map, jointAxes: skeleton.joint_axes,
                          rig: new Rig(skeleton.hierarchy, skeleton.joint_map.pelvis) });
   stage.setCharacter(character);
   $('download-bvh').href = `/api/clips/${clip.id}/download?format=bvh&version=${clip.version}`;
@@ -90,6 +90,7 @@ function setFrame(index) {
   if (state.character) state.character.pose(state.frames.rotations[state.frame], state.frames.translations[state.frame]);
   stage.draw(state.rig.boneSegments(), state.rig.worldPositions(), state.rig.pelvis, state.highlighted,
              $('follow').checked);
+  stage.drawAxes($('show-axes').checked ? state.rig.axisSegments(state.jointAxes) : null);
   $('timeline').value = String(state.frame);
   editor.drawCursor();
   $('frame').textContent = `${state.frame} / ${n - 1}  ${(state.frame / state.fps).toFixed(2)} s`;
@@ -187,6 +188,7 @@ async function start() {
 }
 
 $('show-skeleton').addEventListener('change', () => stage.showSkeleton($('show-skeleton').checked || !state.character));
+$('show-axes').addEventListener('change', () => setFrame(state.frame));
 // A link cannot carry the Authorization header: with a token set, a download is fetched with it and saved.
 for (const link of [$('download-bvh'), $('download-glb')]) {
   link.addEventListener('click', async (e) => {
@@ -217,6 +219,7 @@ window.modbViewer = {
   jointNames: () => (state.rig ? state.rig.joints.map((j) => j.name) : []),
   jointWorldPositions: () => (state.rig ? state.rig.worldPositions() : []),
   drawn: () => stage.drawn(), // what the scene shows: joint spheres and bone line ends
+  axes: () => (state.rig ? state.rig.axisSegments(state.jointAxes).map(([a, b, c]) => [a.toArray(), b.toArray(), c]) : []),
   ready: start().then(() => true, (error) => { status(error.message, true); throw error; }),
 };
 requestAnimationFrame(tick);
