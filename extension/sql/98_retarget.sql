@@ -29,7 +29,7 @@ if not target:
     plpy.error(f"no skeleton {skeleton}", hint="SELECT DISTINCT skeleton_id FROM modb.current_clips lists them")
 target = target[0]
 first_frame = plpy.execute(plpy.prepare(
-    """SELECT v.rotations[1:1] AS rotations, v.translations[1:1] AS translations FROM modb.current_clips c
+    """SELECT v.rotations, v.translations FROM modb.current_clips c
          JOIN modb.clip_versions v USING (clip_id, version) WHERE c.skeleton_id = $1 ORDER BY c.clip_id LIMIT 1""",
     ["bigint"]), [skeleton])
 store_axes = plpy.prepare("UPDATE modb.skeletons SET joint_axes = $2::jsonb WHERE id = $1 AND joint_axes = '{}'",
@@ -51,9 +51,8 @@ def prepared(row, skeleton_id, reference):
     return ready
 
 rotations, translations = frames(source["rotations"], source["translations"])
-src = prepared(source, source["skeleton_id"], (rotations[0], translations[0]))
-reference = frames(first_frame[0]["rotations"], first_frame[0]["translations"]) if first_frame else None
-dst = prepared(target, skeleton, None if reference is None else (reference[0][0], reference[1][0]))
+src = prepared(source, source["skeleton_id"], (rotations, translations))
+dst = prepared(target, skeleton, frames(first_frame[0]["rotations"], first_frame[0]["translations"]) if first_frame else None)
 rate = fps
 if rate is None:  # the rate most of the skeleton's clips have: chains need one rate
     rates = plpy.execute(plpy.prepare(

@@ -35,9 +35,9 @@ read_clip = plpy.prepare(
         WHERE v.clip_id = $1 ORDER BY v.version DESC LIMIT 1""", ["bigint"])
 read_skeleton = plpy.prepare(
     """SELECT s.hierarchy, s.joint_map, s.joint_axes, s.mirror_pairs,
-              (SELECT v.rotations[1:1] FROM modb.current_clips c JOIN modb.clip_versions v USING (clip_id, version)
+              (SELECT v.rotations FROM modb.current_clips c JOIN modb.clip_versions v USING (clip_id, version)
                 WHERE c.skeleton_id = s.id ORDER BY c.clip_id LIMIT 1) AS rotations,
-              (SELECT v.translations[1:1] FROM modb.current_clips c JOIN modb.clip_versions v USING (clip_id, version)
+              (SELECT v.translations FROM modb.current_clips c JOIN modb.clip_versions v USING (clip_id, version)
                 WHERE c.skeleton_id = s.id ORDER BY c.clip_id LIMIT 1) AS translations
          FROM modb.skeletons s WHERE s.id = $1""", ["bigint"])
 add_version = plpy.prepare(
@@ -74,7 +74,7 @@ def fetch_skeleton(skeleton_id):
     if not rows:
         return None
     reference = None if rows[0]["rotations"] is None else frames(rows[0]["rotations"], rows[0]["translations"])
-    return skeleton_of(rows[0], skeleton_id), None if reference is None else (reference[0][0], reference[1][0])
+    return skeleton_of(rows[0], skeleton_id), reference
 
 for clip_id in clips or []:
     rows = plpy.execute(read_clip, [clip_id])

@@ -18,10 +18,10 @@ class RetargetError(ValueError):
 
 
 def prepared(skeleton: Skeleton, reference: Motion | None = None) -> dict[str, Any]:
-    """The skeleton as modb_kernel.retarget takes it, with its axes (stored, else derived from its
-    rest pose when it stands, else from the first frame of `reference`, a clip on it)."""
+    """The skeleton as modb_kernel.retarget takes it, with its axes (stored, else derived from the
+    frames of `reference`, a clip on it, else from its rest pose when it stands)."""
     found = kernel.skeleton(skeleton.hierarchy_json(), skeleton.joint_map, skeleton.joint_axes)
-    frame = None if reference is None else (reference.rotations[0], reference.translations[0])
+    frame = None if reference is None else (reference.rotations, reference.translations)
     try:
         return kernel.with_axes(found, frame)
     except kernel.RetargetError as e:

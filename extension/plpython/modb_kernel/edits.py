@@ -151,7 +151,7 @@ def apply_command(clip, command, fetch, fetch_skeleton):
             raise EditError(f"retarget: no skeleton {command.get('skeleton')}")
         destination, reference = found
         try:
-            source = retarget.with_axes(sk, (clip["rotations"][0], clip["translations"][0]))
+            source = retarget.with_axes(sk, (clip["rotations"], clip["translations"]))
             target = retarget.with_axes(destination, reference)
         except retarget.RetargetError as e:
             raise EditError(f"retarget: {e}") from None

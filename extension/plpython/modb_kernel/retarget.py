@@ -49,6 +49,8 @@ SWING_ALONG_FORWARD = {
     "right_wrist",
 }
 MIN_BONE_M = 0.01  # a joint nearer than this to its target gives no direction
+HINGE_MIN_BEND_DEGREES = 15  # an elbow or knee bent less than this shows no hinge axis
+HINGE_MIN_FRAMES = 10
 
 
 def _unit(v):
@@ -82,29 +84,57 @@ def upright(parents, offsets, names, joint_map):
     )
 
 
+def mean_rotations(rotations):
+    """Per joint the mean of (frames, joints, 4) unit quaternions (Markley: the top eigenvector of
+    sum q q^T), w >= 0."""
+    m = np.einsum("fji,fjk->jik", rotations, rotations)
+    return quaternion.canonical(np.linalg.eigh(m)[1][..., -1])
+
+
+def _body_axes_all(positions, at):
+    """Per frame the body's left and forward (world, unit): hip to hip; pelvis to neck for up."""
+    left = _unit(positions[:, at["left_hip"]] - positions[:, at["right_hip"]])
+    up = positions[:, at["neck"] if "neck" in at else at["chest"]] - positions[:, at["pelvis"]]
+    up = _unit(up - left * np.sum(up * left, axis=-1, keepdims=True))
+    return left, np.cross(left, up)
+
+
 def joint_axes(parents, offsets, end_sites, names, joint_map, reference=None):
-    """{standard name: {"joint", "twist", "swing"}} for every mapped standard joint, unit vectors in
-    the joint's own frame. Both come from a standing pose: the rest pose, or `reference` =
-    (rotations (joints, 4), translations (translated, 3), translated) of one captured frame when
-    the rest pose does not stand (upright()); retarget() gives unmapped joints that pose's
-    rotations. The twist points toward the mapped joint the joint moves (else its children or End
-    Site), the swing along the body's left (trunk, legs) or forward (arms)."""
+    """({standard name: {"joint", "twist", "swing"}}, pose) for every mapped standard joint: unit
+    vectors in the joint's own frame, and the local rotations (joints, 4) of the pose they fit,
+    which retarget() gives unmapped joints. From the rest pose, or from `reference` = (rotations
+    (frames, joints, 4), translations (frames, translated, 3), translated) of captured frames: the
+    twist points toward the mapped joint the joint moves (else its children or End Site) in the
+    frames' mean pose; the swing is the body's left (trunk, legs) or forward (arms) seen from the
+    joint, averaged over the frames (one frame's arm swing or roll would otherwise set it)."""
     index = {n: i for i, n in enumerate(names)}
     at = {s: index[j] for s, j in joint_map.items() if j in index}
     if reference is None:
-        positions = kinematics.rest_positions(parents, offsets)
-        orientations = np.tile([1.0, 0.0, 0.0, 0.0], (len(parents), 1))
+        pose = np.tile([1.0, 0.0, 0.0, 0.0], (len(parents), 1))
+        rotations, translations, translated = pose[None], np.zeros((1, 0, 3)), []
     else:
         rotations, translations, translated = reference
-        positions, orientations = kinematics.world_transforms(
-            parents,
-            offsets,
-            np.asarray(rotations)[None],
-            np.asarray(translations)[None],
-            translated,
-        )
-        positions, orientations = positions[0], orientations[0]
-    left, _, forward = _body_axes(positions, at)
+        rotations = np.asarray(rotations, dtype=np.float64).reshape(-1, len(parents), 4)
+        translations = np.asarray(translations, dtype=np.float64).reshape(len(rotations), -1, 3)
+        pose = mean_rotations(rotations)
+    still = (pose[None], translations.mean(axis=0)[None], translated)
+    positions, orientations = (x[0] for x in kinematics.world_transforms(parents, offsets, *still))
+    frame_positions, frame_orientations = kinematics.world_transforms(
+        parents, offsets, rotations, translations, translated
+    )
+    left, forward = _body_axes_all(frame_positions, at)
+    hinges = {}  # a limb's hinge axis (upper cross lower) per frame, where it bends enough to tell
+    for side in ("left", "right"):
+        for limb, (top, middle, end) in (("arm", ("shoulder", "elbow", "wrist")),
+                                          ("leg", ("hip", "knee", "ankle"))):  # fmt: skip
+            names_ = [f"{side}_{n}" for n in (top, middle, end)]
+            if all(n in at for n in names_):
+                upper = _unit(frame_positions[:, at[names_[1]]] - frame_positions[:, at[names_[0]]])
+                lower = _unit(frame_positions[:, at[names_[2]]] - frame_positions[:, at[names_[1]]])
+                axis = np.cross(upper, lower)
+                bent = np.linalg.norm(axis, axis=-1) > np.sin(np.radians(HINGE_MIN_BEND_DEGREES))
+                if bent.sum() >= HINGE_MIN_FRAMES:
+                    hinges[(side, limb)] = (_unit(axis), bent)
     out = {}
     for standard, toward in TWIST_TOWARD.items():
         if standard not in at:
@@ -127,17 +157,22 @@ def joint_axes(parents, offsets, end_sites, names, joint_map, reference=None):
                 else np.asarray(offsets[j], dtype=np.float64)
             )
         twist = _unit(twist)
-        across = forward if standard in SWING_ALONG_FORWARD else left
-        across = quaternion.rotate(
-            quaternion.conjugate(orientations[j]), across
-        )  # into the joint's frame
-        swing = across - twist * np.dot(across, twist)
-        if np.linalg.norm(swing) < 0.1:  # the twist lies along it: the other body axis
-            other = left if standard in SWING_ALONG_FORWARD else forward
-            other = quaternion.rotate(quaternion.conjugate(orientations[j]), other)
-            swing = other - twist * np.dot(other, twist)
+        seen = quaternion.conjugate(frame_orientations[:, j])  # world into the joint's frame
+        side, _, part = standard.partition("_")
+        limb = "arm" if part in ("shoulder", "elbow", "wrist") else "leg" if part else None
+        swing = np.zeros(3)
+        if (side, limb) in hinges:  # the limb's own hinge: the same anatomy whatever the rig
+            axis, bent = hinges[(side, limb)]
+            mean = quaternion.rotate(seen[bent], axis[bent]).mean(axis=0)
+            swing = mean - twist * np.dot(mean, twist)
+        if np.linalg.norm(swing) < 0.1:
+            for across in (forward, left) if standard in SWING_ALONG_FORWARD else (left, forward):
+                mean = quaternion.rotate(seen, across).mean(axis=0)
+                swing = mean - twist * np.dot(mean, twist)
+                if np.linalg.norm(swing) >= 0.1:  # else the twist lies along it: the other axis
+                    break
         out[standard] = {"joint": names[j], "twist": twist.tolist(), "swing": _unit(swing).tolist()}
-    return out
+    return out, pose
 
 
 class RetargetError(ValueError):
@@ -164,9 +199,9 @@ def skeleton(hierarchy, joint_map, joint_axes=None, mirror_pairs=()):
 
 
 def with_axes(sk, reference=None):
-    """The skeleton with its axes and the pose they come from: its stored joint_axes when it has
-    them, else derived from the rest pose when it stands, else from `reference` = (rotations,
-    translations) of one captured frame (a clip of this skeleton)."""
+    """The skeleton with its axes and the pose they fit: its stored joint_axes when it has them,
+    else derived from `reference` = (rotations, translations) of captured frames (a clip of this
+    skeleton), else from its rest pose when it stands."""
     missing = [s for s in NEEDED if s not in sk["joint_map"]]
     if missing:
         raise RetargetError(f"its joint map lacks {', '.join(missing)}: complete it first")
@@ -177,17 +212,14 @@ def with_axes(sk, reference=None):
             identity if stored.get("pose") is None else np.asarray(stored["pose"], dtype=np.float64)
         )
         return dict(sk, axes=stored["joints"], pose=pose)
-    shape = (sk["parents"], sk["offsets"], sk["names"], sk["joint_map"])
-    if upright(*shape):
-        frame, pose = None, identity
-    elif reference is None:
-        raise RetargetError("its rest pose does not stand and it has no clip to take a standing "
-                            "pose from: load one first, or store its joint_axes")  # fmt: skip
-    else:
-        frame = (reference[0], reference[1], sk["translated"])
-        pose = np.asarray(reference[0], dtype=np.float64)
-    axes = joint_axes(
-        sk["parents"], sk["offsets"], sk["end_sites"], sk["names"], sk["joint_map"], frame
+    frames = None if reference is None else (reference[0], reference[1], sk["translated"])
+    if frames is None and not upright(sk["parents"], sk["offsets"], sk["names"], sk["joint_map"]):
+        raise RetargetError(
+            "its rest pose does not stand and it has no clip to take a standing pose from: load "
+            "one first, or store its joint_axes"
+        )
+    axes, pose = joint_axes(
+        sk["parents"], sk["offsets"], sk["end_sites"], sk["names"], sk["joint_map"], frames
     )
     return dict(sk, axes=axes, pose=pose)
 
