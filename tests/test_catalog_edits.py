@@ -86,6 +86,10 @@ WRITES = [
     ("POST", "/api/graphs", {"name": "g", "kind": "k", "data": {}}),
     ("PUT", "/api/graphs/1", {"data": {}}),
     ("DELETE", "/api/graphs/1", None),
+    ("POST", "/api/clips/1/retarget", {"skeleton": 1}),
+    ("PUT", "/api/edit-scripts/x", {"commands": [{"op": "mirror"}]}),
+    ("DELETE", "/api/edit-scripts/x", None),
+    ("POST", "/api/edit-scripts/x/apply", {"clips": [1]}),
 ]
 
 
@@ -493,3 +497,88 @@ def test_the_avatar_socket_asks_a_token_when_reads_need_one(edits):
         with connect(url, origin=f"http://{address}") as ws:
             ws.send(json.dumps({"type": "auth", "token": tokens["viewer"]}))
             assert json.loads(ws.recv(timeout=30))["type"] == "ready"
+
+
+def test_edit_scripts_retargeting_and_joint_axes_through_rest(edits):
+    dsn, tokens, client = edits
+    h = bearer(tokens["editor"])
+    walk = sorted(mocap("bandai-2-dev", "data").glob("dataset-2_walk_active_*.bvh"))[0]
+    r = client.post(
+        "/api/uploads",
+        data={"collection": "rest edit"},
+        files=[("file", (walk.name, walk.read_bytes(), "application/octet-stream"))],
+        headers=h,
+    )
+    assert r.status_code == 200, r.text
+    clip = r.json()["results"][0]["clip_id"]
+    # an edit script named to inject SQL is only a name
+    url = httpx.URL(f"/api/edit-scripts/{HOSTILE}")
+    trim = [{"op": "trim", "start": 5, "end": 104}]
+    assert (
+        client.put(url, json={"commands": trim, "comment": "first 100"}, headers=h).status_code
+        == 201
+    )
+    assert client.put(url, json={"commands": trim}, headers=h).status_code == 200
+    assert client.put(url, json={"commands": []}, headers=h).status_code == 400
+    listed = {s["name"]: s for s in client.get("/api/edit-scripts").json()}
+    assert listed[HOSTILE]["commands"] == trim
+    r = client.post(
+        httpx.URL(f"/api/edit-scripts/{HOSTILE}/apply"), json={"collection": "rest edit"}, headers=h
+    )
+    assert r.status_code == 200, r.text
+    assert r.json()["results"] == [
+        {
+            "clip_id": clip,
+            "version": 2,
+            "n_frames": 100,
+            "snippets": r.json()["results"][0]["snippets"],
+        }
+    ]
+    bad = client.post(
+        httpx.URL(f"/api/edit-scripts/{HOSTILE}/apply"), json={"clips": "all"}, headers=h
+    )
+    assert bad.status_code == 400
+    assert (
+        client.post("/api/edit-scripts/none/apply", json={"clips": [clip]}, headers=h).status_code
+        == 400
+    )
+    assert client.delete(url, headers=h).status_code == 200
+    assert client.delete(url, headers=h).status_code == 404
+    # retargeting the walk onto the CMU skeleton: a new clip at the CMU clips' 120 fps
+    cmu = scalar(
+        dsn, "SELECT skeleton_id FROM modb.current_clips WHERE collection = 'cmu/131' LIMIT 1"
+    )
+    r = client.post(
+        f"/api/clips/{clip}/retarget",
+        json={"skeleton": cmu, "collection": "rest edit/cmu"},
+        headers=h,
+    )
+    assert r.status_code == 201, r.text
+    made = r.json()
+    assert made["fps"] == 120 and made["collection"] == "rest edit/cmu" and made["clip_id"] != clip
+    assert abs(made["n_frames"] - 1 - 99 * 4) <= 1  # 100 frames at 30 fps, now at 120
+    assert (
+        client.post(f"/api/clips/{clip}/retarget", json={"skeleton": 10**9}, headers=h).status_code
+        == 400
+    )
+    # the axes the retargeting derived are the skeleton's, and editable with its maps' ETag
+    maps = client.get(f"/api/skeletons/{cmu}/maps")
+    axes = maps.json()["joint_axes"]
+    assert set(axes["joints"]) >= {"pelvis", "left_knee", "right_elbow"}
+    changed = json.loads(json.dumps(axes))
+    changed["joints"]["head"]["swing"] = [0.0, 0.0, 1.0]
+    body = {k: maps.json()[k] for k in ("joint_map", "mirror_pairs")} | {"joint_axes": changed}
+    r = client.put(
+        f"/api/skeletons/{cmu}/maps", json=body, headers={**h, "If-Match": maps.headers["etag"]}
+    )
+    assert r.status_code == 200 and r.json()["clips_recut"] == 0, r.text
+    assert scalar(
+        dsn, "SELECT joint_axes->'joints'->'head'->'swing' FROM modb.skeletons WHERE id = %s", [cmu]
+    ) == [0.0, 0.0, 1.0]
+    changed["joints"]["head"]["joint"] = HOSTILE
+    body["joint_axes"] = changed
+    r = client.put(
+        f"/api/skeletons/{cmu}/maps", json=body, headers={**h, "If-Match": r.headers["etag"]}
+    )
+    assert r.status_code == 400, r.text
+    assert [a[2] for a in audited(dsn, "edit script apply")] == [HOSTILE]

@@ -207,3 +207,53 @@ def test_a_save_over_a_newer_edit_is_refused(site, browser):
     assert (
         token not in browser.current_url and browser.execute_script("return document.cookie") == ""
     )
+
+
+def test_the_skeleton_panel_draws_each_joints_axes(site, browser):
+    """The 'axes' box draws every mapped joint's twist and swing axes (issue 26): each segment starts
+    at its joint and points along the axis turned by the joint's world rotation, by this test's own
+    forward kinematics (scipy) of the frame shown."""
+    import numpy as np
+    from scipy.spatial.transform import Rotation
+
+    from modb.clips import read_motion
+    from modb.database import pgarray
+    from modb.editing.retarget import prepared
+    from modb_kernel.retarget import stored_form
+
+    address, dsn, _ = site
+    with psycopg.connect(dsn) as conn:
+        pgarray.register(conn)
+        (clip,) = conn.execute(
+            "SELECT clip_id FROM modb.current_clips WHERE collection = 'web/loaded'"
+        ).fetchone()
+        motion = read_motion(conn, clip)
+        axes = stored_form(prepared(motion.skeleton, motion))
+        conn.execute(
+            "UPDATE modb.skeletons SET joint_axes = %s WHERE id = "
+            "(SELECT skeleton_id FROM modb.current_clips WHERE clip_id = %s)",
+            [psycopg.types.json.Jsonb(axes), clip],
+        )
+    open_page(browser, address, f"?clip={clip}")
+    browser.execute_script("window.modbViewer.pause(); window.modbViewer.setFrame(40)")
+    browser.find_element(By.ID, "show-axes").click()
+    drawn = wait_for(browser, "return window.modbViewer.axes().length && window.modbViewer.axes()")
+    assert len(drawn) == 2 * len(axes["joints"])
+    # the test's own forward kinematics of frame 40
+    sk = motion.skeleton
+    local = sk.offsets.copy()
+    local[sk.translated] = motion.translations[40]
+    positions, turns = np.zeros_like(local), []
+    for j, parent in enumerate(sk.parents):
+        r = Rotation.from_quat(motion.rotations[40, j][[1, 2, 3, 0]])
+        positions[j] = local[j] if parent < 0 else positions[parent] + turns[parent].apply(local[j])
+        turns.append(r if parent < 0 else turns[parent] * r)
+    want = []
+    for a in axes["joints"].values():
+        j = sk.index(a["joint"])
+        for v in (a["twist"], a["swing"]):
+            want.append((positions[j], positions[j] + 0.12 * turns[j].apply(v)))
+    for (start, end, _), (ws, we) in zip(drawn, want, strict=True):
+        assert np.abs(np.array(start) - ws).max() < 1e-4 and np.abs(np.array(end) - we).max() < 1e-4
+    browser.find_element(By.ID, "show-axes").click()
+    assert browser.execute_script("return window.modbViewer.stageAxesShown()") is False

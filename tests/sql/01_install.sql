@@ -8,7 +8,7 @@ SELECT has_schema('modb');
 SELECT tables_are('modb', ARRAY['collections', 'skeletons', 'clips', 'clip_versions', 'models', 'graphs',
                                'snippet_sources', 'terminators', 'snippets', 'match_profiles', 'graph_snippets',
                                'graph_transitions', 'graph_names', 'snippet_blocks', 'generations', 'access_tokens',
-                               'audit_log', 'clip_segments']);
+                               'audit_log', 'clip_segments', 'edit_scripts']);
 SELECT views_are('modb', ARRAY['current_clips']);
 SELECT functions_are('modb', ARRAY[
     'skeleton_identity', 'unit_quaternions_ok', 'finite_ok', 'skeleton_joint_names', 'joint_map_ok', 'mirror_pairs_ok',
@@ -25,7 +25,8 @@ SELECT functions_are('modb', ARRAY[
     'select_snippet_ending', 'select_synthesis_step', 'snippets_ending_within', 'can_rest', 'token_grant',
     'audit_log_refuse', 'annotation_spec', 'annotated', 'collections_before_update', '_collection_id',
     'rename_collection', 'move_collection', 'delete_collection', 'delete_clip', 'delete_clip_version',
-    'restore_clip_version', 'clip_segments_after_delete', 'clip_versions_not_segment', 'split_by_annotation']);
+    'restore_clip_version', 'clip_segments_after_delete', 'clip_versions_not_segment', 'split_by_annotation',
+    'joint_axes_ok', 'retarget', 'apply_edit_script']);
 SELECT is((SELECT o.opcname::text FROM pg_index i JOIN pg_opclass o ON o.oid = i.indclass[0]
             WHERE i.indexrelid = 'modb.snippets_begin_features_idx'::regclass), 'cube_feature_ops',
           'the feature index uses modb''s operator class');
@@ -66,7 +67,7 @@ SELECT set_eq(
     $$SELECT c::regclass::text FROM pg_extension, unnest(extconfig) AS c WHERE extname = 'modb'$$,
     ARRAY['modb.collections', 'modb.collections_id_seq', 'modb.skeletons', 'modb.skeletons_id_seq',
           'modb.clips', 'modb.clips_id_seq', 'modb.clip_versions', 'modb.models', 'modb.models_id_seq',
-          'modb.graphs', 'modb.graphs_id_seq', 'modb.clip_segments', 'modb.snippet_sources', 'modb.terminators', 'modb.terminators_id_seq',
+          'modb.graphs', 'modb.graphs_id_seq', 'modb.clip_segments', 'modb.edit_scripts', 'modb.snippet_sources', 'modb.terminators', 'modb.terminators_id_seq',
           'modb.snippets', 'modb.snippets_id_seq', 'modb.match_profiles', 'modb.graph_snippets', 'modb.graph_transitions',
           'modb.graph_names', 'modb.access_tokens', 'modb.access_tokens_id_seq', 'modb.audit_log',
           'modb.audit_log_id_seq'],

@@ -219,6 +219,7 @@ window.modbViewer = {
   jointNames: () => (state.rig ? state.rig.joints.map((j) => j.name) : []),
   jointWorldPositions: () => (state.rig ? state.rig.worldPositions() : []),
   drawn: () => stage.drawn(), // what the scene shows: joint spheres and bone line ends
+  stageAxesShown: () => stage.axes.visible,
   axes: () => (state.rig ? state.rig.axisSegments(state.jointAxes).map(([a, b, c]) => [a.toArray(), b.toArray(), c]) : []),
   ready: start().then(() => true, (error) => { status(error.message, true); throw error; }),
 };
