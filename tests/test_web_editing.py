@@ -210,9 +210,9 @@ def test_a_save_over_a_newer_edit_is_refused(site, browser):
 
 
 def test_the_skeleton_panel_draws_each_joints_axes(site, browser):
-    """The 'axes' box draws every mapped joint's twist and swing axes (issue 26): each segment starts
-    at its joint and points along the axis turned by the joint's world rotation, by this test's own
-    forward kinematics (scipy) of the frame shown."""
+    """The 'axes' box draws every mapped joint's twist and swing axes (issue 26): each segment
+    starts at its joint and points along the axis turned by the joint's world rotation, by this
+    test's own forward kinematics (scipy) of the frame shown."""
     import numpy as np
     from scipy.spatial.transform import Rotation
 
