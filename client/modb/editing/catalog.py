@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import psycopg
+from psycopg import sql
 from psycopg.types.json import Jsonb
 
 from modb.loader.ingest import build_snippets
@@ -69,24 +70,25 @@ def delete_clip(conn: psycopg.Connection, clip_id: int) -> int:
     return conn.execute("SELECT modb.delete_clip(%s)", [clip_id]).fetchone()[0]
 
 
-def delete_version(conn: psycopg.Connection, clip_id: int, version: int) -> Recut:
-    """Deletes one version; when it was the current one, the one before it is cut into snippets."""
+def _then_cut(conn: psycopg.Connection, clip_id: int, version: int, function: str) -> Recut:
+    """Calls modb.FUNCTION(clip, version), which returns the version now current, and cuts that
+    version into snippets as the clip was cut (mirrored too, when it was)."""
     mirrored = _mirrored(conn, clip_id)
     (current,) = conn.execute(
-        "SELECT modb.delete_clip_version(%s, %s)", [clip_id, version]
+        sql.SQL("SELECT {}(%s, %s)").format(sql.Identifier("modb", function)), [clip_id, version]
     ).fetchone()
     build_snippets(conn, clip_id, mirrored)
     return Recut(clip_id, current, _snippets(conn, clip_id))
 
 
+def delete_version(conn: psycopg.Connection, clip_id: int, version: int) -> Recut:
+    """Deletes one version; when it was the current one, the one before it is cut into snippets."""
+    return _then_cut(conn, clip_id, version, "delete_clip_version")
+
+
 def restore_version(conn: psycopg.Connection, clip_id: int, version: int) -> Recut:
     """Makes an older version current again (as a new version with its motion and meta), cut."""
-    mirrored = _mirrored(conn, clip_id)
-    (made,) = conn.execute(
-        "SELECT modb.restore_clip_version(%s, %s)", [clip_id, version]
-    ).fetchone()
-    build_snippets(conn, clip_id, mirrored)
-    return Recut(clip_id, made, _snippets(conn, clip_id))
+    return _then_cut(conn, clip_id, version, "restore_clip_version")
 
 
 class SkeletonNotFound(LookupError):
