@@ -1,7 +1,8 @@
 """`modb serve`: the browser view of the motion database (Starlette, served by uvicorn).
 
-Read-only: its pooled connections run with default_transaction_read_only, and the database role it
-is given (modb_reader is enough) bounds what it can see. Every request passes the Host/Origin guard.
+Reads run on pooled connections with default_transaction_read_only, as the role it is given
+(modb_reader is enough). Writes need a loader token and run as the writer role (writes.py,
+catalog_writes.py). Every request passes the Host/Origin guard.
 
 Frame requests are the heavy ones (the database reads the clip version's arrays, this process runs
 the forward kinematics and writes up to MAX_FRAMES frames of JSON): at most HEAVY_SLOTS are answered

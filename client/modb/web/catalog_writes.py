@@ -7,7 +7,6 @@ the writer role's connection, one transaction with its modb.audit_log row, and e
 from __future__ import annotations
 
 import contextlib
-import json
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
@@ -25,6 +24,7 @@ from modb.access import audit
 from modb.editing import catalog
 
 from .auth import Tokens
+from .bodies import authorized_json
 from .writes import Writer
 
 MAX_DOCUMENT_BYTES = 64 << 20  # a model's or graph's data, as JSON
@@ -94,8 +94,7 @@ def _text(body: dict[str, Any], key: str, required: bool = True) -> str | None:
 def write_endpoint(tokens: Tokens, writer: Writer, handler: Handler, with_body: bool = True):
     """An endpoint running `handler` as one audited transaction of the writer role."""
 
-    def run(request: Request, body: Any) -> JSONResponse:
-        grant = tokens.writer(request)
+    def run(request: Request, grant, body: Any) -> JSONResponse:
         with writer.pool().connection() as conn, _database_errors():
             with conn.transaction():
                 done = handler(conn, request, body)
@@ -103,16 +102,8 @@ def write_endpoint(tokens: Tokens, writer: Writer, handler: Handler, with_body: 
         return JSONResponse(done.body, status_code=done.status, headers=done.headers)
 
     async def endpoint(request: Request) -> JSONResponse:
-        body = None
-        if with_body:
-            raw = await request.body()
-            if len(raw) > MAX_DOCUMENT_BYTES:
-                raise HTTPException(413, f"the body is larger than {MAX_DOCUMENT_BYTES >> 20} MB")
-            try:
-                body = json.loads(raw)
-            except (ValueError, UnicodeDecodeError):
-                raise HTTPException(400, "the body is not JSON") from None
-        return await run_in_threadpool(run, request, body)
+        grant, body = await authorized_json(request, tokens, MAX_DOCUMENT_BYTES, with_body)
+        return await run_in_threadpool(run, request, grant, body)
 
     return endpoint
 

@@ -5,7 +5,6 @@ superuser's SET ROLE) and is recorded in modb.audit_log in the same transaction.
 
 from __future__ import annotations
 
-import json
 import re
 import tempfile
 from dataclasses import dataclass
@@ -24,10 +23,18 @@ from modb.access import audit
 from modb.database import pgarray
 from modb.database.cluster import WRITER_ROLE
 from modb.editing.annotations import AnnotationError
-from modb.editing.meta import MetaNotFound, StaleMeta, VersionMeta, read_meta, write_meta
+from modb.editing.meta import (
+    MAX_META_BYTES,
+    MetaNotFound,
+    StaleMeta,
+    VersionMeta,
+    read_meta,
+    write_meta,
+)
 
 from .api import NotFound
 from .auth import Tokens
+from .bodies import authorized_json
 
 MAX_UPLOAD_MB = 100  # a request's body; `modb serve --max-upload-mb` changes it
 MAX_UPLOAD_FILES = 500
@@ -118,8 +125,7 @@ def meta_endpoints(read_pool: ConnectionPool, tokens: Tokens, writer: Writer):
             except MetaNotFound as e:
                 raise NotFound(str(e)) from None
 
-    def put(request: Request, body: Any) -> JSONResponse:
-        grant = tokens.writer(request)
+    def put(request: Request, grant, body: Any) -> JSONResponse:
         clip_id, version = _path_ints(request)
         if_match = request.headers.get("if-match")
         if not if_match:
@@ -151,16 +157,15 @@ def meta_endpoints(read_pool: ConnectionPool, tokens: Tokens, writer: Writer):
                 )
             except AnnotationError as e:
                 raise HTTPException(400, str(e)) from None
+            except psycopg.DataError as e:  # e.g. a \u0000 in a string, which jsonb refuses
+                raise HTTPException(400, f"meta: {e.diag.message_primary or e}") from None
         return _version_meta_body(written)
 
     async def endpoint(request: Request) -> JSONResponse:
         if request.method == "GET":
             return await run_in_threadpool(get, request)
-        try:
-            body = json.loads(await request.body())
-        except (ValueError, UnicodeDecodeError):
-            raise HTTPException(400, "the body is not JSON") from None
-        return await run_in_threadpool(put, request, body)
+        grant, body = await authorized_json(request, tokens, MAX_META_BYTES + 1024)
+        return await run_in_threadpool(put, request, grant, body)
 
     return endpoint
 
