@@ -303,3 +303,47 @@ def test_modb_annotate_adds_lists_and_removes_segments(rest):
             [clip],
         ).fetchone()
     assert [a["name"] for a in meta["annotations"]] == ["step"]
+
+
+def test_bodies_are_read_after_the_token_and_bad_ones_are_400(rest):
+    """No token: 401 before any body is read (even a malformed one); then 411 without a length,
+    400 for malformed multipart, NaN, JSON nested too deep and a string jsonb refuses; nothing
+    stored."""
+    dsn, tokens, client, _ = rest
+    stored = upload(client, tokens["editor"], walk_files(1)).json()["results"][0]
+    url = f"/api/clips/{stored['clip_id']}/versions/{stored['version']}/meta"
+    etag = client.get(url).headers["etag"]
+    h = {**bearer(tokens["editor"]), "If-Match": etag, "Content-Type": "application/json"}
+    meta_before = scalar(
+        dsn,
+        "SELECT meta::text FROM modb.clip_versions WHERE clip_id = %s AND version = %s",
+        [stored["clip_id"], stored["version"]],
+    )
+    assert client.put(url, content=b"{not json", headers={"If-Match": etag}).status_code == 401
+    for body in (
+        b'{"meta": {"tags": [NaN]}}',
+        b'{"meta": {"x": ' + b"[" * 100_000 + b"]" * 100_000 + b"}}",
+        b'{"meta": {"tags": ["a\\u0000b"]}}',
+        b"\xff\xfe",
+    ):
+        r = client.put(url, content=body, headers=h)
+        assert r.status_code == 400, (body[:30], r.status_code, r.text)
+
+    def chunks():  # no Content-Length: sent chunked
+        yield b'{"meta": {}}'
+
+    assert client.put(url, content=chunks(), headers=h).status_code == 411
+    r = client.post(
+        "/api/uploads",
+        content=b"--x\r\nbroken",
+        headers={**bearer(tokens["editor"]), "Content-Type": "multipart/form-data; boundary=x"},
+    )
+    assert r.status_code == 400
+    assert (
+        scalar(
+            dsn,
+            "SELECT meta::text FROM modb.clip_versions WHERE clip_id = %s AND version = %s",
+            [stored["clip_id"], stored["version"]],
+        )
+        == meta_before
+    )
