@@ -149,3 +149,40 @@ def test_synthesize_takes_annotations_for_its_chain_only(annotated_db):
         assert len(rows) == 12
         assert all(passes(meta, first, n, ["turn"]) for first, n, meta in rows)
         assert conn.execute("SHOW modb.annotations").fetchone()[0] == ""  # the session's as it was
+
+
+def test_modb_synth_takes_annotations(annotated_db, tmp_path):
+    report = tmp_path / "report.json"
+    r = run_modb(
+        annotated_db,
+        "synth",
+        "--collection",
+        "cmu/131",
+        "--to",
+        "0,3",
+        "--seconds",
+        "6",
+        "--annotation",
+        "walk",
+        "--annotation",
+        "!turn",
+        "--no-graph",
+        "--out",
+        tmp_path / "walk.bvh",
+        "--report-json",
+        report,
+        "-q",
+    )
+    assert r.returncode == 0, r.stderr
+    import json
+
+    chain = json.loads(report.read_text())["chain"]
+    assert len(chain) >= 10
+    with psycopg.connect(annotated_db) as conn:
+        metas = dict(conn.execute("SELECT clip_id, meta FROM modb.current_clips").fetchall())
+    failing = [
+        (s["step"], s["clip_id"], s["first_frame"], s["n_frames"])
+        for s in chain
+        if not passes(metas[s["clip_id"]], s["first_frame"], s["n_frames"], ["walk", "!turn"])
+    ]
+    assert not failing, (failing, [s.get("mirrored") for s in chain][:3])

@@ -60,10 +60,12 @@ SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
    AND c.id <> ALL (coalesce(exclude, '{}'))
    AND CASE WHEN standing THEN v.speed < modb.rest_speed() ELSE v.speed >= modb.walk_speed() END
    AND r.ratio <= scale
+   AND ((prev.plan).annotations IS NULL  -- modb.annotations holds for coming to rest and setting off too
+        OR modb.annotated(c.clip_id, c.version, c.first_frame, c.n_frames, (prev.plan).annotations))
  ORDER BY 8, 7, 1
 $$;
 COMMENT ON FUNCTION modb.snippets_ending_within(bigint, float8[], float8, float8[], text, text, bigint[], boolean, float8) IS
-    'The snippets of prev''s pool that follow it with a continuity ratio of at most scale and end standing (pelvis slower than modb.rest_speed()) or, standing false, walking (at least modb.walk_speed()), by relaxation level, then nearest the goal at their end';
+    'The snippets of prev''s pool that follow it with a continuity ratio of at most scale, keep to the profile''s or session''s annotations (modb.annotations) and end standing (pelvis slower than modb.rest_speed()) or, standing false, walking (at least modb.walk_speed()), by relaxation level, then nearest the goal at their end';
 
 CREATE OR REPLACE FUNCTION modb.select_snippet_ending(prev_snippet bigint, "position" float8[], heading float8,
                                                      target_world float8[], profile text, collection text,
