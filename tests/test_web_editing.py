@@ -116,10 +116,24 @@ def test_upload_by_the_file_chooser_reports_each_file(site, browser, tmp_path):
 
 
 def test_the_editor_adds_moves_cuts_merges_renames_deletes_and_saves(site, browser):
+    """The issue's must-show: a BVH uploaded over HTTP with a token, a segment added, moved and cut
+    in the browser, the stored annotations read back in SQL, a selection keeping to them."""
+    import httpx
+
     address, dsn, token = site
+    walk = mocap("bandai-2-dev", "data", "dataset-2_walk_active_007.bvh")
+    r = httpx.post(
+        f"http://{address}/api/uploads",
+        data={"collection": "web/uploaded"},
+        files=[("file", (walk.name, walk.read_bytes(), "application/octet-stream"))],
+        headers={"Authorization": f"Bearer {token}"},
+        timeout=120,
+    )
+    assert r.status_code == 200, r.text
+    clip = r.json()["results"][0]["clip_id"]
     with psycopg.connect(dsn) as conn:
-        clip, n = conn.execute(
-            "SELECT clip_id, n_frames FROM modb.current_clips WHERE collection = 'web/loaded'"
+        (n,) = conn.execute(
+            "SELECT n_frames FROM modb.current_clips WHERE clip_id = %s", [clip]
         ).fetchone()
     open_page(browser, address, f"?clip={clip}")
     wait_for(browser, "return window.modbViewer.editor.etag")
@@ -139,7 +153,9 @@ def test_the_editor_adds_moves_cuts_merges_renames_deletes_and_saves(site, brows
     name.send_keys("stride")
     at(10, "n")  # new: 10-39
     at(50, "]")  # its end moves to 50
-    at(30, "c")  # cut: 10-29 and 30-50
+    at(30, "c", "s")  # cut: 10-29 and 30-50, saved
+    wait_for(browser, "return document.getElementById('annotation-status').textContent === 'saved'")
+    assert stored_segments(dsn, clip) == [(10, 29, "stride"), (30, 50, "stride")]
     at(70, "n")  # another: 70-99
     # select the first (Tab from the last selected wraps to it) and merge it with the next
     browser.execute_script("window.modbViewer.editor.select(0)")
