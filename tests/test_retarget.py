@@ -179,3 +179,29 @@ def test_new_clips_link_their_sources_which_stay_as_they_were(pair):
     for _, link, params, source_versions, snippets, same_pose in rows:
         assert link == params and link["clip_id"] > 0 and source_versions == 1
         assert snippets > 0 and same_pose
+
+
+def test_retargeting_again_stores_nothing_and_bad_requests_say_why(pair):
+    versions = "SELECT count(*) FROM modb.clip_versions"
+    with psycopg.connect(pair) as conn:
+        before = conn.execute(versions).fetchone()[0]
+    r = run_modb(
+        pair,
+        "retarget",
+        "cmu",
+        "--to",
+        "bandai/" + sorted(motions(pair, "bandai"))[0],
+        "--collection",
+        "cmu on bandai",
+        "-q",
+    )
+    assert r.returncode == 0, r.stderr
+    with psycopg.connect(pair) as conn:
+        assert conn.execute(versions).fetchone()[0] == before
+        for call, said in (
+            ("SELECT modb.retarget(10^9::bigint, 1)", "no clip"),
+            ("SELECT modb.retarget(1, 10^9::bigint)", "no skeleton"),
+            ("SELECT modb.retarget(1, 1, fps => -3)", "fps must be"),
+        ):
+            with pytest.raises(psycopg.Error, match=said), conn.transaction():
+                conn.execute(call)
