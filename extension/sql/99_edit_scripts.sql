@@ -76,6 +76,7 @@ def fetch_skeleton(skeleton_id):
     reference = None if rows[0]["rotations"] is None else frames(rows[0]["rotations"], rows[0]["translations"])
     return skeleton_of(rows[0], skeleton_id), reference
 
+results = []  # returned whole: an error raised inside a generator would lose its message
 for clip_id in clips or []:
     rows = plpy.execute(read_clip, [clip_id])
     if not rows:
@@ -97,7 +98,8 @@ for clip_id in clips or []:
         translations.astype(np.float32).tolist() if translations.shape[1] else None,
         json.dumps(record), json.dumps(meta)])[0]["version"]
     plpy.execute(cut, [clip_id, bool(row["mirrored"])])
-    yield (clip_id, made, n_frames, plpy.execute(count, [clip_id])[0]["n"])
+    results.append((clip_id, made, n_frames, plpy.execute(count, [clip_id])[0]["n"]))
+return results
 $py$;
 COMMENT ON FUNCTION modb.apply_edit_script(text, bigint[]) IS
     'Applies the edit script to each clip''s current version: a new version per clip (load_params.edit_script records the script''s name, commands and the version it started from, so it can be replayed), cut into snippets as the clip was (mirrored too when it was); annotations stay with the old version when the frame count changes. One transaction: a failing clip stores none';
