@@ -273,3 +273,83 @@ def test_the_skeleton_panel_draws_each_joints_axes(site, browser):
         assert np.abs(np.array(start) - ws).max() < 1e-4 and np.abs(np.array(end) - we).max() < 1e-4
     browser.find_element(By.ID, "show-axes").click()
     assert browser.execute_script("return window.modbViewer.stageAxesShown()") is False
+
+
+def test_a_dropped_file_is_uploaded(site, browser):
+    """Drag and drop: a drop event carrying a BVH file (as the browser makes one) uploads it."""
+    import base64
+
+    address, dsn, token = site
+    walk = mocap("bandai-2-dev", "data", "dataset-2_walk_active_009.bvh")
+    open_page(browser, address)
+    if not browser.execute_script("return sessionStorage.getItem('modb-token')"):
+        use_token(browser, token)
+    browser.find_element(By.ID, "upload-collection").clear()
+    browser.find_element(By.ID, "upload-collection").send_keys("web/dropped")
+    browser.execute_script(
+        "const bytes = Uint8Array.from(atob(arguments[0]), (c) => c.charCodeAt(0));"
+        "const data = new DataTransfer();"
+        "data.items.add(new File([bytes], arguments[1]));"
+        "document.getElementById('drop').dispatchEvent("
+        "  new DragEvent('drop', {dataTransfer: data, bubbles: true, cancelable: true}));",
+        base64.b64encode(walk.read_bytes()).decode(),
+        walk.name,
+    )
+    wait_for(
+        browser,
+        "return [...document.querySelectorAll('#uploads li')].some((li) => "
+        f"li.querySelector('span').textContent === '{walk.name}' "
+        "&& li.dataset.status === 'loaded')",
+    )
+    with psycopg.connect(dsn) as conn:
+        assert (
+            conn.execute(
+                "SELECT count(*) FROM modb.current_clips "
+                "WHERE collection = 'web/dropped' AND name = %s",
+                [walk.stem],
+            ).fetchone()[0]
+            == 1
+        )
+
+
+def test_the_plot_shows_a_joints_height_and_speed(site, browser):
+    """The editor's plot: the chosen joint's height and horizontal speed in every frame, against
+    this test's own forward kinematics (scipy) and numpy's gradient."""
+    import numpy as np
+    from scipy.spatial.transform import Rotation
+
+    from modb.clips import read_motion
+    from modb.database import pgarray
+
+    address, dsn, _ = site
+    with psycopg.connect(dsn) as conn:
+        pgarray.register(conn)
+        (clip,) = conn.execute(
+            "SELECT clip_id FROM modb.current_clips WHERE collection = 'web/loaded'"
+        ).fetchone()
+        motion = read_motion(conn, clip)
+    open_page(browser, address, f"?clip={clip}")
+    wait_for(browser, "return window.modbViewer.editor.plotValues()")
+    sk = motion.skeleton
+    ankle = sk.index(sk.joint_map["left_ankle"])
+    local = np.broadcast_to(sk.offsets, (motion.n_frames, len(sk.joints), 3)).copy()
+    local[:, sk.translated] = motion.translations
+    p, turns = np.zeros_like(local), []
+    for j, parent in enumerate(sk.parents):
+        r = Rotation.from_quat(motion.rotations[:, j][:, [1, 2, 3, 0]])
+        p[:, j] = local[:, j] if parent < 0 else p[:, parent] + turns[parent].apply(local[:, j])
+        turns.append(r if parent < 0 else turns[parent] * r)
+    for quantity, want in (
+        ("height", p[:, ankle, 1]),
+        ("speed", np.hypot(*np.gradient(p[:, ankle][:, [0, 2]], axis=0).T) * motion.fps),
+    ):
+        browser.execute_script(
+            "document.getElementById('plot-joint').value = arguments[0];"
+            "document.getElementById('plot-quantity').value = arguments[1];"
+            "['plot-joint', 'plot-quantity'].forEach((id) => document.getElementById(id)"
+            "  .dispatchEvent(new Event('change')));",
+            str(ankle),
+            quantity,
+        )
+        got = np.array(browser.execute_script("return window.modbViewer.editor.plotValues()"))
+        assert got.shape == want.shape and np.abs(got - want).max() < 1e-4, quantity

@@ -231,9 +231,11 @@ export class AnnotationEditor {
     const fps = this.clip.fps;
     const values = positions.map((p, f) => {
       if (this.ui.quantity.value === 'height') return p[joint][1];
-      const q = positions[Math.min(f + 1, positions.length - 1)][joint];
-      const r = positions[Math.max(f - 1, 0)][joint];
-      return Math.hypot(q[0] - r[0], q[2] - r[2]) * fps / 2;
+      const after = Math.min(f + 1, positions.length - 1);
+      const before = Math.max(f - 1, 0);
+      const q = positions[after][joint];
+      const r = positions[before][joint];
+      return after > before ? Math.hypot(q[0] - r[0], q[2] - r[2]) * fps / (after - before) : 0;
     });
     this.plotted = { key, values };
     return values;
