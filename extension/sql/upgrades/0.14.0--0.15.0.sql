@@ -1,8 +1,0 @@
--- 0.15.0: concurrent catalogue edits serialized; retargeting between skeletons: joint coordinate systems stored with the skeleton
--- (modb.skeletons.joint_axes) and modb.retarget; edit scripts (modb.edit_scripts, modb.apply_edit_script).
---@include 95_catalog_edits_serialized.sql
--- coming to rest and setting off keep to modb.annotations too
---@include 88_rest_selection.sql
---@include 97_joint_axes.sql
---@include 98_retarget.sql
---@include 99_edit_scripts.sql
