@@ -16,6 +16,7 @@ from scipy.spatial.transform import Rotation, Slerp
 from support.commands import run_modb
 from support.data import mocap
 from support.databases import scratch_database
+from support.snippet_oracle import motion_world
 
 from modb.clips import read_motion
 from modb.database import pgarray
@@ -113,17 +114,8 @@ def interpolated(values: np.ndarray, frames: np.ndarray) -> np.ndarray:
 
 
 def positions(motion) -> np.ndarray:
-    """World positions by this test's own forward kinematics (scipy)."""
-    sk = motion.skeleton
-    local = np.broadcast_to(sk.offsets, (motion.n_frames, len(sk.joints), 3)).copy()
-    if sk.translated:
-        local[:, sk.translated] = motion.translations
-    out, world = np.zeros_like(local), []
-    for j, parent in enumerate(sk.parents):
-        r = Rotation.from_quat(xyzw(motion.rotations[:, j]))
-        out[:, j] = local[:, j] if parent < 0 else out[:, parent] + world[parent].apply(local[:, j])
-        world.append(r if parent < 0 else world[parent] * r)
-    return out
+    """World positions by the tests' own forward kinematics (scipy)."""
+    return motion_world(motion)[0]
 
 
 TOLERANCE = 2e-4  # radians, metres: the stored arrays are float4

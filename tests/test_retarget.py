@@ -11,10 +11,10 @@ import os
 import numpy as np
 import psycopg
 import pytest
-from scipy.spatial.transform import Rotation
 from support.commands import run_modb
 from support.data import mocap
 from support.databases import scratch_database
+from support.snippet_oracle import motion_world
 
 from modb.clips import read_motion
 from modb.database import pgarray
@@ -62,23 +62,8 @@ def motions(dsn: str, collection: str) -> dict[str, object]:
 
 
 def positions(motion) -> np.ndarray:
-    """World positions (frames, joints, 3) by this test's own forward kinematics."""
-    sk = motion.skeleton
-    n = motion.n_frames
-    local = np.broadcast_to(sk.offsets, (n, len(sk.joints), 3)).copy()
-    if sk.translated:
-        local[:, sk.translated] = motion.translations
-    out = np.zeros((n, len(sk.joints), 3))
-    world: list[Rotation] = []
-    for j, parent in enumerate(sk.parents):
-        r = Rotation.from_quat(motion.rotations[:, j][:, [1, 2, 3, 0]])
-        if parent < 0:
-            out[:, j] = local[:, j]
-            world.append(r)
-        else:
-            out[:, j] = out[:, parent] + world[parent].apply(local[:, j])
-            world.append(world[parent] * r)
-    return out
+    """World positions (frames, joints, 3) by the tests' own forward kinematics (scipy)."""
+    return motion_world(motion)[0]
 
 
 def directions(motion, frames=slice(None)) -> np.ndarray:

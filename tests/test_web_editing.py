@@ -18,6 +18,7 @@ from support.browser import chromium, serving, severe_console_entries
 from support.commands import run_modb
 from support.data import mocap
 from support.databases import scratch_database
+from support.snippet_oracle import motion_world
 
 from modb.database.cluster import ensure_writer_role
 
@@ -230,7 +231,6 @@ def test_the_skeleton_panel_draws_each_joints_axes(site, browser):
     starts at its joint and points along the axis turned by the joint's world rotation, by this
     test's own forward kinematics (scipy) of the frame shown."""
     import numpy as np
-    from scipy.spatial.transform import Rotation
 
     from modb.clips import read_motion
     from modb.database import pgarray
@@ -255,20 +255,14 @@ def test_the_skeleton_panel_draws_each_joints_axes(site, browser):
     browser.find_element(By.ID, "show-axes").click()
     drawn = wait_for(browser, "return window.modbViewer.axes().length && window.modbViewer.axes()")
     assert len(drawn) == 2 * len(axes["joints"])
-    # the test's own forward kinematics of frame 40
+    # the tests' own forward kinematics (scipy) of frame 40
     sk = motion.skeleton
-    local = sk.offsets.copy()
-    local[sk.translated] = motion.translations[40]
-    positions, turns = np.zeros_like(local), []
-    for j, parent in enumerate(sk.parents):
-        r = Rotation.from_quat(motion.rotations[40, j][[1, 2, 3, 0]])
-        positions[j] = local[j] if parent < 0 else positions[parent] + turns[parent].apply(local[j])
-        turns.append(r if parent < 0 else turns[parent] * r)
+    positions, turns = motion_world(motion)
     want = []
     for a in axes["joints"].values():
         j = sk.index(a["joint"])
         for v in (a["twist"], a["swing"]):
-            want.append((positions[j], positions[j] + 0.12 * turns[j].apply(v)))
+            want.append((positions[40, j], positions[40, j] + 0.12 * turns[j][40].apply(v)))
     # jsonb keeps its own key order: compare as sets of segments
     got = sorted(tuple(np.round(np.concatenate([s, e]), 4)) for s, e, _ in drawn)
     wanted = sorted(tuple(np.round(np.concatenate([s, e]), 4)) for s, e in want)
@@ -318,7 +312,6 @@ def test_the_plot_shows_a_joints_height_and_speed(site, browser):
     """The editor's plot: the chosen joint's height and horizontal speed in every frame, against
     this test's own forward kinematics (scipy) and numpy's gradient."""
     import numpy as np
-    from scipy.spatial.transform import Rotation
 
     from modb.clips import read_motion
     from modb.database import pgarray
@@ -334,13 +327,7 @@ def test_the_plot_shows_a_joints_height_and_speed(site, browser):
     wait_for(browser, "return window.modbViewer.editor.plotValues()")
     sk = motion.skeleton
     ankle = sk.index(sk.joint_map["left_ankle"])
-    local = np.broadcast_to(sk.offsets, (motion.n_frames, len(sk.joints), 3)).copy()
-    local[:, sk.translated] = motion.translations
-    p, turns = np.zeros_like(local), []
-    for j, parent in enumerate(sk.parents):
-        r = Rotation.from_quat(motion.rotations[:, j][:, [1, 2, 3, 0]])
-        p[:, j] = local[:, j] if parent < 0 else p[:, parent] + turns[parent].apply(local[:, j])
-        turns.append(r if parent < 0 else turns[parent] * r)
+    p = motion_world(motion)[0]
     for quantity, want in (
         ("height", p[:, ankle, 1]),
         ("speed", np.hypot(*np.gradient(p[:, ankle][:, [0, 2]], axis=0).T) * motion.fps),
