@@ -51,14 +51,19 @@ def resolve_clip(conn: psycopg.Connection, spec: str) -> int:
     )
 
 
-def clips_in(conn: psycopg.Connection, spec: str) -> list[int]:
-    """The clips of the collection at path `spec` and those below it, else the one clip it names."""
-    in_collection = conn.execute(
+def collection_clips(conn: psycopg.Connection, path: str) -> list[int]:
+    """The clips (with a version) of the collection at `path` and of those below it."""
+    rows = conn.execute(
         "SELECT c.clip_id FROM modb.current_clips c JOIN modb.clips k ON k.id = c.clip_id "
         "WHERE k.collection_id = ANY (modb.collection_subtree(%s)) ORDER BY 1",
-        [spec],
+        [path],
     ).fetchall()
-    return [r[0] for r in in_collection] or [resolve_clip(conn, spec)]
+    return [r[0] for r in rows]
+
+
+def clips_in(conn: psycopg.Connection, spec: str) -> list[int]:
+    """The clips of the collection at path `spec` and those below it, else the one clip it names."""
+    return collection_clips(conn, spec) or [resolve_clip(conn, spec)]
 
 
 def read_motion(conn: psycopg.Connection, clip_id: int, version: int | None = None) -> Motion:

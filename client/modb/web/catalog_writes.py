@@ -21,6 +21,7 @@ from starlette.responses import JSONResponse
 from starlette.routing import Route
 
 from modb.access import audit
+from modb.clips import collection_clips
 from modb.editing import catalog
 
 from .auth import Tokens
@@ -396,12 +397,7 @@ def _delete_script(conn, request, body) -> Done:
 def _target_clips(conn, body) -> list[int]:
     if "collection" in body:
         path = _text(body, "collection")
-        (clips,) = conn.execute(
-            "SELECT coalesce(array_agg(c.clip_id ORDER BY c.clip_id), '{}') "
-            "FROM modb.current_clips c JOIN modb.clips k ON k.id = c.clip_id "
-            "WHERE k.collection_id = ANY (modb.collection_subtree(%s))",
-            [path],
-        ).fetchone()
+        clips = collection_clips(conn, path)
         if not clips:
             raise HTTPException(404, f"no clips in collection {path!r}")
         return clips
