@@ -101,7 +101,7 @@ def test_bones_point_where_the_sources_do(pair, source, target):
         s, t = paired(original, moved)
         error = degrees(directions(original, s), directions(moved, t))
         p99 = dict(zip(BONES, np.percentile(error, 99, axis=0).round(2), strict=True))
-        assert max(p99.values()) < 15, p99
+        assert max(p99.values()) < 5, p99  # the issue allows 15; 0.16.0 keeps the trunk within ~1
         # no foot below the floor by more than 2 cm
         sk = moved.skeleton
         feet = [sk.index(sk.joint_map[f]) for f in FEET]

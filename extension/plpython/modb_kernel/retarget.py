@@ -237,6 +237,37 @@ def _frame(twist, swing):
     return np.stack([t, s, np.cross(t, s)], axis=-1)
 
 
+def _arc(a, b):
+    """Per row the shortest rotation taking unit vector a onto unit vector b (a quarter turn about
+    any axis square to a where they are opposite)."""
+    a, b = np.broadcast_arrays(_unit(a), _unit(b))
+    w = 1.0 + np.sum(a * b, axis=-1, keepdims=True)
+    axis = np.cross(a, b)
+    opposite = w[..., 0] < 1e-9
+    if opposite.any():
+        other = np.where(np.abs(a[..., :1]) < 0.9, [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+        axis = np.where(opposite[..., None], np.cross(a, other), axis)
+    return _unit(np.concatenate([w, axis], axis=-1))
+
+
+def _chain_bend(standard, j, at, now, was):
+    """Per frame, the rotation in joint j's own frame that takes its direction toward the next
+    mapped joint in the axes' pose (`was`) onto that direction in the frame (`now`): the bend of
+    the unmapped joints between them (CMU's upper back and thorax between its spine and chest),
+    which j's own rotation does not show. now, was: (positions, orientations) in world; None where
+    the next mapped joint is j's own child."""
+    for target in (t for t in TWIST_TOWARD.get(standard) or () if t in at):
+        ahead = was[0][at[target]] - was[0][j]
+        if np.linalg.norm(ahead) > MIN_BONE_M:
+            return _arc(
+                quaternion.rotate(quaternion.conjugate(was[1][j]), ahead),
+                quaternion.rotate(
+                    quaternion.conjugate(now[1][:, j]), now[0][:, at[target]] - now[0][:, j]
+                ),
+            )
+    return None
+
+
 def leg_length(parents, offsets, names, joint_map):
     rest = kinematics.rest_positions(parents, offsets)
     index = {n: i for i, n in enumerate(names)}
@@ -273,12 +304,26 @@ def retarget(source, destination, rotations, translations):
         source["parents"], source["offsets"], rotations, translations, source["translated"]
     )
     n_frames = src_rot.shape[0]
+    s_translations = np.asarray(translations, dtype=np.float64).reshape(
+        n_frames, len(source["translated"]), 3
+    )
+    src_pose = [
+        x[0]
+        for x in kinematics.world_transforms(
+            source["parents"],
+            source["offsets"],
+            np.asarray(source["pose"], dtype=np.float64)[None],
+            s_translations.mean(axis=0)[None],
+            source["translated"],
+        )
+    ]
     d_parents, d_offsets = (
         destination["parents"],
         np.asarray(destination["offsets"], dtype=np.float64),
     )
     d_index = {n: i for i, n in enumerate(destination["names"])}
     s_index = {n: i for i, n in enumerate(source["names"])}
+    s_at = {s: s_index[j] for s, j in source["joint_map"].items() if j in s_index}
     mapped = {
         d_index[a["joint"]]: (standard, a)
         for standard, a in destination["axes"].items()
@@ -290,7 +335,11 @@ def retarget(source, destination, rotations, translations):
         if j in mapped:
             standard, axes = mapped[j]
             s_axes = source["axes"][standard]
-            g = src_rot[:, s_index[s_axes["joint"]]]
+            sj = s_index[s_axes["joint"]]
+            g = src_rot[:, sj]
+            bend = _chain_bend(standard, sj, s_at, (src_pos, src_rot), src_pose)
+            if bend is not None:  # the source's axes follow its chain to the next mapped joint
+                g = quaternion.multiply(g, bend)
             target = _frame(
                 quaternion.rotate(g, np.asarray(s_axes["twist"])),
                 quaternion.rotate(g, np.asarray(s_axes["swing"])),
