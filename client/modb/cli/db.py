@@ -1,15 +1,38 @@
-"""`modb db`: the embedded database cluster (start, stop, status, url)."""
+"""`modb db`: the embedded database cluster (start, stop, status, url) and its hot standbys
+(`modb db replica add|list|remove|promote`)."""
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     db = sub.add_parser("db", help="the embedded database cluster")
-    db.add_argument("action", choices=["start", "stop", "status", "url"])
-    db.set_defaults(func=run)
+    actions = db.add_subparsers(dest="action", required=True, metavar="ACTION")
+    for action, text in (
+        ("start", "create the cluster if needed, start it, update the extension"),
+        ("stop", "stop the primary"),
+        ("status", "whether the primary runs (exit 3 when not)"),
+        ("url", "the primary's conninfo"),
+    ):
+        actions.add_parser(action, help=text).set_defaults(func=run)
+    replica = actions.add_parser(
+        "replica", help="hot standbys of the embedded database (streaming replication)"
+    )
+    steps = replica.add_subparsers(dest="step", required=True, metavar="STEP")
+    add = steps.add_parser("add", help="make a standby streaming from the primary, and start it")
+    add.add_argument("name", help="lower-case letters, digits and _")
+    listing = steps.add_parser("list", help="each standby's conninfo, state and replay lag")
+    listing.add_argument("--json", action="store_true", help="as JSON")
+    remove = steps.add_parser("remove", help="stop a standby, drop its slot, delete its data")
+    remove.add_argument("name")
+    promote = steps.add_parser(
+        "promote", help="make a standby the primary (the old one stopped); the others follow it"
+    )
+    promote.add_argument("name")
+    replica.set_defaults(func=run_replica)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -30,5 +53,44 @@ def run(args: argparse.Namespace) -> int:
             print(cluster.dsn())
     except ClusterError as e:
         print(f"modb db {args.action}: {e}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def run_replica(args: argparse.Namespace) -> int:
+    from modb.database.cluster import Cluster, ClusterError
+    from modb.database.replicas import Replicas
+
+    replicas = Replicas(Cluster.default())
+    try:
+        if args.step == "add":
+            r = replicas.add(args.name)
+            print(f"standby {r.name} streaming: {r.node.dsn()}")
+        elif args.step == "remove":
+            replicas.remove(args.name)
+            print(f"standby {args.name} removed (its slot dropped)")
+        elif args.step == "promote":
+            r = replicas.promote(args.name)
+            print(f"{r.name} is the primary now: {Cluster.default().dsn()}")
+            print(
+                f"the old primary's data ({replicas.cluster.home / 'pgdata'}) is no longer used; "
+                "delete it when you no longer need it"
+            )
+        else:
+            rows = replicas.status()
+            if args.json:
+                print(json.dumps(rows, indent=1))
+            elif not rows:
+                print("no standbys (`modb db replica add NAME` makes one)")
+            for row in [] if args.json else rows:
+                state = "running" if row["running"] else "stopped"
+                if row["streaming"]:
+                    state += f", {row['replay_lag_bytes']} bytes behind"
+                    state += f" ({row['replay_lag']})" if row["replay_lag"] else ""
+                elif row["running"]:
+                    state += ", not streaming"
+                print(f"{row['name']:12s} {state:40s} {row['dsn']}")
+    except ClusterError as e:
+        print(f"modb db replica {args.step}: {e}", file=sys.stderr)
         return 1
     return 0

@@ -19,7 +19,7 @@ DATABASE = "modb"
 PORT = 5432  # names the socket file only: the cluster has no TCP listener
 
 
-def _shared_buffers_mb() -> int:
+def shared_buffers_mb() -> int:
     memory = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     return max(128, min(8192, memory // 4 // 2**20))
 
@@ -69,23 +69,36 @@ def default_home() -> Path:
 
 @dataclass
 class Cluster:
+    """The embedded database in `home`: its primary, or with `node`, one server of it (a standby
+    in home/replicas/NAME, database.replicas)."""
+
     home: Path
+    node: Path | None = None
 
     @classmethod
     def default(cls) -> Cluster:
         return cls(default_home())
 
     @property
+    def node_home(self) -> Path:
+        """Where this server's data, socket and log are: `home` itself, unless a standby was
+        promoted (home/primary names it)."""
+        if self.node is not None:
+            return self.node
+        marker = self.home / "primary"
+        return self.home / marker.read_text().strip() if marker.exists() else self.home
+
+    @property
     def datadir(self) -> Path:
-        return self.home / "pgdata"
+        return self.node_home / "pgdata"
 
     @property
     def socket_dir(self) -> Path:
-        return self.home / "run"
+        return self.node_home / "run"
 
     @property
     def logfile(self) -> Path:
-        return self.home / "postgres.log"
+        return self.node_home / "postgres.log"
 
     @property
     def os_user(self) -> str:
@@ -118,12 +131,16 @@ class Cluster:
             == 0
         )
 
-    def init(self) -> None:
-        for d in (self.home, self.socket_dir):
+    def make_directories(self) -> None:
+        """This server's directories, closed to other users, owned by the OS user that runs it."""
+        for d in dict.fromkeys((self.home, self.node_home, self.socket_dir)):
             d.mkdir(parents=True, exist_ok=True)
             os.chmod(d, 0o700)
             if os.geteuid() == 0:
                 shutil.chown(d, "postgres", "postgres")
+
+    def init(self) -> None:
+        self.make_directories()
         if os.geteuid() == 0 and self._run("test", "-w", self.home, check=False).returncode != 0:
             raise ClusterError(
                 f"the postgres OS user, which runs the cluster, cannot reach {self.home}: a parent "
@@ -150,7 +167,7 @@ class Cluster:
                 # The selection reads the feature index at random: it should stay in shared buffers
                 # (a million
                 # snippets: an 800 MB index). A quarter of the memory, PostgreSQL's usual advice.
-                f"shared_buffers = {_shared_buffers_mb()}MB\n"
+                f"shared_buffers = {shared_buffers_mb()}MB\n"
                 # modb's settings (SET modb.<knob>) are checked at SET once its library is loaded.
                 "session_preload_libraries = 'modb'\n"
             )
@@ -159,9 +176,13 @@ class Cluster:
         """Create the cluster if needed, start it, and ensure database `modb` has the extension."""
         if not self.is_initialized():
             self.init()
+        self.run_server()
+        self.ensure_database(DATABASE)
+
+    def run_server(self) -> None:
+        """Start this server if it is not running."""
         if not self.is_running():
             self._run(_bindir() / "pg_ctl", "start", "-w", "-D", self.datadir, "-l", self.logfile)
-        self.ensure_database(DATABASE)
 
     def ensure_database(self, dbname: str) -> None:
         import psycopg

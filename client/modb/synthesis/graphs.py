@@ -124,9 +124,9 @@ def build_default_graph(
 ) -> GraphSummary | None:
     """The graph synthesis uses by default (modb.default_graph), built now when there is none, this
     role may build graphs and the scope is small enough; else None, having said why."""
-    (may_build,) = conn.execute(
+    (may_build, standby) = conn.execute(
         "SELECT has_function_privilege('modb.build_transition_graph(text, text, text, float8)', "
-        "'EXECUTE')"
+        "'EXECUTE'), pg_is_in_recovery()"
     ).fetchone()
     (snippets,) = conn.execute(
         "SELECT count(*) FROM modb.snippets s WHERE %(c)s::text IS NULL "
@@ -137,6 +137,9 @@ def build_default_graph(
     command = "modb graph build NAME" + (f" --collection {collection}" if collection else "")
     if not may_build:
         say(f"this role cannot build graphs; a loader builds one with `{command}`")
+        return None
+    if standby:  # read-only: the primary builds it, and the standby replays it
+        say(f"this is a hot standby, which cannot write: build one on the primary with `{command}`")
         return None
     if snippets > AUTO_BUILD_SNIPPETS:
         say(f"building one over {snippets:,} snippets takes about {minutes:.0f} min: `{command}`")

@@ -1,0 +1,219 @@
+"""Hot standbys of the embedded database: PostgreSQL's own streaming replication, for reads.
+
+Each standby lives in $MODB_HOME/replicas/NAME (data, socket directory, log), is made by
+pg_basebackup from the primary, streams from it through a physical replication slot of its own
+name, and serves read-only queries (hot standby) with `hot_standby_feedback` on, so the primary's
+vacuum does not remove rows a walk's selections on the standby still read. The primary's
+`max_slot_wal_keep_size` bounds what a stopped standby's slot keeps: past it the slot is lost and
+the standby must be made again (`remove`, `add`), but the primary's disk never fills.
+
+After the primary stops, `promote NAME` makes a standby the primary ($MODB_HOME/primary names it, so
+`modb db url` and every default connection follow) and points the other standbys at it.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+
+import psycopg
+
+from .cluster import PORT, Cluster, ClusterError, _bindir, shared_buffers_mb
+
+NAME = re.compile(r"^[a-z][a-z0-9_]{0,30}$")
+# What a stopped standby's slot may hold back on the primary before it is given up.
+MAX_SLOT_WAL_KEEP = "4GB"
+# Shared buffers of a standby: an eighth of what the primary takes, so several fit beside it.
+STANDBY_BUFFER_SHARE = 8
+
+
+@dataclass(frozen=True)
+class Replica:
+    name: str
+    home: Path
+
+    @property
+    def node(self) -> Cluster:
+        return Cluster(self.home, node=self.home)
+
+
+def _checked(name: str) -> str:
+    if not NAME.match(name):
+        raise ClusterError(
+            f"{name!r} is not a standby name: use lower-case letters, digits and _ (start with a "
+            "letter, at most 31)"
+        )
+    return name
+
+
+class Replicas:
+    """The standbys of `cluster` (the embedded database's primary)."""
+
+    def __init__(self, cluster: Cluster) -> None:
+        self.cluster = cluster
+        self.folder = cluster.home / "replicas"
+
+    def all(self) -> list[Replica]:
+        primary = self.cluster.node_home
+        if not self.folder.is_dir():
+            return []
+        return [
+            Replica(d.name, d)
+            for d in sorted(self.folder.iterdir())
+            if (d / "pgdata" / "PG_VERSION").exists() and d != primary
+        ]
+
+    def get(self, name: str) -> Replica:
+        for r in self.all():
+            if r.name == name:
+                return r
+        raise ClusterError(f"no standby named {name!r} (`modb db replica list` shows them)")
+
+    def _primary_conn(self) -> psycopg.Connection:
+        if not self.cluster.is_running():
+            raise ClusterError("the primary is not running: `modb db start` first")
+        return psycopg.connect(self.cluster.dsn("postgres"), autocommit=True)
+
+    def add(self, name: str) -> Replica:
+        """A new standby streaming from the primary, started."""
+        _checked(name)
+        home = self.folder / name
+        if home.exists():
+            raise ClusterError(f"{home} exists: choose another name or `modb db replica remove`")
+        with self._primary_conn() as conn:
+            if conn.execute("SHOW max_slot_wal_keep_size").fetchone()[0] == "-1":
+                conn.execute(f"ALTER SYSTEM SET max_slot_wal_keep_size = '{MAX_SLOT_WAL_KEEP}'")
+                conn.execute("SELECT pg_reload_conf()")
+            if conn.execute(
+                "SELECT 1 FROM pg_replication_slots WHERE slot_name = %s", [name]
+            ).fetchone():
+                conn.execute("SELECT pg_drop_replication_slot(%s)", [name])
+            conn.execute("SELECT pg_create_physical_replication_slot(%s, true)", [name])
+        node = Cluster(self.cluster.home, node=home)
+        node.make_directories()
+        try:
+            self.cluster._run(
+                _bindir() / "pg_basebackup",
+                "-D",
+                node.datadir,
+                "-d",
+                self.cluster.dsn("postgres"),
+                "-S",
+                name,
+                "-X",
+                "stream",
+                "--checkpoint=fast",
+            )
+            (node.datadir / "standby.signal").touch()
+            for stale in ("postmaster.pid", "postmaster.opts"):
+                (node.datadir / stale).unlink(missing_ok=True)
+            self._configure(node, name)
+            node.run_server()
+        except BaseException:
+            self._drop_slot(name)
+            shutil.rmtree(home, ignore_errors=True)
+            raise
+        return Replica(name, home)
+
+    def _configure(self, node: Cluster, name: str) -> None:
+        """The standby's own socket, smaller buffers, and where it streams from (later lines of
+        postgresql.auto.conf win over the primary's copied ones)."""
+        with open(node.datadir / "postgresql.auto.conf", "a") as conf:
+            conf.write(
+                "# written by modb db replica add: a hot standby\n"
+                f"unix_socket_directories = '{node.socket_dir}'\n"
+                f"shared_buffers = {max(128, shared_buffers_mb() // STANDBY_BUFFER_SHARE)}MB\n"
+                "hot_standby = on\n"
+                "hot_standby_feedback = on\n"
+                f"primary_conninfo = '{self._primary_conninfo(name)}'\n"
+                f"primary_slot_name = '{name}'\n"
+            )
+        if os.geteuid() == 0:
+            shutil.chown(node.datadir / "postgresql.auto.conf", "postgres", "postgres")
+
+    def _primary_conninfo(self, name: str) -> str:
+        return (
+            f"host={self.cluster.socket_dir} port={PORT} user={self.cluster.os_user} "
+            f"application_name={name}"
+        )
+
+    def _drop_slot(self, name: str) -> None:
+        try:
+            with self._primary_conn() as conn:
+                conn.execute(
+                    "SELECT pg_drop_replication_slot(slot_name) FROM pg_replication_slots "
+                    "WHERE slot_name = %s AND NOT active",
+                    [name],
+                )
+        except (ClusterError, psycopg.Error):
+            pass  # the primary is gone: nothing holds WAL for it
+
+    def remove(self, name: str) -> None:
+        replica = self.get(name)
+        replica.node.stop()
+        self._drop_slot(name)
+        shutil.rmtree(replica.home)
+
+    def status(self) -> list[dict]:
+        """Per standby: its name, conninfo, whether it runs, and its replay lag seen from the
+        primary (bytes of WAL not yet replayed, and time)."""
+        lag: dict[str, tuple] = {}
+        try:
+            with self._primary_conn() as conn:
+                for row in conn.execute(
+                    "SELECT application_name, pg_wal_lsn_diff(pg_current_wal_lsn(), replay_lsn), "
+                    "replay_lag FROM pg_stat_replication"
+                ):
+                    lag[row[0]] = row[1:]
+        except (ClusterError, psycopg.Error):
+            pass
+        out = []
+        for r in self.all():
+            behind = lag.get(r.name)
+            out.append(
+                {
+                    "name": r.name,
+                    "dsn": r.node.dsn(),
+                    "running": r.node.is_running(),
+                    "streaming": behind is not None,
+                    "replay_lag_bytes": None if behind is None else int(behind[0] or 0),
+                    "replay_lag": None if behind is None or behind[1] is None else str(behind[1]),
+                }
+            )
+        return out
+
+    def promote(self, name: str) -> Replica:
+        """Make standby `name` the primary (the old one must be stopped) and point the other
+        standbys at it, each with a slot of its own there."""
+        if self.cluster.is_running():
+            raise ClusterError(
+                "the primary is still running: stop it first (`modb db stop`); two primaries "
+                "would split the data"
+            )
+        replica = self.get(name)
+        node = replica.node
+        if not node.is_running():
+            node.run_server()
+        node._run(_bindir() / "pg_ctl", "promote", "-w", "-D", node.datadir)
+        others = [r for r in self.all() if r.name != name]
+        (self.cluster.home / "primary").write_text(
+            str(replica.home.relative_to(self.cluster.home)) + "\n"
+        )
+        primary = Cluster(self.cluster.home)  # now names the promoted node
+        with psycopg.connect(primary.dsn("postgres"), autocommit=True) as conn:
+            for other in others:
+                conn.execute("SELECT pg_create_physical_replication_slot(%s, true)", [other.name])
+        for other in others:
+            with open(other.node.datadir / "postgresql.auto.conf", "a") as conf:
+                conf.write(
+                    f"# written by modb db replica promote {name}\n"
+                    f"primary_conninfo = '{Replicas(primary)._primary_conninfo(other.name)}'\n"
+                )
+            if other.node.is_running():
+                other.node._run(_bindir() / "pg_ctl", "reload", "-D", other.node.datadir)
+            else:
+                other.node.run_server()
+        return replica

@@ -1,0 +1,222 @@
+"""Hot standbys of the embedded database (issue 27): `modb db replica add|list|remove|promote` on a
+cluster of this module's own, every read path run on a real standby, a load on the primary seen on
+both standbys once replayed, and a standby promoted after the primary stops, the other following it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import psycopg
+import pytest
+from support.browser import get, serving
+from support.commands import run_modb
+from support.data import mocap
+
+from modb.database.cluster import Cluster
+
+COURSE = ("--to=4,4", "--to=-3,9", "--to=2,14", "--to=-6,4")
+
+
+def db_cli(home: Path, *args: str) -> subprocess.CompletedProcess:
+    """`modb db ...` on the embedded database in `home`, as a user runs it."""
+    return subprocess.run(
+        [sys.executable, "-m", "modb.cli", "db", *args],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "MODB_HOME": str(home)},
+    )
+
+
+def scalar(dsn: str, sql: str, params=()):
+    with psycopg.connect(dsn, autocommit=True) as conn:
+        return conn.execute(sql, params).fetchone()[0]
+
+
+def wait_replayed(primary: str, standbys: list[str], timeout: float = 60) -> None:
+    """Until every standby has replayed what the primary has written so far."""
+    lsn = scalar(primary, "SELECT pg_current_wal_lsn()::text")
+    deadline = time.monotonic() + timeout
+    for s in standbys:
+        while scalar(s, "SELECT pg_wal_lsn_diff(pg_last_wal_replay_lsn(), %s::pg_lsn)", [lsn]) < 0:
+            assert time.monotonic() < deadline, f"{s} did not replay {lsn}"
+            time.sleep(0.1)
+
+
+def walks(folder: Path, pattern: str) -> Path:
+    files = sorted(mocap("bandai-2-dev", "data").glob(pattern))
+    folder.mkdir()
+    for f in files:
+        os.symlink(f, folder / f.name)
+    return folder
+
+
+@pytest.fixture(scope="module")
+def nodes(tmp_path_factory):
+    """A primary with Bandai walks and turns and a graph over them, and two standbys."""
+    data = walks(tmp_path_factory.mktemp("replicas") / "walks", "dataset-2_walk*_active_0[0-2]*")
+    home = Path(tempfile.mkdtemp(prefix="modb-replicas-"))
+    primary = Cluster(home)
+    try:
+        primary.start()
+        dsn = primary.dsn()
+        r = run_modb(dsn, "load", data, "--collection", "walks", "-q")
+        assert r.returncode == 0, r.stderr
+        r = run_modb(dsn, "graph", "build", "walks", "--collection", "walks", "-q")
+        assert r.returncode == 0, r.stderr
+        for name in ("r1", "r2"):
+            r = db_cli(home, "replica", "add", name)
+            assert r.returncode == 0, r.stderr
+        listing = json.loads(db_cli(home, "replica", "list", "--json").stdout)
+        yield home, dsn, {row["name"]: row["dsn"] for row in listing}
+    finally:
+        for d in [*sorted((home / "replicas").glob("*")), home]:
+            if (d / "pgdata").exists():
+                Cluster(home, node=d).stop()
+        shutil.rmtree(home, ignore_errors=True)
+
+
+def test_standbys_are_listed_streaming_read_only(nodes):
+    home, primary, standbys = nodes
+    assert sorted(standbys) == ["r1", "r2"]
+    rows = json.loads(db_cli(home, "replica", "list", "--json").stdout)
+    assert all(r["running"] and r["streaming"] for r in rows), rows
+    with psycopg.connect(primary, autocommit=True) as conn:
+        slots = dict(conn.execute("SELECT slot_name, active FROM pg_replication_slots").fetchall())
+        assert slots == {"r1": True, "r2": True}
+        assert conn.execute("SHOW max_slot_wal_keep_size").fetchone()[0] != "-1"
+    for dsn in standbys.values():
+        assert scalar(dsn, "SELECT pg_is_in_recovery()") is True
+        assert scalar(dsn, "SHOW hot_standby_feedback") == "on"
+        with pytest.raises(psycopg.errors.ReadOnlySqlTransaction):
+            scalar(dsn, "INSERT INTO modb.collections (name) VALUES ('x') RETURNING id")
+    text = db_cli(home, "replica", "list").stdout
+    assert "r1" in text and "bytes behind" in text and standbys["r1"] in text
+
+
+def synth_chain(dsn: str, out: Path, *args: str) -> list[int]:
+    r = run_modb(dsn, "synth", *COURSE, "--seconds", "60", "--out", out, "--report-json",
+                 out.with_suffix(".json"), "--lead-time", "0", "-q", *args)  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    return [c["snippet_id"] for c in json.loads(out.with_suffix(".json").read_text())["chain"]]
+
+
+def test_a_walk_on_a_standby_is_the_walk_on_the_primary(nodes, tmp_path):
+    _, primary, standbys = nodes
+    wait_replayed(primary, list(standbys.values()))
+    on_primary = synth_chain(primary, tmp_path / "p.bvh")
+    assert len(on_primary) == 120
+    for name, dsn in standbys.items():
+        assert synth_chain(dsn, tmp_path / f"{name}.bvh") == on_primary, name
+        assert (tmp_path / f"{name}.bvh").read_bytes() == (tmp_path / "p.bvh").read_bytes()
+
+
+def test_every_read_path_runs_on_a_standby(nodes):
+    _, primary, standbys = nodes
+    dsn = standbys["r1"]
+    with psycopg.connect(dsn, autocommit=True) as conn:
+        first = conn.execute("SELECT min(id) FROM modb.snippets").fetchone()[0]
+        for sql in (
+            "SELECT count(*) FROM modb.select_next_snippet(%(s)s, ARRAY[0, 2.0])",
+            "SELECT count(*) FROM modb.select_next_snippets(%(s)s, ARRAY[1, 2.0], 5)",
+            "SELECT count(*) FROM modb.select_next_snippets_reference(%(s)s, ARRAY[1, 2.0], 5)",
+            "SELECT count(*) FROM modb.select_next_snippet_world(%(s)s, ARRAY[0, 0, 0], 0, "
+            "ARRAY[3, 0, 3.0])",
+            "SELECT count(*) FROM modb.synthesize(ARRAY[[3, 3], [-2, 6.0]], 20)",
+            "SELECT count(*) FROM modb.snippet_pools()",
+            "SELECT modb.default_graph('default', 'walks') IS NOT NULL",
+        ):
+            assert conn.execute(sql, {"s": first}).fetchone()[0], sql
+        # under the named graph too (a session setting, no write)
+        conn.execute("SET modb.graph = 'walks'")
+        assert conn.execute(
+            "SELECT count(*) FROM modb.select_next_snippet(%s, ARRAY[0, 2.0])", [first]
+        ).fetchone()[0]
+    with serving(dsn) as address:
+        for path in ("/api/collections", "/api/clips", "/api/skeletons", "/api/graphs",
+                     "/api/profiles", "/api/edit-scripts"):  # fmt: skip
+            status, body = get(address, path)
+            assert status == 200, (path, body)
+        clip = get(address, "/api/clips")[1][0]["id"]
+        for path in (f"/api/clips/{clip}", f"/api/clips/{clip}/frames?start=0&count=5"):
+            assert get(address, path)[0] == 200, path
+        assert walk_over_socket(address, seconds=3) > 0
+
+
+def walk_over_socket(address: str, seconds: float) -> int:
+    """Frames the avatar WebSocket streams in `seconds` after one click."""
+    from websockets.sync.client import connect
+
+    frames = 0
+    with connect(f"ws://{address}/ws/avatar", origin=f"http://{address}") as ws:
+        assert json.loads(ws.recv(timeout=30))["type"] == "ready"
+        ws.send(json.dumps({"type": "goal", "x": 3, "z": 3}))
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            message = json.loads(ws.recv(timeout=30))
+            assert message["type"] not in ("stopped", "refused"), message
+            frames += message["type"] == "frame"
+    return frames
+
+
+def test_a_load_on_the_primary_reaches_both_standbys(nodes, tmp_path):
+    _, primary, standbys = nodes
+    more = walks(tmp_path / "more", "dataset-2_walk_active_03*")
+    r = run_modb(primary, "load", more, "--collection", "more walks", "-q")
+    assert r.returncode == 0, r.stderr
+    wanted = scalar(
+        primary,
+        "SELECT count(*) FROM modb.snippets s JOIN modb.collections c ON c.id = s.collection_id "
+        "WHERE c.name = 'more walks'",
+    )
+    assert wanted > 0
+    wait_replayed(primary, list(standbys.values()))
+    newest = scalar(primary, "SELECT max(id) FROM modb.snippets")
+    for dsn in standbys.values():
+        assert (
+            scalar(
+                dsn,
+                "SELECT count(*) FROM modb.snippets s JOIN modb.collections c "
+                "ON c.id = s.collection_id WHERE c.name = 'more walks'",
+            )
+            == wanted
+        )
+        # a walk that starts on the new data
+        chain = synth_chain(dsn, tmp_path / "new.bvh", "--start", str(newest - 40), "--no-graph")
+        assert chain[0] == newest - 40
+
+
+def test_promote_after_the_primary_stops(nodes, tmp_path):
+    home, primary, standbys = nodes
+    wait_replayed(primary, list(standbys.values()))
+    r = db_cli(home, "replica", "promote", "r1")
+    assert r.returncode == 1 and "still running" in r.stderr  # two primaries would split the data
+    assert db_cli(home, "stop").returncode == 0
+    r = db_cli(home, "replica", "promote", "r1")
+    assert r.returncode == 0, r.stderr
+    url = db_cli(home, "url").stdout.strip()
+    assert url == standbys["r1"]
+    assert scalar(url, "SELECT pg_is_in_recovery()") is False
+    # loads go on there, and the other standby follows it
+    more = walks(tmp_path / "after", "dataset-2_walk_active_02*")
+    r = run_modb(url, "load", more, "--collection", "after promotion", "-q")
+    assert r.returncode == 0, r.stderr
+    wait_replayed(url, [standbys["r2"]])
+    count = (
+        "SELECT count(*) FROM modb.clips c JOIN modb.collections k ON k.id = c.collection_id "
+        "WHERE k.name = 'after promotion'"
+    )
+    assert scalar(standbys["r2"], count) == scalar(url, count) > 0
+    rows = json.loads(db_cli(home, "replica", "list", "--json").stdout)
+    assert [r["name"] for r in rows] == ["r2"] and rows[0]["streaming"]
+    # and a standby is removed with its slot
+    assert db_cli(home, "replica", "remove", "r2").returncode == 0
+    assert not (home / "replicas" / "r2").exists()
+    assert scalar(url, "SELECT count(*) FROM pg_replication_slots") == 0
