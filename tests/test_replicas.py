@@ -99,6 +99,9 @@ def test_standbys_are_listed_streaming_read_only(nodes):
             scalar(dsn, "INSERT INTO modb.collections (name) VALUES ('x') RETURNING id")
     text = db_cli(home, "replica", "list").stdout
     assert "r1" in text and "bytes behind" in text and standbys["r1"] in text
+    assert db_cli(home, "replica", "url", "r2").stdout.strip() == standbys["r2"]
+    r = db_cli(home, "replica", "url", "nope")
+    assert r.returncode == 1 and "no standby named 'nope'" in r.stderr
 
 
 def synth_chain(dsn: str, out: Path, *args: str) -> list[int]:

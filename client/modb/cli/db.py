@@ -1,5 +1,5 @@
 """`modb db`: the embedded database cluster (start, stop, status, url) and its hot standbys
-(`modb db replica add|list|remove|promote`)."""
+(`modb db replica add|list|url|remove|promote`)."""
 
 from __future__ import annotations
 
@@ -23,15 +23,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     steps = replica.add_subparsers(dest="step", required=True, metavar="STEP")
     add = steps.add_parser("add", help="make a standby streaming from the primary, and start it")
-    add.add_argument("name", help="lower-case letters, digits and _")
+    add.add_argument("name", metavar="NAME", help="lower-case letters, digits and _")
     listing = steps.add_parser("list", help="each standby's conninfo, state and replay lag")
     listing.add_argument("--json", action="store_true", help="as JSON")
+    url = steps.add_parser("url", help="a standby's conninfo, for --dsn, psql and other readers")
+    url.add_argument("name", metavar="NAME")
     remove = steps.add_parser("remove", help="stop a standby, drop its slot, delete its data")
-    remove.add_argument("name")
+    remove.add_argument("name", metavar="NAME")
     promote = steps.add_parser(
         "promote", help="make a standby the primary (the old one stopped); the others follow it"
     )
-    promote.add_argument("name")
+    promote.add_argument("name", metavar="NAME")
     replica.set_defaults(func=run_replica)
 
 
@@ -66,6 +68,8 @@ def run_replica(args: argparse.Namespace) -> int:
         if args.step == "add":
             r = replicas.add(args.name)
             print(f"standby {r.name} streaming: {r.node.dsn()}")
+        elif args.step == "url":
+            print(replicas.get(args.name).node.dsn())
         elif args.step == "remove":
             replicas.remove(args.name)
             print(f"standby {args.name} removed (its slot dropped)")

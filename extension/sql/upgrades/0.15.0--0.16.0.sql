@@ -1,2 +1,0 @@
--- 0.16.0: retargeting follows the source's chain between mapped joints (the trunk through unmapped spine
--- joints keeps its direction). The PL/Python functions are re-created with the new kernel (build_sql.py).
