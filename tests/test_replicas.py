@@ -5,15 +5,18 @@ both standbys once replayed, and a standby promoted after the primary stops, the
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
+import numpy as np
 import psycopg
 import pytest
 from support.browser import get, serving
@@ -194,6 +197,138 @@ def test_a_load_on_the_primary_reaches_both_standbys(nodes, tmp_path):
         # a walk that starts on the new data
         chain = synth_chain(dsn, tmp_path / "new.bvh", "--start", str(newest - 40), "--no-graph")
         assert chain[0] == newest - 40
+
+
+class Walker:
+    """One avatar over the WebSocket: a click, then every message read as it arrives (a thread),
+    with its arrival time."""
+
+    def __init__(self, address: str, goal=(0.0, 60.0)) -> None:
+        from websockets.sync.client import connect
+
+        self._stack = contextlib.ExitStack()
+        self.ws = self._stack.enter_context(
+            connect(f"ws://{address}/ws/avatar", origin=f"http://{address}")
+        )
+        assert json.loads(self.ws.recv(timeout=30))["type"] == "ready"
+        self.ws.send(json.dumps({"type": "goal", "x": goal[0], "z": goal[1]}))
+        self.frames: list[float] = []  # arrival times
+        self.nodes: list[str] = []  # the node of each choice
+        self.trouble: list[dict] = []
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _read(self) -> None:
+        try:
+            for text in self.ws:
+                message = json.loads(text)
+                if message["type"] == "frame":
+                    self.frames.append(time.monotonic())
+                elif message["type"] == "choice":
+                    self.nodes.append(message["node"])
+                elif message["type"] in ("stopped", "refused"):
+                    self.trouble.append(message)
+        except Exception as e:  # the socket closed under the test
+            self.trouble.append({"type": "closed", "error": repr(e)})
+
+    @staticmethod
+    def read(seconds: float) -> None:
+        time.sleep(seconds)
+
+    def largest_gap(self) -> float:
+        return float(np.diff(self.frames).max())
+
+    def close(self) -> None:
+        self._stack.close()
+        self._reader.join(timeout=10)
+
+
+def sessions_on(dsn: str) -> int:
+    """Client sessions on the modb database of a node, by the server's own count."""
+    return scalar(
+        dsn,
+        "SELECT count(*) FROM pg_stat_activity WHERE datname = 'modb' "
+        "AND backend_type = 'client backend' AND pid <> pg_backend_pid()",
+    )
+
+
+def test_serve_spreads_avatar_sessions_over_the_standbys(nodes):
+    _, primary, standbys = nodes
+    options = [a for dsn in standbys.values() for a in ("--standby", dsn)]
+    with serving(primary, *options) as address:
+        before = {name: sessions_on(dsn) for name, dsn in standbys.items()}
+        walkers = [Walker(address, goal=(i - 3.0, 20.0)) for i in range(6)]
+        try:
+            for w in walkers:
+                w.read(1.5)
+            served = [w.nodes[-1] for w in walkers]
+            assert all(not w.trouble for w in walkers), [w.trouble for w in walkers]
+            # all on standbys, three each
+            assert sorted(served) == ["standby1"] * 3 + ["standby2"] * 3, served
+            for i, (name, dsn) in enumerate(standbys.items()):
+                assert sessions_on(dsn) - before[name] >= 3, name
+        finally:
+            for w in walkers:
+                w.close()
+
+
+def test_a_standby_stopped_mid_walk_moves_its_sessions(nodes):
+    home, primary, standbys = nodes
+    options = [a for dsn in standbys.values() for a in ("--standby", dsn)]
+    with serving(primary, *options) as address:
+        walker = Walker(address)
+        try:
+            walker.read(3)
+            first = walker.nodes[-1]
+            name = {"standby1": "r1", "standby2": "r2"}[first]
+            stopped_at = len(walker.frames)
+            Cluster(home, node=home / "replicas" / name).stop()
+            walker.read(6)
+            assert not walker.trouble, walker.trouble
+            assert walker.nodes[-1] != first  # moved to the other node
+            assert len(walker.frames) - stopped_at > 100  # 6 s at 30 fps, less the move
+            gaps = np.diff(walker.frames[stopped_at - 1 :])
+            assert gaps.max() < 0.5, gaps.max()
+        finally:
+            walker.close()
+            Cluster(home, node=home / "replicas" / name).run_server()
+    wait_replayed(primary, list(standbys.values()))
+
+
+def test_a_load_during_a_walk_on_a_standby_cancels_nothing(nodes, tmp_path):
+    _, primary, standbys = nodes
+    with serving(primary, "--standby", standbys["r2"]) as address:
+        walker = Walker(address)
+        try:
+            walker.read(2)
+            more = walks(tmp_path / "during", "dataset-2_walk-turn-left_active_03*")
+            load = subprocess.Popen(
+                [
+                    sys.executable,
+                    "-m",
+                    "modb.cli",
+                    "--dsn",
+                    primary,
+                    "load",
+                    str(more),
+                    "--collection",
+                    "during a walk",
+                    "-q",
+                ],  # fmt: skip
+                stderr=subprocess.PIPE,
+                text=True,
+            )
+            while load.poll() is None:
+                walker.read(1)
+            assert load.returncode == 0, load.stderr.read()
+            with psycopg.connect(primary, autocommit=True) as conn:
+                conn.execute("VACUUM modb.snippets, modb.terminators")
+            walker.read(3)
+            assert not walker.trouble, walker.trouble
+            assert set(walker.nodes) == {"standby1"}
+            assert walker.largest_gap() < 0.5
+        finally:
+            walker.close()
 
 
 def test_promote_after_the_primary_stops(nodes, tmp_path):

@@ -47,6 +47,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="the login role writes run as: a member of modb_loader, not a superuser (default "
         "modb_web, which the embedded database has)",
     )
+    serve.add_argument(
+        "--standby",
+        action="append",
+        default=[],
+        metavar="CONNINFO",
+        help="a hot standby of the database to run avatar sessions on (spread by their number; "
+        "the primary when none answers); repeatable. Default: the embedded database's running "
+        "standbys (`modb db replica add`)",
+    )
     serve.set_defaults(func=run)
 
 
@@ -54,11 +63,18 @@ def run(args: argparse.Namespace) -> int:
     import uvicorn
 
     from modb.database.dsn import resolve
+    from modb.database.read_nodes import ReadNodes
     from modb.web.app import ThreeMissing, create_app
     from modb.web.avatar_socket import MAX_MESSAGE_BYTES
     from modb.web.guard import WILDCARD_ADDRESSES, is_loopback
 
     conninfo, origin = resolve(args.dsn)
+    if args.standby:
+        nodes = ReadNodes(conninfo, [(f"standby{i + 1}", d) for i, d in enumerate(args.standby)])
+    elif origin.startswith("embedded"):
+        nodes = ReadNodes.embedded(conninfo)
+    else:
+        nodes = ReadNodes(conninfo)
     try:
         app = create_app(
             conninfo,
@@ -68,6 +84,7 @@ def run(args: argparse.Namespace) -> int:
             require_token=args.require_token,
             max_upload_mb=args.max_upload_mb,
             writer_role=args.write_user,
+            nodes=nodes,
         )
     except ThreeMissing as e:
         print(f"modb serve: {e}", file=sys.stderr)
@@ -84,7 +101,8 @@ def run(args: argparse.Namespace) -> int:
         )
     shown = f"[{args.host}]" if ":" in args.host else args.host
     print(
-        f"modb serve: http://{shown}:{args.port}/  (database: {origin}; Ctrl-C stops)",
+        f"modb serve: http://{shown}:{args.port}/  (database: {origin}; {nodes.describe()}; "
+        "Ctrl-C stops)",
         file=sys.stderr,
     )
     # A WebSocket message past 16 times the socket's own limit is not even buffered (uvicorn's

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 
@@ -76,6 +76,9 @@ class Avatar:
     heading: float = 0.0
     start_snippet: int | None = None
     settings: Settings = field(default_factory=Settings)
+    # When the connection breaks (its node stopped): another, to a node that has the snippet id
+    # given (the one the chain continues from); None: the walk stops with the error.
+    failover: Callable[[int | None], psycopg.Connection] | None = None
 
     def __post_init__(self) -> None:
         # Refused before the connection is used.
@@ -150,12 +153,13 @@ class Avatar:
         self._started = True
         executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="modb-avatar")
         try:
-            pending: Future | None = executor.submit(self._choose, None, self._request(None))
+            asked: tuple[Choice | None, dict] = (None, self._request(None))
+            pending: Future | None = executor.submit(self._choose, *asked)
             played: list[Frame] = []  # the last two frames played: a seam's left side
             seams: Seams | None = None
             while True:
                 started = time.perf_counter()
-                choice, rotations, translations = pending.result()
+                choice, rotations, translations = self._answer(pending, asked)
                 waited = (time.perf_counter() - started) * 1000.0
                 choice = replace(choice, waited_ms=waited if self.choices else 0.0)
                 self.choices.append(choice)
@@ -181,9 +185,39 @@ class Avatar:
                     yield frame
                     played = [*played[-1:], frame]
                     if pending is None and choice.n_frames - 1 - k <= lead_frames:
-                        pending = executor.submit(self._choose, choice, self._request(choice))
+                        asked = (choice, self._request(choice))
+                        pending = executor.submit(self._choose, *asked)
         finally:
             executor.shutdown(wait=True, cancel_futures=True)
+
+    def _answer(
+        self, pending: Future, asked: tuple[Choice | None, dict]
+    ) -> tuple[Choice, np.ndarray, np.ndarray]:
+        """The pending choice. On a hot standby a query may be cancelled by what the standby
+        replays, and a node may stop: the same question is asked again, on this connection after
+        a conflict, else on the connection `failover` gives (a node that has the snippet the chain
+        continues from)."""
+        try:
+            return pending.result()
+        except psycopg.errors.SerializationFailure:  # "conflict with recovery" on a standby
+            return self._choose(*asked)
+        except psycopg.OperationalError:
+            if self.failover is None or not self.conn.broken:
+                raise
+            self.use_connection(self.failover(asked[1]["prev"]))
+            return self._choose(*asked)
+
+    def use_connection(self, conn: psycopg.Connection) -> None:
+        """Go on on another database session: the same chain, goals and exclusions; the session's
+        settings are made again there."""
+        old, self.conn = self.conn, conn
+        self.library.conn = conn
+        self._knobs_set = {}
+        configure_for_selection(conn)
+        try:
+            old.close()
+        except psycopg.Error:
+            pass
 
     def _request(self, previous: Choice | None) -> dict:
         """The next query's arguments, fixed now: later input is not seen by this choice."""

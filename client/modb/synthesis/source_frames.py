@@ -58,13 +58,13 @@ class FrameLibrary:
     """Clip versions fetched on first use and kept: a strip revisits the same few clips."""
 
     def __init__(self, conn: psycopg.Connection):
-        self._conn = conn
+        self.conn = conn  # replaced when the session moves to another node
         self._cache: dict[tuple[int, int, bool], SourceFrames] = {}
 
     def get(self, clip_id: int, version: int, mirrored: bool) -> SourceFrames:
         key = (clip_id, version, mirrored)
         if key not in self._cache:
-            motion = read_motion(self._conn, clip_id, version)
+            motion = read_motion(self.conn, clip_id, version)
             if mirrored:
                 motion = mirrored_motion(motion)
             sk = motion.skeleton

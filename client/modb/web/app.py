@@ -33,6 +33,7 @@ from starlette.staticfiles import StaticFiles
 
 from modb.database import pgarray
 from modb.database.connection import connect
+from modb.database.read_nodes import ReadNodes
 from . import api, catalog_writes, downloads, openapi
 from .avatar_socket import avatar_endpoint
 from .auth import Tokens
@@ -282,6 +283,7 @@ def create_app(
     require_token: bool = False,
     max_upload_mb: int = MAX_UPLOAD_MB,
     writer_role: str = WRITER_ROLE,
+    nodes: ReadNodes | None = None,
 ) -> HostOriginGuard:
     if not (THREE / "build" / "three.module.js").exists():
         raise ThreeMissing(
@@ -326,7 +328,7 @@ def create_app(
         *catalog_writes.routes(pool, tokens, writer),
         Route("/api/openapi.json", lambda request: JSONResponse(openapi.schema())),
         Route("/avatar", lambda request: FileResponse(STATIC / "avatar.html")),
-        WebSocketRoute("/ws/avatar", avatar_endpoint(conninfo, pool, tokens)),
+        WebSocketRoute("/ws/avatar", avatar_endpoint(nodes or ReadNodes(conninfo), pool, tokens)),
         Mount("/static", StaticFiles(directory=STATIC)),
         Mount("/vendor/three", StaticFiles(directory=THREE)),
     ]

@@ -32,10 +32,11 @@ def readout(choices: list[Choice]) -> dict[str, Any]:
 
 
 def choice_message(
-    choice: Choice, course: tuple[list, int, bool], choices: list[Choice]
+    choice: Choice, course: tuple[list, int, bool], choices: list[Choice], node: str | None = None
 ) -> dict[str, Any]:
     return {
         "type": "choice",
+        "node": node,  # the database server that chose it: a standby's name, or "primary"
         "step": choice.step,
         "snippet_id": choice.snippet_id,
         "clip_id": choice.clip_id,

@@ -20,7 +20,7 @@ from typing import Any
 
 import psycopg
 
-from modb.database.connection import connect
+from modb.database.read_nodes import NoNode, Node, ReadNodes
 from modb.synthesis.avatar import Avatar, Choice, Frame, NoContinuation, Settings, checked_goal
 from modb.synthesis.placement import Placement
 from modb.synthesis.root_motion import with_root_motion
@@ -42,8 +42,9 @@ Check = Callable[[Settings], None]
 class AvatarSession:
     """A browser connection's avatar: handle() takes the page's messages; a thread plays frames."""
 
-    def __init__(self, conninfo: str, send: Send, check: Check, settings: Settings) -> None:
-        self._conninfo = conninfo
+    def __init__(self, nodes: ReadNodes, send: Send, check: Check, settings: Settings) -> None:
+        self._nodes = nodes
+        self._node: Node | None = None  # where the avatar's queries run now
         self._send = send
         self._check = check
         self.settings = replace(settings, count_candidates=True)
@@ -111,7 +112,7 @@ class AvatarSession:
                 self._placement = self._avatar.placement
             try:
                 self._avatar = self._new_avatar(goal)
-            except psycopg.Error as e:
+            except (psycopg.Error, NoNode) as e:
                 self._avatar = None
                 self._send(
                     {
@@ -128,24 +129,56 @@ class AvatarSession:
         self._send({"type": "goals", "goals": goals, "goal_index": index})
 
     def _new_avatar(self, goal: tuple[float, ...]) -> Avatar:
-        """An avatar on a read-only database session of its own, where the last one stood."""
-        conn = connect(self._conninfo)
+        """An avatar on a read-only database session of its own (on a standby when there are
+        some), where the last one stood."""
+        conn = self._open()
         try:
-            conn.execute(
-                "SELECT set_config('default_transaction_read_only', 'on', false), "
-                "set_config('statement_timeout', %s, false)",
-                [STATEMENT_TIMEOUT],
-            )
             return Avatar(
                 conn,
                 goals=[goal],
                 position=self._placement.position,
                 heading=self._placement.heading,
                 settings=self.settings,
+                failover=self._failover,
             )
         except BaseException:
             conn.close()
+            self._release()
             raise
+
+    def _open(
+        self, needed_snippet: int | None = None, avoid: tuple[str, ...] = ()
+    ) -> psycopg.Connection:
+        self._node, conn = self._nodes.open(needed_snippet, avoid)
+        try:
+            conn.execute(
+                "SELECT set_config('default_transaction_read_only', 'on', false), "
+                "set_config('statement_timeout', %s, false)",
+                [STATEMENT_TIMEOUT],
+            )
+        except BaseException:
+            conn.close()
+            self._release()
+            raise
+        return conn
+
+    def _release(self) -> None:
+        if self._node is not None:
+            self._nodes.release(self._node)
+            self._node = None
+
+    def _failover(self, needed_snippet: int | None) -> psycopg.Connection:
+        """The avatar's node stopped: another that has the snippet the walk continues from."""
+        gone = self._node
+        self._release()
+        if gone is not None:
+            self._nodes.mark_down(gone)
+        conn = self._open(needed_snippet, avoid=(gone.name,) if gone else ())
+        where = gone.name if gone else "its node"
+        self._send(
+            {"type": "note", "message": f"{where} stopped answering: on to {self.node_name}"}
+        )
+        return conn
 
     def _play(self, avatar: Avatar) -> None:
         """Frames at the source rate; a readout after every selection."""
@@ -164,14 +197,16 @@ class AvatarSession:
                     if notes_sent < len(avatar.notes):  # what the database chose, and why
                         self._send({"type": "note", "message": "; ".join(avatar.notes)})
                         notes_sent = len(avatar.notes)
-                    self._send(choice_message(choice, avatar.course, avatar.choices))
+                    self._send(
+                        choice_message(choice, avatar.course, avatar.choices, self.node_name)
+                    )
                 self._keep(frame, choice.fps)
                 due = max(due, time.monotonic())  # after a stall, on from now: no burst to catch up
                 if self._stopping.wait(max(0.0, due - time.monotonic())):
                     break
                 self._send(frame_message(frame))
                 due += 1.0 / choice.fps
-        except NoContinuation as e:
+        except (NoContinuation, NoNode) as e:
             self._send({"type": "stopped", "message": f"{e}; click to start again"})
         except psycopg.Error as e:
             log.exception("avatar query failed")
@@ -192,6 +227,12 @@ class AvatarSession:
                     pass
         finally:
             avatar.conn.close()
+            self._release()
+
+    @property
+    def node_name(self) -> str | None:
+        node = self._node
+        return None if node is None else node.name
 
     def _skeleton(self, avatar: Avatar, choice: Choice) -> None:
         """The skeleton the page poses, when it changes: once per avatar for one-skeleton data."""

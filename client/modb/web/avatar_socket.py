@@ -21,9 +21,11 @@ from starlette.concurrency import run_in_threadpool
 from starlette.exceptions import HTTPException
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
+from modb.database.read_nodes import ReadNodes
 from modb.synthesis.avatar import Settings
 from . import api
 from .auth import Tokens
+
 from .avatar_session import AvatarSession
 from .avatar_settings import check_settings
 
@@ -120,7 +122,7 @@ async def _authorized(websocket: WebSocket, tokens: Tokens) -> bool:
         return False
 
 
-def avatar_endpoint(conninfo: str, pool: ConnectionPool, tokens: Tokens) -> Callable:
+def avatar_endpoint(nodes: ReadNodes, pool: ConnectionPool, tokens: Tokens) -> Callable:
     slots = threading.BoundedSemaphore(MAX_AVATARS)
 
     def check(settings: Settings) -> None:
@@ -154,7 +156,7 @@ def avatar_endpoint(conninfo: str, pool: ConnectionPool, tokens: Tokens) -> Call
         session: AvatarSession | None = None
         try:
             choices = await run_in_threadpool(offered)
-            session = AvatarSession(conninfo, send, check, _defaults())
+            session = AvatarSession(nodes, send, check, _defaults())
             await websocket.send_text(
                 json.dumps({"type": "ready", **choices, "settings": session.public_settings()})
             )

@@ -98,5 +98,6 @@ export class Tuning {
     $('relax').textContent = `${choice.relax_level ?? '-'} (relaxed ${fixed(100 * (r.relaxed_share || 0), 0)}%)`;
     $('seams').textContent = `r median ${fixed(r.seam_ratio_median, 2)}, max ${fixed(r.seam_ratio_max, 2)}; ${fixed(100 * (r.seam_rough_share || 0), 0)}% over 1`;
     $('snippet').textContent = `${choice.snippet_id} (clip ${choice.clip_id}${choice.mirrored ? ', mirrored' : ''})`;
+    $('node').textContent = choice.node ?? '-'; // a standby's name, or "primary"
   }
 }

@@ -1,0 +1,120 @@
+"""Where a read-only session runs: on one of the primary's hot standbys, spread by the number of
+sessions each serves, or on the primary when no standby answers.
+
+libpq 15 has no `load_balance_hosts`, so the choice is made here. A node that fails to connect,
+or whose connection breaks, is left out for DOWN_SECONDS. A session that moves (its node stopped)
+names the snippet it continues from: a standby that has not replayed it yet is waited for up to
+REPLAY_WAIT_SECONDS, else passed over, so no session asks a node for a snippet it does not have.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import psycopg
+from psycopg.conninfo import make_conninfo
+
+from .connection import connect
+
+DOWN_SECONDS = 5.0
+REPLAY_WAIT_SECONDS = 1.0
+CONNECT_TIMEOUT_SECONDS = 2
+
+
+@dataclass
+class Node:
+    name: str
+    dsn: str
+    standby: bool
+    sessions: int = 0
+    down_until: float = 0.0
+
+
+class NoNode(RuntimeError):
+    """No node could serve the session, and why."""
+
+
+class ReadNodes:
+    def __init__(self, primary: str, standbys: Iterable[tuple[str, str]] = ()) -> None:
+        self._lock = threading.Lock()
+        self.primary = Node("primary", primary, standby=False)
+        self.standbys = [Node(name, dsn, standby=True) for name, dsn in standbys]
+
+    @classmethod
+    def embedded(cls, primary: str) -> ReadNodes:
+        """The embedded database's primary and its running standbys (`modb db replica add`)."""
+        from .cluster import Cluster
+        from .replicas import Replicas
+
+        running = [r for r in Replicas(Cluster.default()).all() if r.node.is_running()]
+        return cls(primary, [(r.name, r.node.dsn()) for r in running])
+
+    def _take(self, passed: set[str]) -> Node | None:
+        """The next node to try, counted at once (sessions opening together spread too):
+        standbys up, fewest sessions first; then the primary; then standbys down (they may be
+        back). None when every node was tried."""
+        now = time.monotonic()
+        with self._lock:
+            left = [n for n in [*self.standbys, self.primary] if n.name not in passed]
+            if not left:
+                return None
+            node = min(
+                left,
+                key=lambda n: (
+                    n.down_until > now,
+                    not n.standby,
+                    n.sessions if n.down_until <= now else n.down_until,
+                ),
+            )
+            node.sessions += 1
+            return node
+
+    def open(
+        self, needed_snippet: int | None = None, avoid: Iterable[str] = ()
+    ) -> tuple[Node, psycopg.Connection]:
+        """A node for a new session (or one moving, which continues from `needed_snippet`) and an
+        autocommit connection to it; the node counts the session until release()."""
+        passed, why = set(avoid), []
+        while (node := self._take(passed)) is not None:
+            passed.add(node.name)
+            try:
+                conn = connect(make_conninfo(node.dsn, connect_timeout=CONNECT_TIMEOUT_SECONDS))
+            except (psycopg.Error, RuntimeError) as e:
+                self.release(node)
+                self.mark_down(node)
+                why.append(f"{node.name}: {e}")
+                continue
+            if needed_snippet is not None and not _has_snippet(conn, needed_snippet):
+                conn.close()
+                self.release(node)
+                why.append(f"{node.name}: has not replayed snippet {needed_snippet} yet")
+                continue
+            return node, conn
+        raise NoNode("no database node can serve this session: " + "; ".join(why))
+
+    def release(self, node: Node) -> None:
+        with self._lock:
+            node.sessions = max(0, node.sessions - 1)
+
+    def mark_down(self, node: Node) -> None:
+        with self._lock:
+            node.down_until = time.monotonic() + DOWN_SECONDS
+
+    def describe(self) -> str:
+        if not self.standbys:
+            return "avatar sessions on the primary (no standbys)"
+        return "avatar sessions on standbys " + ", ".join(n.name for n in self.standbys)
+
+
+def _has_snippet(conn: psycopg.Connection, snippet: int) -> bool:
+    """Whether the node has the snippet, waiting up to REPLAY_WAIT_SECONDS for its replay."""
+    deadline = time.monotonic() + REPLAY_WAIT_SECONDS
+    while True:
+        if conn.execute("SELECT 1 FROM modb.snippets WHERE id = %s", [snippet]).fetchone():
+            return True
+        if time.monotonic() >= deadline:
+            return False
+        time.sleep(0.05)
