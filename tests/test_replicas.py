@@ -358,3 +358,34 @@ def test_promote_after_the_primary_stops(nodes, tmp_path):
     assert db_cli(home, "replica", "remove", "r2").returncode == 0
     assert not (home / "replicas" / "r2").exists()
     assert scalar(url, "SELECT count(*) FROM pg_replication_slots") == 0
+
+
+def test_bench_crowd_runs_on_a_cluster_of_its_own():
+    """`modb bench crowd` as BENCHMARKS.md runs it, short: every avatar on a standby, none failed,
+    and the model's inputs reported (speed itself is the benchmark's, not a test's)."""
+    data = mocap("bandai-2-dev", "data")
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "modb.cli",
+            "bench",
+            "crowd",
+            "--avatars",
+            "4",
+            "--standbys",
+            "2",
+            "--seconds",
+            "10",
+            "--data",
+            str(data),
+        ],  # fmt: skip
+        capture_output=True,
+        text=True,
+    )
+    assert r.returncode == 0, r.stderr
+    cells = [[c.strip() for c in line.split("|")[1:-1]] for line in r.stdout.splitlines()]
+    rows = {c[0]: c[1:] for c in cells if c and c[0] in ("s1", "s2", "primary")}
+    assert sorted(rows) == ["s1", "s2"] and all(int(v[0]) == 2 for v in rows.values()), r.stdout
+    assert "failures: 0" in r.stdout and "ms CPU per choice on a standby" in r.stdout
+    assert not list(Path(tempfile.gettempdir()).glob("modb-crowd-*")), "its cluster is left"

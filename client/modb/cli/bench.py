@@ -18,6 +18,9 @@ QUERIES = whole(1, 100_000)
 BASELINE_QUERIES = whole(0, 100_000)
 PGBENCH_SECONDS = whole(1, 3600, "seconds")
 COURSE_SECONDS = positive(MAX_SECONDS, "seconds")
+AVATARS = whole(1, 500)
+STANDBYS = whole(0, 8)
+CROWD_SECONDS = whole(10, 3600, "seconds")
 MAX_SIZE = 10_000_000  # snippets in a scaled copy of the database
 
 
@@ -84,6 +87,28 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     synth.set_defaults(func=run_synth)
 
+    crowd = benchmarks.add_parser(
+        "crowd",
+        help="N simulated avatars against a primary and k hot standbys (a cluster of its own), "
+        "and what k machines would serve",
+    )
+    crowd.add_argument(
+        "--avatars", type=AVATARS, default=24, help=f"avatars ({AVATARS.span}; default 24)"
+    )
+    crowd.add_argument(
+        "--standbys", type=STANDBYS, default=2, help=f"standbys ({STANDBYS.span}; default 2)"
+    )
+    crowd.add_argument(
+        "--seconds", type=CROWD_SECONDS, default=60, help=f"{CROWD_SECONDS.span}; default 60"
+    )
+    crowd.add_argument(
+        "--data",
+        default="../shared/mocap/bandai-2-dev/data",
+        help="Bandai dataset 2 BVH folder: its active walks and turns are loaded, its runs "
+        "halfway (default ../shared/mocap/bandai-2-dev/data)",
+    )
+    crowd.set_defaults(func=run_crowd)
+
     scale = benchmarks.add_parser(
         "scale",
         help="select_next_snippet at several database sizes beside the flat query, numpy, a k-d "
@@ -144,6 +169,27 @@ def run_synth(args: argparse.Namespace) -> int:
         f"profile {args.profile}{graph}:"
     )
     print(summary)  # `modb synth --report` also lists every choice
+    return 0
+
+
+def run_crowd(args: argparse.Namespace) -> int:
+    from modb.bench.crowd import report, run
+
+    from .main import main
+
+    try:
+        crowd = run(
+            Path(args.data),
+            args.avatars,
+            args.standbys,
+            args.seconds,
+            lambda text: print(f"modb bench crowd: {text}", file=sys.stderr),
+            main,
+        )
+    except RuntimeError as e:
+        print(f"modb bench crowd: {e}", file=sys.stderr)
+        return 2
+    print(report(crowd))
     return 0
 
 
