@@ -203,7 +203,7 @@ class Walker:
     """One avatar over the WebSocket: a click, then every message read as it arrives (a thread),
     with its arrival time."""
 
-    def __init__(self, address: str, goal=(0.0, 60.0)) -> None:
+    def __init__(self, address: str, goal=(0.0, 60.0), settings: dict | None = None) -> None:
         from websockets.sync.client import connect
 
         self._stack = contextlib.ExitStack()
@@ -211,7 +211,11 @@ class Walker:
             connect(f"ws://{address}/ws/avatar", origin=f"http://{address}")
         )
         assert json.loads(self.ws.recv(timeout=30))["type"] == "ready"
+        if settings:
+            self.ws.send(json.dumps({"type": "settings", **settings}))
+            assert json.loads(self.ws.recv(timeout=30))["type"] == "settings"
         self.ws.send(json.dumps({"type": "goal", "x": goal[0], "z": goal[1]}))
+        self.notes: list[str] = []
         self.frames: list[float] = []  # arrival times
         self.nodes: list[str] = []  # the node of each choice
         self.trouble: list[dict] = []
@@ -228,6 +232,8 @@ class Walker:
                     self.nodes.append(message["node"])
                 elif message["type"] in ("stopped", "refused"):
                     self.trouble.append(message)
+                elif message["type"] == "note":
+                    self.notes.append(message["message"])
         except Exception as e:  # the socket closed under the test
             self.trouble.append({"type": "closed", "error": repr(e)})
 
@@ -329,6 +335,43 @@ def test_a_load_during_a_walk_on_a_standby_cancels_nothing(nodes, tmp_path):
             assert walker.largest_gap() < 0.5
         finally:
             walker.close()
+
+
+def test_a_moving_session_passes_over_a_standby_without_its_snippet(nodes, tmp_path):
+    """r2 stops replaying; clips loaded on the primary reach r1 only; a walk on them moves, when
+    r1 stops, to the primary, never to r2, which has not replayed the snippet it continues."""
+    home, primary, standbys = nodes
+    wait_replayed(primary, list(standbys.values()))
+    r1 = Cluster(home, node=home / "replicas" / "r1")
+    count = (
+        "SELECT count(*) FROM modb.snippets s JOIN modb.collections c ON c.id = s.collection_id "
+        "WHERE c.name = 'fresh'"
+    )
+    scalar(standbys["r2"], "SELECT pg_wal_replay_pause()")
+    try:
+        fresh = walks(tmp_path / "fresh", "dataset-2_walk-turn-right_active_00*")
+        r = run_modb(primary, "load", fresh, "--collection", "fresh", "-q")
+        assert r.returncode == 0, r.stderr
+        wait_replayed(primary, [standbys["r1"]])
+        assert scalar(standbys["r2"], count) == 0 < scalar(standbys["r1"], count)
+        options = [a for dsn in standbys.values() for a in ("--standby", dsn)]
+        with serving(primary, *options) as address:
+            walker = Walker(address, settings={"collection": "fresh"})
+            try:
+                walker.read(3)
+                assert walker.nodes and set(walker.nodes) == {"standby1"}, walker.nodes
+                r1.stop()
+                walker.read(5)
+                assert not walker.trouble, walker.trouble
+                assert walker.nodes[-1] == "primary", walker.nodes
+                assert "standby2" not in walker.nodes
+                assert any("on to primary" in n for n in walker.notes), walker.notes
+            finally:
+                walker.close()
+                r1.run_server()
+    finally:
+        scalar(standbys["r2"], "SELECT pg_wal_replay_resume()")
+    wait_replayed(primary, list(standbys.values()))
 
 
 def test_promote_after_the_primary_stops(nodes, tmp_path):
