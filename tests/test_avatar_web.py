@@ -344,7 +344,7 @@ def assert_readouts_summarise_the_last_selections(driver) -> None:
     messages, cells = driver.execute_script(
         "return [window.modbAvatar.state.messages, Object.fromEntries(['latency', 'selections', "
         "'candidates', "
-        "'relax', 'seams'].map((id) => [id, document.getElementById(id).textContent]))]"
+        "'relax', 'seams', 'node'].map((id) => [id, document.getElementById(id).textContent]))]"
     )
     choices = [m for m in messages if m["type"] == "choice"]
     last, window = choices[-1], choices[-50:]
@@ -369,7 +369,9 @@ def assert_readouts_summarise_the_last_selections(driver) -> None:
         "relax": f"{last['relax_level']} (relaxed {100 * relaxed:.0f}%)",
         "seams": f"r median {np.median(seams):.2f}, max {seams.max():.2f}; "
         f"{100 * np.mean(seams > 1):.0f}% over 1",
+        "node": last["node"],  # the server has no standbys: every session on its primary
     }
+    assert last["node"] == "primary"
 
 
 def test_two_browser_connections_with_different_settings_do_not_affect_each_other(
