@@ -103,6 +103,12 @@ def test_standbys_are_listed_streaming_read_only(nodes):
     text = db_cli(home, "replica", "list").stdout
     assert "r1" in text and "bytes behind" in text and standbys["r1"] in text
     assert db_cli(home, "replica", "url", "r2").stdout.strip() == standbys["r2"]
+    # a slot of that name on the primary (another standby's?) is not taken over
+    scalar(primary, "SELECT pg_create_physical_replication_slot('r9')")
+    r = db_cli(home, "replica", "add", "r9")
+    assert r.returncode == 1 and "slot 'r9' already" in r.stderr, r.stderr
+    assert not (home / "replicas" / "r9").exists()
+    scalar(primary, "SELECT pg_drop_replication_slot('r9')")
     r = db_cli(home, "replica", "url", "nope")
     assert r.returncode == 1 and "no standby named 'nope'" in r.stderr
 
@@ -301,8 +307,15 @@ def test_a_standby_stopped_mid_walk_moves_its_sessions(nodes):
     wait_replayed(primary, list(standbys.values()))
 
 
+CONFLICTS = (
+    "SELECT confl_tablespace + confl_lock + confl_snapshot + confl_bufferpin + confl_deadlock "
+    "FROM pg_stat_database_conflicts WHERE datname = 'modb'"
+)
+
+
 def test_a_load_during_a_walk_on_a_standby_cancels_nothing(nodes, tmp_path):
     _, primary, standbys = nodes
+    conflicts = scalar(standbys["r2"], CONFLICTS)
     with serving(primary, "--standby", standbys["r2"]) as address:
         walker = Walker(address)
         try:
@@ -333,6 +346,8 @@ def test_a_load_during_a_walk_on_a_standby_cancels_nothing(nodes, tmp_path):
             assert not walker.trouble, walker.trouble
             assert set(walker.nodes) == {"standby1"}
             assert walker.largest_gap() < 0.5
+            # no query was cancelled (the Avatar would ask again, hiding it from the walk)
+            assert scalar(standbys["r2"], CONFLICTS) == conflicts
         finally:
             walker.close()
 

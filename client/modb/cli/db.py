@@ -12,7 +12,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     db = sub.add_parser("db", help="the embedded database cluster")
     actions = db.add_subparsers(dest="action", required=True, metavar="ACTION")
     for action, text in (
-        ("start", "create the cluster if needed, start it, update the extension"),
+        ("start", "create the cluster if needed, start it and its standbys, update the extension"),
         ("stop", "stop the primary"),
         ("status", "whether the primary runs (exit 3 when not)"),
         ("url", "the primary's conninfo"),
@@ -45,6 +45,11 @@ def run(args: argparse.Namespace) -> int:
         if args.action == "start":
             cluster.start()
             print(f"running: {cluster.dsn()}")
+            from modb.database.replicas import Replicas
+
+            for r in Replicas(cluster).all():
+                r.node.run_server()
+                print(f"standby {r.name} running: {r.node.dsn()}")
         elif args.action == "stop":
             cluster.stop()
             print(cluster.status())
@@ -60,6 +65,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def run_replica(args: argparse.Namespace) -> int:
+    import psycopg
+
     from modb.database.cluster import Cluster, ClusterError
     from modb.database.replicas import Replicas
 
@@ -93,8 +100,10 @@ def run_replica(args: argparse.Namespace) -> int:
                     state += f" ({row['replay_lag']})" if row["replay_lag"] else ""
                 elif row["running"]:
                     state += ", not streaming"
+                if row["slot"] == "lost":
+                    state += ", its slot LOST (remove and add it again)"
                 print(f"{row['name']:12s} {state:40s} {row['dsn']}")
-    except ClusterError as e:
-        print(f"modb db replica {args.step}: {e}", file=sys.stderr)
+    except (ClusterError, psycopg.Error) as e:
+        print(f"modb db replica {args.step}: {str(e).strip()}", file=sys.stderr)
         return 1
     return 0

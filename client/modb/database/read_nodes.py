@@ -20,8 +20,17 @@ from psycopg.conninfo import make_conninfo
 from .connection import connect
 
 DOWN_SECONDS = 5.0
-REPLAY_WAIT_SECONDS = 1.0
-CONNECT_TIMEOUT_SECONDS = 2
+REPLAY_WAIT_SECONDS = 0.25  # within a moving walk's half-second budget
+# A node across a network that stops answering is given up in seconds, not TCP's minutes (unix
+# sockets ignore these: a stopped server there fails at once).
+CONNECTION_OPTIONS = {
+    "connect_timeout": 2,
+    "keepalives": 1,
+    "keepalives_idle": 5,
+    "keepalives_interval": 1,
+    "keepalives_count": 3,
+    "tcp_user_timeout": 5000,
+}
 
 
 @dataclass
@@ -45,12 +54,12 @@ class ReadNodes:
 
     @classmethod
     def embedded(cls, primary: str) -> ReadNodes:
-        """The embedded database's primary and its running standbys (`modb db replica add`)."""
+        """The embedded database's primary and its standbys (`modb db replica add`); one that is
+        stopped is tried again after DOWN_SECONDS, so it serves once it is started."""
         from .cluster import Cluster
         from .replicas import Replicas
 
-        running = [r for r in Replicas(Cluster.default()).all() if r.node.is_running()]
-        return cls(primary, [(r.name, r.node.dsn()) for r in running])
+        return cls(primary, [(r.name, r.node.dsn()) for r in Replicas(Cluster.default()).all()])
 
     def _take(self, passed: set[str]) -> Node | None:
         """The next node to try, counted at once (sessions opening together spread too):
@@ -80,19 +89,18 @@ class ReadNodes:
         passed, why = set(avoid), []
         while (node := self._take(passed)) is not None:
             passed.add(node.name)
+            conn = None
             try:
-                conn = connect(make_conninfo(node.dsn, connect_timeout=CONNECT_TIMEOUT_SECONDS))
+                conn = connect(make_conninfo(node.dsn, **CONNECTION_OPTIONS))
+                if needed_snippet is None or _has_snippet(conn, needed_snippet):
+                    return node, conn
+                why.append(f"{node.name}: has not replayed snippet {needed_snippet} yet")
             except (psycopg.Error, RuntimeError) as e:
-                self.release(node)
                 self.mark_down(node)
                 why.append(f"{node.name}: {e}")
-                continue
-            if needed_snippet is not None and not _has_snippet(conn, needed_snippet):
+            if conn is not None:
                 conn.close()
-                self.release(node)
-                why.append(f"{node.name}: has not replayed snippet {needed_snippet} yet")
-                continue
-            return node, conn
+            self.release(node)
         raise NoNode("no database node can serve this session: " + "; ".join(why))
 
     def release(self, node: Node) -> None:

@@ -16,10 +16,12 @@ from __future__ import annotations
 import os
 import re
 import shutil
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import psycopg
+from psycopg.conninfo import make_conninfo
 
 from .cluster import PORT, Cluster, ClusterError, _bindir, shared_buffers_mb
 
@@ -28,6 +30,7 @@ NAME = re.compile(r"^[a-z][a-z0-9_]{0,30}$")
 MAX_SLOT_WAL_KEEP = "4GB"
 # Shared buffers of a standby: an eighth of what the primary takes, so several fit beside it.
 STANDBY_BUFFER_SHARE = 8
+SLOT_RELEASE_SECONDS = 10  # a stopped standby's walsender lets go of its slot
 
 
 @dataclass(frozen=True)
@@ -63,7 +66,9 @@ class Replicas:
         return [
             Replica(d.name, d)
             for d in sorted(self.folder.iterdir())
-            if (d / "pgdata" / "PG_VERSION").exists() and d != primary
+            # standby.signal: a node promoted before and then left is no standby (and must
+            # never be started as one more primary)
+            if (d / "pgdata" / "standby.signal").exists() and d != primary
         ]
 
     def get(self, name: str) -> Replica:
@@ -90,7 +95,11 @@ class Replicas:
             if conn.execute(
                 "SELECT 1 FROM pg_replication_slots WHERE slot_name = %s", [name]
             ).fetchone():
-                conn.execute("SELECT pg_drop_replication_slot(%s)", [name])
+                raise ClusterError(
+                    f"the primary has a replication slot {name!r} already (another standby's?): "
+                    f"choose another name, or drop it there with SELECT "
+                    f"pg_drop_replication_slot('{name}')"
+                )
             conn.execute("SELECT pg_create_physical_replication_slot(%s, true)", [name])
         node = Cluster(self.cluster.home, node=home)
         node.make_directories()
@@ -108,13 +117,15 @@ class Replicas:
                 "--checkpoint=fast",
             )
             (node.datadir / "standby.signal").touch()
+            if os.geteuid() == 0:
+                shutil.chown(node.datadir / "standby.signal", "postgres", "postgres")
             for stale in ("postmaster.pid", "postmaster.opts"):
                 (node.datadir / stale).unlink(missing_ok=True)
             self._configure(node, name)
             node.run_server()
         except BaseException:
-            self._drop_slot(name)
             shutil.rmtree(home, ignore_errors=True)
+            self._drop_slot(name)
             raise
         return Replica(name, home)
 
@@ -124,35 +135,49 @@ class Replicas:
         with open(node.datadir / "postgresql.auto.conf", "a") as conf:
             conf.write(
                 "# written by modb db replica add: a hot standby\n"
-                f"unix_socket_directories = '{node.socket_dir}'\n"
+                f"unix_socket_directories = {_quoted(str(node.socket_dir))}\n"
                 f"shared_buffers = {max(128, shared_buffers_mb() // STANDBY_BUFFER_SHARE)}MB\n"
                 "hot_standby = on\n"
                 "hot_standby_feedback = on\n"
-                f"primary_conninfo = '{self._primary_conninfo(name)}'\n"
+                f"primary_conninfo = {_quoted(self._primary_conninfo(name))}\n"
                 f"primary_slot_name = '{name}'\n"
             )
         if os.geteuid() == 0:
             shutil.chown(node.datadir / "postgresql.auto.conf", "postgres", "postgres")
 
     def _primary_conninfo(self, name: str) -> str:
-        return (
-            f"host={self.cluster.socket_dir} port={PORT} user={self.cluster.os_user} "
-            f"application_name={name}"
+        return make_conninfo(
+            host=str(self.cluster.socket_dir),
+            port=PORT,
+            user=self.cluster.os_user,
+            application_name=name,
         )
 
     def _drop_slot(self, name: str) -> None:
-        try:
-            with self._primary_conn() as conn:
-                conn.execute(
-                    "SELECT pg_drop_replication_slot(slot_name) FROM pg_replication_slots "
-                    "WHERE slot_name = %s AND NOT active",
-                    [name],
-                )
-        except (ClusterError, psycopg.Error):
-            pass  # the primary is gone: nothing holds WAL for it
+        """Drops the standby's slot on the primary, once its walsender has let go of it."""
+        with self._primary_conn() as conn:
+            deadline = time.monotonic() + SLOT_RELEASE_SECONDS
+            while True:
+                row = conn.execute(
+                    "SELECT active FROM pg_replication_slots WHERE slot_name = %s", [name]
+                ).fetchone()
+                if row is None:
+                    return
+                if not row[0]:
+                    conn.execute("SELECT pg_drop_replication_slot(%s)", [name])
+                    return
+                if time.monotonic() > deadline:
+                    raise ClusterError(
+                        f"the slot {name!r} is still in use on the primary: is another server "
+                        "streaming through it?"
+                    )
+                time.sleep(0.1)
 
     def remove(self, name: str) -> None:
+        """Stops the standby, drops its slot (the primary must run: a slot left there would
+        keep WAL for it) and deletes its data."""
         replica = self.get(name)
+        self._primary_conn().close()  # refused now, before anything is stopped, if it is down
         replica.node.stop()
         self._drop_slot(name)
         shutil.rmtree(replica.home)
@@ -168,8 +193,9 @@ class Replicas:
                     "replay_lag FROM pg_stat_replication"
                 ):
                     lag[row[0]] = row[1:]
+                slots = dict(conn.execute("SELECT slot_name, wal_status FROM pg_replication_slots"))
         except (ClusterError, psycopg.Error):
-            pass
+            slots = {}
         out = []
         for r in self.all():
             behind = lag.get(r.name)
@@ -179,7 +205,11 @@ class Replicas:
                     "dsn": r.node.dsn(),
                     "running": r.node.is_running(),
                     "streaming": behind is not None,
-                    "replay_lag_bytes": None if behind is None else int(behind[0] or 0),
+                    "replay_lag_bytes": None
+                    if behind is None or behind[0] is None
+                    else int(behind[0]),  # fmt: skip
+                    # "lost": the primary gave up its WAL (max_slot_wal_keep_size): make it again
+                    "slot": slots.get(r.name),
                     "replay_lag": None if behind is None or behind[1] is None else str(behind[1]),
                 }
             )
@@ -195,25 +225,52 @@ class Replicas:
             )
         replica = self.get(name)
         node = replica.node
-        if not node.is_running():
-            node.run_server()
-        node._run(_bindir() / "pg_ctl", "promote", "-w", "-D", node.datadir)
+        node.run_server()
         others = [r for r in self.all() if r.name != name]
-        (self.cluster.home / "primary").write_text(
-            str(replica.home.relative_to(self.cluster.home)) + "\n"
-        )
-        primary = Cluster(self.cluster.home)  # now names the promoted node
-        with psycopg.connect(primary.dsn("postgres"), autocommit=True) as conn:
+        replayed = {r.name: _replayed(r.node) for r in [replica, *others] if r.node.is_running()}
+        ahead = [n for n, lsn in replayed.items() if lsn > replayed[name]]
+        if ahead:  # the others could not follow a primary behind them
+            raise ClusterError(
+                f"{ahead[0]} has replayed more of the old primary's WAL than {name}: promote "
+                f"{ahead[0]}"
+            )
+        node._run(_bindir() / "pg_ctl", "promote", "-w", "-D", node.datadir)
+        with psycopg.connect(node.dsn("postgres"), autocommit=True) as conn:
             for other in others:
-                conn.execute("SELECT pg_create_physical_replication_slot(%s, true)", [other.name])
+                conn.execute(
+                    "SELECT pg_create_physical_replication_slot(%s, true) WHERE NOT EXISTS "
+                    "(SELECT FROM pg_replication_slots WHERE slot_name = %s)",
+                    [other.name, other.name],
+                )
+            # a primary's buffers, from its next restart on
+            conn.execute(f"ALTER SYSTEM SET shared_buffers = '{shared_buffers_mb()}MB'")
+        new_primary = Replicas(Cluster(self.cluster.home, node=replica.home))
         for other in others:
             with open(other.node.datadir / "postgresql.auto.conf", "a") as conf:
                 conf.write(
                     f"# written by modb db replica promote {name}\n"
-                    f"primary_conninfo = '{Replicas(primary)._primary_conninfo(other.name)}'\n"
+                    f"primary_conninfo = {_quoted(new_primary._primary_conninfo(other.name))}\n"
                 )
             if other.node.is_running():
                 other.node._run(_bindir() / "pg_ctl", "reload", "-D", other.node.datadir)
             else:
                 other.node.run_server()
+        # last: until here a failed promote can be run again
+        (self.cluster.home / "primary").write_text(
+            str(replica.home.relative_to(self.cluster.home)) + "\n"
+        )
         return replica
+
+
+def _quoted(value: str) -> str:
+    """A postgresql.conf string value."""
+    return "'" + value.replace("\\", "\\\\").replace("'", "''") + "'"
+
+
+def _replayed(node: Cluster) -> int:
+    """The WAL position a standby has replayed, as a number."""
+    with psycopg.connect(node.dsn("postgres"), autocommit=True) as conn:
+        (lsn,) = conn.execute(
+            "SELECT pg_wal_lsn_diff(coalesce(pg_last_wal_replay_lsn(), '0/0'), '0/0')"
+        ).fetchone()
+    return int(lsn)
