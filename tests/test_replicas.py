@@ -24,6 +24,7 @@ from support.commands import run_modb
 from support.data import mocap
 
 from modb.database.cluster import Cluster
+from modb.database.read_nodes import ReadNodes
 
 COURSE = ("--to=4,4", "--to=-3,9", "--to=2,14", "--to=-6,4")
 
@@ -111,6 +112,9 @@ def test_standbys_are_listed_streaming_read_only(nodes):
     scalar(primary, "SELECT pg_drop_replication_slot('r9')")
     r = db_cli(home, "replica", "url", "nope")
     assert r.returncode == 1 and "no standby named 'nope'" in r.stderr
+    # the avatar server's name for the primary is no standby's
+    r = db_cli(home, "replica", "add", "primary")
+    assert r.returncode == 1 and "other than 'primary'" in r.stderr, r.stderr
 
 
 def synth_chain(dsn: str, out: Path, *args: str) -> list[int]:
@@ -284,6 +288,25 @@ def test_serve_spreads_avatar_sessions_over_the_standbys(nodes):
                 w.close()
 
 
+def test_serve_caps_the_avatars_open_at_once(nodes):
+    from websockets.exceptions import ConnectionClosed
+    from websockets.sync.client import connect
+
+    _, primary, _ = nodes
+    with serving(primary, "--max-avatars", "1") as address:
+        first = Walker(address)
+        try:
+            with connect(f"ws://{address}/ws/avatar", origin=f"http://{address}") as ws:
+                with pytest.raises(ConnectionClosed) as closed:
+                    ws.recv(timeout=30)
+            assert closed.value.rcvd.code == 1013, closed.value
+            assert "--max-avatars" in closed.value.rcvd.reason
+            first.read(1)
+            assert first.frames and not first.trouble, first.trouble
+        finally:
+            first.close()
+
+
 def test_a_standby_stopped_mid_walk_moves_its_sessions(nodes):
     home, primary, standbys = nodes
     options = [a for dsn in standbys.values() for a in ("--standby", dsn)]
@@ -369,6 +392,13 @@ def test_a_moving_session_passes_over_a_standby_without_its_snippet(nodes, tmp_p
         assert r.returncode == 0, r.stderr
         wait_replayed(primary, [standbys["r1"]])
         assert scalar(standbys["r2"], count) == 0 < scalar(standbys["r1"], count)
+        # new sessions: never on r2, though it is tried first and serves none
+        nodes_ = ReadNodes(primary, [("r2", standbys["r2"]), ("r1", standbys["r1"])])
+        opened = [nodes_.open() for _ in range(3)]
+        for _, conn in opened:
+            assert conn.execute(count).fetchone()[0] > 0
+            conn.close()
+        assert [node.name for node, _ in opened] == ["r1"] * 3
         options = [a for dsn in standbys.values() for a in ("--standby", dsn)]
         with serving(primary, *options) as address:
             walker = Walker(address, settings={"collection": "fresh"})
@@ -397,9 +427,13 @@ def test_promote_after_the_primary_stops(nodes, tmp_path):
     assert db_cli(home, "stop").returncode == 0
     r = db_cli(home, "replica", "promote", "r1")
     assert r.returncode == 0, r.stderr
+    assert f"old primary's data ({home / 'pgdata'})" in r.stdout, r.stdout
     url = db_cli(home, "url").stdout.strip()
     assert url == standbys["r1"]
     assert scalar(url, "SELECT pg_is_in_recovery()") is False
+    # run again (as after a failure past the promotion), it finishes pointing the others
+    r = db_cli(home, "replica", "promote", "r1")
+    assert r.returncode == 0 and "old primary" not in r.stdout, (r.stdout, r.stderr)
     # loads go on there, and the other standby follows it
     more = walks(tmp_path / "after", "dataset-2_walk_active_02*")
     r = run_modb(url, "load", more, "--collection", "after promotion", "-q")
@@ -446,4 +480,5 @@ def test_bench_crowd_runs_on_a_cluster_of_its_own():
     rows = {c[0]: c[1:] for c in cells if c and c[0] in ("s1", "s2", "primary")}
     assert sorted(rows) == ["s1", "s2"] and all(int(v[0]) == 2 for v in rows.values()), r.stdout
     assert "failures: 0" in r.stdout and "ms CPU per choice on a standby" in r.stdout
+    assert "the primary's walsender" in r.stdout
     assert not list(Path(tempfile.gettempdir()).glob("modb-crowd-*")), "its cluster is left"

@@ -36,6 +36,7 @@ from .synth import seeded_course
 
 CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
 LEAD_TIME_S = 0.25  # the avatar's default in the web view is 0; a crowd hides latency
+REPLAY_TIMEOUT_S = 300  # a standby that has not replayed the halfway load by then has failed
 
 
 @dataclass
@@ -61,6 +62,7 @@ class Crowd:
     nodes: dict[str, NodeFigures]
     round_trip_ms: float  # SELECT 1 over this machine's socket, median
     wal_bytes_per_load_s: float  # the primary's WAL while loading
+    walsender_cpu_share: float  # of a core, per standby, the primary's sending while loading
     load_seconds: float
     failures: list[str]
     client_cpu_s_per_avatar_s: float  # this process (the avatars' frames), per avatar-second
@@ -126,8 +128,11 @@ def _load_and_replay(
     out: dict[str, float],
 ) -> None:
     """Loads `files` on the primary and waits until every standby has replayed the load; out: its
-    seconds, its WAL bytes, and each standby's replay CPU seconds over that time."""
+    seconds, its WAL bytes, each standby's replay CPU seconds over that time, and the primary's
+    walsenders' CPU seconds ("sending")."""
     replay_before = {k: _cpu_seconds(p) for k, p in startup.items()}
+    senders = _pids(primary, "walsender")
+    sending_before = _cpu_seconds(senders)
     with psycopg.connect(primary, autocommit=True) as conn:
         lsn = conn.execute("SELECT pg_current_wal_lsn()").fetchone()[0]
         t = time.monotonic()
@@ -151,10 +156,14 @@ def _load_and_replay(
         end, out["wal"] = conn.execute(
             "SELECT pg_current_wal_lsn(), pg_wal_lsn_diff(pg_current_wal_lsn(), %s)", [lsn]
         ).fetchone()
+    deadline = time.monotonic() + REPLAY_TIMEOUT_S
     for dsn in standbys:
         with psycopg.connect(dsn, autocommit=True) as conn:
             while conn.execute("SELECT pg_last_wal_replay_lsn() < %s::pg_lsn", [end]).fetchone()[0]:
+                if time.monotonic() > deadline:
+                    raise RuntimeError(f"{dsn} did not replay the load in {REPLAY_TIMEOUT_S} s")
                 time.sleep(0.05)
+    out["sending"] = _cpu_seconds(senders) - sending_before
     for k, p in startup.items():
         out[f"replay {k}"] = _cpu_seconds(p) - replay_before[k]
 
@@ -269,6 +278,7 @@ def run(
             figures,
             statistics.median(round_trip),
             float(loading["wal"]) / max(load_seconds, 1e-9),
+            loading["sending"] / max(load_seconds, 1e-9) / max(standbys, 1),
             load_seconds,
             failures,
             client_cpu,
@@ -285,7 +295,10 @@ def model(crowd: Crowd, machines: int) -> dict[str, float]:
     cores spend the CPU per selection measured here (all standbys' backends over their choices)
     plus the replay CPU measured per second of the primary's loading (assumed loading all the
     time: the worst case); an avatar asks one selection per 0.5 s; latency = this machine's p50
-    plus a network round trip (measured here over a unix socket; a LAN adds about 0.2 ms)."""
+    plus a network round trip (measured here over a unix socket; a LAN adds about 0.2 ms). What
+    does not scale: the primary sends its WAL once per standby, so its sending CPU (measured per
+    standby) and its outgoing bytes grow with `machines`; `primary_sending_share` is that CPU, in
+    cores, while it loads."""
     standby = [f for f in crowd.nodes.values() if f.name != "primary"]
     choices = sum(f.cpu_choices for f in standby)
     cpu = sum(f.backend_cpu_s for f in standby)
@@ -300,6 +313,8 @@ def model(crowd: Crowd, machines: int) -> dict[str, float]:
         "avatars": machines * per_machine * 0.5,
         "latency_p50_ms": (float(np.percentile(latencies, 50)) if latencies else float("nan"))
         + crowd.round_trip_ms,
+        "primary_sending_share": machines * crowd.walsender_cpu_share,
+        "primary_wal_out_mb_per_s": machines * crowd.wal_bytes_per_load_s / 2**20,
     }
 
 
@@ -332,16 +347,26 @@ def report(crowd: Crowd) -> str:
         + (f" (first: {crowd.failures[0]})" if crowd.failures else ""),
     ]
     if crowd.standbys:
-        lines += ["", "| standby machines | avatars served (model) | latency p50 (model) |",
-                  "|---|---|---|"]  # fmt: skip
+        lines += [
+            "",
+            "| standby machines | avatars served (model) | latency p50 (model) | primary's CPU "
+            "sending WAL while loading | WAL out of the primary while loading |",
+            "|---|---|---|---|---|",
+        ]
         for k in (1, 2, 4, 8):
             m = model(crowd, k)
-            lines.append(f"| {k} | {m['avatars']:.0f} | {m['latency_p50_ms']:.1f} ms |")
+            lines.append(
+                f"| {k} | {m['avatars']:.0f} | {m['latency_p50_ms']:.1f} ms | "
+                f"{100 * m['primary_sending_share']:.1f}% of a core | "
+                f"{m['primary_wal_out_mb_per_s']:.1f} MB/s |"
+            )
         m = model(crowd, 1)
         lines.append(
             f"\nmodel inputs (measured): {m['cpu_ms_per_choice']:.1f} ms CPU per choice on a "
             f"standby, replay {100 * m['replay_cpu_share']:.1f}% of a core while the primary "
             f"loads, {m['choices_per_s_per_machine']:.0f} choices/s per {crowd.cores}-core machine"
+            f"; the primary's walsender {100 * crowd.walsender_cpu_share:.1f}% of a core per "
+            "standby while loading"
             f"; the avatar server's frames (this process) "
             f"{1000 * crowd.client_cpu_s_per_avatar_s:.1f} ms CPU per avatar-second: "
             f"about {crowd.cores / crowd.client_cpu_s_per_avatar_s:.0f} avatars per "

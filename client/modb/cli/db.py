@@ -81,12 +81,14 @@ def run_replica(args: argparse.Namespace) -> int:
             replicas.remove(args.name)
             print(f"standby {args.name} removed (its slot dropped)")
         elif args.step == "promote":
+            old_data = replicas.cluster.datadir
             r = replicas.promote(args.name)
             print(f"{r.name} is the primary now: {Cluster.default().dsn()}")
-            print(
-                f"the old primary's data ({replicas.cluster.home / 'pgdata'}) is no longer used; "
-                "delete it when you no longer need it"
-            )
+            if old_data != Cluster.default().datadir:
+                print(
+                    f"the old primary's data ({old_data}) is no longer used; delete it when you "
+                    "no longer need it"
+                )
         else:
             rows = replicas.status()
             if args.json:

@@ -2,9 +2,12 @@
 sessions each serves, or on the primary when no standby answers.
 
 libpq 15 has no `load_balance_hosts`, so the choice is made here. A node that fails to connect,
-or whose connection breaks, is left out for DOWN_SECONDS. A session that moves (its node stopped)
-names the snippet it continues from: a standby that has not replayed it yet is waited for up to
-REPLAY_WAIT_SECONDS, else passed over, so no session asks a node for a snippet it does not have.
+or whose connection breaks, is left out for DOWN_SECONDS. A standby must have replayed what the
+session needs: a new session, the primary's WAL as it was when the session opened (so a standby
+serves a load once it has replayed it, and the web view's lists, read on the primary, never offer
+what the session's node lacks); a session that moves (its node stopped), the snippet it continues
+from. One that has not is waited for up to REPLAY_WAIT_SECONDS (in all, over every node tried),
+else passed over and left out for DOWN_SECONDS.
 """
 
 from __future__ import annotations
@@ -20,7 +23,8 @@ from psycopg.conninfo import make_conninfo
 from .connection import connect
 
 DOWN_SECONDS = 5.0
-REPLAY_WAIT_SECONDS = 0.25  # within a moving walk's half-second budget
+REPLAY_WAIT_SECONDS = 0.25  # in all, within a moving walk's half-second budget
+REPLAY_POLL_SECONDS = 0.02
 # A node across a network that stops answering is given up in seconds, not TCP's minutes (unix
 # sockets ignore these: a stopped server there fails at once).
 CONNECTION_OPTIONS = {
@@ -44,6 +48,10 @@ class Node:
 
 class NoNode(RuntimeError):
     """No node could serve the session, and why."""
+
+
+class NotReplayed(RuntimeError):
+    """A standby lacks what the session needs (it lags, or its replay is paused)."""
 
 
 class ReadNodes:
@@ -87,14 +95,22 @@ class ReadNodes:
         """A node for a new session (or one moving, which continues from `needed_snippet`) and an
         autocommit connection to it; the node counts the session until release()."""
         passed, why = set(avoid), []
+        deadline = time.monotonic() + REPLAY_WAIT_SECONDS
+        lsn, lsn_read = None, False  # the primary's, read when a standby is first tried
         while (node := self._take(passed)) is not None:
             passed.add(node.name)
             conn = None
             try:
                 conn = connect(make_conninfo(node.dsn, **CONNECTION_OPTIONS))
-                if needed_snippet is None or _has_snippet(conn, needed_snippet):
+                if not node.standby:
                     return node, conn
-                why.append(f"{node.name}: has not replayed snippet {needed_snippet} yet")
+                if needed_snippet is None and not lsn_read:
+                    lsn, lsn_read = self._primary_lsn(), True
+                while (lacking := _lacking(conn, needed_snippet, lsn)) is not None:
+                    if time.monotonic() >= deadline:
+                        raise NotReplayed(f"has not replayed {lacking} yet")
+                    time.sleep(REPLAY_POLL_SECONDS)
+                return node, conn
             except (psycopg.Error, RuntimeError) as e:
                 self.mark_down(node)
                 why.append(f"{node.name}: {e}")
@@ -102,6 +118,15 @@ class ReadNodes:
                 conn.close()
             self.release(node)
         raise NoNode("no database node can serve this session: " + "; ".join(why))
+
+    def _primary_lsn(self) -> str | None:
+        """Where the primary's WAL is now; None when the primary does not answer (then a standby
+        serves what it has: the primary is gone, or being promoted)."""
+        try:
+            with connect(make_conninfo(self.primary.dsn, **CONNECTION_OPTIONS)) as conn:
+                return str(conn.execute("SELECT pg_current_wal_lsn()").fetchone()[0])
+        except (psycopg.Error, RuntimeError):
+            return None
 
     def release(self, node: Node) -> None:
         with self._lock:
@@ -117,12 +142,15 @@ class ReadNodes:
         return "avatar sessions on standbys " + ", ".join(n.name for n in self.standbys)
 
 
-def _has_snippet(conn: psycopg.Connection, snippet: int) -> bool:
-    """Whether the node has the snippet, waiting up to REPLAY_WAIT_SECONDS for its replay."""
-    deadline = time.monotonic() + REPLAY_WAIT_SECONDS
-    while True:
-        if conn.execute("SELECT 1 FROM modb.snippets WHERE id = %s", [snippet]).fetchone():
-            return True
-        if time.monotonic() >= deadline:
-            return False
-        time.sleep(0.05)
+def _lacking(conn: psycopg.Connection, snippet: int | None, lsn: str | None) -> str | None:
+    """What a standby has not replayed yet of what a session needs (the snippet a moving session
+    continues from, else the primary's WAL up to `lsn`), or None."""
+    if snippet is not None:
+        has = conn.execute("SELECT 1 FROM modb.snippets WHERE id = %s", [snippet]).fetchone()
+        return None if has else f"snippet {snippet}"
+    if lsn is None:
+        return None
+    replayed = conn.execute(
+        "SELECT coalesce(pg_last_wal_replay_lsn() >= %s::pg_lsn, true)", [lsn]
+    ).fetchone()[0]
+    return None if replayed else f"the primary's WAL up to {lsn}"

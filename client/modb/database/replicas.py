@@ -13,6 +13,7 @@ After the primary stops, `promote NAME` makes a standby the primary ($MODB_HOME/
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import shutil
@@ -44,10 +45,10 @@ class Replica:
 
 
 def _checked(name: str) -> str:
-    if not NAME.match(name):
+    if not NAME.match(name) or name == "primary":  # the avatar server's name for the primary
         raise ClusterError(
             f"{name!r} is not a standby name: use lower-case letters, digits and _ (start with a "
-            "letter, at most 31)"
+            "letter, at most 31), other than 'primary'"
         )
     return name
 
@@ -124,8 +125,11 @@ class Replicas:
             self._configure(node, name)
             node.run_server()
         except BaseException:
+            with contextlib.suppress(ClusterError):  # it may have started after all
+                node.stop()
             shutil.rmtree(home, ignore_errors=True)
-            self._drop_slot(name)
+            with contextlib.suppress(ClusterError, psycopg.Error):  # the first error is the one
+                self._drop_slot(name)
             raise
         return Replica(name, home)
 
@@ -217,7 +221,12 @@ class Replicas:
 
     def promote(self, name: str) -> Replica:
         """Make standby `name` the primary (the old one must be stopped) and point the other
-        standbys at it, each with a slot of its own there."""
+        standbys at it, each with a slot of its own there. Run again after a failure past the
+        promotion itself, it finishes pointing them."""
+        home = self.folder / _checked(name)
+        if self.cluster.node_home == home:  # promoted already
+            self._lead(self.all())
+            return Replica(name, home)
         if self.cluster.is_running():
             raise ClusterError(
                 "the primary is still running: stop it first (`modb db stop`); two primaries "
@@ -235,8 +244,16 @@ class Replicas:
                 f"{ahead[0]}"
             )
         node._run(_bindir() / "pg_ctl", "promote", "-w", "-D", node.datadir)
-        with psycopg.connect(node.dsn("postgres"), autocommit=True) as conn:
-            for other in others:
+        # from now on it is the primary, whatever fails below (a rerun finishes that)
+        (self.cluster.home / "primary").write_text(str(home.relative_to(self.cluster.home)) + "\n")
+        Replicas(Cluster(self.cluster.home))._lead(others)
+        return replica
+
+    def _lead(self, standbys: list[Replica]) -> None:
+        """This primary (promoted) gets its own buffers and a slot for each standby, and they
+        stream from it."""
+        with self._primary_conn() as conn:
+            for other in standbys:
                 conn.execute(
                     "SELECT pg_create_physical_replication_slot(%s, true) WHERE NOT EXISTS "
                     "(SELECT FROM pg_replication_slots WHERE slot_name = %s)",
@@ -244,22 +261,16 @@ class Replicas:
                 )
             # a primary's buffers, from its next restart on
             conn.execute(f"ALTER SYSTEM SET shared_buffers = '{shared_buffers_mb()}MB'")
-        new_primary = Replicas(Cluster(self.cluster.home, node=replica.home))
-        for other in others:
+        for other in standbys:
             with open(other.node.datadir / "postgresql.auto.conf", "a") as conf:
                 conf.write(
-                    f"# written by modb db replica promote {name}\n"
-                    f"primary_conninfo = {_quoted(new_primary._primary_conninfo(other.name))}\n"
+                    "# written by modb db replica promote: the new primary\n"
+                    f"primary_conninfo = {_quoted(self._primary_conninfo(other.name))}\n"
                 )
             if other.node.is_running():
                 other.node._run(_bindir() / "pg_ctl", "reload", "-D", other.node.datadir)
             else:
                 other.node.run_server()
-        # last: until here a failed promote can be run again
-        (self.cluster.home / "primary").write_text(
-            str(replica.home.relative_to(self.cluster.home)) + "\n"
-        )
-        return replica
 
 
 def _quoted(value: str) -> str:

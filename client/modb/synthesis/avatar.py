@@ -68,6 +68,9 @@ SELECT s.id, s.clip_id, s.version, s.mirrored, s.first_frame, s.n_frames, NULL::
 """
 
 
+ASK_AGAIN = 3  # a choice cancelled by a standby's replay, or whose node stopped, is asked again
+
+
 @dataclass
 class Avatar:
     conn: psycopg.Connection
@@ -194,18 +197,23 @@ class Avatar:
         self, pending: Future, asked: tuple[Choice | None, dict]
     ) -> tuple[Choice, np.ndarray, np.ndarray]:
         """The pending choice. On a hot standby a query may be cancelled by what the standby
-        replays, and a node may stop: the same question is asked again, on this connection after
-        a conflict, else on the connection `failover` gives (a node that has the snippet the chain
-        continues from)."""
+        replays, and a node may stop: the same question is asked again (up to ASK_AGAIN times), on
+        this connection after a conflict, else on the connection `failover` gives (a node that has
+        the snippet the chain continues from)."""
         try:
             return pending.result()
-        except psycopg.errors.SerializationFailure:  # "conflict with recovery" on a standby
-            return self._choose(*asked)
-        except psycopg.OperationalError:
-            if self.failover is None or not self.conn.broken:
-                raise
-            self.use_connection(self.failover(asked[1]["prev"]))
-            return self._choose(*asked)
+        except psycopg.Error as e:
+            error = e
+        for _ in range(ASK_AGAIN):
+            if self.conn.broken and self.failover is not None:
+                self.use_connection(self.failover(asked[1]["prev"]))
+            elif not isinstance(error, psycopg.errors.SerializationFailure):
+                raise error  # "conflict with recovery" is one; anything else is the walk's end
+            try:
+                return self._choose(*asked)
+            except psycopg.Error as e:
+                error = e
+        raise error
 
     def use_connection(self, conn: psycopg.Connection) -> None:
         """Go on on another database session: the same chain, goals and exclusions; the session's

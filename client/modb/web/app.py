@@ -35,7 +35,7 @@ from modb.database import pgarray
 from modb.database.connection import connect
 from modb.database.read_nodes import ReadNodes
 from . import api, catalog_writes, downloads, openapi
-from .avatar_socket import avatar_endpoint
+from .avatar_socket import avatar_endpoint, default_max_avatars
 from .auth import Tokens
 from .guard import HostOriginGuard, allowed_hosts
 from .writes import MAX_UPLOAD_MB, WRITER_ROLE, Writer, meta_endpoints, upload_endpoint
@@ -284,6 +284,7 @@ def create_app(
     max_upload_mb: int = MAX_UPLOAD_MB,
     writer_role: str = WRITER_ROLE,
     nodes: ReadNodes | None = None,
+    max_avatars: int | None = None,
 ) -> HostOriginGuard:
     if not (THREE / "build" / "three.module.js").exists():
         raise ThreeMissing(
@@ -303,6 +304,8 @@ def create_app(
 
     tokens = Tokens(pool, require_token)
     writer = Writer.for_server(conninfo, writer_role)
+    nodes = nodes or ReadNodes(conninfo)
+    max_avatars = max_avatars or default_max_avatars(nodes)
 
     @contextlib.asynccontextmanager
     async def lifespan(app: Starlette):
@@ -328,7 +331,7 @@ def create_app(
         *catalog_writes.routes(pool, tokens, writer),
         Route("/api/openapi.json", lambda request: JSONResponse(openapi.schema())),
         Route("/avatar", lambda request: FileResponse(STATIC / "avatar.html")),
-        WebSocketRoute("/ws/avatar", avatar_endpoint(nodes or ReadNodes(conninfo), pool, tokens)),
+        WebSocketRoute("/ws/avatar", avatar_endpoint(nodes, pool, tokens, max_avatars)),
         Mount("/static", StaticFiles(directory=STATIC)),
         Mount("/vendor/three", StaticFiles(directory=THREE)),
     ]

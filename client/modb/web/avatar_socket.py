@@ -1,7 +1,8 @@
 """The WebSocket /ws/avatar: avatar mode's asyncio side (AvatarSession does the work in threads).
 
 The Host/Origin guard in front refuses a foreign page before this runs. Each connection gets its own
-database session; at most MAX_AVATARS walk at once, so tabs cannot exhaust the server's connections.
+database session; at most `max_avatars` are open at once (by default MAX_AVATARS_PER_NODE for each
+database node), so tabs cannot exhaust the nodes' connections or the server's CPU.
 A message longer than MAX_MESSAGE_BYTES or nested deeper than MAX_MESSAGE_DEPTH is refused before
 it is parsed (json.loads recurses once per level), and the socket goes on.
 """
@@ -30,7 +31,7 @@ from .avatar_session import AvatarSession
 from .avatar_settings import check_settings
 
 log = logging.getLogger("modb.web")
-MAX_AVATARS = 8  # open avatar sockets (walking or not) per server
+MAX_AVATARS_PER_NODE = 8  # open avatar sockets (walking or not) per database node, by default
 SEND_TIMEOUT_S = 30  # a page that reads nothing for this long stops its avatar
 MAX_MESSAGE_BYTES = 64 * 1024  # the page's messages (goals, settings) are well under 1 KiB
 MAX_MESSAGE_DEPTH = 8  # arrays and objects within each other; the protocol's messages need 2
@@ -122,8 +123,14 @@ async def _authorized(websocket: WebSocket, tokens: Tokens) -> bool:
         return False
 
 
-def avatar_endpoint(nodes: ReadNodes, pool: ConnectionPool, tokens: Tokens) -> Callable:
-    slots = threading.BoundedSemaphore(MAX_AVATARS)
+def default_max_avatars(nodes: ReadNodes) -> int:
+    return MAX_AVATARS_PER_NODE * (1 + len(nodes.standbys))
+
+
+def avatar_endpoint(
+    nodes: ReadNodes, pool: ConnectionPool, tokens: Tokens, max_avatars: int
+) -> Callable:
+    slots = threading.BoundedSemaphore(max_avatars)
 
     def check(settings: Settings) -> None:
         with pool.connection() as conn:
@@ -139,7 +146,9 @@ def avatar_endpoint(nodes: ReadNodes, pool: ConnectionPool, tokens: Tokens) -> C
             return
         if not slots.acquire(blocking=False):
             await websocket.close(
-                code=1013, reason=f"{MAX_AVATARS} avatars are walking already: try again later"
+                code=1013,
+                reason=f"{max_avatars} avatars are open already (modb serve --max-avatars): "
+                "try again later",
             )
             return
         loop = asyncio.get_running_loop()
