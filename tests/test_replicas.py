@@ -24,6 +24,7 @@ from support.commands import run_modb
 from support.data import mocap
 
 from modb.database.cluster import Cluster
+from modb.database import read_nodes
 from modb.database.read_nodes import ReadNodes
 
 COURSE = ("--to=4,4", "--to=-3,9", "--to=2,14", "--to=-6,4")
@@ -419,9 +420,14 @@ def test_a_moving_session_passes_over_a_standby_without_its_snippet(nodes, tmp_p
     wait_replayed(primary, list(standbys.values()))
 
 
-def test_promote_after_the_primary_stops(nodes, tmp_path):
+def test_promote_after_the_primary_stops(nodes, tmp_path, monkeypatch):
     home, primary, standbys = nodes
     wait_replayed(primary, list(standbys.values()))
+    # what `modb serve` on the embedded database sees, looked up again as it changes
+    monkeypatch.setenv("MODB_HOME", str(home))
+    monkeypatch.setattr(read_nodes, "DISCOVER_SECONDS", 0.0)
+    serving_nodes = ReadNodes.embedded(primary)
+    assert [n.name for n in serving_nodes.standbys] == ["r1", "r2"]
     r = db_cli(home, "replica", "promote", "r1")
     assert r.returncode == 1 and "still running" in r.stderr  # two primaries would split the data
     assert db_cli(home, "stop").returncode == 0
@@ -450,6 +456,8 @@ def test_promote_after_the_primary_stops(nodes, tmp_path):
     assert db_cli(home, "replica", "remove", "r2").returncode == 0
     assert not (home / "replicas" / "r2").exists()
     assert scalar(url, "SELECT count(*) FROM pg_replication_slots") == 0
+    serving_nodes.refresh()
+    assert serving_nodes.standbys == []  # r1 is the primary now, r2 is gone
 
 
 def test_bench_crowd_runs_on_a_cluster_of_its_own():
@@ -471,6 +479,7 @@ def test_bench_crowd_runs_on_a_cluster_of_its_own():
             "10",
             "--data",
             str(data),
+            "--no-baseline",  # its own run, a minute more
         ],  # fmt: skip
         capture_output=True,
         text=True,

@@ -95,7 +95,8 @@ def _pids(dsn: str, backend_type: str) -> list[int]:
 def _walk(
     avatar: Avatar, until: float, figures: Callable[[], NodeFigures], failures: list[str]
 ) -> None:
-    """Plays the avatar's frames at their rate until `until`; each choice counted on its node."""
+    """Plays the avatar's frames at their rate until `until`; each choice counted on its node.
+    Its connection stays open (run() closes it once its backend's CPU time is read)."""
     due = time.monotonic()
     seen = 0
     try:
@@ -116,8 +117,6 @@ def _walk(
             time.sleep(max(0.0, due - now))
     except Exception as e:  # counted, not hidden: the report lists them
         failures.append(f"{type(e).__name__}: {e}")
-    finally:
-        avatar.conn.close()
 
 
 def _load_and_replay(
@@ -222,7 +221,7 @@ def run(
         start = time.monotonic()
         until = start + seconds
         failures: list[str] = []
-        threads = []
+        threads, walking = [], []
         for i in range(avatars):
             node, conn = nodes.open()
             figures[node.name].avatars += 1
@@ -231,6 +230,7 @@ def run(
                 goals=seeded_course(i + 1, n_goals=int(seconds // 5) + 2),
                 settings=replace(Settings(), lead_time=LEAD_TIME_S, collection="crowd"),
             )
+            walking.append(avatar)
             threads.append(
                 threading.Thread(
                     target=_walk,
@@ -254,7 +254,7 @@ def run(
             args=(dsn, [n.dsn for n in nodes.standbys], startup, more, loading),
         )
         loader.start()
-        # CPU is read before the avatars end: their backends' figures go with them
+        # CPU is read while every avatar's backend is there (their connections close after)
         time.sleep(max(0.0, until - 0.5 - time.monotonic()))
         for k, (_, p) in counted.items():
             figures[k].backend_cpu_s = _cpu_seconds(p) - before[k]
@@ -268,6 +268,8 @@ def run(
             raise RuntimeError(f"the load during the walk failed: {loading['error']}")
         for t in threads:
             t.join(timeout=30)
+        for avatar in walking:
+            avatar.conn.close()
         for k in startup:
             figures[k].replay_cpu_s = loading.get(f"replay {k}", 0.0)
         load_seconds = loading["seconds"]
@@ -316,6 +318,22 @@ def model(crowd: Crowd, machines: int) -> dict[str, float]:
         "primary_sending_share": machines * crowd.walsender_cpu_share,
         "primary_wal_out_mb_per_s": machines * crowd.wal_bytes_per_load_s / 2**20,
     }
+
+
+def against(crowd: Crowd, baseline: Crowd) -> str:
+    """The standbys' latency (all their choices together) and stalls over the primary alone's."""
+    served = np.array([v for f in crowd.nodes.values() for v in f.latencies_ms])
+    alone = np.array(baseline.nodes["primary"].latencies_ms)
+    if not served.size or not alone.size:
+        return "no ratio: a run made no choices"
+    p50, b50 = np.percentile(served, 50), np.percentile(alone, 50)
+    p99, b99 = np.percentile(served, 99), np.percentile(alone, 99)
+    stalls = sum(f.stalls for f in crowd.nodes.values())
+    return (
+        f"{crowd.standbys} standbys against the primary alone (same avatars, same process): "
+        f"p50 {p50:.1f} ms / {b50:.1f} ms = {p50 / b50:.2f}x, p99 {p99:.1f} ms / {b99:.1f} ms = "
+        f"{p99 / b99:.2f}x, stalls {stalls} / {baseline.nodes['primary'].stalls}"
+    )
 
 
 def report(crowd: Crowd) -> str:

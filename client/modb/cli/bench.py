@@ -107,6 +107,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="Bandai dataset 2 BVH folder: its active walks and turns are loaded, its runs "
         "halfway (default ../shared/mocap/bandai-2-dev/data)",
     )
+    crowd.add_argument(
+        "--no-baseline",
+        dest="baseline",
+        action="store_false",
+        help="with standbys, skip the baseline (the same avatars on the primary alone, on a "
+        "cluster of its own, first in the same process), and its ratios",
+    )
     crowd.set_defaults(func=run_crowd)
 
     scale = benchmarks.add_parser(
@@ -173,23 +180,29 @@ def run_synth(args: argparse.Namespace) -> int:
 
 
 def run_crowd(args: argparse.Namespace) -> int:
-    from modb.bench.crowd import report, run
+    from modb.bench.crowd import against, report, run
 
     from .main import main
 
-    try:
-        crowd = run(
+    def crowd_of(standbys: int):
+        return run(
             Path(args.data),
             args.avatars,
-            args.standbys,
+            standbys,
             args.seconds,
             lambda text: print(f"modb bench crowd: {text}", file=sys.stderr),
             main,
         )
+
+    try:
+        baseline = crowd_of(0) if args.baseline and args.standbys else None
+        crowd = crowd_of(args.standbys)
     except RuntimeError as e:
         print(f"modb bench crowd: {e}", file=sys.stderr)
         return 2
     print(report(crowd))
+    if baseline is not None:
+        print(f"\nbaseline, the primary alone:\n\n{report(baseline)}\n\n{against(crowd, baseline)}")
     return 0
 
 

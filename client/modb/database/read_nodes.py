@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 import psycopg
@@ -23,6 +23,7 @@ from psycopg.conninfo import make_conninfo
 from .connection import connect
 
 DOWN_SECONDS = 5.0
+DISCOVER_SECONDS = 5.0  # how often the embedded database's standbys are looked up again
 REPLAY_WAIT_SECONDS = 0.25  # in all, within a moving walk's half-second budget
 REPLAY_POLL_SECONDS = 0.02
 # A node across a network that stops answering is given up in seconds, not TCP's minutes (unix
@@ -55,19 +56,47 @@ class NotReplayed(RuntimeError):
 
 
 class ReadNodes:
-    def __init__(self, primary: str, standbys: Iterable[tuple[str, str]] = ()) -> None:
+    def __init__(
+        self,
+        primary: str,
+        standbys: Iterable[tuple[str, str]] = (),
+        discover: Callable[[], Iterable[tuple[str, str]]] | None = None,
+    ) -> None:
         self._lock = threading.Lock()
         self.primary = Node("primary", primary, standby=False)
         self.standbys = [Node(name, dsn, standby=True) for name, dsn in standbys]
+        self._discover = discover
+        self._discovered_at = time.monotonic()
 
     @classmethod
     def embedded(cls, primary: str) -> ReadNodes:
-        """The embedded database's primary and its standbys (`modb db replica add`); one that is
-        stopped is tried again after DOWN_SECONDS, so it serves once it is started."""
+        """The embedded database's primary and its standbys (`modb db replica add`), looked up
+        again every DISCOVER_SECONDS: one added while serving takes new sessions, one removed no
+        more; one that is stopped is tried again after DOWN_SECONDS."""
         from .cluster import Cluster
         from .replicas import Replicas
 
-        return cls(primary, [(r.name, r.node.dsn()) for r in Replicas(Cluster.default()).all()])
+        def standbys() -> list[tuple[str, str]]:
+            return [(r.name, r.node.dsn()) for r in Replicas(Cluster.default()).all()]
+
+        return cls(primary, standbys(), discover=standbys)
+
+    def refresh(self) -> None:
+        """The standbys as `discover` finds them now, at most every DISCOVER_SECONDS (a node
+        kept keeps its count of sessions)."""
+        if self._discover is None or time.monotonic() - self._discovered_at < DISCOVER_SECONDS:
+            return
+        self._discovered_at = time.monotonic()
+        try:
+            found = dict(self._discover())
+        except OSError:  # the folder being changed under us: the last list stands
+            return
+        with self._lock:
+            known = {n.name: n for n in self.standbys}
+            self.standbys = [
+                known[name] if name in known and known[name].dsn == dsn else Node(name, dsn, True)
+                for name, dsn in found.items()
+            ]
 
     def _take(self, passed: set[str]) -> Node | None:
         """The next node to try, counted at once (sessions opening together spread too):
@@ -94,6 +123,7 @@ class ReadNodes:
     ) -> tuple[Node, psycopg.Connection]:
         """A node for a new session (or one moving, which continues from `needed_snippet`) and an
         autocommit connection to it; the node counts the session until release()."""
+        self.refresh()
         passed, why = set(avoid), []
         deadline = time.monotonic() + REPLAY_WAIT_SECONDS
         lsn, lsn_read = None, False  # the primary's, read when a standby is first tried
