@@ -38,6 +38,11 @@ KEEP_SECONDS = 300  # a download holds the last 5 min of the walk (frames: ~10 M
 Send = Callable[[dict[str, Any]], None]
 Check = Callable[[Settings], None]
 
+SKELETON = (
+    "SELECT s.id, s.hierarchy, s.joint_map->>'pelvis' FROM modb.clip_versions v "
+    "JOIN modb.skeletons s ON s.id = v.skeleton_id WHERE v.clip_id = %s AND v.version = %s"
+)
+
 
 class AvatarSession:
     """A browser connection's avatar: handle() takes the page's messages; a thread plays frames."""
@@ -238,12 +243,14 @@ class AvatarSession:
         """The skeleton the page poses, when it changes: once per avatar for one-skeleton data."""
         key = (choice.clip_id, choice.version)
         if key not in self._skeleton_of:
-            self._skeleton_of[key] = avatar.conn.execute(
-                "SELECT s.id, s.hierarchy, s.joint_map->>'pelvis' FROM modb.clip_versions v "
-                "JOIN modb.skeletons s ON s.id = v.skeleton_id "
-                "WHERE v.clip_id = %s AND v.version = %s",
-                list(key),
-            ).fetchone()
+            try:
+                self._skeleton_of[key] = avatar.conn.execute(SKELETON, key).fetchone()
+            except psycopg.OperationalError:
+                if not avatar.conn.broken:
+                    raise
+                # its node stopped since the choice: on to one that has the snippet
+                avatar.use_connection(self._failover(choice.snippet_id))
+                self._skeleton_of[key] = avatar.conn.execute(SKELETON, key).fetchone()
         skeleton_id, hierarchy, pelvis = self._skeleton_of[key]
         if skeleton_id != self._skeleton_sent:
             self._send(
