@@ -264,12 +264,12 @@ def run(
             avatars * (time.monotonic() - client_from)
         )
         loader.join()
+        for t, avatar in zip(threads, walking):
+            t.join(timeout=30)
+            if not t.is_alive():  # one still walking has its connection closed by the server
+                avatar.conn.close()
         if "error" in loading:
             raise RuntimeError(f"the load during the walk failed: {loading['error']}")
-        for t in threads:
-            t.join(timeout=30)
-        for avatar in walking:
-            avatar.conn.close()
         for k in startup:
             figures[k].replay_cpu_s = loading.get(f"replay {k}", 0.0)
         load_seconds = loading["seconds"]

@@ -154,7 +154,8 @@ class ReadNodes:
         serves what it has: the primary is gone, or being promoted)."""
         try:
             with connect(make_conninfo(self.primary.dsn, **CONNECTION_OPTIONS)) as conn:
-                return str(conn.execute("SELECT pg_current_wal_lsn()").fetchone()[0])
+                # flushed: what a standby can have received (the write position may be ahead)
+                return str(conn.execute("SELECT pg_current_wal_flush_lsn()").fetchone()[0])
         except (psycopg.Error, RuntimeError):
             return None
 

@@ -243,7 +243,11 @@ class Replicas:
                 f"{ahead[0]} has replayed more of the old primary's WAL than {name}: promote "
                 f"{ahead[0]}"
             )
-        node._run(_bindir() / "pg_ctl", "promote", "-w", "-D", node.datadir)
+        try:
+            node._run(_bindir() / "pg_ctl", "promote", "-w", "-D", node.datadir)
+        except ClusterError:
+            if _in_recovery(node):  # else it was promoted, only slower than pg_ctl waited
+                raise
         # from now on it is the primary, whatever fails below (a rerun finishes that)
         (self.cluster.home / "primary").write_text(str(home.relative_to(self.cluster.home)) + "\n")
         Replicas(Cluster(self.cluster.home))._lead(others)
@@ -276,6 +280,15 @@ class Replicas:
 def _quoted(value: str) -> str:
     """A postgresql.conf string value."""
     return "'" + value.replace("\\", "\\\\").replace("'", "''") + "'"
+
+
+def _in_recovery(node: Cluster) -> bool:
+    """Whether the server is still a standby (True too when it does not answer)."""
+    try:
+        with psycopg.connect(node.dsn("postgres"), autocommit=True, connect_timeout=10) as conn:
+            return conn.execute("SELECT pg_is_in_recovery()").fetchone()[0]
+    except psycopg.Error:
+        return True
 
 
 def _replayed(node: Cluster) -> int:

@@ -10,6 +10,7 @@ are those of modb.synthesize, so with lead time zero both give the same chain.
 
 from __future__ import annotations
 
+import contextlib
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -99,7 +100,6 @@ class Avatar:
         self._recent: list[tuple[int, int]] = []  # (snippet id, strip frame where its play ended)
         self._started = False
         self.library = FrameLibrary(self.conn)
-        self._asked_on = self.conn  # the connection the pending choice runs on
         self.choices: list[Choice] = []
         # What this avatar last SET modb.<knob> to on its connection.
         self._knobs_set: dict[str, str] = {}
@@ -158,7 +158,7 @@ class Avatar:
         executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="modb-avatar")
         try:
             asked: tuple[Choice | None, dict] = (None, self._request(None))
-            pending: Future | None = self._ask(executor, asked)
+            pending: Future | None = executor.submit(self._choose, *asked)
             played: list[Frame] = []  # the last two frames played: a seam's left side
             seams: Seams | None = None
             while True:
@@ -190,7 +190,7 @@ class Avatar:
                     played = [*played[-1:], frame]
                     if pending is None and choice.n_frames - 1 - k <= lead_frames:
                         asked = (choice, self._request(choice))
-                        pending = self._ask(executor, asked)
+                        pending = executor.submit(self._choose, *asked)
         finally:
             executor.shutdown(wait=True, cancel_futures=True)
 
@@ -206,24 +206,15 @@ class Avatar:
         except psycopg.Error as e:
             error = e
         for _ in range(ASK_AGAIN):
-            conflict = isinstance(error, psycopg.errors.SerializationFailure)  # with recovery
-            moved = self.conn is not self._asked_on  # the session went on elsewhere meanwhile
             if self.conn.broken and self.failover is not None:
                 self.use_connection(self.failover(asked[1]["prev"]))
-            elif not (conflict or moved):
-                raise error  # anything else ends the walk
-            self._asked_on = self.conn
+            elif self.conn.broken or not isinstance(error, psycopg.errors.SerializationFailure):
+                raise error  # "conflict with recovery" is asked again; anything else ends the walk
             try:
                 return self._choose(*asked)
             except psycopg.Error as e:
                 error = e
         raise error
-
-    def _ask(self, executor: ThreadPoolExecutor, asked: tuple[Choice | None, dict]) -> Future:
-        """The choice `asked` for, started in the worker; the connection it runs on noted (the
-        session may move it to another node before the answer is read)."""
-        self._asked_on = self.conn
-        return executor.submit(self._choose, *asked)
 
     def use_connection(self, conn: psycopg.Connection) -> None:
         """Go on on another database session: the same chain, goals and exclusions; the session's
@@ -231,11 +222,9 @@ class Avatar:
         old, self.conn = self.conn, conn
         self.library.conn = conn
         self._knobs_set = {}
-        configure_for_selection(conn)
-        try:
+        with contextlib.suppress(psycopg.Error):
             old.close()
-        except psycopg.Error:
-            pass
+        configure_for_selection(conn)
 
     def _request(self, previous: Choice | None) -> dict:
         """The next query's arguments, fixed now: later input is not seen by this choice."""

@@ -180,9 +180,13 @@ class AvatarSession:
             self._nodes.mark_down(gone)
         conn = self._open(needed_snippet, avoid=(gone.name,) if gone else ())
         where = gone.name if gone else "its node"
-        self._send(
-            {"type": "note", "message": f"{where} stopped answering: on to {self.node_name}"}
-        )
+        try:
+            self._send(
+                {"type": "note", "message": f"{where} stopped answering: on to {self.node_name}"}
+            )
+        except BaseException:  # the page is gone: the avatar never gets the connection
+            conn.close()
+            raise
         return conn
 
     def _play(self, avatar: Avatar) -> None:
@@ -245,11 +249,11 @@ class AvatarSession:
         if key not in self._skeleton_of:
             try:
                 self._skeleton_of[key] = avatar.conn.execute(SKELETON, key).fetchone()
-            except psycopg.OperationalError:
-                if not avatar.conn.broken:
+            except psycopg.OperationalError as e:
+                if avatar.conn.broken:  # its node stopped since the choice: on to another
+                    avatar.use_connection(self._failover(choice.snippet_id))
+                elif not isinstance(e, psycopg.errors.SerializationFailure):  # a replay conflict
                     raise
-                # its node stopped since the choice: on to one that has the snippet
-                avatar.use_connection(self._failover(choice.snippet_id))
                 self._skeleton_of[key] = avatar.conn.execute(SKELETON, key).fetchone()
         skeleton_id, hierarchy, pelvis = self._skeleton_of[key]
         if skeleton_id != self._skeleton_sent:
