@@ -84,6 +84,7 @@ def run(args: argparse.Namespace) -> int:
         nodes = ReadNodes.embedded(conninfo)
     else:
         nodes = ReadNodes(conninfo)
+    max_avatars = args.max_avatars or default_max_avatars(nodes)
     try:
         app = create_app(
             conninfo,
@@ -94,7 +95,7 @@ def run(args: argparse.Namespace) -> int:
             max_upload_mb=args.max_upload_mb,
             writer_role=args.write_user,
             nodes=nodes,
-            max_avatars=args.max_avatars,
+            max_avatars=max_avatars,
         )
     except ThreeMissing as e:
         print(f"modb serve: {e}", file=sys.stderr)
@@ -112,7 +113,7 @@ def run(args: argparse.Namespace) -> int:
     shown = f"[{args.host}]" if ":" in args.host else args.host
     print(
         f"modb serve: http://{shown}:{args.port}/  (database: {origin}; {nodes.describe()}, "
-        f"at most {args.max_avatars or default_max_avatars(nodes)} at once; Ctrl-C stops)",
+        f"at most {max_avatars} at once; Ctrl-C stops)",
         file=sys.stderr,
     )
     # A WebSocket message past 16 times the socket's own limit is not even buffered (uvicorn's
