@@ -15,8 +15,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from support.snippet_oracle import motion_world  # noqa: E402
 
 from modb.editing.retarget import retarget_motion  # noqa: E402
-from modb.loader.jobs import find_jobs  # noqa: E402
-from modb.loader.reading import ReadOptions, read_job  # noqa: E402
+from modb.loader.sources import find_sources  # noqa: E402
+from modb.loader.reading import ReadOptions, read_source  # noqa: E402
 from modb.resample import at_fps  # noqa: E402
 
 BONES = {
@@ -29,7 +29,7 @@ BONES = {
 
 
 def read(path: Path):
-    return read_job(find_jobs([str(path)], "bench")[0], ReadOptions())
+    return read_source(find_sources([str(path)], "bench")[0], ReadOptions())
 
 
 def directions(motion, pairs) -> np.ndarray:

@@ -15,8 +15,8 @@ import psycopg
 from modb.motion import Motion
 
 from .errors import MotionFileError
-from .jobs import FileJob
-from .reading import ReadOptions, read_job, read_key
+from .sources import SourceFile
+from .reading import ReadOptions, read_source, read_key
 from .sidecars import file_meta
 
 
@@ -106,11 +106,11 @@ SELECT v.clip_id, v.version
 
 
 def _unchanged(
-    conn: psycopg.Connection, job: FileJob, name: str, sha256: str, key: str
+    conn: psycopg.Connection, source: SourceFile, name: str, sha256: str, key: str
 ) -> tuple[int, int] | None:
     """(clip, version) when this clip's newest version is from the same bytes read the same way."""
     row = conn.execute(
-        _UNCHANGED_SQL, {"collection": job.collection, "name": name, "sha": sha256, "key": key}
+        _UNCHANGED_SQL, {"collection": source.collection, "name": name, "sha": sha256, "key": key}
     ).fetchone()
     return (row[0], row[1]) if row else None
 
@@ -268,7 +268,7 @@ def _new_version_meta(
 
 def load_files(
     conn: psycopg.Connection,
-    jobs: list[FileJob],
+    sources: list[SourceFile],
     options: ReadOptions,
     keep_going: bool,
     progress: Callable[[FileResult], None] | None = None,
@@ -280,13 +280,13 @@ def load_files(
     each remaining file says so)."""
     summary = LoadSummary()
     started = time.perf_counter()
-    for job in jobs:
+    for source in sources:
         if conn.closed:
             result = FileResult(
-                job.path, "failed", message=f"{job.path}: not loaded: the connection was lost"
+                source.path, "failed", message=f"{source.path}: not loaded: the connection was lost"
             )
         else:
-            result = _load_one(conn, job, options, snippets, mirrored)
+            result = _load_one(conn, source, options, snippets, mirrored)
         summary.results.append(result)
         if progress:
             progress(result)
@@ -329,57 +329,57 @@ def _analyze(conn: psycopg.Connection) -> None:
         conn.execute("ANALYZE modb.snippets, modb.terminators")
 
 
-def _refused(job: FileJob, e: psycopg.Error) -> str:
+def _refused(source: SourceFile, e: psycopg.Error) -> str:
     diag = e.diag
     parts = (diag.message_primary, diag.message_detail, diag.message_hint)
     detail = "; ".join(x for x in parts if x)
-    return f"{job.path}: the database refused the clip: {detail or e}"
+    return f"{source.path}: the database refused the clip: {detail or e}"
 
 
 def _load_one(
-    conn: psycopg.Connection, job: FileJob, options: ReadOptions, snippets: bool, mirrored: bool
+    conn: psycopg.Connection, source: SourceFile, options: ReadOptions, snippets: bool, mirrored: bool
 ) -> FileResult:
-    name = job.path.stem
+    name = source.path.stem
     try:
-        sha = _sha256(job.path)
-        key = read_key(job, options)
-        hit = _unchanged(conn, job, name, sha, key)
+        sha = _sha256(source.path)
+        key = read_key(source, options)
+        hit = _unchanged(conn, source, name, sha, key)
         if hit:  # cut it now if an earlier load skipped the snippets
             with conn.transaction():
                 added = build_snippets(conn, hit[0], mirrored) if snippets else 0
-            return FileResult(job.path, "unchanged", clip_id=hit[0], version=hit[1], snippets=added)
-        motion = read_job(job, options)
-        if job.source_name and motion.source:
-            motion = replace(motion, source=replace(motion.source, path=job.source_name))
-        meta = file_meta(job.path, motion.n_frames)
+            return FileResult(source.path, "unchanged", clip_id=hit[0], version=hit[1], snippets=added)
+        motion = read_source(source, options)
+        if source.source_name and motion.source:
+            motion = replace(motion, source=replace(motion.source, path=source.source_name))
+        meta = file_meta(source.path, motion.n_frames)
         clip_id, version, added, note = store_motion(
-            conn, motion, job.collection, key, snippets, mirrored, meta
+            conn, motion, source.collection, key, snippets, mirrored, meta
         )
     except MotionFileError as e:
-        return FileResult(job.path, "failed", message=str(e))
+        return FileResult(source.path, "failed", message=str(e))
     except SnippetsError as e:
-        return FileResult(job.path, "failed", message=f"{job.path}: {e}")
+        return FileResult(source.path, "failed", message=f"{source.path}: {e}")
     except OSError as e:
-        return FileResult(job.path, "failed", message=f"{job.path}: cannot read: {e.strerror or e}")
+        return FileResult(source.path, "failed", message=f"{source.path}: cannot read: {e.strerror or e}")
     except psycopg.OperationalError as e:
         if conn.closed:
             return FileResult(
-                job.path, "failed", message=f"{job.path}: not loaded: the connection was lost ({e})"
+                source.path, "failed", message=f"{source.path}: not loaded: the connection was lost ({e})"
             )
-        return FileResult(job.path, "failed", message=_refused(job, e))
+        return FileResult(source.path, "failed", message=_refused(source, e))
     except psycopg.Error as e:
-        return FileResult(job.path, "failed", message=_refused(job, e))
+        return FileResult(source.path, "failed", message=_refused(source, e))
     except Exception as e:  # a bug: this file fails with what went wrong, the batch goes on
         return FileResult(
-            job.path,
+            source.path,
             "failed",
-            message=f"{job.path}: not loaded: {type(e).__name__}: {e} (a modb bug: please report "
+            message=f"{source.path}: not loaded: {type(e).__name__}: {e} (a modb bug: please report "
             "it with this file)",
         )
     if version is None:
-        return FileResult(job.path, "unchanged", clip_id=clip_id)
+        return FileResult(source.path, "unchanged", clip_id=clip_id)
     return FileResult(
-        job.path,
+        source.path,
         "loaded",
         clip_id=clip_id,
         version=version,

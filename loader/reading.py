@@ -1,4 +1,4 @@
-"""Turning one file job into a Motion, with the options of the `modb load` call."""
+"""Turning one source file into a Motion, with the options of the `modb load` call."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from modb.motion import Motion
 
 from .asf import DEFAULT_FPS, AsfSkeleton, read_amc, read_asf
 from .bvh import read_bvh
-from .jobs import FileJob
+from .sources import SourceFile
 
 
 @dataclass
@@ -29,26 +29,26 @@ class ReadOptions:
         return self._asf_cache[key]
 
 
-def read_key(job: FileJob, options: ReadOptions) -> str:
+def read_key(source: SourceFile, options: ReadOptions) -> str:
     """What decides the stored motion besides the file's bytes.
 
     Equal keys and equal bytes mean there is nothing new.
     """
-    if job.asf is None:
+    if source.asf is None:
         return f"units={options.units_text}"
     return (
         f"units={options.units_text};fps={options.fps or DEFAULT_FPS:g};"
-        f"truncated={options.allow_truncated};asf={options.asf(job.asf).sha256}"
+        f"truncated={options.allow_truncated};asf={options.asf(source.asf).sha256}"
     )
 
 
-def read_job(job: FileJob, options: ReadOptions) -> Motion:
-    if job.asf is not None:
+def read_source(source: SourceFile, options: ReadOptions) -> Motion:
+    if source.asf is not None:
         return read_amc(
-            str(job.path),
-            options.asf(job.asf),
+            str(source.path),
+            options.asf(source.asf),
             options.fps or DEFAULT_FPS,
             options.allow_truncated,
             options.warn,
         )
-    return read_bvh(str(job.path), options.units)
+    return read_bvh(str(source.path), options.units)

@@ -13,7 +13,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from modb.editing.annotations import AnnotationError, checked, checked_tags
+from .annotations import AnnotationError, checked, checked_tags
 
 from .errors import MotionFileError
 

@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 
 CHROMIUM, CHROMEDRIVER = Path("/usr/bin/chromium"), Path("/usr/bin/chromedriver")
+MODB = (sys.executable, "-m", "modb.cli")  # the command line of the environment running the tests
 
 
 def get(address: str, path: str, headers: dict[str, str] | None = None) -> tuple[int, dict]:
@@ -35,14 +36,16 @@ def _free_port() -> int:
 
 
 @contextlib.contextmanager
-def serving(dsn: str, *options: str):
-    """The real `modb serve` (with `options`) on a free port; yields its host:port."""
+def serving(dsn: str, *options: str, modb: tuple[str, ...] = MODB, cwd: Path | None = None):
+    """The real `modb serve` (with `options`) on a free port; yields its host:port. `modb` is the
+    command (this environment's by default), run in `cwd`."""
     port = _free_port()
     log = tempfile.TemporaryFile()
     proc = subprocess.Popen(
-        [sys.executable, "-m", "modb.cli", "--dsn", dsn, "serve", "--port", str(port), *options],
+        [*modb, "--dsn", dsn, "serve", "--port", str(port), *options],
         stdout=log,
         stderr=subprocess.STDOUT,
+        cwd=cwd,
     )
     address = f"127.0.0.1:{port}"
     for _ in range(150):

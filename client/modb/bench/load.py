@@ -15,7 +15,7 @@ import psycopg
 
 from modb.database.connection import connect
 from modb.loader.ingest import load_files
-from modb.loader.jobs import find_jobs
+from modb.loader.sources import find_sources
 from modb.loader.reading import ReadOptions
 
 
@@ -75,7 +75,7 @@ def bench_load(files: list[Path], rounds: int, admin_dsn: str, make_dsn) -> dict
                 c.execute("CREATE EXTENSION modb CASCADE")
             with connect(make_dsn(name)) as conn:
                 sync = conn.execute("SHOW synchronous_commit").fetchone()[0]
-                jobs = find_jobs([str(f) for f in files], "bench")
+                sources = find_sources([str(f) for f in files], "bench")
                 times: list[float] = []
                 last = [time.perf_counter()]
 
@@ -85,7 +85,7 @@ def bench_load(files: list[Path], rounds: int, admin_dsn: str, make_dsn) -> dict
                     last[0] = now
 
                 summary = load_files(
-                    conn, jobs, ReadOptions(), keep_going=False, progress=tick, snippets=False
+                    conn, sources, ReadOptions(), keep_going=False, progress=tick, snippets=False
                 )
                 assert not summary.failed, summary.failed[0].message
                 rates.append(summary.frames / summary.elapsed)

@@ -33,7 +33,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from modb.clips import ClipNotFound, resolve_clip
-    from modb.editing.annotations import (
+    from modb.loader.annotations import (
         AnnotationError,
         checked,
         parse_segment,

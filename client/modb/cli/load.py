@@ -56,17 +56,17 @@ def run(args: argparse.Namespace) -> int:
 
     from modb.loader.errors import MotionFileError
     from modb.loader.ingest import load_files
-    from modb.loader.jobs import find_jobs
+    from modb.loader.sources import find_sources
     from modb.loader.reading import ReadOptions
     from modb.loader.units import UnitsError, parse_units
 
     try:
         units = parse_units(args.units)
-        jobs = find_jobs(args.paths, args.collection, args.asf)
+        sources = find_sources(args.paths, args.collection, args.asf)
     except (UnitsError, MotionFileError) as e:
         print(f"modb load: {e}", file=sys.stderr)
         return 2
-    if not jobs:
+    if not sources:
         print(
             "modb load: no motion files (.bvh, .amc) found in " + " ".join(args.paths),
             file=sys.stderr,
@@ -75,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
     with (
         connect(args) as conn,
         tqdm(
-            total=len(jobs), unit="file", disable=args.quiet or len(jobs) < 2, file=sys.stderr
+            total=len(sources), unit="file", disable=args.quiet or len(sources) < 2, file=sys.stderr
         ) as bar,
     ):
 
@@ -95,7 +95,7 @@ def run(args: argparse.Namespace) -> int:
         )
         summary = load_files(
             conn,
-            jobs,
+            sources,
             options,
             args.keep_going,
             progress,
@@ -120,9 +120,9 @@ def run(args: argparse.Namespace) -> int:
             print(f"{len(summary.failed)} file(s) not loaded:", file=sys.stderr)
             for r in summary.failed:
                 print(f"  {r.message}", file=sys.stderr)
-        elif len(summary.results) < len(jobs):
+        elif len(summary.results) < len(sources):
             print(
-                f"stopped at the first bad file; {len(jobs) - len(summary.results)} not tried "
+                f"stopped at the first bad file; {len(sources) - len(summary.results)} not tried "
                 f"(--keep-going loads the good ones)",
                 file=sys.stderr,
             )

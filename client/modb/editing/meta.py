@@ -13,7 +13,7 @@ from typing import Any
 import psycopg
 from psycopg.types.json import Jsonb
 
-from .annotations import AnnotationError, checked, checked_tags
+from modb.loader.annotations import AnnotationError, checked, checked_tags
 
 MAX_META_BYTES = 1 << 20  # a version's meta as JSON: annotations and tags, not data
 

@@ -22,7 +22,7 @@ from starlette.responses import JSONResponse
 from modb.access import audit
 from modb.database import pgarray
 from modb.database.cluster import WRITER_ROLE
-from modb.editing.annotations import AnnotationError
+from modb.loader.annotations import AnnotationError
 from modb.editing.meta import (
     MAX_META_BYTES,
     MetaNotFound,
@@ -201,7 +201,7 @@ def upload_endpoint(tokens: Tokens, writer: Writer, max_upload_mb: int):
     def load(grant, collection: str, saved: list[tuple[str, Path]], folder: Path) -> dict:
         from modb.loader.errors import MotionFileError
         from modb.loader.ingest import load_files
-        from modb.loader.jobs import find_jobs
+        from modb.loader.sources import find_sources
         from modb.loader.reading import ReadOptions
 
         motion_files = [str(p) for name, p in saved if name.lower().endswith((".bvh", ".amc"))]
@@ -209,26 +209,26 @@ def upload_endpoint(tokens: Tokens, writer: Writer, max_upload_mb: int):
             raise HTTPException(400, "no motion file (.bvh, .amc) in the upload")
         skeletons = [str(p) for name, p in saved if name.lower().endswith(".asf")]
         try:
-            jobs = find_jobs([*motion_files, *skeletons], collection)
+            sources = find_sources([*motion_files, *skeletons], collection)
         except MotionFileError as e:
             raise HTTPException(400, str(e).replace(f"{folder}/", "")) from None
         results = []
         with writer.pool().connection() as conn:
-            for job in jobs:
-                job.source_name = f"upload:{job.path.name}"
+            for source in sources:
+                source.source_name = f"upload:{source.path.name}"
                 with conn.transaction():  # the file, its snippets and its audit row together
-                    r = load_files(conn, [job], ReadOptions(), keep_going=True).results[0]
+                    r = load_files(conn, [source], ReadOptions(), keep_going=True).results[0]
                     if r.status == "loaded":
                         audit.record(
                             conn,
                             grant.name,
                             "upload",
                             f"clip {r.clip_id} version {r.version}",
-                            {"file": job.path.name, "collection": collection, "frames": r.frames},
+                            {"file": source.path.name, "collection": collection, "frames": r.frames},
                         )
                 results.append(
                     {
-                        "file": job.path.name,
+                        "file": source.path.name,
                         "status": r.status,
                         "clip_id": r.clip_id,
                         "version": r.version,

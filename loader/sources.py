@@ -15,7 +15,7 @@ SKELETON_SUFFIX = ".asf"
 
 
 @dataclass
-class FileJob:
+class SourceFile:
     path: Path
     collection: str
     asf: Path | None = None  # the skeleton of an AMC file
@@ -29,9 +29,9 @@ def _walk(directory: Path) -> Iterable[Path]:
             yield Path(root) / name
 
 
-def find_jobs(
+def find_sources(
     paths: Iterable[str], collection: str | None, asf: str | None = None
-) -> list[FileJob]:
+) -> list[SourceFile]:
     """Motion files under the given paths (recursively, sorted), each AMC paired with an ASF.
 
     A directory loads into a collection named after it (or --collection), its
@@ -39,7 +39,7 @@ def find_jobs(
     named after its directory (or --collection). ASF files are skeletons: they pair,
     they are not clips. Two files that would become the same clip are refused.
     """
-    jobs: list[FileJob] = []
+    sources: list[SourceFile] = []
     named_asf: list[Path] = []
     for given in paths:
         p = Path(given)
@@ -48,13 +48,13 @@ def find_jobs(
             for f in _walk(p):
                 if f.suffix.lower() in MOTION_SUFFIXES:
                     rel = f.parent.relative_to(p)
-                    jobs.append(FileJob(f, "/".join((base, *rel.parts))))
+                    sources.append(SourceFile(f, "/".join((base, *rel.parts))))
         elif p.is_file():
             suffix = p.suffix.lower()
             if suffix == SKELETON_SUFFIX:
                 named_asf.append(p)
             elif suffix in MOTION_SUFFIXES:
-                jobs.append(FileJob(p, collection or p.resolve().parent.name))
+                sources.append(SourceFile(p, collection or p.resolve().parent.name))
             else:
                 raise MotionFileError(
                     str(p),
@@ -65,23 +65,23 @@ def find_jobs(
         else:
             raise MotionFileError(str(p), None, "no such file or directory")
     seen: dict[tuple[str, str], Path] = {}
-    for job in jobs:
-        key = (job.collection, job.path.stem)
-        if key in seen and seen[key].resolve() != job.path.resolve():
+    for source in sources:
+        key = (source.collection, source.path.stem)
+        if key in seen and seen[key].resolve() != source.path.resolve():
             raise MotionFileError(
-                str(job.path),
+                str(source.path),
                 None,
                 f"{seen[key]} and this file would both become clip {key[0]}/{key[1]}",
                 "load them into different collections (--collection)",
             )
-        seen[key] = job.path
+        seen[key] = source.path
     forced = Path(asf) if asf else None
     if forced is not None and not forced.is_file():
         raise MotionFileError(str(forced), None, "no such ASF file (--asf)")
-    for job in jobs:
-        if job.path.suffix.lower() == ".amc":
-            job.asf = forced or pair_asf(job.path, named_asf)
-    return jobs
+    for source in sources:
+        if source.path.suffix.lower() == ".amc":
+            source.asf = forced or pair_asf(source.path, named_asf)
+    return sources
 
 
 def pair_asf(amc: Path, named: list[Path]) -> Path:
