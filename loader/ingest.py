@@ -337,7 +337,11 @@ def _refused(source: SourceFile, e: psycopg.Error) -> str:
 
 
 def _load_one(
-    conn: psycopg.Connection, source: SourceFile, options: ReadOptions, snippets: bool, mirrored: bool
+    conn: psycopg.Connection,
+    source: SourceFile,
+    options: ReadOptions,
+    snippets: bool,
+    mirrored: bool,
 ) -> FileResult:
     name = source.path.stem
     try:
@@ -347,7 +351,9 @@ def _load_one(
         if hit:  # cut it now if an earlier load skipped the snippets
             with conn.transaction():
                 added = build_snippets(conn, hit[0], mirrored) if snippets else 0
-            return FileResult(source.path, "unchanged", clip_id=hit[0], version=hit[1], snippets=added)
+            return FileResult(
+                source.path, "unchanged", clip_id=hit[0], version=hit[1], snippets=added
+            )
         motion = read_source(source, options)
         if source.source_name and motion.source:
             motion = replace(motion, source=replace(motion.source, path=source.source_name))
@@ -360,11 +366,15 @@ def _load_one(
     except SnippetsError as e:
         return FileResult(source.path, "failed", message=f"{source.path}: {e}")
     except OSError as e:
-        return FileResult(source.path, "failed", message=f"{source.path}: cannot read: {e.strerror or e}")
+        return FileResult(
+            source.path, "failed", message=f"{source.path}: cannot read: {e.strerror or e}"
+        )
     except psycopg.OperationalError as e:
         if conn.closed:
             return FileResult(
-                source.path, "failed", message=f"{source.path}: not loaded: the connection was lost ({e})"
+                source.path,
+                "failed",
+                message=f"{source.path}: not loaded: the connection was lost ({e})",
             )
         return FileResult(source.path, "failed", message=_refused(source, e))
     except psycopg.Error as e:
@@ -373,8 +383,8 @@ def _load_one(
         return FileResult(
             source.path,
             "failed",
-            message=f"{source.path}: not loaded: {type(e).__name__}: {e} (a modb bug: please report "
-            "it with this file)",
+            message=f"{source.path}: not loaded: {type(e).__name__}: {e} (a modb bug: please "
+            "report it with this file)",
         )
     if version is None:
         return FileResult(source.path, "unchanged", clip_id=clip_id)

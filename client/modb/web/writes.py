@@ -224,7 +224,11 @@ def upload_endpoint(tokens: Tokens, writer: Writer, max_upload_mb: int):
                             grant.name,
                             "upload",
                             f"clip {r.clip_id} version {r.version}",
-                            {"file": source.path.name, "collection": collection, "frames": r.frames},
+                            {
+                                "file": source.path.name,
+                                "collection": collection,
+                                "frames": r.frames,
+                            },
                         )
                 results.append(
                     {
