@@ -1,35 +1,58 @@
-"""Shared fixtures: a throwaway PostgreSQL cluster per test session, fresh databases, the real
-data."""
+"""Shared fixtures: one private cluster per test run (shared by its xdist workers), fresh databases
+copied from a template, the real data built into databases once per run, one browser per worker.
+tests/README.md says which fixture to reuse for what."""
 
 from __future__ import annotations
 
 import itertools
 import os
-import shutil
-import tempfile
 from pathlib import Path
 
-import psycopg
 import pytest
+from support import shared
+from support.browser import chromium
 from support.commands import run_modb
 from support.data import mocap
-from support.databases import GRAPH, scratch_database
+from support.databases import GRAPH
 
-from modb.database.cluster import Cluster
 from modb.database.connection import connect
 from modb.demo.data import locomotion_files
+
+# Modules that take longest go first, so that the workers finish together (pytest-xdist hands out
+# whole modules in this order: make test runs --dist loadfile --no-loadscope-reorder). The demo
+# and the avatar page start at once: one builds the demo's graph, the other the locomotion graph.
+FIRST = (
+    "test_demo.py",
+    "test_avatar_web.py",
+    "test_readme.py",
+    "test_replicas.py",
+    "test_select_oracle.py",
+    "test_upgrade.py",
+)
+_RUN = pytest.StashKey[Path]()
+
+
+def pytest_configure(config):
+    folder = shared.start_run()
+    if folder is not None:  # the process that started pytest (not an xdist worker)
+        config.stash[_RUN] = folder
+
+
+def pytest_unconfigure(config):
+    if _RUN in config.stash:
+        shared.end_run(config.stash[_RUN])
+
+
+def pytest_collection_modifyitems(items):
+    rank = {name: i for i, name in enumerate(FIRST)}
+    # (a stable sort: the other modules keep their order)
+    items.sort(key=lambda item: rank.get(Path(item.fspath).name, len(FIRST)))
 
 
 @pytest.fixture(scope="session")
 def cluster():
-    """A private cluster in a temporary MODB_HOME, stopped and removed at the end."""
-    home = Path(tempfile.mkdtemp(prefix="modb-test-"))
-    c = Cluster(home)
-    c.init()
-    c.start()
-    yield c
-    c.stop()
-    shutil.rmtree(home, ignore_errors=True)
+    """The run's private cluster (a temporary MODB_HOME), stopped and removed at the end."""
+    return shared.cluster()
 
 
 _counter = itertools.count()
@@ -39,13 +62,9 @@ _counter = itertools.count()
 def fresh_db(cluster, request) -> str:
     """Conninfo of a new database with the extension installed (dropped after the test)."""
     name = f"t{os.getpid()}_{next(_counter)}"
-    with psycopg.connect(cluster.dsn("postgres"), autocommit=True) as conn:
-        conn.execute(f'CREATE DATABASE "{name}"')
-    with psycopg.connect(cluster.dsn(name), autocommit=True) as conn:
-        conn.execute("CREATE EXTENSION modb CASCADE")
-    yield cluster.dsn(name)
-    with psycopg.connect(cluster.dsn("postgres"), autocommit=True) as conn:
-        conn.execute(f'DROP DATABASE "{name}" WITH (FORCE)')
+    dsn = shared.create_database(cluster, name)
+    yield dsn
+    shared.drop_database(cluster, name)
 
 
 @pytest.fixture
@@ -54,38 +73,46 @@ def db(fresh_db):
         yield conn
 
 
+def _load(dsn: str, *args) -> None:
+    r = run_modb(dsn, *args)
+    assert r.returncode == 0, r.stderr
+
+
 @pytest.fixture(scope="session")
 def locomotion(cluster, tmp_path_factory):
     """Every locomotion clip of ../shared/mocap/bandai-2-dev (419 files), with snippets and the
-    transition graph GRAPH (shared by the synthesis and avatar tests, which only read it)."""
+    transition graph GRAPH: built once per run, shared by the synthesis and avatar tests (which
+    only read it)."""
     # development: a database this fixture filled before
     if os.environ.get("MODB_TEST_LOCOMOTION_DSN"):
-        yield os.environ["MODB_TEST_LOCOMOTION_DSN"]
-        return
+        return os.environ["MODB_TEST_LOCOMOTION_DSN"]
     data = mocap("bandai-2-dev", "data")
-    folder = tmp_path_factory.mktemp("locomotion")
-    for f in locomotion_files(data):
-        os.symlink(f, folder / f.name)
-    with scratch_database(cluster, f"synthesis_{os.getpid()}") as dsn:
-        r = run_modb(dsn, "load", folder, "--collection", "bandai-2/locomotion", "-q")
-        assert r.returncode == 0, r.stderr
-        r = run_modb(dsn, "graph", "build", GRAPH, "-q")
-        assert r.returncode == 0, r.stderr
-        yield dsn
+
+    def build(dsn: str) -> None:
+        folder = tmp_path_factory.mktemp("locomotion")
+        for f in locomotion_files(data):
+            os.symlink(f, folder / f.name)
+        _load(dsn, "load", folder, "--collection", "bandai-2/locomotion", "-q")
+        _load(dsn, "graph", "build", GRAPH, "-q")
+
+    return shared.built_once(cluster, "shared_locomotion", build)
 
 
 @pytest.fixture(scope="session")
 def cmu(cluster):
-    """CMU 131 (14 ASF/AMC trials, 120 fps) with snippets and their mirror images (shared by the
-    selection, roles and mirror tests, which only read it)."""
-    with scratch_database(cluster, f"behaviour_{os.getpid()}") as dsn:
-        r = run_modb(
-            dsn,
-            "load",
-            *sorted(mocap("cmu", "131").glob("*.amc")),
-            "--collection",
-            "cmu/131",
-            "--mirror",
-        )
-        assert r.returncode == 0, r.stderr
-        yield dsn
+    """CMU 131 (14 ASF/AMC trials, 120 fps) with snippets and their mirror images: built once per
+    run, shared by the selection, roles and mirror tests (which only read it)."""
+    trials = sorted(mocap("cmu", "131").glob("*.amc"))
+
+    def build(dsn: str) -> None:
+        _load(dsn, "load", *trials, "--collection", "cmu/131", "--mirror")
+
+    return shared.built_once(cluster, "shared_cmu", build)
+
+
+@pytest.fixture(scope="session")
+def chromium_driver():
+    """One headless chromium per worker, for every browser test of it (each module's `browser`
+    fixture starts it on a blank page at its own size)."""
+    with chromium() as driver:
+        yield driver

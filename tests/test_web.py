@@ -16,7 +16,7 @@ import numpy as np
 import psycopg
 import pytest
 from support.asf_oracle import bone_tips, parse_amc, parse_asf
-from support.browser import chromium, get, serving, severe_console_entries
+from support.browser import fresh_page, get, serving, severe_console_entries
 from support.bvh_oracle import bvhio_world_positions, in_order
 from support.commands import run_modb
 from support.data import CMU_UNITS, REPO, mocap
@@ -236,9 +236,8 @@ def test_by_default_it_listens_on_loopback_only(server):
 
 
 @pytest.fixture(scope="module")
-def browser():
-    with chromium() as driver:
-        yield driver
+def browser(chromium_driver):
+    return fresh_page(chromium_driver)
 
 
 def open_page(browser, address: str, query: str = "") -> None:

@@ -103,5 +103,17 @@ def chromium(size: str = "1280,800"):
         shutil.rmtree(profile, ignore_errors=True)
 
 
+def fresh_page(driver, size: str = "1280,800"):
+    """The worker's browser (conftest's chromium_driver) for a module: a blank page at `size`, the
+    console log of earlier modules read away, no cookies (each `serving` has its own origin, so
+    its storage starts empty)."""
+    driver.get("about:blank")
+    driver.delete_all_cookies()
+    width, height = (int(v) for v in size.split(","))
+    driver.set_window_size(width, height)
+    driver.get_log("browser")
+    return driver
+
+
 def severe_console_entries(driver) -> list[dict]:
     return [e for e in driver.get_log("browser") if e["level"] == "SEVERE"]

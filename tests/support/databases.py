@@ -7,22 +7,19 @@ import contextlib
 
 import psycopg
 
+from .shared import create_database, drop_database
+
 GRAPH = "locomotion"  # the transition graph of conftest's `locomotion` fixture
 
 
 @contextlib.contextmanager
 def scratch_database(cluster, name: str):
     """A database with the extension for a whole test module (dropped at the end)."""
-    with psycopg.connect(cluster.dsn("postgres"), autocommit=True) as admin:
-        admin.execute(f'DROP DATABASE IF EXISTS "{name}"')
-        admin.execute(f'CREATE DATABASE "{name}"')
-    with psycopg.connect(cluster.dsn(name), autocommit=True) as conn:
-        conn.execute("CREATE EXTENSION modb CASCADE")
+    dsn = create_database(cluster, name)
     try:
-        yield cluster.dsn(name)
+        yield dsn
     finally:
-        with psycopg.connect(cluster.dsn("postgres"), autocommit=True) as admin:
-            admin.execute(f'DROP DATABASE "{name}" WITH (FORCE)')
+        drop_database(cluster, name)
 
 
 def plan_nodes(conn: psycopg.Connection, sql: str, params=()) -> list[dict]:
