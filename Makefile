@@ -58,10 +58,13 @@ $(VENV)/.installed: pyproject.toml extension/modb.control  # the version comes f
 	$(VENV)/bin/pip install -q -e '.[test]'
 	@touch $@
 
-# The linter first (line length 100, pyproject.toml [tool.ruff]), then every test.
+# The linter first (line length 100, pyproject.toml [tool.ruff]), then every test, in parallel
+# workers (one per CPU; TEST_WORKERS=0 runs them in this process). Whole modules go to a worker, in
+# the order tests/conftest.py gives (the slowest first): see tests/README.md.
+TEST_WORKERS ?= auto
 test: setup
 	$(VENV)/bin/ruff check .
-	$(VENV)/bin/pytest
+	$(VENV)/bin/pytest -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
 # The embedded database, real capture: $(DATA) when it is there, else CMU 01_01 from PyPI.
 demo: setup
