@@ -12,7 +12,7 @@ import time
 import numpy as np
 import psycopg
 import pytest
-from support.browser import chromium, fresh_page, serving, severe_console_entries
+from support.browser import chromium, module_page, serving, severe_console_entries
 from support.data import REPO
 from support.snippet_oracle import resolve_profile
 
@@ -30,7 +30,8 @@ def avatar_server(locomotion):
 
 @pytest.fixture(scope="module")
 def browser(chromium_driver):
-    return fresh_page(chromium_driver, "1400,1000")
+    with module_page(chromium_driver, "1400,1000") as driver:
+        yield driver
 
 
 def open_avatar(driver, address: str) -> None:

@@ -9,7 +9,7 @@ import base64
 
 import numpy as np
 import pytest
-from support.browser import fresh_page, serving
+from support.browser import module_page, serving
 from support.commands import run_modb
 from support.gltf_validator import validate
 from support.snippet_oracle import motion_world
@@ -60,7 +60,8 @@ def read_back(browser, address: str, times: list[float], url=None, data: bytes =
 
 @pytest.fixture(scope="module")
 def browser(chromium_driver):
-    return fresh_page(chromium_driver)
+    with module_page(chromium_driver) as driver:
+        yield driver
 
 
 @pytest.mark.parametrize("data", ["cmu", "locomotion"])

@@ -16,7 +16,7 @@ import numpy as np
 import psycopg
 import pytest
 from support.asf_oracle import bone_tips, parse_amc, parse_asf
-from support.browser import fresh_page, get, serving, severe_console_entries
+from support.browser import module_page, get, serving, severe_console_entries
 from support.bvh_oracle import bvhio_world_positions, in_order
 from support.commands import run_modb
 from support.data import CMU_UNITS, REPO, mocap
@@ -237,7 +237,8 @@ def test_by_default_it_listens_on_loopback_only(server):
 
 @pytest.fixture(scope="module")
 def browser(chromium_driver):
-    return fresh_page(chromium_driver)
+    with module_page(chromium_driver) as driver:
+        yield driver
 
 
 def open_page(browser, address: str, query: str = "") -> None:

@@ -14,7 +14,7 @@ import pytest
 from selenium.webdriver import ActionChains
 from selenium.webdriver.common.by import By
 from selenium.webdriver.common.keys import Keys
-from support.browser import fresh_page, serving, severe_console_entries
+from support.browser import module_page, serving, severe_console_entries
 from support.commands import run_modb
 from support.data import mocap
 from support.databases import scratch_database
@@ -39,7 +39,8 @@ def site(cluster):
 
 @pytest.fixture(scope="module")
 def browser(chromium_driver):
-    return fresh_page(chromium_driver)
+    with module_page(chromium_driver) as driver:
+        yield driver
 
 
 def wait_for(browser, script: str, timeout: float = 60.0):

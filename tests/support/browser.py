@@ -103,16 +103,21 @@ def chromium(size: str = "1280,800"):
         shutil.rmtree(profile, ignore_errors=True)
 
 
-def fresh_page(driver, size: str = "1280,800"):
-    """The worker's browser (conftest's chromium_driver) for a module: a blank page at `size`, the
-    console log of earlier modules read away, no cookies (each `serving` has its own origin, so
-    its storage starts empty)."""
+@contextlib.contextmanager
+def module_page(driver, size: str = "1280,800"):
+    """The worker's browser (conftest's chromium_driver) for one module: a blank page at `size`,
+    the console log of earlier modules read away, no cookies (each `serving` has its own origin, so
+    its storage starts empty). Blank again after the module: a page left open goes on drawing
+    (software WebGL), a core's worth of CPU for the rest of the run."""
     driver.get("about:blank")
     driver.delete_all_cookies()
     width, height = (int(v) for v in size.split(","))
     driver.set_window_size(width, height)
     driver.get_log("browser")
-    return driver
+    try:
+        yield driver
+    finally:
+        driver.get("about:blank")
 
 
 def severe_console_entries(driver) -> list[dict]:
