@@ -18,16 +18,22 @@ from support.databases import GRAPH
 from modb.database.connection import connect
 from modb.demo.data import locomotion_files
 
-# Modules that take longest go first, so that the workers finish together (pytest-xdist hands out
-# whole modules in this order: make test runs --dist loadfile --no-loadscope-reorder). The demo
-# and the avatar page start at once: one builds the demo's graph, the other the locomotion graph.
+# Modules that take longest go first (over a minute each, by their time), so that the workers
+# finish together: pytest-xdist hands out whole modules in this order (make test runs --dist
+# loadfile --no-loadscope-reorder). The demo and the avatar page start at once: one builds the
+# demo's graph, the other the shared locomotion graph, which the modules that need it wait for.
 FIRST = (
     "test_demo.py",
     "test_avatar_web.py",
+    "test_select_oracle.py",
     "test_readme.py",
     "test_replicas.py",
-    "test_select_oracle.py",
     "test_upgrade.py",
+    "test_export_roundtrip.py",
+    "test_nothing_lost.py",
+    "test_catalog_edits.py",
+    "test_synthesis.py",
+    "test_select_fast.py",
 )
 _RUN = pytest.StashKey[Path]()
 
