@@ -51,7 +51,8 @@ $(WEB)/node_modules/.installed: $(WEB)/package.json $(WEB)/package-lock.json
 	npm ci --prefix $(WEB) --no-audit --no-fund --loglevel=error
 	@touch $@
 
-$(VENV)/.installed: pyproject.toml extension/modb.control  # the version comes from modb.control
+# After three.js: the package holds the modules of it that the web view imports (setup.py).
+$(VENV)/.installed: pyproject.toml setup.py extension/modb.control | web  # version: modb.control
 	@echo "setup: installing the Python package into $(VENV)"
 	$(PYTHON) -m venv $(VENV)
 	$(VENV)/bin/pip install -q --upgrade pip

@@ -3,6 +3,9 @@ is in pyproject.toml). The three top-level folders are one distribution: the cli
 loader (imported as `modb.loader`) and the numeric kernel the server's PL/Python shares
 (`modb_kernel`)."""
 
+import sys
+from pathlib import Path
+
 from setuptools import find_packages, setup
 
 PACKAGE_DIRS = {
@@ -29,6 +32,10 @@ DATA = {
     "modb.bench": ["*.pgbench"],  # the pgbench script `modb bench scale` runs
     "modb.web.static": ["*"],  # the pages, scripts and style of `modb serve`
 }
+THREE = Path(__file__).parent / "client" / "modb" / "web" / "node_modules" / "three"
+missing = [f for f in THREE_FILES if not (THREE / f).exists()]
+if missing:
+    sys.exit(f"setup.py: three.js is not in {THREE.parent} (no {missing[0]}): run `make setup`")
 for path in THREE_FILES:
     folder, _, name = f"web/node_modules/three/{path}".rpartition("/")
     DATA.setdefault("modb." + folder.replace("/", "."), []).append(name)
