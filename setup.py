@@ -15,7 +15,7 @@ PACKAGE_DIRS = {
 }
 # The three.js modules the web view's pages import, and what those import (tests/test_wheel.py
 # follows every import from the installed server, so a page that needs another fails there), from
-# the copy `make setup` pins (npm ci): 2 MB, not the npm package's 70.
+# the copy `make setup` pins (npm ci): 2 MB of the npm package's 24.
 THREE_FILES = [
     "LICENSE",
     "build/three.module.js",
