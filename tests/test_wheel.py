@@ -4,7 +4,6 @@ server. What the wheel must hold is read from the source tree here, not from set
 
 from __future__ import annotations
 
-import http.client
 import json
 import posixpath
 import re
@@ -17,11 +16,10 @@ from pathlib import Path
 
 import psycopg
 import pytest
-from support.browser import serving
-from support.data import mocap
+from support.browser import fetch, serving
+from support.data import REPO, mocap
 from support.databases import scratch_database
 
-REPO = Path(__file__).resolve().parents[1]
 WEB = REPO / "client" / "modb" / "web"
 # Source folder -> where its files go in the wheel.
 PACKAGE_FOLDERS = {
@@ -95,16 +93,6 @@ def test_the_installed_command_runs_outside_the_clone(user):
     assert REPO not in Path(where.stdout.strip()).parents  # the wheel's copy, not the clone's
 
 
-def _get(address: str, path: str, headers: dict | None = None) -> tuple[int, str, bytes]:
-    conn = http.client.HTTPConnection(address, timeout=30)
-    try:
-        conn.request("GET", path, headers=headers or {})
-        r = conn.getresponse()
-        return r.status, r.getheader("content-type", ""), r.read()
-    finally:
-        conn.close()
-
-
 def _module_imports(page: str) -> tuple[list[str], dict[str, str]]:
     """A page's module scripts and its import map."""
     scripts = re.findall(r'<script type="module" src="([^"]+)"', page)
@@ -122,7 +110,7 @@ def _resolve(specifier: str, base: str, imports: dict[str, str]) -> str:
 def _fetch_modules(address: str, page: str) -> set[str]:
     """Every module the page loads, fetched as the browser would (each must be served as
     JavaScript); their paths."""
-    status, _, body = _get(address, page)
+    status, _, body = fetch(address, page)
     assert status == 200, page
     todo, imports = _module_imports(body.decode())
     assert todo, f"{page} has no module script"
@@ -131,7 +119,7 @@ def _fetch_modules(address: str, page: str) -> set[str]:
         path = todo.pop()
         if path in fetched:
             continue
-        status, kind, body = _get(address, path)
+        status, kind, body = fetch(address, path)
         assert status == 200 and "javascript" in kind, f"{page} imports {path}: {status}"
         fetched.add(path)
         todo += [_resolve(s, path, imports) for s in IMPORT.findall(body.decode())]
@@ -146,11 +134,11 @@ def test_the_installed_server_serves_the_pages_every_module_they_import_and_take
         made = _run(modb, "--dsn", dsn, "token", "create", "wheel", "--role", "loader", cwd=home)
         bearer = {"Authorization": f"Bearer {made.stdout.strip()}"}
         with serving(dsn, "--require-token", modb=(str(modb),), cwd=home) as address:
-            assert _get(address, "/api/collections")[0] == 401
-            status, _, body = _get(address, "/api/collections", bearer)
+            assert fetch(address, "/api/collections")[0] == 401
+            status, _, body = fetch(address, "/api/collections", bearer)
             assert status == 200 and json.loads(body) == []
             for name in sorted(p.name for p in (WEB / "static").iterdir()):
-                status, _, body = _get(address, f"/static/{name}")
+                status, _, body = fetch(address, f"/static/{name}")
                 assert status == 200 and body == (WEB / "static" / name).read_bytes(), name
             fetched = _fetch_modules(address, "/") | _fetch_modules(address, "/avatar")
             assert "/vendor/three/build/three.core.js" in fetched  # three.module.js's own import

@@ -19,14 +19,21 @@ CHROMIUM, CHROMEDRIVER = Path("/usr/bin/chromium"), Path("/usr/bin/chromedriver"
 MODB = (sys.executable, "-m", "modb.cli")  # the command line of the environment running the tests
 
 
-def get(address: str, path: str, headers: dict[str, str] | None = None) -> tuple[int, dict]:
+def fetch(address: str, path: str, headers: dict[str, str] | None = None) -> tuple[int, str, bytes]:
+    """GET: the status, the content type and the body as it came."""
     conn = http.client.HTTPConnection(address, timeout=30)
     try:
         conn.request("GET", path, headers=headers or {})
         response = conn.getresponse()
-        return response.status, json.loads(response.read() or b"null")
+        return response.status, response.getheader("content-type", ""), response.read()
     finally:
         conn.close()
+
+
+def get(address: str, path: str, headers: dict[str, str] | None = None) -> tuple[int, dict]:
+    """GET of a JSON endpoint: the status and the decoded body."""
+    status, _, body = fetch(address, path, headers)
+    return status, json.loads(body or b"null")
 
 
 def _free_port() -> int:
