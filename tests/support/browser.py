@@ -99,8 +99,8 @@ def chromium(size: str = "1280,800"):
         f"--user-data-dir={profile}",
         "--enable-unsafe-swiftshader",  # software WebGL: headless Chromium needs an opt-in for it
         f"--window-size={size}",
-        # A low-density display: WebGL drawn in software at half the pixels each way (the page and
-        # its coordinates are the same in CSS pixels); it halved chromium's CPU, a worker's worth.
+        # A low-density display: software WebGL draws a quarter of the pixels (the page and its
+        # coordinates are the same in CSS pixels): chromium takes much less of the workers' CPU.
         "--force-device-scale-factor=0.5",
     ):
         options.add_argument(flag)
