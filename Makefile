@@ -28,6 +28,8 @@ apt:
 
 # Builds the module (and the scripts of a version not released yet) and installs the extension into the
 # local server only when the module, the control file or a script it installs differs from the installed one.
+# Installed modb scripts the project no longer ships (the full install scripts of 0.2.0 .. 0.15.0, say) are
+# removed: PostgreSQL would install those versions from them instead of from 0.1.0 and the upgrade chain.
 extension: apt
 	@$(MAKE) -s -C extension PG_CONFIG=$(PG_CONFIG)
 	@installed=$$($(PG_CONFIG) --sharedir)/extension; \
@@ -37,6 +39,13 @@ extension: apt
 	   || [ -n "$$(for f in $$scripts; do cmp -s extension/$$f $$installed/$$(basename $$f) || echo x; done)" ]; then \
 		echo "setup: installing the modb extension into $$installed"; \
 		$(SUDO) $(MAKE) -s -C extension install PG_CONFIG=$(PG_CONFIG); \
+	fi; \
+	shipped=" $$(for f in $$scripts; do printf '%s ' $$(basename $$f); done)"; \
+	stale=$$(cd $$installed && for f in modb--*.sql; do \
+		[ -e "$$f" ] && case "$$shipped" in *" $$f "*) ;; *) echo $$f;; esac; done); \
+	if [ -n "$$stale" ]; then \
+		echo "setup: removing modb scripts no longer shipped from $$installed:" $$stale; \
+		(cd $$installed && $(SUDO) rm -f $$stale); \
 	fi
 
 venv: $(VENV)/.installed

@@ -1,8 +1,8 @@
 """select_next_snippet with 0.6.0's continuity ratio (SQL) against 0.7.0's (C), on the same queries.
 
-0.6.0's SQL expression, from the frozen install script, is put in place inside a transaction that
-is rolled back. Both run the same seeded queries in one session, alternating query by query; each
-timed call follows one that plans it.
+0.6.0's SQL expression (as the upgrade script to 0.2.0 created it: no script changed it before
+0.7.0) is put in place inside a transaction that is rolled back. Both run the same seeded queries in
+one session, alternating query by query; each timed call follows one that plans it.
 
     .venv/bin/python bench/continuity_ratio_sql_vs_c.py "host=... dbname=..." 30
 """
@@ -17,7 +17,8 @@ import psycopg
 
 from modb.database.connection import configure_for_selection
 
-FROZEN = Path(__file__).resolve().parents[1] / "extension" / "sql" / "released" / "modb--0.6.0.sql"
+RELEASED = Path(__file__).resolve().parents[1] / "extension" / "sql" / "released"
+FROZEN = RELEASED / "modb--0.1.0--0.2.0.sql"
 QUERY = "SELECT snippet_id FROM modb.select_next_snippet(%s, %s)"
 
 

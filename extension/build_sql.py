@@ -19,7 +19,20 @@ Releasing a version freezes its scripts: modb--NEW.sql and modb--OLD--NEW.sql, a
 sql/released/ under a first line saying they are generated and frozen and the command that made
 them, and sql/upgrades/OLD--NEW.sql is deleted, so later edits of sql/ cannot change a released
 script (the Makefile refuses an upgrade source whose script is released). A released script is what
-installs; sql/*.sql is the working copy of the next version.
+installs; sql/*.sql is the working copy of the next version. The release then deletes
+modb--OLD.sql (never modb--0.1.0.sql) once `compare_chain.py --versions OLD` shows that the chain
+installs the same catalogue: PostgreSQL installs `CREATE EXTENSION modb VERSION 'OLD'` as 0.1.0 and
+the upgrades, so sql/released/ holds the first install script, every upgrade script and the newest
+install script.
+
+The kernel stays pasted into the function bodies (decided at 0.16.0, for the releases after it),
+not installed once as files the functions import: a version's code is in the catalogue, so databases
+of one server run different installed versions side by side, ALTER EXTENSION UPDATE changes code and
+catalogue in one transaction, and pg_dump, restores and standbys carry it with no file to install
+(files would need a folder per version that neither DROP EXTENSION nor an update removes). The first
+call reads nothing (no SPI, which a kernel kept in a table would need and which would cost the
+functions their use in parallel queries). The cost, the kernel's text in each PL/Python function of
+the install script and of each upgrade script, is paid in the tree once per release.
 """
 
 import functools

@@ -18,8 +18,9 @@ folder holds exactly the scripts asked for, and compares the two catalogues:
   name), its member list (pg_describe_object), and the rows of its tables (the shipped profiles).
 
 The frozen install scripts come from git history (`git show COMMIT:extension/sql/released/...`):
-by default the last commit that still had them. The upgrade scripts, the base script and the control
-file come from the same commit; modb.so is this tree's build (or the installed one).
+by default the last commit that still had them (HEAD while it has them). The upgrade scripts, the
+base script and the control file come from the same commit; modb.so is this tree's build (or the
+installed one).
 
     python3 extension/compare_chain.py                        # every version 0.2.0 .. 0.16.0
     python3 extension/compare_chain.py --versions 0.9.0 --tamper "COMMENT ON SCHEMA modb IS 'x'"
@@ -63,16 +64,25 @@ def git(*args: str) -> str:
     ).stdout
 
 
-def default_commit() -> str:
-    """The last commit with the frozen install scripts of 0.2.0 .. 0.15.0."""
-    path = f"{RELEASED}/modb--0.2.0.sql"
-    exists = subprocess.run(["git", "-C", str(REPO), "cat-file", "-e", f"HEAD:{path}"])
-    if exists.returncode == 0:
+def has(commit: str, path: str) -> bool:
+    return (
+        subprocess.run(["git", "-C", str(REPO), "cat-file", "-e", f"{commit}:{path}"]).returncode
+        == 0
+    )
+
+
+def default_commit(versions: list[str]) -> str:
+    """The last commit with the frozen install scripts of these versions: HEAD while it has them,
+    else the parent of the commit that deleted them."""
+    paths = [f"{RELEASED}/modb--{v}.sql" for v in versions]
+    missing = [p for p in paths if not has("HEAD", p)]
+    if not missing:
         return git("rev-parse", "HEAD").strip()
-    deleted = git("rev-list", "-1", "HEAD", "--", path).strip()  # the commit that deleted them
-    if not deleted:
-        sys.exit(f"no commit has {path}")
-    return git("rev-parse", f"{deleted}^").strip()
+    deleted = git("rev-list", "-1", "HEAD", "--", missing[0]).strip()
+    commit = git("rev-parse", f"{deleted}^").strip() if deleted else ""
+    if not commit or not all(has(commit, p) for p in paths):
+        sys.exit(f"no commit has all of {', '.join(paths)}: name one with --commit")
+    return commit
 
 
 def as_server_user(cmd: list[str], **kw) -> subprocess.CompletedProcess:
@@ -310,7 +320,7 @@ def main() -> int:
         "described: shows that a difference is found",
     )
     args = parser.parse_args()
-    commit = args.commit or default_commit()
+    commit = args.commit or default_commit(args.versions)
     module = args.module or next(
         p for p in (HERE / "modb.so", Path("/usr/lib/postgresql/15/lib/modb.so")) if p.exists()
     )

@@ -1,10 +1,11 @@
 """The released install script and the fragments it was built from: same catalogue, same code.
 
 Once a version is released its frozen script, extension/sql/released/modb--VERSION.sql, is what
-installs, and extension/sql/*.sql with the kernel become the working copy of the next version. Until
-that version starts (default_version moves on), a fresh install built from them must give exactly
-the released catalogue: the fragments can be reorganised, and the kernel sources reformatted,
-without changing what installs.
+installs (until the next release, which keeps only its own and 0.1.0's install script:
+build_sql.py), and extension/sql/*.sql with the kernel become the working copy of the next
+version. Until that version starts (default_version moves on), a fresh install built from them must
+give exactly the released catalogue: the fragments can be reorganised, and the kernel sources
+reformatted, without changing what installs.
 
 pg_dump leaves out an extension's member objects, so each script runs as a plain script (the same
 shim applied to both) into a fresh database of its own, and the two `pg_dump --schema-only` outputs

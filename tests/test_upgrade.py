@@ -1,7 +1,14 @@
 """ALTER EXTENSION modb UPDATE from every released 0.x.0: the data, the snippets, the graphs and the
-user's profiles stay, and the updated catalogue is what a fresh install of today's version has."""
+user's profiles stay, and the updated catalogue is what a fresh install of today's version has.
+
+Each old version is installed as users install it, `CREATE EXTENSION modb VERSION 'old'`: only
+0.1.0's and the newest install script are shipped, so PostgreSQL runs 0.1.0's and the upgrade chain
+(extension/compare_chain.py showed, for every release, that the chain installs what its own install
+script did)."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 import psycopg
@@ -48,6 +55,16 @@ OLD_VERSIONS = [
     "0.14.0",
     "0.15.0",
 ]
+
+
+def test_old_versions_install_through_the_chain(db):
+    # An install script left from an earlier install of the project would stand in for the chain.
+    sharedir = db.execute("SELECT setting FROM pg_config WHERE name = 'SHAREDIR'").fetchone()[0]
+    scripts = {p.name for p in (Path(sharedir) / "extension").glob("modb--*.sql")}
+    installed = [v for v in OLD_VERSIONS if f"modb--{v}.sql" in scripts]
+    assert installed == ["0.1.0"], (
+        f"{installed}: `make setup` removes installed modb scripts the project no longer ships"
+    )
 
 
 @pytest.mark.parametrize("old", OLD_VERSIONS)
