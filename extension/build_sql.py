@@ -10,10 +10,24 @@ unusable in parallel queries). {{STANDARD_JOINTS}} and {{FEATURES}} become SQL a
 kernel's constants, and --c-header writes the C code's count of standard joints
 (src/standard_joints.h) from the same list.
 
+sql/*.sql holds one fragment per subject (header, roles, validation, tables, clip rules,
+collections, catalogue edits, kinematics, generations, snippets, snippet blocks, standard joints,
+quaternion angles, match profiles, shipped profiles, annotations and segments, match plan,
+continuity ratio, match box, objective, graphs, graph cost-to-go, selection, synthesis, privileges,
+access and audit, retargeting, edit scripts), each object defined in one only, built in file-name
+order: an object after what it names when it is created (CREATE EXTENSION does not check function
+bodies, but a type, a constraint, a trigger, an operator or a SQL-standard body, BEGIN ATOMIC or
+RETURN, does), and 90_privileges.sql's grants on all tables and sequences reach those made before it
+only (access_tokens and audit_log, after it, must stay closed to modb_reader).
+
 Upgrade scripts come from sql/upgrades/OLD--NEW.sql: hand-written steps whose '--@include FILE'
-lines pull in files of sql/ (objects new in NEW), and every other PL/Python function re-created
-(with its COMMENT) with NEW's kernel: at a '--@functions' line, so that the steps after it run NEW's
-code (a data migration), else at the end.
+lines pull in fragments of sql/, and every other PL/Python function re-created (with its COMMENT)
+with NEW's kernel: at a '--@functions' line, so that the steps after it run NEW's code (a data
+migration), else at the end. A fragment is included whole: one whose objects are all new in NEW, or
+one that can run again over the old version, made only of CREATE OR REPLACE, COMMENT, GRANT and
+upserts: 77_match_profiles_shipped.sql, 79_match_plan.sql, 80_match_continuity_ratio.sql,
+85_graph_cost_to_go.sql, 86_selection.sql, 89_synthesis.sql, 90_privileges.sql. A changed function
+of another fragment is re-created by a hand-written step.
 
 Releasing a version freezes its scripts: modb--NEW.sql and modb--OLD--NEW.sql, as built, go into
 sql/released/ under a first line saying they are generated and frozen and the command that made

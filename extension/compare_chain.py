@@ -24,6 +24,7 @@ installed one).
 
     python3 extension/compare_chain.py                        # every version 0.2.0 .. 0.16.0
     python3 extension/compare_chain.py --versions 0.9.0 --tamper "COMMENT ON SCHEMA modb IS 'x'"
+    python3 extension/compare_chain.py --versions 0.16.0 --built   # today's fragments
 
 Exits 1 when any version differs, printing the objects that differ. Runs as root (the server then
 runs as the postgres OS user) or as a user that may run initdb.
@@ -319,6 +320,13 @@ def main() -> int:
         help="SQL run in each frozen-script database before it is "
         "described: shows that a difference is found",
     )
+    parser.add_argument(
+        "--built",
+        action="store_true",
+        help="compare each frozen install script with the one build_sql.py builds today from "
+        "sql/*.sql (for the current version: what tests/test_release.py checks, here as extension "
+        "members), not with the chain",
+    )
     args = parser.parse_args()
     commit = args.commit or default_commit(args.versions)
     module = args.module or next(
@@ -333,7 +341,15 @@ def main() -> int:
         print(f"{'version':<8} {'objects':>7}  result")
         for version in args.versions:
             started = time.monotonic()
-            server.database("chain", version, None)
+            built = None
+            if args.built:
+                built = subprocess.run(
+                    [sys.executable, str(HERE / "build_sql.py"), version],
+                    check=True,
+                    capture_output=True,
+                    text=True,
+                ).stdout
+            server.database("chain", version, built)
             server.database("frozen", version, server.frozen(f"modb--{version}.sql"))
             if args.tamper:
                 server.psql("frozen", args.tamper)

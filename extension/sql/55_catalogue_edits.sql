@@ -6,12 +6,20 @@
 -- snippet that is gone. The loader gets no table-level DELETE on what the selection reads (it would also
 -- let it LOCK those tables against every reader): the deleting functions are PL/pgSQL SECURITY
 -- DEFINER with a fixed search_path, executable by modb_loader only, and each deletes exactly what it names.
+--
+-- Edits that run at the same time cannot undo each other's checks (0.15.0): moves of collections queue
+-- on one advisory lock (moves are rare), so two moves ("a into b", "b into a") cannot store a loop; the
+-- deletes of a clip's versions queue on its row, so two of them cannot leave it none.
 
 CREATE FUNCTION modb.collections_before_update()
 RETURNS trigger
 LANGUAGE plpgsql VOLATILE PARALLEL UNSAFE
 AS $$
 BEGIN
+    IF NEW.parent_id IS DISTINCT FROM OLD.parent_id THEN
+        -- wait for other moves to end, then check the tree as they left it (a new snapshot per query)
+        PERFORM pg_catalog.pg_advisory_xact_lock(pg_catalog.hashtext('modb.collections: a move'));
+    END IF;
     IF NEW.parent_id IS NOT NULL AND NEW.parent_id = ANY (modb.collection_subtree(modb.collection_path(OLD.id))) THEN
         RAISE EXCEPTION 'collection "%" cannot move into "%", which lies inside it',
             modb.collection_path(OLD.id), modb.collection_path(NEW.parent_id)
@@ -133,6 +141,7 @@ AS $$
 DECLARE
     versions int[];
 BEGIN
+    PERFORM FROM modb.clips c WHERE c.id = clip FOR UPDATE;  -- one version delete of a clip at a time
     SELECT array_agg(v.version ORDER BY v.version) INTO versions FROM modb.clip_versions v WHERE v.clip_id = clip;
     IF NOT (delete_clip_version.version = ANY (coalesce(versions, '{}'))) THEN
         RAISE EXCEPTION 'clip % has no version %', clip, delete_clip_version.version

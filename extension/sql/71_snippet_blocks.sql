@@ -3,7 +3,7 @@
 -- block's bounds (kept per session in memory: src/block_directory.c) and then the codes of the blocks that
 -- meet the box, where the GiST index visits a few percent of its pages whatever the box (BENCHMARKS.md
 -- "Selection at scale"). A load adds blocks of consecutive snippets of a clip source;
--- modb.pack_snippet_blocks (71_snippet_blocks_pack.sql) re-cuts a pose's blocks into ones of snippets near
+-- modb.pack_snippet_blocks (below) re-cuts a pose's blocks into ones of snippets near
 -- each other in feature space, which are tighter. A block is a superset: every candidate is checked on its
 -- exact features again.
 -- Derived from modb.snippets by triggers in the same transaction, so a block is visible exactly when its
@@ -60,8 +60,27 @@ COMMENT ON FUNCTION modb.snippets_inserted() IS 'Trigger: blocks for the snippet
 CREATE TRIGGER snippets_blocks_insert AFTER INSERT ON modb.snippets REFERENCING NEW TABLE AS inserted
     FOR EACH STATEMENT EXECUTE FUNCTION modb.snippets_inserted();
 
--- An update of what a block holds adds a block for the new values (modb.snippets_updated:
--- 70_snippets_updated.sql).
+-- The trigger function behind snippets_blocks_update: an update of what a block holds adds a block for the new values; the old block keeps naming the snippet, whose exact values are
+-- read again at every selection. A snippet in two blocks has no trusted objective inputs (src/
+-- block_directory.c), so an edit of them after its futures were filled adds a block too; filling them
+-- (modb.fill_futures, from NULL) does not: the block's NaN says they were not known.
+CREATE OR REPLACE FUNCTION modb.snippets_updated()
+RETURNS trigger
+LANGUAGE plpgsql VOLATILE PARALLEL UNSAFE
+AS $$
+BEGIN
+    PERFORM modb.add_snippet_blocks(ARRAY(
+        SELECT n.id FROM new_rows n JOIN old_rows o ON o.id = n.id
+         WHERE (n.begin_features, n.pose_key, n.fps, n.collection_id, n.clip_id, n.version, n.mirrored)
+               IS DISTINCT FROM (o.begin_features, o.pose_key, o.fps, o.collection_id, o.clip_id, o.version, o.mirrored)
+            OR (o.future_heading IS NOT NULL
+                AND (n.net_translation, n.future_translation, n.future_heading)
+                    IS DISTINCT FROM (o.net_translation, o.future_translation, o.future_heading))));
+    RETURN NULL;
+END
+$$;
+COMMENT ON FUNCTION modb.snippets_updated() IS
+    'Trigger: blocks for snippets whose features, pose, rate, collection or source an UPDATE changed, or their objective''s inputs once filled';
 CREATE TRIGGER snippets_blocks_update AFTER UPDATE ON modb.snippets
     REFERENCING OLD TABLE AS old_rows NEW TABLE AS new_rows
     FOR EACH STATEMENT EXECUTE FUNCTION modb.snippets_updated();
@@ -71,3 +90,16 @@ GRANT SELECT ON modb.snippet_blocks TO modb_reader;
 GRANT INSERT ON modb.snippet_blocks TO modb_loader;
 REVOKE EXECUTE ON FUNCTION modb.add_snippet_blocks(bigint[]) FROM PUBLIC;
 GRANT EXECUTE ON FUNCTION modb.add_snippet_blocks(bigint[]) TO modb_loader;
+
+-- Packing the snippet blocks of a pose and rate (src/pack_blocks.c): the loader calls it after a load
+-- that left enough of a pose's snippets in blocks of consecutive ones.
+CREATE FUNCTION modb.pack_snippet_blocks(min_unpacked_share float8 DEFAULT 0)
+RETURNS TABLE (pose_key text, fps float8, snippets bigint, blocks int, seconds float8)
+LANGUAGE c VOLATILE STRICT PARALLEL UNSAFE
+AS 'MODULE_PATHNAME', 'modb_pack_snippet_blocks';
+COMMENT ON FUNCTION modb.pack_snippet_blocks(float8) IS
+    'Re-cuts the snippet blocks of each pose and rate whose share of snippets in blocks of consecutive ones (as loaded) is at least min_unpacked_share (0: every pose, again) into blocks of snippets near each other in feature space (a k-d split in units of the default profile''s box), which select_next_snippets'' box search meets less often; one row per pose and rate packed. Waits for, and holds off, other writers of blocks';
+
+REVOKE EXECUTE ON FUNCTION modb.pack_snippet_blocks(float8) FROM PUBLIC;
+GRANT EXECUTE ON FUNCTION modb.pack_snippet_blocks(float8) TO modb_loader;
+GRANT DELETE ON modb.snippet_blocks TO modb_loader;

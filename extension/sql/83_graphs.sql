@@ -126,3 +126,51 @@ return graph_id
 $py$;
 COMMENT ON FUNCTION modb.build_transition_graph(text, text, text, float8) IS
     'Builds (or rebuilds) the transition graph "name" over the snippets (of the collection): edges are relaxation level 0 of the profile; a snippet is kept when it lies in the largest strongly connected component (per skeleton and rate) among those holding turns of at least min_turn_degrees each way (where snippets lead: future_heading), so a chain restricted to it (SET modb.graph) never runs into a dead end and can face any goal; stores each kept snippet''s level-0 successors and its cost-to-go (seconds to goals around its end through the graph); returns the modb.graphs id. Rebuild after loading';
+
+-- A transition graph's level-0 transitions, stored. From a kept snippet, select_next_snippet reads its
+-- successors here (one index lookup, then the exact check of a few dozen rows) instead of searching the
+-- feature box (which admits hundreds to thousands of candidates in dense data, each checked exactly).
+-- Valid only for the continuity settings the graph was built with: modb.transition_key says which.
+
+CREATE TABLE modb.graph_transitions (
+    graph_id     bigint NOT NULL,
+    from_snippet bigint NOT NULL,
+    to_snippets  bigint[] NOT NULL,
+    cost_to_go   real[],
+    PRIMARY KEY (graph_id, from_snippet),
+    FOREIGN KEY (graph_id, from_snippet) REFERENCES modb.graph_snippets ON DELETE CASCADE
+);
+COMMENT ON TABLE modb.graph_transitions IS
+    'For each snippet a transition graph keeps: the kept snippets that may follow it at relaxation level 0 (a superset by a hair: the exact test runs again at selection). One row per snippet, not per transition: a tenth of the size';
+SELECT pg_catalog.pg_extension_config_dump('modb.graph_transitions', '');
+
+CREATE OR REPLACE FUNCTION modb.transition_key(plan modb.match_plan)
+RETURNS jsonb
+LANGUAGE sql IMMUTABLE STRICT PARALLEL SAFE
+-- The settings that decide which transitions pass level 0; the objective's weights do not.
+RETURN jsonb_build_object('joints', (plan).joints, 'norm', (plan).norm, 'velocity_terms', (plan).velocity_terms,
+                          'position_threshold', (plan).position_threshold, 'angle_threshold', (plan).angle_threshold,
+                          'velocity_threshold', (plan).velocity_threshold,
+                          'angular_velocity_threshold', (plan).angular_velocity_threshold);
+COMMENT ON FUNCTION modb.transition_key(modb.match_plan) IS
+    'What a plan''s level-0 test depends on (joints, norm, velocity terms, thresholds): a graph''s stored transitions serve the plans with its key';
+
+-- Graph names, in a table no selection reads: a graph is deleted by deleting its name here, and its
+-- modb.graphs row, stored snippets and transitions go with it (ON DELETE CASCADE, run as the owner). So the
+-- loader needs no DELETE on modb.graphs, which every selection reads (a DELETE grant would also let it LOCK
+-- that table against every reader).
+CREATE TABLE modb.graph_names (
+    name text NOT NULL,
+    kind text NOT NULL,
+    PRIMARY KEY (name, kind)
+);
+COMMENT ON TABLE modb.graph_names IS
+    'The name and kind of every graph in modb.graphs: deleting a row here deletes that graph with its rows';
+INSERT INTO modb.graph_names (name, kind) SELECT name, kind FROM modb.graphs;  -- on update: the graphs so far
+ALTER TABLE modb.graphs ADD FOREIGN KEY (name, kind) REFERENCES modb.graph_names ON DELETE CASCADE;
+SELECT pg_catalog.pg_extension_config_dump('modb.graph_names', '');
+
+GRANT SELECT ON modb.graph_names TO modb_reader;
+GRANT INSERT, DELETE ON modb.graph_names TO modb_loader;
+GRANT INSERT (name, kind, skeleton_id, data, meta) ON modb.graphs TO modb_loader;
+GRANT UPDATE (skeleton_id, data, meta) ON modb.graphs TO modb_loader;

@@ -1,3 +1,73 @@
+-- The checks of a select_next_snippet request, with errors that say what is wrong. CREATE OR REPLACE:
+-- upgrades include this file.
+
+CREATE OR REPLACE FUNCTION modb.check_request(prev_snippet bigint, target float8[], k int, collection text)
+RETURNS boolean
+LANGUAGE plpgsql STABLE PARALLEL SAFE
+AS $$
+BEGIN
+    -- {x, z} or {x, y, z}: one dimension, subscripts from 1, finite coordinates within 1e9 m (so that no
+    -- distance the objective computes overflows). NaN is above every number, so NOT (abs(v) <= 1e9) holds
+    -- for it too.
+    IF target IS NULL OR array_ndims(target) IS DISTINCT FROM 1 OR cardinality(target) NOT IN (2, 3)
+       OR array_lower(target, 1) <> 1
+       OR EXISTS (SELECT FROM unnest(target) v WHERE v IS NULL OR NOT abs(v) <= 1e9) THEN
+        RAISE EXCEPTION 'target must be {x, z} or {x, y, z} in metres (finite, each coordinate within +-1e9), got %',
+            coalesce(target::text, 'NULL')
+            USING ERRCODE = 'invalid_parameter_value',
+                  HINT = 'target is the goal in the avatar''s heading frame at the end of prev_snippet: x left, (y up,) z forward';
+    END IF;
+    IF k IS NULL OR k < 1 THEN
+        RAISE EXCEPTION 'k must be at least 1, got %', coalesce(k::text, 'NULL') USING ERRCODE = 'invalid_parameter_value',
+            HINT = 'k is how many of the best continuations select_next_snippets returns';
+    END IF;
+    IF prev_snippet IS NOT NULL AND NOT EXISTS (SELECT FROM modb.snippets WHERE id = prev_snippet) THEN
+        RAISE EXCEPTION 'no snippet %', prev_snippet USING ERRCODE = 'invalid_parameter_value',
+            HINT = 'prev_snippet is a modb.snippets id, or NULL to start';
+    END IF;
+    IF collection IS NOT NULL AND modb.find_collection(collection) IS NULL THEN
+        RAISE EXCEPTION 'no collection "%"', collection USING ERRCODE = 'invalid_parameter_value';
+    END IF;
+    RETURN true;
+END
+$$;
+COMMENT ON FUNCTION modb.check_request(bigint, float8[], int, text) IS
+    'Raises a clear error for a select_next_snippet request that cannot be answered (bad target or k, unknown snippet or collection)';
+
+CREATE OR REPLACE FUNCTION modb.check_world_request("position" float8[], heading float8, target_world float8[])
+RETURNS float8[]
+LANGUAGE plpgsql IMMUTABLE PARALLEL SAFE
+AS $$
+DECLARE
+    target float8[];
+BEGIN
+    IF "position" IS NULL OR array_ndims("position") IS DISTINCT FROM 1 OR cardinality("position") <> 3
+       OR array_lower("position", 1) <> 1
+       OR EXISTS (SELECT FROM unnest("position") v WHERE v IS NULL OR NOT abs(v) <= 1e9) THEN
+        RAISE EXCEPTION 'position must be {x, y, z} in metres (finite, each coordinate within +-1e9), got %',
+            coalesce("position"::text, 'NULL') USING ERRCODE = 'invalid_parameter_value';
+    END IF;
+    IF heading IS NULL OR NOT abs(heading) < 'Infinity' THEN
+        RAISE EXCEPTION 'heading must be a finite angle in radians (0 faces +Z), got %', coalesce(heading::text, 'NULL')
+            USING ERRCODE = 'invalid_parameter_value';
+    END IF;
+    IF target_world IS NULL OR array_ndims(target_world) IS DISTINCT FROM 1 OR cardinality(target_world) NOT IN (2, 3)
+       OR array_lower(target_world, 1) <> 1
+       OR EXISTS (SELECT FROM unnest(target_world) v WHERE v IS NULL OR NOT abs(v) <= 1e9) THEN
+        RAISE EXCEPTION 'target_world must be {x, z} or {x, y, z} in metres (finite, each coordinate within +-1e9), got %',
+            coalesce(target_world::text, 'NULL') USING ERRCODE = 'invalid_parameter_value';
+    END IF;
+    target := modb.world_to_local("position", heading, target_world);
+    IF EXISTS (SELECT FROM unnest(target) v WHERE NOT abs(v) <= 1e9) THEN
+        RAISE EXCEPTION 'target_world % is farther than 1e9 m from position %', target_world, "position"
+            USING ERRCODE = 'invalid_parameter_value';
+    END IF;
+    RETURN target;
+END
+$$;
+COMMENT ON FUNCTION modb.check_world_request(float8[], float8, float8[]) IS
+    'Raises a clear error for select_next_snippet_world arguments that cannot be answered (position, heading, target_world); else the goal in the avatar''s heading frame (modb.world_to_local)';
+
 -- select_next_snippets_reference: continuity (WHERE) and objective (ORDER BY) as one query the planner
 -- sees whole; the statement of the rule that select_next_snippets (C, below) follows.
 -- The objective (modb.approach_cost): the nearer of where the candidate ends and where it leads
@@ -248,3 +318,54 @@ SELECT n.*
 $$;
 COMMENT ON FUNCTION modb.select_next_snippet_world(bigint, float8[], float8, float8[], text, text, bigint[]) IS
     'select_next_snippet with the goal in world coordinates: the avatar at position {x, y, z} with heading theta (radians, 0 = facing +Z)';
+
+-- How much work a selection did: the candidates select_next_snippet scored for continuity on its way to
+-- the relaxation level that answered. Latency follows this count (README "Performance"), and the
+-- thresholds, joints and velocity terms move it; the avatar view reports it after every selection.
+-- CREATE OR REPLACE: upgrades include this file.
+
+CREATE OR REPLACE FUNCTION modb.candidates_examined(prev_snippet bigint, relax_level int, profile text DEFAULT 'default')
+RETURNS bigint
+LANGUAGE plpgsql STABLE PARALLEL SAFE
+AS $$
+DECLARE
+    plan modb.match_plan := modb.match_plan(profile);
+    prev record;
+    stored int;
+    level int;
+    total bigint := 0;
+    n bigint;
+BEGIN
+    IF relax_level IS NULL OR relax_level NOT BETWEEN 0 AND 4 THEN
+        RAISE EXCEPTION 'relax_level must be 0-4 (select_next_snippet''s relax_level), got %', relax_level;
+    END IF;
+    IF prev_snippet IS NULL THEN  -- a start ranks every snippet
+        RETURN (SELECT count(*) FROM modb.snippets);
+    END IF;
+    SELECT t.features, s.pose_key, s.fps INTO prev
+      FROM modb.snippets s JOIN modb.terminators t ON t.id = s.end_terminator WHERE s.id = prev_snippet;
+    IF NOT FOUND THEN
+        RAISE EXCEPTION 'no snippet %', prev_snippet USING HINT = 'prev_snippet is a modb.snippets id';
+    END IF;
+    -- Level 0 from the graph's stored transitions, under the same condition as select_next_snippet.
+    SELECT cardinality(e.to_snippets) INTO stored
+      FROM modb.graphs g JOIN modb.graph_transitions e ON e.graph_id = g.id
+     WHERE g.id = plan.graph_id AND e.from_snippet = prev_snippet
+       AND g.data->'transition_key' = modb.transition_key(plan);
+    FOR level IN 0 .. relax_level LOOP
+        IF level = 0 AND stored IS NOT NULL THEN
+            n := stored;
+        ELSIF level = 4 THEN  -- the nearest start configuration among every snippet of the same pose and rate
+            SELECT count(*) INTO n FROM modb.snippets c WHERE c.pose_key = prev.pose_key AND c.fps = prev.fps;
+        ELSE  -- what the GiST box of this level yields
+            SELECT count(*) INTO n FROM modb.snippets c
+             WHERE c.begin_features <@ modb.match_box(prev.features, plan, 2.0 ^ level)
+               AND c.pose_key = prev.pose_key AND c.fps = prev.fps;
+        END IF;
+        total := total + n;
+    END LOOP;
+    RETURN total;
+END
+$$;
+COMMENT ON FUNCTION modb.candidates_examined(bigint, int, text) IS
+    'The candidates select_next_snippet scored for continuity after prev_snippet, summed over the relaxation levels it tried up to relax_level (the one it answered at): at each level the snippets of the same pose and rate in its search box (level 0 of a transition graph that stores prev''s successors: those; level 4: all), before the collection, graph and exclude filters. Reads this session''s SET modb.<knob> like the selection; prev_snippet NULL: every snippet';

@@ -1,4 +1,6 @@
--- Least privilege: modb_reader reads, modb_loader (a member of modb_reader) writes.
+-- Least privilege: modb_reader reads, modb_loader (a member of modb_reader) writes. The grants on the tables
+-- and sequences made before this fragment; the fragments after it (access tokens, the audit log, retargeting,
+-- edit scripts) grant their own, and must: modb_reader may not read access_tokens or audit_log.
 GRANT USAGE ON SCHEMA modb TO modb_reader, modb_loader;
 GRANT SELECT ON ALL TABLES IN SCHEMA modb TO modb_reader;
 -- Grant only what loading needs. Columns the server fills (ids, created_at, created_by, identity_sha256)
@@ -13,7 +15,7 @@ GRANT INSERT (clip_id, version, skeleton_id, fps, n_frames, rotations, translati
 GRANT UPDATE (meta) ON modb.collections, modb.clips, modb.clip_versions TO modb_loader;
 GRANT UPDATE (name, joint_map, mirror_pairs, meta) ON modb.skeletons TO modb_loader;
 GRANT INSERT, UPDATE, DELETE ON modb.models TO modb_loader;  -- no selection reads models
--- modb.graphs: 92_graph_names.sql
+-- modb.graphs: 83_graphs.sql (with modb.graph_names)
 GRANT USAGE ON ALL SEQUENCES IN SCHEMA modb TO modb_loader;
 REVOKE EXECUTE ON FUNCTION modb.ensure_collection(text) FROM PUBLIC;
 GRANT EXECUTE ON FUNCTION modb.ensure_collection(text) TO modb_loader;
