@@ -121,7 +121,7 @@ def nested_plans_of_synthesize(conn: psycopg.Connection, settings: dict[str, str
 
 def test_the_steps_of_synthesize_are_never_jit_compiled(locomotion):
     # Each step plans select_next_snippet_world generically, with an estimate past jit_above_cost:
-    # JIT compiled for ~9 s a step against ~0.15 s of work (89_synthesize.sql). Forced here with a
+    # JIT compiled for ~9 s a step against ~0.15 s of work (89_synthesis.sql). Forced here with a
     # zero threshold.
     with connect(locomotion) as conn:
         if not conn.execute("SELECT pg_jit_available()").fetchone()[0]:

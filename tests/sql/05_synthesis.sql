@@ -28,7 +28,7 @@ SELECT volatility_is('modb', 'synthesis_chain',
     ARRAY['double precision[]', 'integer', 'bigint', 'double precision[]', 'double precision', 'text', 'text',
           'double precision', 'double precision', 'boolean'], 'stable');
 
--- The defaults synthesis takes (89_synthesis_defaults.sql), on collections and a graph row made here.
+-- The defaults synthesis takes (89_synthesis.sql), on collections and a graph row made here.
 SELECT is((SELECT count(*) FROM modb.snippet_pools()), 0::bigint, 'no snippets: no pools');
 SELECT is(modb.default_graph('default', 'a/b'), NULL, 'no graph: none to use');
 INSERT INTO modb.graph_names VALUES ('over a', 'transitions'), ('everywhere', 'transitions'), ('old', 'transitions');

@@ -1,6 +1,6 @@
 """Editing the catalogue: collections (create, rename, move, delete), clips and their versions
 (delete one, make an older one current again), a skeleton's joint map and mirror pairs, and clips
-cut at annotated segments. The SQL functions of 95_catalog_edits.sql and 96_clip_segments.sql do the
+cut at annotated segments. The SQL functions of 55_catalogue_edits.sql and 78_annotations.sql do the
 work; this module adds what a caller needs around them: the snippets cut again when the current
 version or the maps change, in the caller's transaction. Shared by the CLI and REST interface."""
 

@@ -58,7 +58,7 @@ SELECT n.snippet_id, n.clip_id, n.version, n.mirrored, n.first_frame, n.n_frames
 
 
 _SELECT = _chosen(f"modb.select_next_snippet_world({_ARGUMENTS})")
-# Every step after the first (88_rest_selection.sql): coming to rest after the last goal, setting
+# Every step after the first (89_synthesis.sql): coming to rest after the last goal, setting
 # off from standing, else select_next_snippet_world, as modb.synthesize steps.
 _STEP = _chosen(f"modb.select_synthesis_step({_ARGUMENTS}, %(resting)s)")
 _START = """

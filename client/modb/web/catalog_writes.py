@@ -277,7 +277,7 @@ def _create_row(table: str):
         fields = _row_fields(body, table, partial=False)
         if (
             table == "graphs"
-        ):  # a graph's name is also its row in modb.graph_names (92_graph_names.sql)
+        ):  # a graph's name is also its row in modb.graph_names (83_graphs.sql)
             conn.execute(
                 "INSERT INTO modb.graph_names (name, kind) VALUES (%s, %s)",
                 [fields["name"], fields["kind"]],
