@@ -66,10 +66,8 @@ def git(*args: str) -> str:
 
 
 def has(commit: str, path: str) -> bool:
-    return (
-        subprocess.run(["git", "-C", str(REPO), "cat-file", "-e", f"{commit}:{path}"]).returncode
-        == 0
-    )
+    command = ["git", "-C", str(REPO), "cat-file", "-e", f"{commit}:{path}"]
+    return subprocess.run(command, capture_output=True).returncode == 0
 
 
 def default_commit(versions: list[str]) -> str:
