@@ -1,4 +1,4 @@
-"""The README's code blocks, read in order and run the way a reader runs them.
+"""The code blocks of README.md and docs/*.md, read in order and run the way a reader runs them.
 
 A fenced block tagged `sh`, `sql` or `python` is a command to run; any other tag (`text`, none) is
 output or a layout. A block right after a line `<!-- not run: REASON -->` is skipped, and only the
@@ -26,9 +26,10 @@ class Block:
     language: str
     text: str
     not_run: str | None  # the reason, when marked not to run
+    path: str = "README.md"  # the file it is in, for messages
 
 
-def blocks(markdown: str) -> list[Block]:
+def blocks(markdown: str, path: str = "README.md") -> list[Block]:
     """Every fenced block, in order, with the `not run` reason written just before it."""
     found = []
     for m in FENCE.finditer(markdown):
@@ -40,6 +41,7 @@ def blocks(markdown: str) -> list[Block]:
                 language=m.group(1),
                 text=m.group(2),
                 not_run=reason.group(1) if reason else None,
+                path=path,
             )
         )
     return found
@@ -49,7 +51,7 @@ def check_not_run(block: Block) -> None:
     """A block may be skipped only for what NOT_RUN_ALLOWED names."""
     if block.not_run is not None and not NOT_RUN_ALLOWED.search(block.text):
         raise AssertionError(
-            f"README.md:{block.line}: marked `not run: {block.not_run}`, but only `make demo`, "
+            f"{block.path}:{block.line}: marked `not run: {block.not_run}`, but only `make demo`, "
             f"`make test`, `modb serve`, server restarts and pgbench may be left unrun"
         )
 
@@ -70,14 +72,14 @@ class Runner:
             return ["bash", "-e", "-o", "pipefail", "-c", block.text]
         if block.language == "sql":
             if self.dsn is None:
-                raise AssertionError(f"README.md:{block.line}: an SQL block before any database")
+                raise AssertionError(f"{block.path}:{block.line}: an SQL block before any database")
             return ["psql", "-X", "-q", "-v", "ON_ERROR_STOP=1", "-d", self.dsn, "-f", "-"]
         if block.language == "python":
             return [self.python, "-c", block.text]
         raise ValueError(f"not a runnable block: {block.language!r}")
 
     def run(self, block: Block) -> subprocess.CompletedProcess:
-        """Runs one block; a failure is an AssertionError naming its README line and output."""
+        """Runs one block; a failure is an AssertionError naming its file, line and output."""
         stdin = block.text if block.language == "sql" else None
         r = subprocess.run(
             self.command(block),
@@ -90,7 +92,7 @@ class Runner:
         )
         if r.returncode != 0:
             raise AssertionError(
-                f"README.md:{block.line}: the {block.language} block failed "
+                f"{block.path}:{block.line}: the {block.language} block failed "
                 f"(exit {r.returncode}):\n{block.text}\n--- stdout\n{r.stdout[-3000:]}"
                 f"\n--- stderr\n{r.stderr[-3000:]}"
             )

@@ -1,7 +1,8 @@
-"""The README's Reference tables, generated from the extension's COMMENTs and the command's parser.
+"""docs/reference.md's generated lists, from the extension's COMMENTs and the command's parser.
 
-`tests/test_readme.py` checks the README holds exactly what this generates; after changing a COMMENT
-or a command's help, rewrite the tables with
+`tests/test_readme.py` checks docs/reference.md holds exactly what this generates (one list item per
+function or command, wrapped within 120 columns); after changing a COMMENT or a command's help,
+rewrite the lists with
 
     .venv/bin/python tests/support/reference.py "$(.venv/bin/modb db url)"
 """
@@ -15,7 +16,8 @@ from pathlib import Path
 
 import psycopg
 
-README = Path(__file__).resolve().parents[2] / "README.md"
+REFERENCE = Path(__file__).resolve().parents[2] / "docs" / "reference.md"
+WIDTH = 120
 SECTION = re.compile(r"(<!-- reference: (\w+) -->\n)(.*?)(<!-- /reference -->)", re.S)
 
 # Every function of schema modb with its identity arguments and COMMENT, by name.
@@ -28,8 +30,26 @@ SELECT p.proname, pg_get_function_identity_arguments(p.oid),
 """
 
 
-def _cell(text: str) -> str:
-    return text.replace("|", "\\|").replace("\n", " ")
+# A wrapped line must not start with what Markdown reads as a new list item or heading.
+_STARTS_BLOCK = re.compile(r"^([-+*#>]|\d+[.)])$")
+
+
+def _item(text: str) -> str:
+    """One list item, wrapped within WIDTH columns; continuation lines indented by two."""
+    words = []
+    for word in " ".join(text.split()).split(" "):
+        if words and _STARTS_BLOCK.match(word):
+            words[-1] += "\x01" + word
+        else:
+            words.append(word)
+    lines, line = [], "-"
+    for word in words:
+        if len(line) + 1 + len(word.replace("\x01", " ")) > WIDTH and line.strip() != "-":
+            lines.append(line)
+            line = " "
+        line += " " + word
+    lines.append(line)
+    return "\n".join(lines).replace("\x01", " ") + "\n"
 
 
 def _short_types(text: str) -> str:
@@ -39,13 +59,11 @@ def _short_types(text: str) -> str:
 
 
 def functions_table(conn: psycopg.Connection) -> str:
-    rows = ["| function | returns | what it does (its COMMENT) |", "|---|---|---|"]
+    items = []
     for name, args, result, comment in conn.execute(FUNCTIONS):
         signature = _short_types(f"modb.{name}({args})")
-        rows.append(
-            f"| `{_cell(signature)}` | `{_cell(_short_types(result))}` | {_cell(comment)} |"
-        )
-    return "\n".join(rows) + "\n"
+        items.append(_item(f"`{signature}` returns `{_short_types(result)}`: {comment}"))
+    return "".join(items)
 
 
 def _subcommands(parser: argparse.ArgumentParser) -> list[tuple[str, argparse.ArgumentParser, str]]:
@@ -60,7 +78,7 @@ def _subcommands(parser: argparse.ArgumentParser) -> list[tuple[str, argparse.Ar
 def commands_table() -> str:
     from modb.cli.main import build_parser
 
-    rows = ["| command | what it does (its `--help`) | usage |", "|---|---|---|"]
+    items = []
     todo = [("modb", build_parser())]
     while todo:
         prefix, parser = todo.pop(0)
@@ -68,9 +86,9 @@ def commands_table() -> str:
             usage = (
                 " ".join(sub.format_usage().split()).removeprefix("usage: ").replace(" [-h]", "")
             )
-            rows.append(f"| `{prefix} {name}` | {_cell(help_text)} | `{_cell(usage)}` |")
+            items.append(_item(f"`{prefix} {name}`: {help_text}. Usage: `{usage}`"))
             todo.append((f"{prefix} {name}", sub))
-    return "\n".join(rows) + "\n"
+    return "".join(items)
 
 
 def generated(conn: psycopg.Connection) -> dict[str, str]:
@@ -78,7 +96,7 @@ def generated(conn: psycopg.Connection) -> dict[str, str]:
 
 
 def sections(markdown: str) -> dict[str, str]:
-    """The README's reference sections by name, as written."""
+    """The reference sections by name, as written."""
     return {m.group(2): m.group(3) for m in SECTION.finditer(markdown)}
 
 
@@ -88,6 +106,6 @@ def rewrite(markdown: str, tables: dict[str, str]) -> str:
 
 if __name__ == "__main__":
     if len(sys.argv) != 2:
-        sys.exit("usage: reference.py DSN  (rewrites README.md's reference tables)")
+        sys.exit("usage: reference.py DSN  (rewrites docs/reference.md's generated lists)")
     with psycopg.connect(sys.argv[1]) as connection:
-        README.write_text(rewrite(README.read_text(), generated(connection)))
+        REFERENCE.write_text(rewrite(REFERENCE.read_text(), generated(connection)))
