@@ -14,6 +14,8 @@
 on first use, so `import modb` stays light).
 """
 
+from importlib import import_module
+
 from .version import __version__
 
 _API = {
@@ -27,7 +29,5 @@ __all__ = ["Avatar", "Settings", "__version__", "connect"]
 
 def __getattr__(name: str):
     if name in _API:
-        from importlib import import_module
-
         return getattr(import_module(_API[name]), name)
     raise AttributeError(f"module 'modb' has no attribute {name!r}")
