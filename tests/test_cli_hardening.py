@@ -21,6 +21,7 @@ from support.databases import scratch_database
 
 from modb.cli import build_parser
 from modb.loader.bvh import read_bvh
+from modb.output import open_output
 
 WALKS = (
     "dataset-1_walk_normal_001.bvh",
@@ -297,8 +298,6 @@ def test_synth_refuses_two_outputs_on_standard_output(walks, tmp_path, more):
 
 
 def test_a_failed_write_leaves_the_old_file_and_no_temporary_file(tmp_path):
-    from modb.bvh_export import open_output
-
     out = tmp_path / "result.bvh"
     out.write_text("old content\n")
     with pytest.raises(RuntimeError), open_output(out) as f:
@@ -312,8 +311,6 @@ def test_a_failed_write_leaves_the_old_file_and_no_temporary_file(tmp_path):
 
 
 def test_a_symlink_is_replaced_only_when_asked(tmp_path):
-    from modb.bvh_export import open_output
-
     (tmp_path / "real").write_text("kept\n")
     link = tmp_path / "link"
     os.symlink("real", link)
@@ -331,8 +328,6 @@ def test_a_symlink_is_replaced_only_when_asked(tmp_path):
 def test_open_descriptors_named_in_proc_are_written_into(tmp_path):
     """/dev/stdout and /dev/fd/N lead to /proc/self/fd/N: written into, whatever they are open on
     (a pipe, a regular file), never replaced."""
-    from modb.bvh_export import open_output
-
     read_end, write_end = os.pipe()
     with open_output(f"/proc/self/fd/{write_end}") as f:
         f.write("through the pipe\n")

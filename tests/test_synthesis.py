@@ -19,6 +19,7 @@ from support.snippet_oracle import STANDARD, motion_world
 
 from modb.synthesis.avatar import Avatar, Choice, Settings
 from modb.bench.synth import seeded_course
+from modb.cli.synth_report import format_summary
 from modb.database.connection import connect
 from modb.synthesis.placement import Placement
 from modb.synthesis.root_motion import with_root_motion
@@ -30,7 +31,7 @@ from modb.synthesis.quality import (
     seam_steps,
     step_changes,
 )
-from modb.synthesis.synth import format_summary, report, source_motions, synthesize
+from modb.synthesis.synth import report, source_motions, synthesize
 
 # From the origin facing +Z: ahead, then a right turn of 90 degrees, then another, then one behind.
 COURSE = [(0.0, 6.0), (6.0, 6.0), (6.0, 0.0), (0.0, 0.0)]

@@ -18,8 +18,8 @@ import pygltflib as gl
 
 from modb_kernel import kinematics
 
-from modb.bvh_export import open_output
 from modb.motion import Motion, Skeleton
+from modb.output import open_output
 
 CAPSULE_SIDES = 10  # around a bone
 CAPSULE_CAP_RINGS = 3  # per hemisphere

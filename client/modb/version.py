@@ -14,6 +14,7 @@ def _version() -> str:
     try:
         text = CONTROL.read_text()
     except OSError:
+        # only an installed wheel gets here; importlib.metadata costs 15 ms otherwise
         from importlib.metadata import version
 
         return version("modb")

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import psycopg
+from scipy.spatial import cKDTree
 
 from modb_kernel import transitions
 
@@ -73,8 +74,6 @@ class Snapshot:
 
     @classmethod
     def load(cls, conn: psycopg.Connection, profile: str) -> Snapshot:
-        from scipy.spatial import cKDTree
-
         parts: list[list[np.ndarray]] = [[] for _ in range(6)]
         for rows in _chunks(
             conn,

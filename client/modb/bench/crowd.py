@@ -20,7 +20,7 @@ import sys
 import tempfile
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -32,6 +32,7 @@ from modb.database.read_nodes import ReadNodes
 from modb.database.replicas import Replicas
 from modb.synthesis.avatar import Avatar, Settings
 
+from .commands import Commands
 from .synth import seeded_course
 
 CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
@@ -180,19 +181,15 @@ def run(
     standbys: int,
     seconds: float,
     say: Callable[[str], None],
-    modb: Callable[[Sequence[str]], int],
+    commands: Commands,
 ) -> Crowd:
     """The benchmark on a fresh cluster in a temporary MODB_HOME (removed after), with Bandai
-    dataset 2's active walks and turns from `data` (its runs loaded halfway); `modb(argv)` runs
-    the command line (loads, the graph)."""
+    dataset 2's active walks and turns from `data` (its runs loaded halfway); `commands` loads
+    them and builds the graph."""
     first = sorted(data.glob("dataset-2_walk*_active_*.bvh"))
     more = sorted(data.glob("dataset-2_run_active_*.bvh"))
     if not first or not more:
         raise RuntimeError(f"no Bandai dataset 2 active walks and runs in {data}")
-
-    def command(*argv: str) -> None:
-        if modb([*argv, "-q"]) != 0:
-            raise RuntimeError(f"modb {' '.join(argv[2:4])} failed (its message is above)")
 
     home = Path(tempfile.mkdtemp(prefix="modb-crowd-"))
     if os.geteuid() == 0:
@@ -203,8 +200,10 @@ def run(
         primary.start()
         dsn = primary.dsn()
         say(f"loading {data} into a cluster of its own ({home})")
-        command("--dsn", dsn, "load", *map(str, first), "--collection", "crowd")
-        command("--dsn", dsn, "graph", "build", "crowd", "--collection", "crowd")
+        if commands.load(dsn, [str(f) for f in first], "crowd") != 0:
+            raise RuntimeError(f"modb load {first[0]} failed (its message is above)")
+        if commands.build_graph(dsn, "crowd", "crowd") != 0:
+            raise RuntimeError("modb graph build failed (its message is above)")
         names = [f"s{i + 1}" for i in range(standbys)]
         for name in names:
             say(f"standby {name}")

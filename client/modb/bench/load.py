@@ -14,6 +14,7 @@ import numpy as np
 import psycopg
 
 from modb.database.connection import connect
+from modb.loader.bvh import read_bvh
 from modb.loader.ingest import load_files
 from modb.loader.sources import find_sources
 from modb.loader.reading import ReadOptions
@@ -31,9 +32,7 @@ def _motion_lines_only(path: str) -> np.ndarray:
 
 
 def bench_parse(files: list[Path], rounds: int) -> dict:
-    import bvhio
-
-    from modb.loader.bvh import read_bvh
+    import bvhio  # the baseline: optional ('.[test]'), so `modb bench load` checks for it first
 
     frames = {f: read_bvh(str(f)).n_frames for f in files}  # warm the page cache and imports
     total = sum(frames.values())

@@ -10,6 +10,7 @@ from __future__ import annotations
 import sys
 import numpy as np
 import psycopg
+from tqdm import tqdm
 
 from modb.loader.ingest import store_motion
 
@@ -47,8 +48,6 @@ def add_resampled_clips(conn: psycopg.Connection, size: int, seed: int, progress
 
     A copy is mirrored when its original is; one transaction per clip. Returns the snippet count.
     """
-    from tqdm import tqdm
-
     total = conn.execute("SELECT count(*) FROM modb.snippets").fetchone()[0]
     originals = conn.execute(
         "SELECT c.id, modb.collection_path(c.collection_id), bool_or(s.mirrored) FROM modb.clips c "

@@ -7,7 +7,6 @@ with the shipped default profile); this makes it reproducible: same seed, same g
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +14,8 @@ import psycopg
 
 from modb.database.cluster import Cluster
 from modb.demo.data import locomotion_files
+
+from .commands import Commands
 
 DATABASE = "modb_bench_synth"
 
@@ -36,7 +37,7 @@ def seeded_course(seed: int, n_goals: int, near: float = 1.0, far: float = 20.0)
 GRAPH = "locomotion"  # the transition graph locomotion_database builds
 
 
-def locomotion_database(folder: Path, modb: Callable[[Sequence[str]], int]) -> str:
+def locomotion_database(folder: Path, commands: Commands) -> str:
     """A fresh database on the embedded cluster holding the locomotion clips of a Bandai dataset 2
     folder, and their transition graph GRAPH (default profile)."""
     files = [str(f) for f in locomotion_files(folder)]
@@ -51,35 +52,8 @@ def locomotion_database(folder: Path, modb: Callable[[Sequence[str]], int]) -> s
         admin.execute(f'CREATE DATABASE "{DATABASE}"')
     with psycopg.connect(cluster.dsn(DATABASE), autocommit=True) as conn:
         conn.execute("CREATE EXTENSION modb CASCADE")
-    if (
-        modb(
-            [
-                "--dsn",
-                cluster.dsn(DATABASE),
-                "load",
-                *files,
-                "--collection",
-                "locomotion",
-                "--quiet",
-            ]
-        )
-        != 0
-    ):
+    if commands.load(cluster.dsn(DATABASE), files, "locomotion") != 0:
         raise RuntimeError(f"loading {folder} failed")
-    if (
-        modb(
-            [
-                "--dsn",
-                cluster.dsn(DATABASE),
-                "graph",
-                "build",
-                GRAPH,
-                "--collection",
-                "locomotion",
-                "--quiet",
-            ]
-        )
-        != 0
-    ):
+    if commands.build_graph(cluster.dsn(DATABASE), GRAPH, "locomotion") != 0:
         raise RuntimeError(f"building the transition graph of {folder} failed")
     return cluster.dsn(DATABASE)

@@ -5,6 +5,15 @@ from __future__ import annotations
 import argparse
 import sys
 
+from modb.editing.meta import MetaNotFound, StaleMeta, read_meta, write_meta
+from modb.loader.annotations import (
+    AnnotationError,
+    checked,
+    parse_segment,
+    segments_of,
+    with_segments,
+)
+
 from .common import VERSION, connect
 
 
@@ -32,15 +41,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from modb.clips import ClipNotFound, resolve_clip
-    from modb.loader.annotations import (
-        AnnotationError,
-        checked,
-        parse_segment,
-        segments_of,
-        with_segments,
-    )
-    from modb.editing.meta import MetaNotFound, StaleMeta, read_meta, write_meta
+    from modb.clips import ClipNotFound, resolve_clip  # numpy (60 ms): not for `modb --help`
 
     with connect(args) as conn:
         try:

@@ -5,13 +5,19 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 import psycopg
 
-from modb.synthesis.chain import MAX_SECONDS
+from modb.database.cluster import Cluster
+from modb.database.dsn import resolve
+from modb.synthesis.chain import MAX_SECONDS, Settings
 
-from .common import SEED, connect, positive, whole
+from . import graph as graph_command
+from .common import SEED, connect, connect_to, positive, whole
+from .errors import reporting_errors
+from .load import load_paths
 
 ROUNDS = whole(1, 1000)
 QUERIES = whole(1, 100_000)
@@ -155,17 +161,35 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     scale.set_defaults(func=run_scale)
 
 
-def run_synth(args: argparse.Namespace) -> int:
-    from modb.bench.synth import locomotion_database, seeded_course
-    from modb.synthesis.chain import Settings
-    from modb.synthesis.synth import format_summary, report, synthesize
+class BenchCommands:
+    """The commands a benchmark runs to fill a database of its own (modb.bench.commands), each as
+    `modb --dsn DSN ... --quiet` would run it: its messages, its errors, its exit status."""
 
-    from .main import main
+    def load(self, dsn: str, files: Sequence[str], collection: str) -> int:
+        return reporting_errors(
+            lambda: load_paths(lambda: connect_to(dsn), files, collection, quiet=True)
+        )
+
+    def build_graph(self, dsn: str, name: str, collection: str) -> int:
+        def build() -> int:
+            with connect_to(dsn) as conn:
+                return graph_command.build(conn, name, collection=collection, quiet=True)
+
+        return reporting_errors(build)
+
+
+def run_synth(args: argparse.Namespace) -> int:
+    # numpy, scipy and synthesis on them (about 300 ms): not for `modb --help`
+    from modb.bench.synth import locomotion_database, seeded_course
+    from modb.synthesis.synth import report, synthesize
+
+    from .synth_report import format_summary
 
     goals = seeded_course(args.seed, n_goals=int(args.seconds // 5) + 1)
     # A fresh database of the locomotion files in the embedded cluster, graph "locomotion" built.
     if args.data:
-        args.dsn, args.collection = locomotion_database(Path(args.data), main), "locomotion"
+        args.dsn = locomotion_database(Path(args.data), BenchCommands())
+        args.collection = "locomotion"
     with connect(args) as conn:
         settings = Settings(profile=args.profile, collection=args.collection, graph=args.graph)
         result = synthesize(conn, goals, args.seconds, settings)
@@ -180,9 +204,7 @@ def run_synth(args: argparse.Namespace) -> int:
 
 
 def run_crowd(args: argparse.Namespace) -> int:
-    from modb.bench.crowd import against, report, run
-
-    from .main import main
+    from modb.bench.crowd import against, report, run  # numpy and the Avatar (100 ms)
 
     def crowd_of(standbys: int):
         return run(
@@ -191,7 +213,7 @@ def run_crowd(args: argparse.Namespace) -> int:
             standbys,
             args.seconds,
             lambda text: print(f"modb bench crowd: {text}", file=sys.stderr),
-            main,
+            BenchCommands(),
         )
 
     try:
@@ -207,9 +229,8 @@ def run_crowd(args: argparse.Namespace) -> int:
 
 
 def run_scale(args: argparse.Namespace) -> int:
-    from modb.bench.scale import bench_scale
+    from modb.bench.scale import bench_scale  # numpy and scipy (100 ms)
     from modb.bench.scale import report as scale_report
-    from modb.database.dsn import resolve
 
     print(
         f"modb bench scale: profile {args.profile}, {args.queries} seeded queries (seed "
@@ -232,7 +253,7 @@ def run_scale(args: argparse.Namespace) -> int:
 
 
 def run_select(args: argparse.Namespace) -> int:
-    from modb.bench.select import bench_select, bench_select_graph, report_graph
+    from modb.bench.select import bench_select, bench_select_graph, report_graph  # numpy (60 ms)
     from modb.bench.select import report as select_report
 
     with connect(args) as conn:
@@ -254,8 +275,7 @@ def run_select(args: argparse.Namespace) -> int:
 
 
 def run_load(args: argparse.Namespace) -> int:
-    from modb.bench.load import bench_load, bench_parse, report
-    from modb.database.cluster import Cluster
+    from modb.bench.load import bench_load, bench_parse, report  # numpy and the loader (150 ms)
 
     folder = Path(args.data or "../shared/mocap/bandai-1")
     files = sorted(folder.rglob("*.bvh"))
@@ -263,7 +283,7 @@ def run_load(args: argparse.Namespace) -> int:
         print(f"modb bench load: no .bvh files under {folder}", file=sys.stderr)
         return 2
     try:
-        import bvhio  # the baseline
+        import bvhio  # the baseline; an optional dependency, so looked for only here
     except ImportError:
         print(
             "modb bench load: needs bvhio as the baseline: pip install -e '.[test]' (make setup "

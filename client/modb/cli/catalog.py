@@ -43,7 +43,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run_collection(args: argparse.Namespace) -> int:
-    from modb.editing import catalog
+    from modb.editing import catalog  # numpy, through the loader (90 ms): not for `modb --help`
 
     with connect(args) as conn, conn.transaction():
         if args.action == "create":
@@ -59,6 +59,7 @@ def run_collection(args: argparse.Namespace) -> int:
 
 
 def run_clip(args: argparse.Namespace) -> int:
+    # numpy, and the loader's snippet cutting (90 ms): not for `modb --help`
     from modb.clips import ClipNotFound, resolve_clip
     from modb.editing import catalog
 

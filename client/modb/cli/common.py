@@ -9,17 +9,25 @@ import sys
 
 import psycopg
 
+from modb.database.dsn import resolve
 from modb.loader.limits import FPS_RANGE
-from modb.synthesis.chain import checked_number, number_range
+from modb.output import output_target
+from modb.validation import checked_number, number_range
 
 
 def connect(args: argparse.Namespace) -> psycopg.Connection:
     """The database `--dsn` names (or $MODB_DSN, libpq's environment, the embedded cluster)."""
-    from modb.database.connection import connect
-    from modb.database.dsn import resolve
+    return connect_to(args.dsn, args.verbose)
 
-    conninfo, origin = resolve(args.dsn)
-    if args.verbose:
+
+def connect_to(dsn: str | None, verbose: bool = False) -> psycopg.Connection:
+    """The database `dsn` names (None: $MODB_DSN, libpq's environment, the embedded cluster);
+    `verbose` says which on stderr."""
+    # numpy, for modb's arrays (60 ms): not for `modb --help`
+    from modb.database.connection import connect
+
+    conninfo, origin = resolve(dsn)
+    if verbose:
         print(f"database: {origin}", file=sys.stderr)
     return connect(conninfo)
 
@@ -78,9 +86,7 @@ FPS = Number(*FPS_RANGE, unit="fps")  # a frame rate to write a file at
 def writable(command: str, path: str | None) -> bool:
     """Whether `path` (`-`: standard output; None: nothing to write) can be written, checked before
     any work is done: a directory or a folder that does not exist is refused at once, with the
-    reason on stderr. How it is written is modb.bvh_export.open_output's."""
-    from modb.bvh_export import output_target
-
+    reason on stderr. How it is written is modb.output.open_output's."""
     if path is None:
         return True
     try:
@@ -95,7 +101,7 @@ def writable(command: str, path: str | None) -> bool:
 def write_bvh_file(command: str, motion, path: str) -> bool:
     """Writes `motion` to `path` (`-`: standard output); if it cannot, False, with the reason on
     stderr."""
-    from modb.bvh_export import write_bvh_file
+    from modb.bvh_export import write_bvh_file  # numpy (70 ms): not for `modb --help`
 
     try:
         write_bvh_file(motion, path, allow_stdout=True)
@@ -109,7 +115,7 @@ def write_bvh_file(command: str, motion, path: str) -> bool:
 
 def motion_format(path: str, asked: str | None = None) -> str:
     """bvh or gltf: as asked, else by the file name (.glb, .gltf), else bvh."""
-    from modb.gltf_export import is_gltf_name
+    from modb.gltf_export import is_gltf_name  # numpy and pygltflib (110 ms)
 
     return asked or ("gltf" if is_gltf_name(path) else "bvh")
 
@@ -119,7 +125,7 @@ def write_motion_file(command: str, motion, path: str, fmt: str = "bvh") -> bool
     cannot, False, with the reason on stderr."""
     if fmt == "bvh":
         return write_bvh_file(command, motion, path)
-    from modb.gltf_export import write_gltf_file
+    from modb.gltf_export import write_gltf_file  # numpy and pygltflib (110 ms)
 
     try:
         write_gltf_file(motion, path, allow_stdout=True)

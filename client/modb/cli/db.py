@@ -7,6 +7,11 @@ import argparse
 import json
 import sys
 
+import psycopg
+
+from modb.database.cluster import Cluster, ClusterError
+from modb.database.replicas import Replicas
+
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     db = sub.add_parser("db", help="the embedded database cluster")
@@ -38,15 +43,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from modb.database.cluster import Cluster, ClusterError
-
     cluster = Cluster.default()
     try:
         if args.action == "start":
             cluster.start()
             print(f"running: {cluster.dsn()}")
-            from modb.database.replicas import Replicas
-
             for r in Replicas(cluster).all():
                 r.node.run_server()
                 print(f"standby {r.name} running: {r.node.dsn()}")
@@ -65,11 +66,6 @@ def run(args: argparse.Namespace) -> int:
 
 
 def run_replica(args: argparse.Namespace) -> int:
-    import psycopg
-
-    from modb.database.cluster import Cluster, ClusterError
-    from modb.database.replicas import Replicas
-
     replicas = Replicas(Cluster.default())
     try:
         if args.step == "add":

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import argparse
 
-from .common import connect
+from .common import connect, connect_to
+from .errors import reporting_errors
+from .load import load_paths
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -24,9 +26,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Load real capture (shared data if present, else CMU 01_01 from PyPI), synthesize, report."""
-    from modb.demo.run import run_demo
+    # numpy, scipy and synthesis on them (about 300 ms): not for `modb --help`
+    from .demo_run import run_demo
 
-    from .main import main
+    def load(files: list[str], collection: str) -> int:
+        # as `modb [--dsn DSN] load FILES --collection COLLECTION` would (not --verbose)
+        return reporting_errors(lambda: load_paths(lambda: connect_to(args.dsn), files, collection))
 
-    dsn = ["--dsn", args.dsn] if args.dsn else []
-    return run_demo(args, lambda paths: main([*dsn, "load", *paths]), lambda: connect(args))
+    return run_demo(args, load, lambda: connect(args))

@@ -37,6 +37,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # numpy and scipy (about 260 ms): not for `modb --help`
     from modb.clips import ClipNotFound, read_motion, resolve_clip
     from modb.resample import at_fps
     from modb.synthesis.root_motion import with_root_motion

@@ -7,6 +7,8 @@ import sys
 
 import psycopg
 
+from modb.synthesis.graphs import build_graph, describe, list_graphs
+
 from .common import Number, connect
 
 MIN_TURN = Number(0.0, 180.0, unit="degrees")
@@ -37,8 +39,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from modb.synthesis.graphs import build_graph, describe, list_graphs
-
     with connect(args) as conn:
         if args.action == "list":
             for g in list_graphs(conn):
@@ -51,21 +51,34 @@ def run(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
             return 2
-        try:
-            g = build_graph(
-                conn,
-                args.name,
-                args.profile,
-                args.collection,
-                progress=None if args.quiet else lambda text: print(text, file=sys.stderr),
-                min_turn_degrees=args.min_turn,
-            )
-        except psycopg.Error as e:
-            print(
-                f"modb graph build: {e.diag.message_primary or e}"
-                + (f" ({e.diag.message_hint})" if e.diag.message_hint else ""),
-                file=sys.stderr,
-            )
-            return 1
-        print(describe(g))
+        return build(conn, args.name, args.profile, args.collection, args.min_turn, args.quiet)
+
+
+def build(
+    conn: psycopg.Connection,
+    name: str,
+    profile: str = "default",
+    collection: str | None = None,
+    min_turn: float = 45.0,
+    quiet: bool = False,
+) -> int:
+    """`modb graph build NAME` (its options as arguments) on `conn`: its progress, the graph
+    described, its exit status. `modb bench` builds its graphs through it."""
+    try:
+        g = build_graph(
+            conn,
+            name,
+            profile,
+            collection,
+            progress=None if quiet else lambda text: print(text, file=sys.stderr),
+            min_turn_degrees=min_turn,
+        )
+    except psycopg.Error as e:
+        print(
+            f"modb graph build: {e.diag.message_primary or e}"
+            + (f" ({e.diag.message_hint})" if e.diag.message_hint else ""),
+            file=sys.stderr,
+        )
+        return 1
+    print(describe(g))
     return 0

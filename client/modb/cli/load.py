@@ -4,7 +4,14 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable, Sequence
 
+import psycopg
+from tqdm import tqdm
+
+from modb.loader.errors import MotionFileError
+from modb.loader.sources import find_sources
+from modb.synthesis.graphs import stale_graph_notes
 
 from .common import FPS, connect
 
@@ -52,30 +59,59 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
+    return load_paths(
+        lambda: connect(args),
+        args.paths,
+        args.collection,
+        units=args.units,
+        fps=args.fps,
+        allow_truncated=args.allow_truncated,
+        asf=args.asf,
+        snippets=not args.no_snippets,
+        mirrored=args.mirror,
+        keep_going=args.keep_going,
+        quiet=args.quiet,
+    )
 
-    from modb.loader.errors import MotionFileError
+
+def load_paths(
+    connect: Callable[[], psycopg.Connection],
+    paths: Sequence[str],
+    collection: str | None = None,
+    *,
+    units: str = "auto",
+    fps: float | None = None,
+    allow_truncated: bool = False,
+    asf: str | None = None,
+    snippets: bool = True,
+    mirrored: bool = False,
+    keep_going: bool = False,
+    quiet: bool = False,
+) -> int:
+    """`modb load PATHS` (its options as arguments) on the database `connect()` opens: the loader's
+    load_files with the command's progress bar, messages and exit status. `modb demo` and `modb
+    bench` load through it too."""
+    # numpy (60 ms), which the loader's readers use: not for `modb --help`
     from modb.loader.ingest import load_files
-    from modb.loader.sources import find_sources
     from modb.loader.reading import ReadOptions
     from modb.loader.units import UnitsError, parse_units
 
     try:
-        units = parse_units(args.units)
-        sources = find_sources(args.paths, args.collection, args.asf)
+        parsed_units = parse_units(units)
+        sources = find_sources(paths, collection, asf)
     except (UnitsError, MotionFileError) as e:
         print(f"modb load: {e}", file=sys.stderr)
         return 2
     if not sources:
         print(
-            "modb load: no motion files (.bvh, .amc) found in " + " ".join(args.paths),
+            "modb load: no motion files (.bvh, .amc) found in " + " ".join(paths),
             file=sys.stderr,
         )
         return 2
     with (
-        connect(args) as conn,
+        connect() as conn,
         tqdm(
-            total=len(sources), unit="file", disable=args.quiet or len(sources) < 2, file=sys.stderr
+            total=len(sources), unit="file", disable=quiet or len(sources) < 2, file=sys.stderr
         ) as bar,
     ):
 
@@ -87,22 +123,22 @@ def run(args: argparse.Namespace) -> int:
                 bar.write(f"note: {result.path}: {result.message}", file=sys.stderr)
 
         options = ReadOptions(
-            units=units,
-            units_text=args.units,
-            fps=args.fps,
-            allow_truncated=args.allow_truncated,
+            units=parsed_units,
+            units_text=units,
+            fps=fps,
+            allow_truncated=allow_truncated,
             warn=lambda message: bar.write(f"warning: {message}", file=sys.stderr),
         )
         summary = load_files(
             conn,
             sources,
             options,
-            args.keep_going,
+            keep_going,
             progress,
-            snippets=not args.no_snippets,
-            mirrored=args.mirror,
+            snippets=snippets,
+            mirrored=mirrored,
         )
-    if not args.quiet:
+    if not quiet:
         rules = list(dict.fromkeys(r.units_rule for r in summary.results if r.units_rule))
         for rule in rules[:3]:
             print(rule, file=sys.stderr)
@@ -110,13 +146,11 @@ def run(args: argparse.Namespace) -> int:
             print(f"... and {len(rules) - 3} more files with their own figures", file=sys.stderr)
         print(summary.describe())
         if summary.count("loaded"):
-            from modb.synthesis.graphs import stale_graph_notes
-
-            with connect(args) as conn:
+            with connect() as conn:
                 for note in stale_graph_notes(conn):
                     print(note, file=sys.stderr)
     if summary.failed:
-        if args.keep_going:
+        if keep_going:
             print(f"{len(summary.failed)} file(s) not loaded:", file=sys.stderr)
             for r in summary.failed:
                 print(f"  {r.message}", file=sys.stderr)

@@ -1,14 +1,11 @@
 """`modb`'s parser, put together from one module per command, and `main`, which runs a command and
-turns the database errors every command can meet into a message and exit status 2."""
+turns the database errors every command can meet into a message and exit status 2 (cli.errors)."""
 
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from collections.abc import Sequence
-
-import psycopg
 
 from modb.version import __version__
 
@@ -29,6 +26,7 @@ from . import (
     token,
 )
 from . import list as list_clips
+from .errors import reporting_errors
 
 # In `modb --help`'s order.
 COMMANDS = (
@@ -69,30 +67,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    try:
-        return args.func(args)
-    except psycopg.OperationalError as e:
-        print(
-            f"modb: cannot connect to the database: {str(e).strip()}\n"
-            f"  (check --dsn / MODB_DSN, or `modb db start` for the embedded one)",
-            file=sys.stderr,
-        )
-        return 2
-    except psycopg.Error as e:
-        print(
-            f"modb: database error: {e.diag.message_primary or e}"
-            + (f"\n  hint: {e.diag.message_hint}" if e.diag.message_hint else ""),
-            file=sys.stderr,
-        )
-        return 2
-    except RuntimeError as e:  # NotInstalledError, ClusterError
-        print(f"modb: {e}", file=sys.stderr)
-        return 2
-    except BrokenPipeError:
-        # The reader of the output left early (`modb list | head`): not a failure, and no
-        # traceback when Python flushes stdout at exit.
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return 0
+    return reporting_errors(lambda: args.func(args))
 
 
 if __name__ == "__main__":

@@ -6,6 +6,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from tqdm import tqdm
+
 from .common import FPS, connect
 
 
@@ -38,7 +40,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _skeleton(conn, spec: str) -> int:
-    from modb.clips import resolve_clip
+    from modb.clips import resolve_clip  # numpy (60 ms): not for `modb --help`
 
     if (
         spec.isdigit()
@@ -52,9 +54,7 @@ def _skeleton(conn, spec: str) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
-    from modb.clips import ClipNotFound, clips_in
+    from modb.clips import ClipNotFound, clips_in  # numpy (60 ms): not for `modb --help`
 
     with connect(args) as conn:
         try:

@@ -5,6 +5,9 @@ from __future__ import annotations
 import argparse
 import sys
 
+from modb.database.dsn import resolve
+from modb.web.guard import WILDCARD_ADDRESSES, is_loopback
+
 from .common import PORT, whole
 
 UPLOAD_MB = whole(1, 4096)
@@ -69,13 +72,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # the web server stack (uvicorn, Starlette) and numpy (about 400 ms): not for `modb --help`
     import uvicorn
 
-    from modb.database.dsn import resolve
     from modb.database.read_nodes import ReadNodes
     from modb.web.app import ThreeMissing, create_app
     from modb.web.avatar_socket import MAX_MESSAGE_BYTES, default_max_avatars
-    from modb.web.guard import WILDCARD_ADDRESSES, is_loopback
 
     conninfo, origin = resolve(args.dsn)
     if args.standby:

@@ -9,11 +9,18 @@ import sys
 from modb.synthesis.chain import (
     MAX_ARRIVAL_RADIUS,
     MAX_BLEND_FRAMES,
+    MAX_COORDINATE,
     MAX_EXCLUDE_SECONDS,
     MAX_ID,
     MAX_LEAD_TIME,
     MAX_SECONDS,
+    Goal,
+    NoContinuation,
+    Settings,
+    checked_goal,
 )
+from modb.synthesis.defaults import NO_GRAPH, default_graph, largest_pool, profile_names_graph
+from modb.synthesis.graphs import build_default_graph
 
 from .common import (
     FPS,
@@ -143,11 +150,19 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     synth.set_defaults(func=run)
 
 
+def parse_goal(text: str) -> Goal:
+    """'X,Z' (or 'X,Y,Z') world metres."""
+    try:
+        return checked_goal(text.split(","))
+    except ValueError:
+        raise ValueError(
+            f"--to {text!r:.200}: expected X,Z in metres (each at most {MAX_COORDINATE:,.0f} "
+            f"from the origin), e.g. --to 3,-4"
+        ) from None
+
+
 def prepare_default_graph(conn, settings, start: int | None, quiet: bool) -> None:
     """Builds the graph synthesis will use by default when there is none and this role can."""
-    from modb.synthesis.defaults import default_graph, largest_pool, profile_names_graph
-    from modb.synthesis.graphs import build_default_graph
-
     if profile_names_graph(conn, settings.profile):
         return
     collection = settings.collection
@@ -169,21 +184,14 @@ def prepare_default_graph(conn, settings, start: int | None, quiet: bool) -> Non
 
 
 def run(args: argparse.Namespace) -> int:
-    from modb.synthesis.avatar import NoContinuation, Settings
-    from modb.synthesis.defaults import NO_GRAPH
+    # numpy, scipy and synthesis on them (about 300 ms): not for `modb --help`
     from modb.resample import at_fps
     from modb.synthesis.foot_lock import lock_feet
     from modb.synthesis.root_motion import with_root_motion
     from modb.synthesis.source_frames import UnplaceableSkeleton
-    from modb.synthesis.synth import (
-        clip_names,
-        format_report,
-        parse_goal,
-        print_progress,
-        report,
-        synthesize,
-        write_report_json,
-    )
+    from modb.synthesis.synth import clip_names, report, synthesize
+
+    from .synth_report import format_report, print_progress, write_report_json
 
     try:
         goals = [parse_goal(text) for text in args.to]

@@ -6,6 +6,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from modb.access.tokens import TokenError, create, list_tokens, revoke
+
 from .common import connect
 
 
@@ -29,8 +31,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from modb.access.tokens import TokenError, create, list_tokens, revoke
-
     with connect(args) as conn:
         if args.action == "create":
             try:

@@ -15,6 +15,8 @@ import subprocess
 from dataclasses import dataclass
 from pathlib import Path
 
+import psycopg
+
 DATABASE = "modb"
 PORT = 5432  # names the socket file only: the cluster has no TCP listener
 
@@ -185,8 +187,6 @@ class Cluster:
             self._run(_bindir() / "pg_ctl", "start", "-w", "-D", self.datadir, "-l", self.logfile)
 
     def ensure_database(self, dbname: str) -> None:
-        import psycopg
-
         with psycopg.connect(self.dsn("postgres"), autocommit=True) as conn:
             preloaded = conn.execute("SHOW session_preload_libraries").fetchone()[0]
             if "modb" not in [name.strip() for name in preloaded.split(",")]:
@@ -213,6 +213,7 @@ class Cluster:
             ensure_writer_role(conn)
             if before < [0, 11, 0] <= conn.execute(version).fetchone()[0]:
                 # 0.11.0 packs the blocks of consecutive snippets that loads left (a few seconds).
+                # numpy, for the loader (90 ms): not for every `modb db` and connection
                 from modb.loader.ingest import pack_blocks
 
                 pack_blocks(conn)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import psycopg
 
 from . import pgarray
+from .dsn import resolve
 
 
 # Since 0.10.0 select_next_snippets (C) plans nothing per call and never JIT-compiles; these
@@ -30,8 +31,6 @@ def connect(conninfo: str | None = None) -> psycopg.Connection:
     """An autocommit connection that reads and writes modb's arrays as numpy. Without a conninfo,
     the database the `modb` command would use (MODB_DSN, libpq's environment, the embedded one)."""
     if conninfo is None:
-        from .dsn import resolve
-
         conninfo, _ = resolve(None)
     conn = psycopg.connect(conninfo, autocommit=True)
     pgarray.register(conn)

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import os
 
+from .cluster import Cluster
+
 LIBPQ_VARIABLES = ("PGHOST", "PGSERVICE", "PGDATABASE")
 
 
@@ -20,8 +22,6 @@ def resolve(dsn: str | None) -> tuple[str, str]:
         return "", "libpq environment (" + ", ".join(
             v for v in LIBPQ_VARIABLES if os.environ.get(v)
         ) + ")"
-    from .cluster import Cluster
-
     cluster = Cluster.default()
     cluster.start()
     return cluster.dsn(), f"embedded cluster in {cluster.home}"

@@ -20,7 +20,9 @@ from dataclasses import dataclass
 import psycopg
 from psycopg.conninfo import make_conninfo
 
+from .cluster import Cluster
 from .connection import connect
+from .replicas import Replicas
 
 DOWN_SECONDS = 5.0
 DISCOVER_SECONDS = 5.0  # how often the embedded database's standbys are looked up again
@@ -73,8 +75,6 @@ class ReadNodes:
         """The embedded database's primary and its standbys (`modb db replica add`), looked up
         again every DISCOVER_SECONDS: one added while serving takes new sessions, one removed no
         more; one that is stopped is tried again after DOWN_SECONDS."""
-        from .cluster import Cluster
-        from .replicas import Replicas
 
         def standbys() -> list[tuple[str, str]]:
             return [(r.name, r.node.dsn()) for r in Replicas(Cluster.default()).all()]

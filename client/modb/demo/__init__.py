@@ -1,1 +1,2 @@
-"""`modb demo`: the run (run) and the real capture it uses (data)."""
+"""The real capture `modb demo` and the benchmarks load (data); the demo's steps are in
+modb.cli.demo_run."""

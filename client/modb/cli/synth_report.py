@@ -1,0 +1,147 @@
+"""What `modb synth` (and `modb demo`, `modb bench synth`) shows of a synthesis: its choices and
+quality figures as text, as JSON, and a progress bar while it runs. modb.synthesis computes them."""
+
+from __future__ import annotations
+
+import json
+import sys
+from collections.abc import Callable
+
+from tqdm import tqdm
+
+from modb.output import open_output
+from modb.synthesis.quality import REACH_MIN_DISTANCE, Report
+from modb.synthesis.synth import Synthesis
+
+
+def _ms(value: float | None) -> str:
+    return "-" if value is None else f"{value:.1f}"
+
+
+def format_report(result: Synthesis, rep: Report, names: dict[int, str]) -> str:
+    """Every choice, then the summary."""
+    lines = [
+        "step  time s  snippet  clip (frames)                                   level  continuity  "
+        "query ms  goal",
+        "----  ------  -------  ----------------------------------------------  -----  ----------  "
+        "--------  ----",
+    ]
+    for c in result.chain:
+        mirror = " (mirror)" if c.mirrored else ""
+        last = c.first_frame + c.n_frames - 1
+        clip = f"{names.get(c.clip_id, c.clip_id)}{mirror} {c.first_frame}-{last}"
+        level = "start" if c.relax_level is None else str(c.relax_level)
+        continuity = "-" if c.continuity is None else f"{c.continuity:.2f}"
+        lines.append(
+            f"{c.step:4d}  {c.start_frame / c.fps:6.1f}  {c.snippet_id:7d}  {clip[:46]:46s}  "
+            f"{level:>5s}  "
+            f"{continuity:>10s}  {_ms(c.latency_ms):>8s}  {c.goal}{' reached' if c.reached else ''}"
+        )
+    return "\n".join(lines) + "\n\n" + format_summary(result, rep)
+
+
+def format_summary(result: Synthesis, rep: Report) -> str:
+    """The quality figures, goal by goal reach, and which aims are met."""
+    lines = [
+        f"strip: {rep.seconds:.1f} s, {rep.snippets} snippets, {rep.seams} seams"
+        + (f" (ended early: {result.stopped})" if result.stopped else ""),
+        f"query latency: p50 {_ms(rep.latency_ms_p50)} ms, p99 {_ms(rep.latency_ms_p99)} ms",
+        "relaxation levels: "
+        + ", ".join(f"{k}: {v}" for k, v in rep.levels.items())
+        + f" (last level {rep.last_level_share:.1%})",
+        f"seam roughness: {rep.seam_share_over_one:.1%} of seams have r > 1 (natural steps: "
+        f"{rep.natural_share_over_one:.1%} of {rep.natural_steps:,}); seam r p99 "
+        f"{rep.seam_r_p99:.2f} "
+        f"(natural r p99.9 {rep.natural_r_p999:.2f})",
+        f"recombination: {rep.recombination:.1%} of seams",
+        f"pose jump: largest {100 * rep.pose_jump_max:.1f} cm per frame (natural p99.9 "
+        f"{100 * rep.natural_pose_jump_p999:.1f} cm); foot skating {100 * rep.foot_skating:.1f} "
+        f"cm/s while standing (natural {100 * rep.natural_foot_skating:.1f} cm/s)",
+        f"goal reach (straight line at the median walking speed, {rep.walking_speed:.2f} m/s):",
+    ]
+    served = [g for g in rep.goals if g.goal <= max(c.goal for c in result.chain)]
+    for g in served:
+        where = ", ".join(f"{v:g}" for v in g.target)
+        took = "not reached" if g.seconds is None else f"{g.seconds:.1f} s = {g.ratio:.2f}x"
+        note = (
+            ""
+            if g.counts_for_aim
+            else " (behind: reported only)"
+            if g.behind
+            else " (nearer than 5 m: reported only)"
+            if g.distance_m < REACH_MIN_DISTANCE
+            else " (still current when the strip ended, before 2x: not counted)"
+        )
+        lines.append(
+            f"  goal {g.goal} ({where}): {g.distance_m:.1f} m{' behind' if g.behind else ''}, "
+            f"straight {g.straight_seconds:.1f} s, took {took}{note}"
+        )
+    if len(served) < len(rep.goals):
+        lines.append(
+            f"  goals {len(served) + 1}-{len(rep.goals)}: never became current (not reached)"
+        )
+    verdict = {True: "met", False: "NOT met", None: "not measured"}
+    lines.append("aims: " + "; ".join(f"{k}: {verdict[v]}" for k, v in rep.aims.items()))
+    return "\n".join(lines)
+
+
+def write_report_json(
+    path: str, result: Synthesis, rep: Report, allow_stdout: bool = False
+) -> None:
+    """The choices and figures as JSON, written through open_output (`-`: standard output if
+    `allow_stdout`)."""
+    data = {
+        "report": rep.as_json(),
+        "chain": [
+            {
+                **{
+                    k: getattr(c, k)
+                    for k in (
+                        "step",
+                        "snippet_id",
+                        "clip_id",
+                        "version",
+                        "mirrored",
+                        "first_frame",
+                        "n_frames",
+                        "fps",
+                        "goal",
+                        "target",
+                        "reached",
+                        "relax_level",
+                        "continuity",
+                        "proximity",
+                        "latency_ms",
+                        "waited_ms",
+                    )
+                },
+                "start_time": c.start_frame / c.fps,
+                "position": c.placement.position,
+                "heading": c.placement.heading,
+                "end_position": c.end.position,
+                "end_heading": c.end.heading,
+            }
+            for c in result.chain
+        ],
+    }
+    with open_output(path, allow_stdout=allow_stdout) as f:
+        json.dump(
+            data, f, indent=1, default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o)
+        )
+        f.write("\n")
+
+
+def print_progress(total: float) -> Callable[[float], None]:
+    bar = tqdm(
+        total=round(total, 1),
+        unit="s",
+        file=sys.stderr,
+        bar_format="{l_bar}{bar}| {n:.1f}/{total} s",
+    )
+
+    def update(done: float) -> None:
+        bar.update(round(min(done, total) - bar.n, 1))
+        if done >= total:
+            bar.close()
+
+    return update
