@@ -349,7 +349,7 @@ def _load_one(
             )
         motion = read_source(source, options, raw)
         del raw  # a large file's bytes need not outlive its parse
-        meta = file_meta(source.path, motion.n_frames, source.folder)
+        meta = file_meta(source.path, motion.n_frames, source.folder, options.labels)
         clip_id, version, added, note = store_motion(
             conn, motion, source.collection, key, snippets, mirrored, meta
         )

@@ -11,6 +11,7 @@ from modb.motion import Motion
 from .asf import DEFAULT_FPS, AsfSkeleton, parse_amc, parse_asf
 from .bvh import parse_bvh
 from .folders import DISK, Folder
+from .sidecars import Labels
 from .sources import SourceFile
 
 
@@ -21,6 +22,7 @@ class ReadOptions:
     fps: float | None = None  # AMC only: frames per second (default 120)
     allow_truncated: bool = False  # AMC only: drop an incomplete last frame
     warn: Callable[[str], None] | None = None
+    labels: Labels = field(default_factory=Labels)  # the dataset's label files, read once a load
     _asf_cache: dict[tuple[Folder, Hashable], AsfSkeleton] = field(default_factory=dict)
 
     def asf(self, path: Path, folder: Folder = DISK) -> AsfSkeleton:

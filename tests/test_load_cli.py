@@ -320,11 +320,14 @@ class _CountedFile:
 
 def test_the_loader_reads_each_file_once(db, monkeypatch):
     """A load reads each file's bytes once: hashed and parsed from the same read (not opened again
-    to parse), and an ASF once for the AMC files that share it. Every open() and Path.open() of
-    the files is counted, with the bytes read through it."""
+    to parse), an ASF once for the AMC files that share it, and Bandai Namco's label files once
+    for the clips they label. Every open() and Path.open() of the files is counted, with the bytes
+    read through it."""
     trial = mocap("cmu", "131")
-    files = [mocap(*WALK), trial / "131_01.amc", trial / "131_02.amc", trial / "131.asf"]
-    watched = {f.resolve() for f in files}
+    walks = [mocap(*WALK), mocap("bandai-1", "data", "dataset-1_walk_normal_001.bvh")]
+    files = [*walks, trial / "131_01.amc", trial / "131_02.amc", trial / "131.asf"]
+    labels = [mocap("bandai-1", "cfg", f"{key}_label.txt") for key in ("content", "style")]
+    watched = {f.resolve() for f in [*files, *labels]}
     opened: Counter = Counter()
     bytes_read: Counter = Counter()
     real_open = io.open
@@ -341,6 +344,8 @@ def test_the_loader_reads_each_file_once(db, monkeypatch):
     sources = find_sources([str(f) for f in files], None)
     summary = load_files(db, sources, ReadOptions(), keep_going=False, snippets=False)
     monkeypatch.undo()
-    assert [r.status for r in summary.results] == ["loaded"] * 3, summary.failed
+    assert [r.status for r in summary.results] == ["loaded"] * 4, summary.failed
+    tagged = db.execute("SELECT count(*) FROM modb.clip_versions WHERE meta ? 'tags'").fetchone()
+    assert tagged == (2,)  # both walks took their tags from the label files read once
     assert opened == {f: 1 for f in watched}
     assert bytes_read == {f: f.stat().st_size for f in watched}
