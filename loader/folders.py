@@ -58,9 +58,8 @@ class NamedFiles:
     """Files given by bare name as open binary files (an upload's spooled files): nothing on the
     disk is looked at, and every name is beside every other."""
 
-    def __init__(self, files: Mapping[str, BinaryIO], prefix: str = "upload:"):
+    def __init__(self, files: Mapping[str, BinaryIO]):
         self.files = files
-        self.prefix = prefix  # stored names say where the file came from: there is no path
 
     def read(self, path: Path) -> bytes:
         f = self.files.get(str(path))
@@ -79,4 +78,4 @@ class NamedFiles:
         return str(path)
 
     def stored_name(self, path: Path) -> str:
-        return f"{self.prefix}{path.name}"
+        return f"upload:{path.name}"  # where it came from: it has no path

@@ -196,7 +196,9 @@ def _uploaded_files(form: FormData) -> NamedFiles:
     return NamedFiles(files)
 
 
-def _load_upload(writer: Writer, grant: Grant, collection: str, files: NamedFiles) -> dict:
+def _load_upload(
+    writer: Writer, grant: Grant, collection: str, files: NamedFiles
+) -> dict[str, Any]:
     """Each motion file through the loader's own load, with its audit row in its transaction."""
     try:
         sources = named_sources(files, collection)
