@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -30,7 +31,7 @@ from modb_kernel import quaternion
 
 from .errors import MotionFileError
 from .skeleton_maps import guess_joint_map, guess_mirror_pairs
-from .text import read_lines
+from .text import lines_of
 from .limits import FPS_RANGE_TEXT, MAX_JOINT_DEPTH, MAX_LENGTH_M, fps_in_range
 from .units import NAMED_UNITS
 
@@ -52,7 +53,8 @@ class AsfBone:
 
 @dataclass
 class AsfSkeleton:
-    path: str
+    path: str  # names the file in errors
+    stored_as: str  # names it in the catalogue (load_params' skeleton_file)
     sha256: str
     unit_m: float
     units_rule: str
@@ -126,7 +128,16 @@ def _sections(lines: list[str]) -> list[tuple[str, list[tuple[int, list[str]]]]]
 
 
 def read_asf(path: str, units: str | float = "auto") -> AsfSkeleton:
-    raw, lines = read_lines(path)
+    with open(path, "rb") as f:
+        return parse_asf(f.read(), path, units)
+
+
+def parse_asf(
+    raw: bytes, path: str, units: str | float = "auto", stored_as: str | None = None
+) -> AsfSkeleton:
+    """An ASF file's bytes into its skeleton; `path` names it in errors, `stored_as` in the
+    catalogue (default: its absolute path). Raises MotionFileError."""
+    lines = lines_of(raw)
     sections = _sections(lines)
     if not any(k == ":bonedata" for k, _ in sections):
         raise MotionFileError(path, 1, "no :bonedata section", "not an ASF skeleton file")
@@ -287,6 +298,7 @@ def read_asf(path: str, units: str | float = "auto") -> AsfSkeleton:
         )
     skeleton = AsfSkeleton(
         path=path,
+        stored_as=stored_as or os.path.abspath(path),
         sha256=hashlib.sha256(raw).hexdigest(),
         unit_m=unit_m,
         units_rule=rule,
@@ -451,10 +463,7 @@ def _skeleton(asf: AsfSkeleton, name: str) -> Skeleton:
     )
 
 
-def read_amc(
-    path: str, asf: AsfSkeleton, fps: float = DEFAULT_FPS, allow_truncated: bool = False, warn=None
-) -> Motion:
-    """Parse an AMC file against its ASF skeleton. Raises MotionFileError naming file and line."""
+def _check_fps(path: str, fps: float) -> None:
     if not fps_in_range(fps):
         raise MotionFileError(
             path,
@@ -462,7 +471,34 @@ def read_amc(
             f"frame rate {fps:g} fps (--fps) is outside the accepted {FPS_RANGE_TEXT}",
             "AMC files carry no rate: pass --fps within that range (CMU captured at 120 fps)",
         )
-    raw, lines = read_lines(path)
+
+
+def read_amc(
+    path: str,
+    asf: AsfSkeleton,
+    fps: float = DEFAULT_FPS,
+    allow_truncated: bool = False,
+    warn: Callable[[str], None] | None = None,
+) -> Motion:
+    """Parse an AMC file against its ASF skeleton. Raises MotionFileError naming file and line."""
+    _check_fps(path, fps)  # before the file is opened, as its errors come after this one
+    with open(path, "rb") as f:
+        return parse_amc(f.read(), path, asf, fps, allow_truncated, warn)
+
+
+def parse_amc(
+    raw: bytes,
+    path: str,
+    asf: AsfSkeleton,
+    fps: float = DEFAULT_FPS,
+    allow_truncated: bool = False,
+    warn: Callable[[str], None] | None = None,
+    stored_as: str | None = None,
+) -> Motion:
+    """An AMC file's bytes against its ASF skeleton; `path` names it in errors, `stored_as` in the
+    catalogue (default: its absolute path). Raises MotionFileError naming file and line."""
+    _check_fps(path, fps)
+    lines = lines_of(raw)
     angle_scale = asf.angle_scale
     frames: list[dict[str, tuple[int, list[str]]]] = []
     frame_lines: list[int] = []
@@ -591,13 +627,13 @@ def read_amc(
         translations=(translation * asf.unit_m)[:, None, :],
         name=os.path.splitext(os.path.basename(path))[0],
         source=Source(
-            path=os.path.abspath(path),
+            path=stored_as or os.path.abspath(path),
             sha256=hashlib.sha256(raw).hexdigest(),
             units_rule=asf.units_rule,
         ),
         meta={
             "frame_time": 1.0 / fps,
-            "skeleton_file": os.path.abspath(asf.path),
+            "skeleton_file": asf.stored_as,
             "skeleton_sha256": asf.sha256,
         },
     )

@@ -24,7 +24,7 @@ from modb_kernel import quaternion
 
 from .errors import MotionFileError
 from .skeleton_maps import guess_joint_map, guess_mirror_pairs
-from .text import read_lines
+from .text import lines_of
 from .limits import FPS_RANGE_TEXT, MAX_JOINT_DEPTH, MAX_LENGTH_M, fps_in_range
 from .units import UnitsError, resolve_units
 
@@ -288,7 +288,16 @@ def _read_motion_block(
 
 def read_bvh(path: str, units: str | float = "auto") -> Motion:
     """Parse a BVH file into a Motion (metres, unit quaternions). Raises MotionFileError."""
-    raw, lines = read_lines(path)
+    with open(path, "rb") as f:
+        return parse_bvh(f.read(), path, units)
+
+
+def parse_bvh(
+    raw: bytes, path: str, units: str | float = "auto", stored_as: str | None = None
+) -> Motion:
+    """A BVH file's bytes into a Motion; `path` names it in errors, `stored_as` in the catalogue
+    (default: its absolute path). Raises MotionFileError."""
+    lines = lines_of(raw)
     tokens = _Tokens(path, lines)
     if not tokens.items:
         raise MotionFileError(
@@ -400,7 +409,9 @@ def read_bvh(path: str, units: str | float = "auto") -> Motion:
         fps=fps,
         name=os.path.splitext(os.path.basename(path))[0],
         source=Source(
-            path=os.path.abspath(path), sha256=hashlib.sha256(raw).hexdigest(), units_rule=rule
+            path=stored_as or os.path.abspath(path),
+            sha256=hashlib.sha256(raw).hexdigest(),
+            units_rule=rule,
         ),
         meta={"frame_time": frame_time},
     )

@@ -6,8 +6,8 @@ import hashlib
 import json
 import time
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from typing import NamedTuple
-from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import psycopg
@@ -16,7 +16,7 @@ from modb.motion import Motion
 
 from .errors import MotionFileError
 from .sources import SourceFile
-from .reading import ReadOptions, read_source, read_key
+from .reading import ReadOptions, read_key, read_source
 from .sidecars import file_meta
 
 
@@ -85,14 +85,6 @@ class LoadSummary:
             f"{self.count('unchanged')} unchanged, "
             f"{len(self.failed)} failed; {self.elapsed:.1f} s, {rate:,.0f} frames/s"
         ) + "".join(f"\n{p.describe()}" for p in self.packed)
-
-
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 _UNCHANGED_SQL = """
@@ -345,7 +337,8 @@ def _load_one(
 ) -> FileResult:
     name = source.path.stem
     try:
-        sha = _sha256(source.path)
+        raw = source.folder.read(source.path)  # once: hashed here, parsed below
+        sha = hashlib.sha256(raw).hexdigest()
         key = read_key(source, options)
         hit = _unchanged(conn, source, name, sha, key)
         if hit:  # cut it now if an earlier load skipped the snippets
@@ -354,10 +347,9 @@ def _load_one(
             return FileResult(
                 source.path, "unchanged", clip_id=hit[0], version=hit[1], snippets=added
             )
-        motion = read_source(source, options)
-        if source.source_name and motion.source:
-            motion = replace(motion, source=replace(motion.source, path=source.source_name))
-        meta = file_meta(source.path, motion.n_frames)
+        motion = read_source(source, options, raw)
+        del raw  # a large file's bytes need not outlive its parse
+        meta = file_meta(source.path, motion.n_frames, source.folder, options.labels)
         clip_id, version, added, note = store_motion(
             conn, motion, source.collection, key, snippets, mirrored, meta
         )

@@ -9,9 +9,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .errors import MotionFileError
+from .folders import DISK, SKELETON_SUFFIX, Folder, NamedFiles
 
 MOTION_SUFFIXES = (".bvh", ".amc")
-SKELETON_SUFFIX = ".asf"
 
 
 @dataclass
@@ -19,7 +19,7 @@ class SourceFile:
     path: Path
     collection: str
     asf: Path | None = None  # the skeleton of an AMC file
-    source_name: str | None = None  # what to store as the source file (an upload's own name)
+    folder: Folder = DISK  # where it and the files beside it are read from
 
 
 def _walk(directory: Path) -> Iterable[Path]:
@@ -64,10 +64,40 @@ def find_sources(
                 )
         else:
             raise MotionFileError(str(p), None, "no such file or directory")
+    _refuse_one_clip_twice(sources, DISK)
+    forced = Path(asf) if asf else None
+    if forced is not None and not forced.is_file():
+        raise MotionFileError(str(forced), None, "no such ASF file (--asf)")
+    for source in sources:
+        if source.path.suffix.lower() == ".amc":
+            source.asf = forced or pair_asf(
+                source.path, DISK.skeletons_beside(source.path), named_asf
+            )
+    return sources
+
+
+def named_sources(files: NamedFiles, collection: str) -> list[SourceFile]:
+    """The motion files among `files` (in their order), each AMC paired with an ASF among them, as
+    find_sources pairs and checks the same files given one by one from a folder of their own."""
+    names = [Path(n) for n in files.files]
+    sources = [
+        SourceFile(n, collection, folder=files)
+        for n in names
+        if n.suffix.lower() in MOTION_SUFFIXES
+    ]
+    _refuse_one_clip_twice(sources, files)
+    skeletons = [n for n in names if n.suffix.lower() == SKELETON_SUFFIX]
+    for source in sources:
+        if source.path.suffix.lower() == ".amc":
+            source.asf = pair_asf(source.path, files.skeletons_beside(source.path), skeletons)
+    return sources
+
+
+def _refuse_one_clip_twice(sources: list[SourceFile], folder: Folder) -> None:
     seen: dict[tuple[str, str], Path] = {}
     for source in sources:
         key = (source.collection, source.path.stem)
-        if key in seen and seen[key].resolve() != source.path.resolve():
+        if key in seen and folder.identity(seen[key]) != folder.identity(source.path):
             raise MotionFileError(
                 str(source.path),
                 None,
@@ -75,18 +105,10 @@ def find_sources(
                 "load them into different collections (--collection)",
             )
         seen[key] = source.path
-    forced = Path(asf) if asf else None
-    if forced is not None and not forced.is_file():
-        raise MotionFileError(str(forced), None, "no such ASF file (--asf)")
-    for source in sources:
-        if source.path.suffix.lower() == ".amc":
-            source.asf = forced or pair_asf(source.path, named_asf)
-    return sources
 
 
-def pair_asf(amc: Path, named: list[Path]) -> Path:
+def pair_asf(amc: Path, beside: list[Path], named: list[Path]) -> Path:
     """The single .asf beside the AMC, else S.asf for S_NN.amc, else the one .asf in the call."""
-    beside = sorted(f for f in amc.parent.iterdir() if f.suffix.lower() == SKELETON_SUFFIX)
     if len(beside) == 1:
         return beside[0]
     subject = re.match(r"^(.+?)_\d+$", amc.stem)

@@ -1,18 +1,16 @@
-"""Reading a motion file's text: its bytes (for the sha256) and its lines, whatever the encoding."""
+"""A motion file's lines from its bytes, whatever the encoding."""
 
 from __future__ import annotations
 
 import codecs
 
 
-def read_lines(path: str) -> tuple[bytes, list[str]]:
-    """The file's bytes and its lines, numbered as editors and `grep -n` number them.
+def lines_of(raw: bytes) -> list[str]:
+    """The file's lines, numbered as editors and `grep -n` number them.
 
     Lines end at LF, CRLF or CR only: str.splitlines would also break at form feeds and at
     Latin-1's byte 0x85, and every line number reported after one would be off.
     """
-    with open(path, "rb") as f:
-        raw = f.read()
     text = None
     if raw.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):  # saved as "Unicode"
         try:
@@ -27,4 +25,4 @@ def read_lines(path: str) -> tuple[bytes, list[str]]:
     lines = text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
     if lines[-1] == "":  # the last line's line break ends it, it starts no line
         lines.pop()
-    return raw, lines
+    return lines

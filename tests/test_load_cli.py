@@ -3,7 +3,11 @@ behind."""
 
 from __future__ import annotations
 
+import builtins
+import io
 import shutil
+from collections import Counter
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,6 +17,9 @@ from support.data import mocap
 from support.databases import counts
 
 from modb.loader.bvh import read_bvh
+from modb.loader.ingest import load_files
+from modb.loader.reading import ReadOptions
+from modb.loader.sources import find_sources
 
 WALK = ("bandai-1", "data", "dataset-1_walk_active_001.bvh")
 
@@ -278,3 +285,67 @@ def test_new_versions_replace_their_snippets_and_other_ids_stay(fresh_db, db, tm
     assert len(after[("dataset-1_walk_active_001", 2)]) == len(
         before[("dataset-1_walk_active_001", 1)]
     )
+
+
+class _CountedFile:
+    """An open file whose reads add up the bytes they return, per path."""
+
+    def __init__(self, f, path: Path, bytes_read: Counter):
+        self._f, self._path, self._bytes_read = f, path, bytes_read
+
+    def read(self, *args):
+        data = self._f.read(*args)
+        self._bytes_read[self._path] += len(data)
+        return data
+
+    def readinto(self, buffer):
+        n = self._f.readinto(buffer)
+        self._bytes_read[self._path] += n or 0
+        return n
+
+    def __iter__(self):
+        for line in self._f:
+            self._bytes_read[self._path] += len(line)
+            yield line
+
+    def __getattr__(self, name):
+        return getattr(self._f, name)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self._f.close()
+
+
+def test_the_loader_reads_each_file_once(db, monkeypatch):
+    """A load reads each file's bytes once: hashed and parsed from the same read (not opened again
+    to parse), an ASF once for the AMC files that share it, and Bandai Namco's label files once
+    for the clips they label. Every open() and Path.open() of the files is counted, with the bytes
+    read through it."""
+    trial = mocap("cmu", "131")
+    walks = [mocap(*WALK), mocap("bandai-1", "data", "dataset-1_walk_normal_001.bvh")]
+    files = [*walks, trial / "131_01.amc", trial / "131_02.amc", trial / "131.asf"]
+    labels = [mocap("bandai-1", "cfg", f"{key}_label.txt") for key in ("content", "style")]
+    watched = {f.resolve() for f in [*files, *labels]}
+    opened: Counter = Counter()
+    bytes_read: Counter = Counter()
+    real_open = io.open
+
+    def counting_open(file, *args, **kwargs):
+        f = real_open(file, *args, **kwargs)
+        if isinstance(file, (str, Path)) and Path(file).resolve() in watched:
+            opened[Path(file).resolve()] += 1
+            return _CountedFile(f, Path(file).resolve(), bytes_read)
+        return f
+
+    monkeypatch.setattr(io, "open", counting_open)  # Path.open, read_bytes, read_text
+    monkeypatch.setattr(builtins, "open", counting_open)
+    sources = find_sources([str(f) for f in files], None)
+    summary = load_files(db, sources, ReadOptions(), keep_going=False, snippets=False)
+    monkeypatch.undo()
+    assert [r.status for r in summary.results] == ["loaded"] * 4, summary.failed
+    tagged = db.execute("SELECT count(*) FROM modb.clip_versions WHERE meta ? 'tags'").fetchone()
+    assert tagged == (2,)  # both walks took their tags from the label files read once
+    assert opened == {f: 1 for f in watched}
+    assert bytes_read == {f: f.stat().st_size for f in watched}

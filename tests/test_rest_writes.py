@@ -7,18 +7,29 @@ text, and the OpenAPI description naming every route."""
 
 from __future__ import annotations
 
+import builtins
+import contextlib
 import hashlib
+import io
 import os
+import socket
+import threading
+import time
+from pathlib import Path
+from tempfile import SpooledTemporaryFile
 
 import httpx
 import psycopg
 import pytest
+import starlette.formparsers
+import uvicorn
 from support.browser import serving
 from support.commands import run_modb
 from support.data import mocap
 from support.databases import scratch_database
 
 from modb.database.cluster import ensure_writer_role
+from modb.web.app import create_app
 
 HOSTILE = "x'); DROP TABLE modb.clips; --"
 
@@ -136,6 +147,99 @@ def test_an_upload_loads_through_the_loader_once_and_a_changed_file_is_a_new_ver
         ).fetchall()
     assert audit[-1] == ("editor", "modb_web", "upload", f"clip {clip} version 2")
     assert len([a for a in audit if a[3].startswith(f"clip {clip} ")]) == 2
+
+
+@contextlib.contextmanager
+def _served_in_this_process(dsn: str):
+    """`modb serve`'s app on a free port, in a thread of this process (so that a test sees every
+    file it opens); yields an httpx client of it."""
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]
+        server = uvicorn.Server(uvicorn.Config(create_app(dsn, port=port), log_level="warning"))
+        thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
+        thread.start()
+        deadline = time.monotonic() + 30
+        while not server.started and thread.is_alive() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert server.started, "the app did not start"
+        try:
+            with httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=120) as client:
+                yield client
+        finally:
+            server.should_exit = True
+            thread.join(30)
+
+
+class _CountedSpool(SpooledTemporaryFile):
+    """The form parser's spool of an uploaded file, adding up the bytes read back from it."""
+
+    bytes_read = 0
+
+    def read(self, *args):
+        data = super().read(*args)
+        _CountedSpool.bytes_read += len(data)
+        return data
+
+
+def test_an_upload_is_loaded_from_the_form_with_no_folder_written_or_walked(rest, monkeypatch):
+    """The uploaded files reach the loader as the form spooled them: none is written under its
+    name to a folder and read back from there, no folder is listed to pair an AMC with its ASF, and
+    each upload's bytes are read from its spool once (the two AMC files share their ASF). In
+    process, so that every open and every listing of a folder during the request is seen."""
+    dsn, tokens, _, _ = rest
+    trial = mocap("cmu", "131")
+    names = ["131_01.amc", "131_02.amc", "131.asf"]
+    opened, listed = [], []
+    real_open, real_iterdir, real_scandir = io.open, Path.iterdir, os.scandir
+
+    def spy_open(file, *args, **kwargs):
+        if isinstance(file, (str, os.PathLike)):
+            opened.append(str(file))
+        return real_open(file, *args, **kwargs)
+
+    def spy_iterdir(self):
+        listed.append(str(self))
+        return real_iterdir(self)
+
+    def spy_scandir(path="."):
+        listed.append(str(path))
+        return real_scandir(path)
+
+    files = [("file", (n, (trial / n).read_bytes())) for n in names]
+    with _served_in_this_process(dsn) as client:
+        monkeypatch.setattr(starlette.formparsers, "SpooledTemporaryFile", _CountedSpool)
+        _CountedSpool.bytes_read = 0
+        for module, name, spy in (
+            (io, "open", spy_open),  # Path.open, read_bytes, write_bytes
+            (builtins, "open", spy_open),
+            (Path, "iterdir", spy_iterdir),
+            (os, "scandir", spy_scandir),  # os.walk, os.listdir's kin
+        ):
+            monkeypatch.setattr(module, name, spy)
+        r = client.post(
+            "/api/uploads",
+            data={"collection": "rest/from-the-form"},
+            files=files,
+            headers=bearer(tokens["editor"]),
+        )
+        monkeypatch.undo()
+    assert r.status_code == 200, r.text
+    assert [x["status"] for x in r.json()["results"]] == ["loaded", "loaded"]
+    assert [f for f in opened if Path(f).name in names] == []
+    assert listed == []
+    assert _CountedSpool.bytes_read == sum(len(content) for _, (_, content) in files)
+    # named as uploads are (the skeleton file too, not a temporary folder that is gone)
+    with psycopg.connect(dsn) as conn:
+        stored = conn.execute(
+            "SELECT v.source_file, v.load_params->>'skeleton_file' FROM modb.clip_versions v "
+            "JOIN modb.clips c ON c.id = v.clip_id "
+            "WHERE c.collection_id = modb.find_collection('rest/from-the-form') ORDER BY 1"
+        ).fetchall()
+    assert stored == [
+        ("upload:131_01.amc", "upload:131.asf"),
+        ("upload:131_02.amc", "upload:131.asf"),
+    ]
 
 
 def test_a_bad_file_is_refused_with_its_line_and_stores_nothing(rest, tmp_path):

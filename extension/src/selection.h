@@ -1,6 +1,7 @@
 /*
- * The fast path of select_next_snippets (selection.c), the match plan it runs with (selection_plan.c), and
- * what modb.explain_selection reports of a call (selection_explain.c).
+ * The fast path of select_next_snippets (selection.c), the match plan it runs with (selection_plan.c) and
+ * the box search over snippet blocks (snippet_blocks.c, block_directory.c). What a call reports of itself
+ * is in selection_stats.h; modb.explain_selection (selection_explain.c) runs it and shows that.
  */
 #ifndef SELECTION_H
 #define SELECTION_H
@@ -8,7 +9,9 @@
 #include "executor/spi.h"
 #include "portability/instr_time.h"
 
+#include "kept_plans.h"
 #include "modb.h"
+#include "selection_stats.h"
 
 /* A match profile resolved with the session's knobs (modb.match_plan), as the fast path needs it. */
 typedef struct MatchPlan
@@ -30,12 +33,6 @@ typedef struct MatchPlan
 	bool		cached;			/* taken from this session's cache, not resolved now */
 } MatchPlan;
 
-/* A kept, generic SPI plan of a query (planned once per session, never JIT-compiled: selection.c). */
-extern SPIPlanPtr modb_kept_plan(SPIPlanPtr *slot, const char *query, int nargs, Oid *argtypes);
-
-/* The scan nodes of a kept plan (selection_explain.c). */
-extern char *modb_describe_access(SPIPlanPtr plan);
-
 /*
  * The plan for `profile` (NULL: default) with this session's knobs, at this generation of the profiles and
  * graphs (modb.generations 'match_plans'); must be called inside SPI.
@@ -44,15 +41,6 @@ extern const MatchPlan *modb_match_plan(text *profile, int64 generation);
 
 /* snippet_blocks.c and block_directory.c: the box search over blocks of consecutive snippets. */
 #define BLOCK_SNIPPETS 32
-
-typedef struct BlockStats
-{
-	bool		read_directory;	/* this call read the block directory (a new generation of blocks) */
-	int64		blocks;			/* blocks in the directory */
-	int64		snippets;		/* snippets in them */
-	int64		blocks_read;	/* blocks whose bounds met the box */
-	double		ms;				/* the search's time (the directory's reading included) */
-} BlockStats;
 
 /* A block's clip source (its snippets' clip version, side, pose, rate and collection). */
 typedef struct BlockSource
@@ -87,35 +75,6 @@ extern void modb_store_block(const int64 *ids, const double (*x)[N_FEATURES],
 extern void modb_block_row(HeapTuple row, TupleDesc desc, int features, int64 *id, double *x, double *inputs);
 extern BlockCandidate *modb_block_candidates(Oid relid, int64 generation, const char *pose_key, double fps,
 											 const double *lo, const double *hi, int *n, BlockStats *stats);
-
-#define N_LEVELS 4				/* box levels 0-3; level 4 (the nearest start, any ratio) is the reference's */
-
-typedef struct LevelStats
-{
-	bool		ran;
-	bool		stored;			/* level 0 from the graph's stored transitions, not a box */
-	char	   *box;			/* the box, as a cube literal */
-	char	   *access;			/* how the rows were read (the kept plan's scan nodes) */
-	BlockStats	blocks;
-	int64		candidates;		/* the blocks' candidates (or the stored transitions) */
-	int64		scanned;		/* of those: rows read (in the order of the least key they can have, until
-								 * none left can make the answer) */
-	int64		in_box;			/* of those: in the box (exactly) */
-	int64		filtered;		/* of those: same pose and rate, in the collection, not excluded */
-	int64		within;			/* of those: with a continuity ratio in the level's range */
-	int64		returned;
-	double		ms;
-} LevelStats;
-
-typedef struct SelectionStats
-{
-	const MatchPlan *plan;
-	double		plan_ms;
-	const char *reference_reason;	/* NULL: answered by the fast path */
-	LevelStats	levels[N_LEVELS];
-	int64		returned;
-	double		total_ms;
-} SelectionStats;
 
 /* Runs a selection into `store` (rows of select_next_snippets' result type); stats may be NULL. */
 extern void modb_select(FunctionCallInfo fcinfo, Tuplestorestate *store, TupleDesc desc, SelectionStats *stats);

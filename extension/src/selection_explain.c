@@ -8,82 +8,12 @@
 
 #include "funcapi.h"
 #include "lib/stringinfo.h"
-#include "nodes/plannodes.h"
-#include "parser/parsetree.h"
 #include "miscadmin.h"
 #include "utils/builtins.h"
-#include "utils/lsyscache.h"
-#include "utils/plancache.h"
-#include "utils/resowner.h"
 
 #include "selection.h"
 
 PG_FUNCTION_INFO_V1(modb_explain_selection);
-
-static void
-describe_node(Plan *node, List *rtable, StringInfo into)
-{
-	const char *kind = NULL;
-	Oid			index = InvalidOid;
-	Index		scanrelid = 0;
-
-	if (node == NULL)
-		return;
-	switch (nodeTag(node))
-	{
-		case T_IndexScan:
-			kind = "Index Scan";
-			index = ((IndexScan *) node)->indexid;
-			scanrelid = ((Scan *) node)->scanrelid;
-			break;
-		case T_IndexOnlyScan:
-			kind = "Index Only Scan";
-			index = ((IndexOnlyScan *) node)->indexid;
-			scanrelid = ((Scan *) node)->scanrelid;
-			break;
-		case T_BitmapIndexScan:
-			kind = "Bitmap Index Scan";
-			index = ((BitmapIndexScan *) node)->indexid;
-			break;
-		case T_SeqScan:
-			kind = "Seq Scan";
-			scanrelid = ((Scan *) node)->scanrelid;
-			break;
-		default:
-			break;
-	}
-	if (kind != NULL)
-	{
-		appendStringInfo(into, "%s%s", into->len ? ", " : "", kind);
-		if (OidIsValid(index))
-			appendStringInfo(into, " using %s", get_rel_name(index));
-		if (scanrelid > 0 && rt_fetch(scanrelid, rtable)->rtekind == RTE_RELATION)
-			appendStringInfo(into, " on %s", get_rel_name(rt_fetch(scanrelid, rtable)->relid));
-	}
-	describe_node(node->lefttree, rtable, into);
-	describe_node(node->righttree, rtable, into);
-}
-
-/* The scan nodes of a kept plan's generic plan, in plan order. */
-char *
-modb_describe_access(SPIPlanPtr plan)
-{
-	CachedPlan *cached = SPI_plan_get_cached_plan(plan);
-	StringInfoData text;
-	ListCell   *cell;
-
-	initStringInfo(&text);
-	if (cached == NULL)
-		return "unknown";
-	foreach(cell, cached->stmt_list)
-	{
-		PlannedStmt *stmt = lfirst_node(PlannedStmt, cell);
-
-		describe_node(stmt->planTree, stmt->rtable, &text);
-	}
-	ReleaseCachedPlan(cached, CurrentResourceOwner);
-	return text.data;
-}
 
 Datum
 modb_explain_selection(PG_FUNCTION_ARGS)

@@ -27,22 +27,6 @@ typedef struct CachedEntry
 static CachedEntry cache[N_CACHED];
 static int	next_victim;
 
-SPIPlanPtr
-modb_kept_plan(SPIPlanPtr *slot, const char *query, int nargs, Oid *argtypes)
-{
-	if (*slot == NULL)
-	{
-		/* Generic: planned once, not again with each call's values (plan_cache_mode auto would). */
-		SPIPlanPtr	plan = SPI_prepare_cursor(query, nargs, argtypes, CURSOR_OPT_GENERIC_PLAN);
-
-		if (plan == NULL)
-			elog(ERROR, "modb: preparing a selection query failed: %s", SPI_result_code_string(SPI_result));
-		SPI_keepplan(plan);
-		*slot = plan;
-	}
-	return *slot;
-}
-
 static void
 copy_doubles(Datum array, double *into, int n)
 {

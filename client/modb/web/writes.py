@@ -6,23 +6,29 @@ superuser's SET ROLE) and is recorded in modb.audit_log in the same transaction.
 from __future__ import annotations
 
 import re
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import psycopg
 from psycopg.conninfo import make_conninfo
 from psycopg_pool import ConnectionPool
 from starlette.concurrency import run_in_threadpool
+from starlette.datastructures import FormData
 from starlette.exceptions import HTTPException
 from starlette.requests import Request
 from starlette.responses import JSONResponse
 
 from modb.access import audit
+from modb.access.tokens import Grant
 from modb.database import pgarray
 from modb.database.cluster import WRITER_ROLE
 from modb.loader.annotations import AnnotationError
+from modb.loader.errors import MotionFileError
+from modb.loader.folders import NamedFiles
+from modb.loader.ingest import load_files
+from modb.loader.reading import ReadOptions
+from modb.loader.sources import named_sources
 from modb.editing.meta import (
     MAX_META_BYTES,
     MetaNotFound,
@@ -170,9 +176,10 @@ def meta_endpoints(read_pool: ConnectionPool, tokens: Tokens, writer: Writer):
     return endpoint
 
 
-def _saved_uploads(form, folder: Path) -> list[tuple[str, Path]]:
-    """The form's files written into `folder` under their own names (checked: no paths)."""
-    saved = []
+def _uploaded_files(form: FormData) -> NamedFiles:
+    """The form's files by their own names (checked: no paths), read where the form spooled them:
+    the loader reads each once from there, with no folder written or walked."""
+    files: dict[str, BinaryIO] = {}
     for field_name, value in form.multi_items():
         if isinstance(value, str):
             continue
@@ -183,65 +190,57 @@ def _saved_uploads(form, folder: Path) -> list[tuple[str, Path]]:
                 f"{name or field_name!r:.80}: upload .bvh, .amc with .asf, and .annotations.json "
                 f"files named with letters, digits, '.', '_', '-' or spaces",
             )
-        target = folder / name
-        if target.exists():
+        if name in files:
             raise HTTPException(400, f"{name}: given twice")
-        with target.open("wb") as out:
-            value.file.seek(0)
-            while chunk := value.file.read(1 << 20):
-                out.write(chunk)
-        saved.append((name, target))
-    return saved
+        files[name] = value.file
+    return NamedFiles(files)
+
+
+def _load_upload(
+    writer: Writer, grant: Grant, collection: str, files: NamedFiles
+) -> dict[str, Any]:
+    """Each motion file through the loader's own load, with its audit row in its transaction."""
+    try:
+        sources = named_sources(files, collection)
+    except MotionFileError as e:
+        raise HTTPException(400, str(e)) from None
+    if not sources:
+        raise HTTPException(400, "no motion file (.bvh, .amc) in the upload")
+    options = ReadOptions()  # one per upload: an ASF shared by its AMC files is read once
+    results = []
+    with writer.pool().connection() as conn:
+        for source in sources:
+            with conn.transaction():  # the file, its snippets and its audit row together
+                r = load_files(conn, [source], options, keep_going=True).results[0]
+                if r.status == "loaded":
+                    audit.record(
+                        conn,
+                        grant.name,
+                        "upload",
+                        f"clip {r.clip_id} version {r.version}",
+                        {
+                            "file": source.path.name,
+                            "collection": collection,
+                            "frames": r.frames,
+                        },
+                    )
+            results.append(
+                {
+                    "file": source.path.name,
+                    "status": r.status,
+                    "clip_id": r.clip_id,
+                    "version": r.version,
+                    "frames": r.frames,
+                    "snippets": r.snippets,
+                    "message": r.message,
+                }
+            )
+    return {"collection": collection, "results": results}
 
 
 def upload_endpoint(tokens: Tokens, writer: Writer, max_upload_mb: int):
     """POST /api/uploads: multipart files (BVH, or AMC with their ASF) and a `collection` field."""
     limit = max_upload_mb << 20
-
-    def load(grant, collection: str, saved: list[tuple[str, Path]], folder: Path) -> dict:
-        from modb.loader.errors import MotionFileError
-        from modb.loader.ingest import load_files
-        from modb.loader.sources import find_sources
-        from modb.loader.reading import ReadOptions
-
-        motion_files = [str(p) for name, p in saved if name.lower().endswith((".bvh", ".amc"))]
-        if not motion_files:
-            raise HTTPException(400, "no motion file (.bvh, .amc) in the upload")
-        skeletons = [str(p) for name, p in saved if name.lower().endswith(".asf")]
-        try:
-            sources = find_sources([*motion_files, *skeletons], collection)
-        except MotionFileError as e:
-            raise HTTPException(400, str(e).replace(f"{folder}/", "")) from None
-        results = []
-        with writer.pool().connection() as conn:
-            for source in sources:
-                source.source_name = f"upload:{source.path.name}"
-                with conn.transaction():  # the file, its snippets and its audit row together
-                    r = load_files(conn, [source], ReadOptions(), keep_going=True).results[0]
-                    if r.status == "loaded":
-                        audit.record(
-                            conn,
-                            grant.name,
-                            "upload",
-                            f"clip {r.clip_id} version {r.version}",
-                            {
-                                "file": source.path.name,
-                                "collection": collection,
-                                "frames": r.frames,
-                            },
-                        )
-                results.append(
-                    {
-                        "file": source.path.name,
-                        "status": r.status,
-                        "clip_id": r.clip_id,
-                        "version": r.version,
-                        "frames": r.frames,
-                        "snippets": r.snippets,
-                        "message": r.message.replace(f"{folder}/", ""),
-                    }
-                )
-        return {"collection": collection, "results": results}
 
     async def endpoint(request: Request) -> JSONResponse:
         grant = await run_in_threadpool(tokens.writer, request)
@@ -264,10 +263,8 @@ def upload_endpoint(tokens: Tokens, writer: Writer, max_upload_mb: int):
             collection = str(form.get("collection") or "uploads").strip().strip("/")
             if not collection or len(collection) > 200:
                 raise HTTPException(400, "collection: 1 to 200 characters")
-            with tempfile.TemporaryDirectory(prefix="modb-upload-") as tmp:
-                folder = Path(tmp)
-                saved = _saved_uploads(form, folder)
-                answer = await run_in_threadpool(load, grant, collection, saved, folder)
+            files = _uploaded_files(form)
+            answer = await run_in_threadpool(_load_upload, writer, grant, collection, files)
         finally:
             await form.close()
         stored = any(r["status"] in ("loaded", "unchanged") for r in answer["results"])
