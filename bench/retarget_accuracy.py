@@ -1,5 +1,5 @@
-"""How closely retargeting keeps the source's bone directions (CHANGELOG 0.15.0, README "Retargeting
-and edit scripts"): CMU 131 trials onto a Bandai rig and back, and a Bandai walk onto CMU's, each
+"""How closely retargeting keeps the source's bone directions (CHANGELOG 0.15.0,
+docs/retargeting.md): CMU 131 trials onto a Bandai rig and back, and a Bandai walk onto CMU's, each
 bone's world direction against the source's at the same instants, by scipy forward kinematics (the
 tests' own, support.snippet_oracle), p99 over frames in degrees; and the round trip.
 

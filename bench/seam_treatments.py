@@ -1,4 +1,4 @@
-"""Seam treatments side by side (README "Synthesis", seams): the same seeded courses synthesized
+"""Seam treatments side by side (docs/synthesis.md, seams): the same seeded courses synthesized
 with no treatment, the linear blend, inertialization, and inertialization with foot locking, on the
 default graph, and the figures:
 seams rougher than a natural step (r > 1), their 99th percentile of r, the worst pose jump, and foot

@@ -298,7 +298,7 @@ PACK_SHARE = 0.2
 
 def pack_blocks(conn: psycopg.Connection, min_share: float = PACK_SHARE) -> list[PackedBlocks]:
     """Packs the snippet blocks of the poses that loads have grown (its own transaction; about 25 s
-    a million snippets, README "Performance"). What it leaves unpacked is correct, only slower."""
+    a million snippets, docs/performance.md). What it leaves unpacked is correct, only slower."""
     with conn.transaction():
         if conn.execute(
             "SELECT to_regprocedure('modb.pack_snippet_blocks(float8)') IS NULL"

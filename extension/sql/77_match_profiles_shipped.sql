@@ -3,15 +3,16 @@
 --
 -- default: each joint's angle threshold is its 99th percentile change between consecutive
 -- frames of real walking and running (Bandai dataset 2 locomotion, 30 fps: neck 2.1, spine 2.7, knees 21
--- degrees per frame), so that a seam looks like a natural step (README "Synthesis quality"); a heading
+-- degrees per frame), so that a seam looks like a natural step (docs/synthesis.md "Synthesis quality");
+-- a heading
 -- term of 1 m per radian turns the avatar toward its goal, and continuity_weight 0.6 m per unit of
 -- continuity ratio (0.3 before 0.6.0: with a graph's cost-to-go, which prices seams by it too, 0.6 gave
 -- smoother seams on six seeded courses, the 10-minute one and the right-angle one, with every counted goal
 -- within 2x; BENCHMARKS.md "Cost-to-go") keeps the
 -- smoother candidate unless another leads clearly better; lookahead_distance
 -- 2.5 m (about where a walk leads in the 1.5 s the objective sees) scores a far goal as a point that far
--- along the way, so that it does not favour runs, which in this data never turn (README "Synthesis
--- quality"). strict: half the thresholds.
+-- along the way, so that it does not favour runs, which in this data never turn (docs/synthesis.md
+-- "Synthesis quality"). strict: half the thresholds.
 
 INSERT INTO modb.match_profiles AS p (name, settings, comment, shipped) VALUES
 ('default', '{"joints": ["pelvis", "spine", "chest", "neck", "head", "left_hip", "left_knee", "left_ankle", "left_toe",

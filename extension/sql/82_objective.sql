@@ -29,7 +29,7 @@ RETURNS float8
 LANGUAGE sql IMMUTABLE CALLED ON NULL INPUT PARALLEL SAFE
 -- The nearer of the two points on the candidate's way: where it ends, and where playing on leads. The end
 -- counts so that a near goal is reached: scored by the 1.5 s point alone, a snippet stopping on the goal
--- loses to one whose play-on curves back to it, and the avatar circles the goal (README "Synthesis quality").
+-- loses to one whose play-on curves back to it, and the avatar circles the goal (docs/synthesis.md "Synthesis quality").
 RETURN least(modb.target_cost(net_translation, future_heading, aim, heading_weight),
              modb.target_cost(future_translation, future_heading, aim, heading_weight));
 COMMENT ON FUNCTION modb.approach_cost(float8[], float8[], float8, float8[], float8) IS

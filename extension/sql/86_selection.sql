@@ -320,7 +320,7 @@ COMMENT ON FUNCTION modb.select_next_snippet_world(bigint, float8[], float8, flo
     'select_next_snippet with the goal in world coordinates: the avatar at position {x, y, z} with heading theta (radians, 0 = facing +Z)';
 
 -- How much work a selection did: the candidates select_next_snippet scored for continuity on its way to
--- the relaxation level that answered. Latency follows this count (README "Performance"), and the
+-- the relaxation level that answered. Latency follows this count (docs/performance.md), and the
 -- thresholds, joints and velocity terms move it; the avatar view reports it after every selection.
 -- CREATE OR REPLACE: upgrades include this file.
 

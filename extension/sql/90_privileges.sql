@@ -6,7 +6,7 @@ GRANT SELECT ON ALL TABLES IN SCHEMA modb TO modb_reader;
 -- Grant only what loading needs. Columns the server fills (ids, created_at, created_by, identity_sha256)
 -- are not the loader's to give; and no table-level UPDATE, DELETE or TRUNCATE on a table the selection
 -- reads, because any of them also lets a role LOCK it in ACCESS EXCLUSIVE mode and stall every reader.
--- (README "Roles and privileges" lists what each role may and may not do; tests/test_roles.py checks it.)
+-- (docs/roles.md lists what each role may and may not do; tests/test_roles.py checks it.)
 GRANT INSERT (parent_id, name, meta) ON modb.collections TO modb_loader;
 GRANT INSERT (name, hierarchy, joint_map, mirror_pairs, meta) ON modb.skeletons TO modb_loader;
 GRANT INSERT (collection_id, name, meta) ON modb.clips TO modb_loader;

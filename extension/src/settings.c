@@ -226,7 +226,7 @@ modb_define_settings(void)
 														 knob->description, knob->unit)
 								   : psprintf("%s; empty or profile: the match profile's.", knob->description),
 								   "Overrides the match profile's value for select_next_snippet in this session "
-								   "(README \"Knobs\"). Empty by default (an earlier version's match_plan reads it so too).",
+								   "(docs/reference.md \"Knobs\"). Empty by default (an earlier version's match_plan reads it so too).",
 								   &values[i], "", PGC_USERSET, 0, hooks[i], NULL, NULL);
 	}
 	MemoryContextSwitchTo(old);

@@ -124,7 +124,7 @@ def run_demo(
         f"synth --to X,Z "
         f"... --seconds N --out walk.bvh --report`, `modb list`, `modb export CLIP --out "
         f"clip.bvh`, or "
-        f"`modb serve` and open http://127.0.0.1:8765/avatar to click goals for the avatar (README "
-        f'"Avatar mode").'
+        f"`modb serve` and open http://127.0.0.1:8765/avatar to click goals for the avatar "
+        f'(docs/web.md "Avatar mode").'
     )
     return 0

@@ -1,5 +1,6 @@
 """How good a synthesized strip is: seam roughness against natural steps, recombination, goal reach,
-relaxation and query latency (README "Synthesis quality" defines each figure and its aim).
+relaxation and query latency (docs/synthesis.md "Synthesis quality" defines each figure and its
+aim).
 
 Roughness of a frame-to-frame step: r = the largest, over the standard joints, of the joint's
 rotation change divided by that joint's 99th percentile of change between consecutive frames of the

@@ -1,7 +1,8 @@
 """MotionTerminators and snippet descriptors: what the selection query compares, computed once per
 clip.
 
-Definitions (README "Snippets and terminators" documents them; tests re-derive them independently):
+Definitions (docs/querying.md "Snippets and terminators" documents them; tests re-derive them
+independently):
 - Heading: the forward direction (-l_z, 0, l_x) of the hip axis l = left_hip - right_hip (a
   character's +X is its left), averaged over a centred window of +-round(HEADING_HALF_WINDOW_S *
   fps) frames (cut at the clip's ends) because the pelvis yaws with every step; theta = atan2(f_x,

@@ -144,8 +144,8 @@ def steerable(n, src, dst, group, turn, min_turn):
     group among those (of more than one snippet) whose snippets include turns of at least min_turn
     radians each way (`turn`: the heading change where each one leads). A chain in it can always
     move on, and can face any goal. (The largest only, as in motion graphs: on Bandai dataset 2,
-    adding the active walks' component to the slow walks' made right-angle courses worse: README
-    "Transition graphs".)"""
+    adding the active walks' component to the slow walks' made right-angle courses worse:
+    docs/synthesis.md "Transition graphs".)"""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
