@@ -1,5 +1,5 @@
 /*
- * select_next_snippets in C: the rule of select_next_snippets_reference (87_select.sql), computed without
+ * select_next_snippets in C: the rule of select_next_snippets_reference (86_selection.sql), computed without
  * planning a query per call. The plan is resolved once per session (selection_plan.c); the previous
  * snippet's end, the box of each relaxation level (GiST) or the graph's stored transitions, and the
  * candidates' begin terminators are read by kept generic SPI plans under the caller's snapshot; the

@@ -99,6 +99,8 @@ def edges(term, begin, end, group, clip, first_frame, n_frames, plan, chunk=2000
     """Level-0 transitions (from snippet index, to snippet index, continuity ratio) among snippets
     given by their begin and end terminator rows in `term`, their pose/rate group, clip (and
     version, mirror: one key) and window. progress(done) is called after each chunk of sources."""
+    # scipy here, not at the top: a server session that only selects never pays its import (about
+    # 250 ms), only one that builds a graph.
     from scipy.spatial import cKDTree
 
     half = np.asarray(plan["box_half_width"], dtype=np.float64) + BOX_MARGIN
@@ -146,6 +148,7 @@ def steerable(n, src, dst, group, turn, min_turn):
     move on, and can face any goal. (The largest only, as in motion graphs: on Bandai dataset 2,
     adding the active walks' component to the slow walks' made right-angle courses worse:
     docs/synthesis.md "Transition graphs".)"""
+    # scipy only when a graph is built (see edges()).
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
