@@ -457,7 +457,7 @@ def _skeleton(asf: AsfSkeleton, name: str) -> Skeleton:
         joints=joints,
         unit_m=asf.unit_m,
         source_format="asf",
-        joint_map=guess_joint_map(names),
+        joint_map=guess_joint_map(names, [j.parent for j in joints]),
         mirror_pairs=guess_mirror_pairs(names),
         name=os.path.splitext(os.path.basename(asf.path))[0],
     )

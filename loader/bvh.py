@@ -339,7 +339,7 @@ def parse_bvh(
     n_channels = sum(len(j.channels) for j in raw_joints)
     data, frame_lines = _read_motion_block(path, lines, first_data, frames, frames_line, n_channels)
 
-    joint_map = guess_joint_map(names)
+    joint_map = guess_joint_map(names, [j.parent for j in raw_joints])
     # Offsets near the float limit may sum to inf: the units rule refuses that figure's size.
     with np.errstate(over="ignore", invalid="ignore"):
         rest_points = _rest_points(raw_joints, names.index(joint_map.get("pelvis", root_name)))

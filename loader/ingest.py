@@ -18,6 +18,7 @@ from .errors import MotionFileError
 from .sources import SourceFile
 from .reading import ReadOptions, read_key, read_source
 from .sidecars import file_meta
+from .skeleton_maps import describe_filled, explain_joint_map
 
 
 @dataclass
@@ -31,6 +32,8 @@ class FileResult:
     units_rule: str = ""
     snippets: int = 0
     message: str = ""
+    # which standard joints the joint map took from the hierarchy ('' when names gave them all)
+    joint_map_note: str = ""
 
 
 class Stored(NamedTuple):
@@ -272,6 +275,7 @@ def load_files(
     each remaining file says so)."""
     summary = LoadSummary()
     started = time.perf_counter()
+    noted: set[str] = set()
     for source in sources:
         if conn.closed:
             result = FileResult(
@@ -279,6 +283,10 @@ def load_files(
             )
         else:
             result = _load_one(conn, source, options, snippets, mirrored)
+            said = result.joint_map_note.partition(": ")[2]  # once per kind of skeleton
+            if said in noted:
+                result.joint_map_note = ""
+            noted.add(said)
         summary.results.append(result)
         if progress:
             progress(result)
@@ -390,4 +398,9 @@ def _load_one(
         units_rule=motion.source.units_rule if motion.source else "",
         snippets=added,
         message=note,
+        joint_map_note=describe_filled(
+            motion.skeleton.name,
+            motion.skeleton.joint_map,
+            explain_joint_map(motion.skeleton.names, motion.skeleton.parents)[1],
+        ),
     )

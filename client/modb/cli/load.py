@@ -121,6 +121,8 @@ def load_paths(
                 bar.write(f"error: {result.message}", file=sys.stderr)
             elif result.message:
                 bar.write(f"note: {result.path}: {result.message}", file=sys.stderr)
+            if result.joint_map_note:
+                bar.write(f"note: {result.joint_map_note}", file=sys.stderr)
 
         options = ReadOptions(
             units=parsed_units,
