@@ -437,3 +437,8 @@ def test_each_naming_family_loads_with_snippets(family, fresh_db, db, tmp_path):
     assert stored == expected
     (snippets,) = db.execute("SELECT count(*) FROM modb.snippets").fetchone()
     assert snippets > 0
+    r = run_modb(fresh_db, "list", "--skeletons")
+    assert r.returncode == 0, r.stderr
+    shown = r.stdout.splitlines()
+    assert shown[0].split()[1:] == [family, "(1", "clip", "versions)"]
+    assert shown[1].strip() == ", ".join(f"{s}: {expected[s]}" for s in STANDARD_JOINTS)
