@@ -175,15 +175,16 @@ def guess_joint_map(names: list[str], parents=None) -> dict[str, str]:
 
 
 def describe_filled(skeleton: str, joint_map: dict[str, str], filled: dict[str, str]) -> str:
-    """One line saying which standard joints came from the hierarchy ('' when none did)."""
+    """One line saying which standard joints came from the hierarchy ('' when none did); a joint
+    already serving a standard name higher in the list (pelvis first) stands in for this one."""
     if not filled:
         return ""
-    serves: dict[str, list[str]] = {}
-    for standard, joint in joint_map.items():
-        serves.setdefault(joint, []).append(standard)
+    order = list(_CANDIDATES)
+    rank = {s: order.index(s.split("_")[-1]) for s in joint_map}
     parts = []
-    for standard, joint in filled.items():
-        if len(serves[joint]) > 1:
+    for standard in sorted(filled, key=rank.get):
+        joint = filled[standard]
+        if any(j == joint and rank[s] < rank[standard] for s, j in joint_map.items()):
             parts.append(f"no {standard} joint, {joint} stands in")
         else:
             parts.append(f"{standard} is {joint}")
