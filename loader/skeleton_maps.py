@@ -108,8 +108,8 @@ def _depth_below(children: dict[int, list[int]], k: int) -> int:
 
 
 def _from_structure(names: list[str], parents: list[int], result: dict[str, str]) -> dict[str, str]:
-    """Fill the trunk joints names did not find from where the limbs branch; returns standard
-    name -> joint for each joint filled so."""
+    """Fill the standard joints names did not find: down each limb, then the trunk from where the
+    legs and arms branch; returns standard name -> joint for each joint filled so."""
     at = {n: k for k, n in enumerate(names)}
     idx = {s: at[j] for s, j in result.items() if j in at}
     filled: dict[str, str] = {}
@@ -123,9 +123,19 @@ def _from_structure(names: list[str], parents: list[int], result: dict[str, str]
     for k, p in enumerate(parents):
         if p >= 0:
             children.setdefault(p, []).append(k)
+    for side in ("left", "right"):  # down a limb: the only child, else the joint above stands in
+        for chain in (("hip", "knee", "ankle", "toe"), ("shoulder", "elbow", "wrist")):
+            for upper, lower in zip(chain, chain[1:]):
+                above, standard = f"{side}_{upper}", f"{side}_{lower}"
+                if standard in idx or above not in idx:
+                    continue
+                below = children.get(idx[above], [])
+                free = len(below) == 1 and below[0] not in idx.values()
+                put(standard, below[0] if free else idx[above])
     if "pelvis" not in idx and names:
         if "left_hip" in idx and "right_hip" in idx:
-            put("pelvis", _common_ancestor(parents, idx["left_hip"], idx["right_hip"]))
+            k = _common_ancestor(parents, idx["left_hip"], idx["right_hip"])
+            put("pelvis", max(k, 0))
         else:
             put("pelvis", 0)
     if "chest" not in idx and "left_shoulder" in idx and "right_shoulder" in idx:

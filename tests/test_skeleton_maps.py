@@ -212,6 +212,11 @@ MINIMAL = [
         ["Shoulder", "Arm", "ForeArm", "Hand"],
     ),
 ]
+# feet without toes: the ankle stands in for the toe
+NO_TOES = [
+    *_trunk([("Hips", None), ("Spine", "Hips"), ("Head", "Spine")], up=30.0),
+    *_limbs("", "Hips", "Spine", ["UpLeg", "Leg", "Foot"], ["Shoulder", "Arm", "ForeArm", "Hand"]),
+]
 CUSTOM = [
     *_trunk(
         [
@@ -319,6 +324,12 @@ RIGS = {
         _trunk_map("Hips", "Spine", "Spine", "Spine", "Head")
         | _limb_map(["UpLeg", "Leg", "Foot", "ToeBase"], ["Arm", "ForeArm", "Hand"]),
         {"chest", "neck"},
+    ),
+    "no-toes": (
+        NO_TOES,
+        _trunk_map("Hips", "Spine", "Spine", "Spine", "Head")
+        | _limb_map(["UpLeg", "Leg", "Foot", "Foot"], ["Arm", "ForeArm", "Hand"]),
+        {"chest", "neck", "left_toe", "right_toe"},
     ),
     "custom": (
         CUSTOM,
