@@ -27,6 +27,11 @@ COURSE_SECONDS = positive(MAX_SECONDS, "seconds")
 AVATARS = whole(1, 500)
 STANDBYS = whole(0, 8)
 CROWD_SECONDS = whole(10, 3600, "seconds")
+MIXED_SECONDS = whole(1, 3600, "seconds")
+WRITERS = whole(0, 64)
+READERS = whole(0, 64)
+MIXED_AVATARS = whole(0, 8)  # modb serve's default limit on one node
+MIXED_CLIPS = whole(3, 100)
 MAX_SIZE = 10_000_000  # snippets in a scaled copy of the database
 
 
@@ -121,6 +126,50 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "cluster of its own, first in the same process), and its ratios",
     )
     crowd.set_defaults(func=run_crowd)
+
+    mixed = benchmarks.add_parser(
+        "mixed",
+        help="REST writers, psql readers and avatars at once against the real modb serve, "
+        "counted by the clients and held against the database (a cluster of its own)",
+    )
+    mixed.add_argument(
+        "--seconds", type=MIXED_SECONDS, default=60, help=f"{MIXED_SECONDS.span}; default 60"
+    )
+    mixed.add_argument(
+        "--writers", type=WRITERS, default=8, help=f"REST writers ({WRITERS.span}; default 8)"
+    )
+    mixed.add_argument(
+        "--readers",
+        type=READERS,
+        default=8,
+        help=f"pgbench readers of select_next_snippet ({READERS.span}; default 8)",
+    )
+    mixed.add_argument(
+        "--avatars",
+        type=MIXED_AVATARS,
+        default=2,
+        help=f"avatar pages over the WebSocket ({MIXED_AVATARS.span}; default 2)",
+    )
+    mixed.add_argument(
+        "--clips",
+        type=MIXED_CLIPS,
+        default=12,
+        help=f"Bandai walks loaded ({MIXED_CLIPS.span}; default 12); writers edit the first two "
+        "together",
+    )
+    mixed.add_argument("--seed", type=SEED, default=1, help=f"random seed ({SEED.span}; default 1)")
+    mixed.add_argument(
+        "--data",
+        default="../shared/mocap",
+        help="the mocap folder, with bandai-2-dev/data and bandai-1/data (default ../shared/mocap)",
+    )
+    mixed.add_argument(
+        "--in-database",
+        action="store_true",
+        help="run in the database --dsn names (it must have the modb_web role; what the run "
+        "writes stays there) instead of a cluster of its own",
+    )
+    mixed.set_defaults(func=run_mixed)
 
     scale = benchmarks.add_parser(
         "scale",
@@ -226,6 +275,35 @@ def run_crowd(args: argparse.Namespace) -> int:
     if baseline is not None:
         print(f"\nbaseline, the primary alone:\n\n{report(baseline)}\n\n{against(crowd, baseline)}")
     return 0
+
+
+def run_mixed(args: argparse.Namespace) -> int:
+    try:
+        from modb.bench.mixed import report, run  # httpx: the REST client of the test extras
+    except ImportError as e:
+        print(
+            f"modb bench mixed: needs {e.name}: pip install -e '.[test]' (make setup does)",
+            file=sys.stderr,
+        )
+        return 2
+    try:
+        result = run(
+            Path(args.data),
+            args.writers,
+            args.readers,
+            args.avatars,
+            args.seconds,
+            lambda text: print(f"modb bench mixed: {text}", file=sys.stderr),
+            BenchCommands(),
+            dsn=resolve(args.dsn)[0] if args.in_database else None,
+            clips=args.clips,
+            seed=args.seed,
+        )
+    except RuntimeError as e:
+        print(f"modb bench mixed: {e}", file=sys.stderr)
+        return 2
+    print(report(result))
+    return 0 if result.passed else 1
 
 
 def run_scale(args: argparse.Namespace) -> int:
