@@ -19,6 +19,7 @@ equal.
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import socket
 import subprocess
@@ -29,7 +30,7 @@ import time
 from collections import Counter
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import httpx
@@ -48,6 +49,7 @@ WALKS = f"{ROOT}/walks"
 HOT_CLIPS = 2  # clips every writer edits
 RESAMPLE_FPS = (24, 25, 48, 50, 60, 72, 90, 100)  # Bandai is 30 fps: each rate a new pool
 SERVE_START_S = 60
+DRIVER_TEXT = re.compile(r"\b(plpy|spiexceptions)\.")  # a message the server did not word
 JOIN_GRACE_S = 150  # after the deadline: a write in flight may take this long (HTTP timeout 120)
 
 
@@ -72,7 +74,7 @@ class Mixed:
     ledger: Ledger
     checks: list[Check]
     server_tracebacks: int
-    postgres: Counter = field(default_factory=Counter)  # "deadlock detected", "ERROR"
+    postgres: Counter | None = None  # "deadlock detected", "ERROR"; None: a log not its own
 
     @property
     def server_errors(self) -> int:
@@ -224,10 +226,10 @@ def _checks(conn: psycopg.Connection, before: dict, ledger: Ledger, prefix: str)
     return checks
 
 
-def _postgres_log(log: Path | None, offset: int) -> Counter:
-    found: Counter = Counter()
+def _postgres_log(log: Path | None, offset: int) -> Counter | None:
     if log is None or not log.exists():
-        return found
+        return None
+    found: Counter = Counter()
     with open(log, errors="replace") as f:
         f.seek(offset)
         for line in f:
@@ -275,8 +277,10 @@ def run(
     dsn: str | None = None,
     clips: int = 12,
     seed: int = 1,
+    postgres_log: Path | None = None,
 ) -> Mixed:
-    """The benchmark on `dsn` (None: a fresh cluster of its own, removed after)."""
+    """The benchmark on `dsn` (None: a fresh cluster of its own, removed after); `postgres_log`:
+    that server's log, read for errors and deadlocks (its own cluster's is read anyway)."""
     walks, other = data_files(data, clips)
     home = None
     cluster = None
@@ -299,7 +303,9 @@ def run(
         run_id = f"{os.getpid()}-{int(time.time())}"
         with psycopg.connect(dsn, autocommit=True) as conn:
             prepared = _prepare(conn, writers, run_id)
-        log_offset = cluster.logfile.stat().st_size if cluster else 0
+        if cluster is not None:
+            postgres_log = cluster.logfile
+        log_offset = postgres_log.stat().st_size if postgres_log and postgres_log.exists() else 0
         ledger = Ledger()
         with tempfile.TemporaryDirectory(prefix="modb-mixed-serve-") as tmp:
             serve_log = Path(tmp) / "serve.log"
@@ -332,7 +338,7 @@ def run(
             ledger,
             checks,
             tracebacks,
-            _postgres_log(cluster.logfile if cluster else None, log_offset),
+            _postgres_log(postgres_log, log_offset),
         )
     finally:
         if cluster is not None:
@@ -362,10 +368,14 @@ def report(m: Mixed) -> str:
         f"| {c.what} | {c.clients} | {c.database} | {'yes' if c.equal else 'NO'} |"
         for c in m.checks
     ]
+    postgres = (
+        f"{m.postgres['ERROR']} ERROR lines, {m.postgres['deadlock detected']} deadlocks"
+        if m.postgres is not None
+        else "not read (not the benchmark's own cluster: --postgres-log names it)"
+    )
     lines += [
         "",
-        f"modb serve's log: {m.server_tracebacks} tracebacks; PostgreSQL's log: "
-        f"{m.postgres['ERROR']} ERROR lines, {m.postgres['deadlock detected']} deadlocks",
+        f"modb serve's log: {m.server_tracebacks} tracebacks; PostgreSQL's log: {postgres}",
     ]
     answers = Counter()
     for (kind, action), t in m.ledger.tallies.items():
@@ -376,6 +386,13 @@ def report(m: Mixed) -> str:
         lines += [
             f"  {n} x {kind} {action} {status}: {message}"
             for (kind, action, status, message), n in answers.most_common(15)
+        ]
+    raw = sum(n for (_, _, _, message), n in answers.items() if DRIVER_TEXT.search(message))
+    if raw:
+        lines += [
+            "",
+            f"also: {raw} answers carry the database driver's text (plpy./spiexceptions.) "
+            "instead of a message of their own",
         ]
     unequal = [c.what for c in m.checks if not c.equal]
     lines += [

@@ -114,8 +114,8 @@ class Writer:
 
     # action -> weight in the mix
     MIX = {
-        "edit same clip": 3,
-        "resample": 2,
+        "edit same clip": 4,
+        "resample": 3,
         "retarget": 1,
         "annotate": 2,
         "collection create": 1,
@@ -135,8 +135,11 @@ class Writer:
         with httpx.Client(
             base_url=f"http://{self.plan.address}", headers=headers, timeout=HTTP_TIMEOUT_S
         ) as client:
-            while time.monotonic() < until:
-                action = self.rng.choices(actions, weights)[0]
+            # every kind once first, even past the deadline (a short run still writes each),
+            # then the weighted mix
+            first = self.rng.sample(actions, len(actions))
+            while first or time.monotonic() < until:
+                action = first.pop() if first else self.rng.choices(actions, weights)[0]
                 self.serial += 1
                 try:
                     getattr(self, "_" + action.replace(" ", "_"))(client)

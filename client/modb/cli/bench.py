@@ -169,6 +169,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="run in the database --dsn names (it must have the modb_web role; what the run "
         "writes stays there) instead of a cluster of its own",
     )
+    mixed.add_argument(
+        "--postgres-log",
+        metavar="FILE",
+        help="with --in-database: that server's log, read for errors and deadlocks during the run",
+    )
     mixed.set_defaults(func=run_mixed)
 
     scale = benchmarks.add_parser(
@@ -298,6 +303,7 @@ def run_mixed(args: argparse.Namespace) -> int:
             dsn=resolve(args.dsn)[0] if args.in_database else None,
             clips=args.clips,
             seed=args.seed,
+            postgres_log=Path(args.postgres_log) if args.postgres_log else None,
         )
     except RuntimeError as e:
         print(f"modb bench mixed: {e}", file=sys.stderr)
