@@ -305,7 +305,7 @@ class Avatar:
                 row = self.conn.execute(_SELECT, query, prepare=True).fetchone()
             else:
                 query["resting"] = request["resting"] and self._can_rest(request["collection"])
-                row = self.conn.execute(_STEP, query, prepare=True).fetchone()
+                row = self._step(query)
             latency = (time.perf_counter() - t) * 1000.0
             if row is not None and request["count_candidates"]:
                 candidates = self.conn.execute(
@@ -377,6 +377,24 @@ class Avatar:
             candidates=candidates,
         )
         return choice, rotations, translations
+
+    def _step(self, query: dict) -> tuple | None:
+        """The step after a snippet. An edit of that snippet's clip, committed since it was chosen,
+        rebuilds the clip's snippets and drops this one: the walk sets off again from where the
+        snippet ended (the seam treatment smooths the join) rather than stopping."""
+        try:
+            return self.conn.execute(_STEP, query, prepare=True).fetchone()
+        except psycopg.errors.InvalidParameterValue:  # check_request: "no snippet N"
+            gone = self.conn.execute(
+                "SELECT NOT EXISTS (SELECT FROM modb.snippets WHERE id = %s)", [query["prev"]]
+            ).fetchone()[0]
+            if not gone:
+                raise
+        self.notes.append(
+            f"snippet {query['prev']} was rebuilt by an edit of its clip: set off again from where "
+            "it ended"
+        )
+        return self.conn.execute(_SELECT, {**query, "prev": None}, prepare=True).fetchone()
 
     @property
     def collection(self) -> str | None:
