@@ -117,6 +117,8 @@ def _reach_tally(outcomes: list[str]) -> str:
     """How many goals of those judged were reached (within 2x where that counts), and how many
     were not judged."""
     judged = [o for o in outcomes if o != NOT_JUDGED]
+    if not judged:
+        return f"none of {len(outcomes)} goals judged: the strip ended first"
     tally = f"{judged.count(REACHED)} of {len(judged)} goals reached"
     if len(judged) < len(outcomes):
         tally += f"; {len(outcomes) - len(judged)} more not judged: the strip ended first"
