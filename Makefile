@@ -13,17 +13,31 @@ APT_PACKAGES := postgresql-15 postgresql-plpython3-15 postgresql-15-pgtap gcc ma
 	chromium chromium-driver curl
 WEB := client/modb/web
 EXTVERSION := $(shell sed -n "s/^default_version *= *'\(.*\)'/\1/p" extension/modb.control)
+# What setup's steps print (apt, dpkg, compilers, pip, npm) goes to this log, not to the screen.
+SETUP_LOG := .setup.log
+# Defines `step "what it does" command...` for a recipe: one line on screen, the command's output
+# appended to the log; on failure the log's end and its path, and the recipe fails with the
+# command's exit status. Every step runs from the repository's root.
+LOGGED := log="$(CURDIR)/$(SETUP_LOG)"; step() { \
+	echo "setup: $$1 (log: $(SETUP_LOG))"; \
+	printf '\n=== %s: %s\n' "$$(date -u '+%F %T UTC')" "$$1" >>"$$log"; \
+	shift; ( cd "$(CURDIR)" && "$$@" ) >>"$$log" 2>&1 && return 0; status=$$?; \
+	echo "setup: FAILED (exit status $$status): $$*" >&2; \
+	echo "setup: the end of $(SETUP_LOG):" >&2; tail -n 30 "$$log" | sed 's/^/  | /' >&2; \
+	echo "setup: the whole log is $$log" >&2; exit $$status; };
 
 .PHONY: setup apt extension venv web test demo bench bench-data bench-load bench-select bench-synth clean
 
 setup: apt extension venv web
 
 apt:
-	@missing=$$(for p in $(APT_PACKAGES); do \
+	@$(LOGGED) missing=$$(for p in $(APT_PACKAGES); do \
 		dpkg-query -W -f='$${Status}\n' $$p 2>/dev/null | grep -q '^install ok installed' || echo $$p; done); \
 	if [ -n "$$missing" ]; then \
-		echo "setup: installing $$missing"; \
-		$(SUDO) apt-get update -qq && $(SUDO) env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing; \
+		step "updating the apt package lists" $(SUDO) apt-get update; \
+		missing=$$(echo $$missing); \
+		step "installing apt packages $$missing" $(SUDO) env DEBIAN_FRONTEND=noninteractive \
+			apt-get install -y $$missing; \
 	fi
 
 # Builds the module (and the scripts of a version not released yet) and installs the extension into the
@@ -31,14 +45,15 @@ apt:
 # Installed modb scripts the project no longer ships (the full install scripts of 0.2.0 .. 0.15.0, say) are
 # removed: PostgreSQL would install those versions from them instead of from 0.1.0 and the upgrade chain.
 extension: apt
-	@$(MAKE) -s -C extension PG_CONFIG=$(PG_CONFIG)
-	@installed=$$($(PG_CONFIG) --sharedir)/extension; \
+	@$(LOGGED) $(MAKE) -q -s -C extension PG_CONFIG=$(PG_CONFIG) 2>/dev/null \
+		|| step "building the modb extension (extension/)" $(MAKE) -s -C extension PG_CONFIG=$(PG_CONFIG)
+	@$(LOGGED) installed=$$($(PG_CONFIG) --sharedir)/extension; \
 	scripts=$$($(MAKE) -s --no-print-directory -C extension print-scripts PG_CONFIG=$(PG_CONFIG)); \
 	if ! cmp -s extension/modb.so $$($(PG_CONFIG) --pkglibdir)/modb.so \
 	   || ! cmp -s extension/modb.control $$installed/modb.control \
 	   || [ -n "$$(for f in $$scripts; do cmp -s extension/$$f $$installed/$$(basename $$f) || echo x; done)" ]; then \
-		echo "setup: installing the modb extension into $$installed"; \
-		$(SUDO) $(MAKE) -s -C extension install PG_CONFIG=$(PG_CONFIG); \
+		step "installing the modb extension into $$installed" \
+			$(SUDO) $(MAKE) -s -C extension install PG_CONFIG=$(PG_CONFIG); \
 	fi; \
 	shipped=" $$(for f in $$scripts; do printf '%s ' $$(basename $$f); done)"; \
 	stale=$$(cd $$installed && for f in modb--*.sql; do \
@@ -54,18 +69,18 @@ venv: $(VENV)/.installed
 web: $(WEB)/node_modules/.installed
 
 $(WEB)/node_modules/.installed: $(WEB)/package.json $(WEB)/package-lock.json
-	@command -v npm >/dev/null || { echo "setup: installing npm"; \
-		$(SUDO) env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq npm; }
-	@echo "setup: installing three.js into $(WEB)/node_modules (npm ci)"
-	npm ci --prefix $(WEB) --no-audit --no-fund --loglevel=error
+	@$(LOGGED) command -v npm >/dev/null \
+		|| step "installing apt package npm" $(SUDO) env DEBIAN_FRONTEND=noninteractive apt-get install -y npm; \
+	step "installing three.js into $(WEB)/node_modules (npm ci)" \
+		npm ci --prefix $(WEB) --no-audit --no-fund --no-progress
 	@touch $@
 
 # After three.js: the package holds the modules of it that the web view imports (setup.py).
 $(VENV)/.installed: pyproject.toml setup.py extension/modb.control | web  # version: modb.control
-	@echo "setup: installing the Python package into $(VENV)"
-	$(PYTHON) -m venv $(VENV)
-	$(VENV)/bin/pip install -q --upgrade pip
-	$(VENV)/bin/pip install -q -e '.[test]'
+	@$(LOGGED) step "creating the Python environment $(VENV)" $(PYTHON) -m venv $(VENV); \
+	step "upgrading pip in $(VENV)" $(VENV)/bin/pip install --progress-bar off --upgrade pip; \
+	step "installing the Python package and its dependencies into $(VENV) (pip)" \
+		$(VENV)/bin/pip install --progress-bar off -e '.[test]'
 	@touch $@
 
 # The linter first (line length 100, pyproject.toml [tool.ruff]), then every test, in parallel
@@ -106,4 +121,4 @@ bench-synth: setup
 
 clean:
 	$(MAKE) -s -C extension clean
-	rm -rf $(VENV) .pytest_cache
+	rm -rf $(VENV) .pytest_cache $(SETUP_LOG)

@@ -10,7 +10,16 @@ from collections.abc import Callable
 from tqdm import tqdm
 
 from modb.output import open_output
-from modb.synthesis.quality import REACH_MIN_DISTANCE, Report
+from modb.synthesis.quality import (
+    MISSED,
+    NOT_JUDGED,
+    REACH_AIM,
+    REACH_MIN_DISTANCE,
+    REACHED,
+    GoalReach,
+    Report,
+    goal_outcomes,
+)
 from modb.synthesis.synth import Synthesis
 
 
@@ -59,30 +68,61 @@ def format_summary(result: Synthesis, rep: Report) -> str:
         f"cm/s while standing (natural {100 * rep.natural_foot_skating:.1f} cm/s)",
         f"goal reach (straight line at the median walking speed, {rep.walking_speed:.2f} m/s):",
     ]
-    served = [g for g in rep.goals if g.goal <= max(c.goal for c in result.chain)]
-    for g in served:
+    outcomes = goal_outcomes(rep.goals)
+    served = [g for g in rep.goals if g.became_current]
+    for g, outcome in zip(served, outcomes):
         where = ", ".join(f"{v:g}" for v in g.target)
         took = "not reached" if g.seconds is None else f"{g.seconds:.1f} s = {g.ratio:.2f}x"
-        note = (
-            ""
-            if g.counts_for_aim
-            else " (behind: reported only)"
-            if g.behind
-            else " (nearer than 5 m: reported only)"
-            if g.distance_m < REACH_MIN_DISTANCE
-            else " (still current when the strip ended, before 2x: not counted)"
-        )
         lines.append(
             f"  goal {g.goal} ({where}): {g.distance_m:.1f} m{' behind' if g.behind else ''}, "
-            f"straight {g.straight_seconds:.1f} s, took {took}{note}"
+            f"straight {g.straight_seconds:.1f} s, took {took}{_goal_note(g, outcome)}"
         )
     if len(served) < len(rep.goals):
+        why = (
+            "missed: the course stalled before them"
+            if outcomes[len(served)] == MISSED
+            else "not judged: the strip ended first"
+        )
         lines.append(
-            f"  goals {len(served) + 1}-{len(rep.goals)}: never became current (not reached)"
+            f"  {_goal_numbers(len(served) + 1, len(rep.goals))}: never became current ({why})"
         )
     verdict = {True: "met", False: "NOT met", None: "not measured"}
-    lines.append("aims: " + "; ".join(f"{k}: {verdict[v]}" for k, v in rep.aims.items()))
+    lines.append(
+        "aims: "
+        + "; ".join(
+            f"{k}: {verdict[v]}" + (f" ({_reach_tally(outcomes)})" if k == REACH_AIM else "")
+            for k, v in rep.aims.items()
+        )
+    )
     return "\n".join(lines)
+
+
+def _goal_note(g: GoalReach, outcome: str) -> str:
+    if outcome == NOT_JUDGED:
+        return " (still current when the strip ended, before 2x: not judged)"
+    if outcome == MISSED:
+        return " (missed: over 2x)" if g.reached else " (missed: not reached)"
+    if g.behind:
+        return " (behind: its time reported only)"
+    if g.distance_m < REACH_MIN_DISTANCE:
+        return " (nearer than 5 m: its time reported only)"
+    return ""
+
+
+def _goal_numbers(first: int, last: int) -> str:
+    return f"goal {first}" if first == last else f"goals {first}-{last}"
+
+
+def _reach_tally(outcomes: list[str]) -> str:
+    """How many goals of those judged were reached (within 2x where that counts), and how many
+    were not judged."""
+    judged = [o for o in outcomes if o != NOT_JUDGED]
+    if not judged:
+        return f"none of {len(outcomes)} goals judged: the strip ended first"
+    tally = f"{judged.count(REACHED)} of {len(judged)} goals reached"
+    if len(judged) < len(outcomes):
+        tally += f"; {len(outcomes) - len(judged)} more not judged: the strip ended first"
+    return tally
 
 
 def write_report_json(

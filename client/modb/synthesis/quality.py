@@ -189,18 +189,51 @@ class GoalReach:
     ratio: float | None
     # how long it was the current goal (to the strip's end when not reached)
     current_seconds: float = 0.0
+    became_current: bool = True
+
+    @property
+    def pending(self) -> bool:
+        """Current when the strip ended, not reached, and not yet for its 2x straight line: the
+        strip's end cut it short, so it is neither reached nor missed."""
+        return (
+            self.became_current
+            and not self.reached
+            and self.current_seconds < AIM_REACH_RATIO * self.straight_seconds
+        )
 
     @property
     def counts_for_aim(self) -> bool:
-        """Whether the issue's reach aim covers this goal: at least 5 m away and not behind.
+        """Whether the reach aim's time limit covers this goal: at least 5 m away and not behind.
 
-        Other goals are only reported. A goal still unreached when the strip ended counts only once
-        it has had its 2x straight line.
+        The time to other goals is only reported. A goal still unreached when the strip ended
+        counts only once it has had its 2x straight line.
         """
-        pending = (
-            not self.reached and self.current_seconds < AIM_REACH_RATIO * self.straight_seconds
-        )
-        return self.distance_m >= REACH_MIN_DISTANCE and not self.behind and not pending
+        return self.distance_m >= REACH_MIN_DISTANCE and not self.behind and not self.pending
+
+
+REACHED, MISSED, NOT_JUDGED = "reached", "missed", "not judged"
+REACH_AIM = "goals >= 5 m reached within 2x straight line"
+
+
+def goal_outcomes(goals: Sequence[GoalReach]) -> list[str]:
+    """Each goal of the course against the reach aim: REACHED (within 2x where the limit covers
+    it), MISSED, or NOT_JUDGED.
+
+    A goal not reached is missed, unless it was still pending when the strip ended. A goal that
+    never became current is missed when the one before it was (the course stalled there), and not
+    judged when the strip simply ended first.
+    """
+    out: list[str] = []
+    for g in goals:
+        if not g.became_current:
+            out.append(MISSED if out and out[-1] == MISSED else NOT_JUDGED)
+        elif g.pending:
+            out.append(NOT_JUDGED)
+        elif not g.reached or (g.counts_for_aim and g.ratio > AIM_REACH_RATIO):
+            out.append(MISSED)
+        else:
+            out.append(REACHED)
+    return out
 
 
 def goal_reach(
@@ -226,6 +259,7 @@ def goal_reach(
                     None,
                     distance / walking_speed,
                     None,
+                    became_current=False,
                 )
             )
             continue
@@ -281,24 +315,23 @@ class Report:
 
     @property
     def aims(self) -> dict[str, bool | None]:
-        """Which aims are met; None for reach when no goal counts for it (nothing to measure)."""
-        counted = [g for g in self.goals if g.counts_for_aim]
+        """Which aims are met. Reach: every goal judged was reached, those the time limit covers
+        within 2x (goal_outcomes); None when no goal could be judged (nothing to measure)."""
+        outcomes = goal_outcomes(self.goals)
+        judged = [o for o in outcomes if o != NOT_JUDGED]
         return {
             "seam share r>1 <= 2x natural": self.seam_share_over_one
             <= AIM_SEAM_SHARE_FACTOR * self.natural_share_over_one,
             "seam r p99 <= natural r p99.9": self.seam_r_p99 <= self.natural_r_p999,
             "recombination >= 20%": self.recombination >= AIM_RECOMBINATION,
-            "goals >= 5 m reached within 2x straight line": all(
-                g.ratio is not None and g.ratio <= AIM_REACH_RATIO for g in counted
-            )
-            if counted
-            else None,
+            REACH_AIM: all(o == REACHED for o in judged) if judged else None,
             "last relaxation level < 1%": self.last_level_share < AIM_LAST_LEVEL_SHARE,
         }
 
     def as_json(self) -> dict:
         out = asdict(self)
         out["aims"] = self.aims
+        out["goal_outcomes"] = goal_outcomes(self.goals)
         return out
 
 
