@@ -33,7 +33,7 @@ def probe(conninfo: str) -> None:
     try:
         psycopg.connect(conninfo, connect_timeout=PROBE_TIMEOUT_S).close()
     except psycopg.OperationalError as e:
-        reason = str(e).strip().splitlines()[-1] if str(e).strip() else type(e).__name__
+        reason = str(e).strip().split("\n", 1)[0] or type(e).__name__  # the next: libpq's advice
         raise Unreachable(
             f"the database is unreachable ({where(conninfo) or 'libpq defaults'}): {reason:.200}; "
             "is it running? (`modb db start` starts the embedded one)"
