@@ -14,6 +14,8 @@ import io
 import json
 import os
 import socket
+import subprocess
+import sys
 import threading
 import time
 from pathlib import Path
@@ -368,6 +370,37 @@ def test_writes_never_run_as_a_superuser(rest, cluster):
         with httpx.Client(base_url=f"http://{address}", timeout=60) as client:
             r = upload(client, tokens["editor"], walk_files(1))
     assert r.status_code == 503 and "not a superuser" in r.json()["error"]
+
+
+def test_writes_off_is_said_at_start_up(rest):
+    """A writer role that cannot log in: `modb serve` warns as it starts, and a write is still a
+    503 with the same reason."""
+    dsn, tokens, _, _ = rest
+    role = f"nobody_{os.getpid()}"
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]
+    command = [sys.executable, "-m", "modb.cli", "--dsn", dsn, "serve", "--port", str(port)]
+    proc = subprocess.Popen([*command, "--write-user", role], stderr=subprocess.PIPE, text=True)
+    try:
+        said = []
+        for line in proc.stderr:  # up to the line that says where it listens
+            said.append(line)
+            if "http://" in line:
+                break
+        startup = "".join(said)
+        assert "warning: writes are off" in startup and role in startup, startup
+        with httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=60) as client:
+            for _ in range(100):
+                with contextlib.suppress(httpx.TransportError):
+                    if client.get("/api/collections").status_code == 200:
+                        break
+                time.sleep(0.1)
+            r = upload(client, tokens["editor"], walk_files(1))
+        assert r.status_code == 503 and role in r.json()["error"], r.text
+    finally:
+        proc.terminate()
+        proc.wait(10)
 
 
 def test_openapi_names_every_route(rest):
