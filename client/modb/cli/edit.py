@@ -53,17 +53,6 @@ def _commands(args: argparse.Namespace) -> list:
         raise SystemExit(f"modb edit: {e}") from None
 
 
-def _ops(commands: object) -> str:
-    """A stored script's commands by their op ('?' for one that is not a command: stored before
-    scripts were checked, or written into the table directly)."""
-    if not isinstance(commands, list):
-        return "?"
-    return ", ".join(
-        str(c["op"]) if isinstance(c, dict) and isinstance(c.get("op"), str) else "?"
-        for c in commands
-    )
-
-
 def run(args: argparse.Namespace) -> int:
     from modb.clips import ClipNotFound, clips_in  # numpy (60 ms): not for `modb --help`
 
@@ -82,7 +71,12 @@ def run(args: argparse.Namespace) -> int:
             for name, commands, comment in conn.execute(
                 "SELECT name, commands, comment FROM modb.edit_scripts ORDER BY name"
             ):
-                print(f"{name}: {_ops(commands)}" + (f"  ({comment})" if comment else ""))
+                # rows stored before 0.17.0 checked scripts may hold anything: list them anyway
+                listed = commands if isinstance(commands, list) else [commands]
+                ops = ", ".join(
+                    str(c.get("op", "?")) if isinstance(c, dict) else "?" for c in listed
+                )
+                print(f"{name}: {ops}" + (f"  ({comment})" if comment else ""))
             return 0
         try:
             # A clip named twice, or named and in a named collection, is edited once.

@@ -1,6 +1,7 @@
 """The database's errors as HTTP answers, in one place: the message without the driver's prefixes
 (`plpy.Error:`, `spiexceptions.CheckViolation:`, `ERROR:`), a broken table rule said in the user's
-words, and the status: 404 for what is not there, 409 for what already is, 400 for data the
+words, and the status: 404 for what is not there, 409 for what already is, 413 for a result
+past the caps, 400 for data the
 database refuses, 503 with Retry-After for what may work a moment later (a deadlock, a
 serialization failure, a lock not granted, two writers numbering the same version, a database
 that is unreachable). Never a 500 for a request's content."""
@@ -80,6 +81,8 @@ def answer(e: psycopg.Error) -> tuple[int, str]:
         return 400, f"refused: {message(e)}"
     if isinstance(e, errors.NoDataFound):
         return 404, message(e)
+    if isinstance(e, errors.ProgramLimitExceeded):  # a result past the stated caps
+        return 413, message(e)
     if isinstance(e, errors.DependentObjectsStillExist):
         return 409, message(e)
     return 400, message(e)
