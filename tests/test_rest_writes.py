@@ -638,7 +638,7 @@ def test_write_404s_name_what_is_missing(rest, target):
 def test_database_errors_are_said_without_the_drivers_names(rest, target):
     """Through REST: an edit the clip cannot take is a 400 without `plpy.Error:`. The central
     mapping, on errors the database really raises: no `plpy.Error:` or `spiexceptions.X:` prefix,
-    a broken table rule in words, a lock not granted a 503."""
+    a broken table rule in words, a result past a cap 413, a lock not granted a 503."""
     from modb.web.database_errors import answer
 
     dsn, tokens, client, _ = rest
@@ -667,6 +667,13 @@ def test_database_errors_are_said_without_the_drivers_names(rest, target):
         assert "spiexceptions.CheckViolation" in str(raised.value)
         status, message = answer(raised.value)
         assert status == 400 and "spiexceptions" not in message and "cannot hold '/'" in message
+        conn.execute(
+            "CREATE FUNCTION pg_temp.huge() RETURNS void LANGUAGE plpython3u AS "
+            "$f$ plpy.error('the result would have 2,000,000 frames', sqlstate='54000') $f$"
+        )
+        with pytest.raises(psycopg.Error) as raised:  # past a cap: too large
+            conn.execute("SELECT pg_temp.huge()")
+        assert answer(raised.value) == (413, "the result would have 2,000,000 frames")
     with psycopg.connect(dsn) as holder, psycopg.connect(dsn) as other:
         holder.execute("SELECT 1 FROM modb.collections FOR UPDATE")
         with pytest.raises(psycopg.Error) as raised:

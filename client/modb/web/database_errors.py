@@ -1,10 +1,9 @@
 """The database's errors as HTTP answers, in one place: the message without the driver's prefixes
 (`plpy.Error:`, `spiexceptions.CheckViolation:`, `ERROR:`), a broken table rule said in the user's
-words, and the status: 404 for what is not there, 409 for what already is, 413 for a result
-past the caps, 400 for data the
-database refuses, 503 with Retry-After for what may work a moment later (a deadlock, a
-serialization failure, a lock not granted, two writers numbering the same version, a database
-that is unreachable). Never a 500 for a request's content."""
+words, and the status: 404 for what is not there, 409 for what already is, 413 for a result past
+the caps, 400 for data the database refuses, 503 with Retry-After for what may work a moment later
+(a deadlock, a serialization failure, a lock not granted, two writers numbering the same version,
+a database that is unreachable). Never a 500 for a request's content."""
 
 from __future__ import annotations
 
