@@ -111,7 +111,7 @@ def test_collections_are_created_renamed_moved_and_deleted(edits):
     h = bearer(tokens["editor"])
     r = client.post("/api/collections", json={"path": f"edits/{HOSTILE}/inner"}, headers=h)
     assert r.status_code == 201 and r.json()["path"] == f"edits/{HOSTILE}/inner"
-    assert client.post("/api/collections", json={"path": "edits"}, headers=h).status_code == 200
+    assert client.post("/api/collections", json={"path": "edits"}, headers=h).status_code == 409
     # the hostile name is a name, in the URL too
     hostile = httpx.URL(f"/api/collections/edits/{HOSTILE}")
     r = client.patch(hostile, json={"name": "renamed"}, headers=h)
@@ -384,7 +384,7 @@ def test_models_and_graphs_rows_are_created_replaced_and_deleted(edits):
     assert client.put(f"/api/models/{model}", json={"meta": 3}, headers=h).status_code == 400
     assert (
         client.put(f"/api/models/{model}", json={"skeleton_id": 10**9}, headers=h).status_code
-        == 400
+        == 404
     )
     assert client.delete(f"/api/models/{model}", headers=h).status_code == 200
     assert client.get(f"/api/models/{model}").status_code == 404
@@ -540,7 +540,7 @@ def test_edit_scripts_retargeting_and_joint_axes_through_rest(edits):
     assert bad.status_code == 400
     assert (
         client.post("/api/edit-scripts/none/apply", json={"clips": [clip]}, headers=h).status_code
-        == 400
+        == 404
     )
     assert client.delete(url, headers=h).status_code == 200
     assert client.delete(url, headers=h).status_code == 404
@@ -559,7 +559,7 @@ def test_edit_scripts_retargeting_and_joint_axes_through_rest(edits):
     assert abs(made["n_frames"] - 1 - 99 * 4) <= 1  # 100 frames at 30 fps, now at 120
     assert (
         client.post(f"/api/clips/{clip}/retarget", json={"skeleton": 10**9}, headers=h).status_code
-        == 400
+        == 404
     )
     # the axes the retargeting derived are the skeleton's, and editable with its maps' ETag
     maps = client.get(f"/api/skeletons/{cmu}/maps")

@@ -5,6 +5,7 @@ infinities, non-positive values where they make no sense, or values beyond the s
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import os
@@ -544,3 +545,45 @@ def test_a_reader_that_leaves_early_is_no_failure(walks, command):
     read.stdout.close()  # as head does after its lines
     assert read.wait(timeout=TIMEOUT) == 0, read.stderr.read()
     assert b"Traceback" not in read.stderr.read()
+
+
+def test_edit_scripts_are_checked_before_they_are_stored(walks):
+    """`modb edit save` refuses what is not a script (naming the command); `modb edit list`
+    survives a script stored unchecked."""
+    dsn, _ = walks
+    r = modb(dsn, "edit", "save", "junk", "--commands", '[1, "x", null]')
+    assert r.returncode != 0 and "commands[0]" in r.stderr, r.stderr
+    r = modb(dsn, "edit", "save", "fast", "--commands", '[{"op": "resample", "fps": 9999}]')
+    assert r.returncode != 0 and "fps" in r.stderr, r.stderr
+    with psycopg.connect(dsn, autocommit=True) as conn:
+        with contextlib.suppress(psycopg.errors.CheckViolation):  # a table that refuses it: fine
+            conn.execute(
+                "INSERT INTO modb.edit_scripts (name, commands) VALUES ('stored raw', %s)",
+                [json.dumps([1, "x", None])],
+            )
+    r = modb(dsn, "edit", "save", "first10", "--commands", '[{"op": "trim", "start": 0, "end": 9}]')
+    assert r.returncode == 0, r.stderr
+    listed = modb(dsn, "edit", "list")
+    assert listed.returncode == 0 and "first10: trim" in listed.stdout, listed.stderr
+
+
+def test_a_clip_named_twice_is_edited_once(walks):
+    """A clip named twice, or named and in a named collection, gets one new version."""
+    dsn, _ = walks
+    r = modb(dsn, "edit", "save", "first10", "--commands", '[{"op": "trim", "start": 0, "end": 9}]')
+    assert r.returncode == 0, r.stderr
+    walk = mocap("bandai-1", "data", WALKS[0])
+    assert modb(dsn, "load", walk, "--collection", "edited once", "-q").returncode == 0
+    with psycopg.connect(dsn) as conn:
+        (clip,) = conn.execute(
+            "SELECT clip_id FROM modb.current_clips WHERE collection = 'edited once'"
+        ).fetchone()
+    r = modb(dsn, "edit", "apply", "first10", clip, clip, "edited once")
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.splitlines() == [f"clip {clip}: version 2 (10 frames, " + r.stdout.split(
+        "10 frames, ", 1)[1].splitlines()[0]]  # fmt: skip
+    with psycopg.connect(dsn) as conn:
+        versions = conn.execute(
+            "SELECT max(version) FROM modb.clip_versions WHERE clip_id = %s", [clip]
+        ).fetchone()[0]
+    assert versions == 2

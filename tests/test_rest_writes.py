@@ -11,8 +11,11 @@ import builtins
 import contextlib
 import hashlib
 import io
+import json
 import os
 import socket
+import subprocess
+import sys
 import threading
 import time
 from pathlib import Path
@@ -369,6 +372,37 @@ def test_writes_never_run_as_a_superuser(rest, cluster):
     assert r.status_code == 503 and "not a superuser" in r.json()["error"]
 
 
+def test_writes_off_is_said_at_start_up(rest):
+    """A writer role that cannot log in: `modb serve` warns as it starts, and a write is still a
+    503 with the same reason."""
+    dsn, tokens, _, _ = rest
+    role = f"nobody_{os.getpid()}"
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]
+    command = [sys.executable, "-m", "modb.cli", "--dsn", dsn, "serve", "--port", str(port)]
+    proc = subprocess.Popen([*command, "--write-user", role], stderr=subprocess.PIPE, text=True)
+    try:
+        said = []
+        for line in proc.stderr:  # up to the line that says where it listens
+            said.append(line)
+            if "http://" in line:
+                break
+        startup = "".join(said)
+        assert "warning: writes are off" in startup and role in startup, startup
+        with httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=60) as client:
+            for _ in range(100):
+                with contextlib.suppress(httpx.TransportError):
+                    if client.get("/api/collections").status_code == 200:
+                        break
+                time.sleep(0.1)
+            r = upload(client, tokens["editor"], walk_files(1))
+        assert r.status_code == 503 and role in r.json()["error"], r.text
+    finally:
+        proc.terminate()
+        proc.wait(10)
+
+
 def test_openapi_names_every_route(rest):
     _, _, client, _ = rest
     described = client.get("/api/openapi.json").json()
@@ -451,3 +485,251 @@ def test_bodies_are_read_after_the_token_and_bad_ones_are_400(rest):
         )
         == meta_before
     )
+
+
+# --- issue 39: bodies checked before work, right statuses, messages without the driver's names ---
+
+
+@pytest.fixture(scope="module")
+def target(rest):
+    """A walk of its own (clip id, skeleton id, maps ETag), loaded once for the tests below."""
+    dsn, tokens, client, _ = rest
+    walk = walk_files(4)[3]
+    r = upload(client, tokens["editor"], [walk], collection="rest/targets")
+    assert r.status_code == 200, r.text
+    clip = r.json()["results"][0]["clip_id"]
+    skeleton = client.get(f"/api/clips/{clip}").json()["skeleton_id"]
+    return clip, skeleton
+
+
+def counts(dsn: str) -> tuple[int, int, int]:
+    return tuple(
+        scalar(dsn, f"SELECT count(*) FROM modb.{table}")
+        for table in ("audit_log", "clip_versions", "edit_scripts")
+    )
+
+
+# (method, path, body, what the 400's message must say); CLIP and SKELETON stand for the target's
+BAD_BODIES = [
+    ("POST", "/api/clips/CLIP/retarget", {"skeleton": "SKELETON", "mirror": "no"}, "mirror: true"),
+    ("POST", "/api/clips/CLIP/retarget", {"skeleton": "SKELETON", "fps": 9999}, "fps: a number"),
+    ("POST", "/api/clips/CLIP/retarget", {"skeleton": "SKELETON", "fps": 0.01}, "1 to 1000 fps"),
+    ("POST", "/api/clips/CLIP/retarget", {"skeleton": "SKELETON", "fps": "30"}, "fps"),
+    ("POST", "/api/clips/CLIP/retarget", {"skeleton": "SKELETON", "fps": True}, "fps"),
+    ("POST", "/api/clips/CLIP/retarget", {"skeleton": "1"}, "skeleton: a skeleton id"),
+    ("POST", "/api/clips/CLIP/retarget", {"skeleton": "SKELETON", "mirorr": True}, "'mirorr'"),
+    ("POST", "/api/edit-scripts/trim10/apply", {"clips": [1.5]}, "clips[0]"),
+    ("POST", "/api/edit-scripts/trim10/apply", {"clips": [True]}, "clips[0]"),
+    ("POST", "/api/edit-scripts/trim10/apply", {"clips": "all"}, "clips: a list"),
+    ("POST", "/api/edit-scripts/trim10/apply", {"clips": [[1]]}, "clips[0]"),
+    ("PUT", "/api/edit-scripts/bad", {"commands": [1, "x", None]}, "commands[0]"),
+    ("PUT", "/api/edit-scripts/bad", {"commands": [{"op": "zap"}]}, "unknown command 'zap'"),
+    ("PUT", "/api/edit-scripts/bad", {"commands": [{"op": "resample", "fps": 9999}]}, "fps"),
+    ("PUT", "/api/edit-scripts/bad", {"commands": [{"op": "trim", "start": "1", "end": 2}]},
+     "start"),  # fmt: skip
+    ("POST", "/api/collections", {"path": ["a"]}, "path: a collection path"),
+    ("POST", "/api/models", {"name": 5, "kind": "k", "data": {}}, "name: a string"),
+    ("POST", "/api/models", {"name": "m", "kind": "k", "data": {}, "skeleton_id": "x"},
+     "skeleton_id"),  # fmt: skip
+    ("PUT", "/api/skeletons/SKELETON/maps", {"joint_map": {}, "mirror_pairs": []}, "joint_map"),
+    ("PUT", "/api/skeletons/SKELETON/maps", {"joint_map": {"head": 1}, "mirror_pairs": []},
+     "joint_map.head"),  # fmt: skip
+    ("PUT", "/api/skeletons/SKELETON/maps", "AXES", "joint_axes.joints.head.twist[0]"),
+]
+
+
+@pytest.mark.parametrize("method, path, body, says", BAD_BODIES, ids=[b[3] for b in BAD_BODIES])
+def test_bodies_are_checked_by_type_and_range_before_any_work(rest, target, method, path, body,
+                                                              says):  # fmt: skip
+    """A field of the wrong type or out of range is a 400 naming it, with nothing stored or
+    audited ("mirror": "no" is not true, joint axes of strings are not stored)."""
+    dsn, tokens, client, _ = rest
+    clip, skeleton = target
+    url = path.replace("CLIP", str(clip)).replace("SKELETON", str(skeleton))
+    headers = bearer(tokens["editor"])
+    if "/maps" in url:
+        maps = client.get(url)
+        headers["If-Match"] = maps.headers["etag"]
+        if body == "AXES":
+            head = {"joint": "x", "twist": ["a", "b", "c"], "swing": [0, 0, 1]}
+            axes = {"joints": {"head": head}}
+            body = {k: maps.json()[k] for k in ("joint_map", "mirror_pairs")} | {"joint_axes": axes}
+    if body.get("skeleton") == "SKELETON":
+        body = {**body, "skeleton": skeleton}
+    before = counts(dsn)
+    r = client.request(method, url, json=body, headers=headers)
+    assert r.status_code == 400, r.text
+    assert says in r.json()["error"], r.json()["error"]
+    assert counts(dsn) == before
+
+
+def test_a_clip_named_twice_is_edited_once(rest, target):
+    dsn, tokens, client, _ = rest
+    clip, _ = target
+    h = bearer(tokens["editor"])
+    trim = {"commands": [{"op": "trim", "start": 0, "end": 9}]}
+    assert client.put("/api/edit-scripts/trim10", json=trim, headers=h).status_code in (200, 201)
+    before = scalar(dsn, "SELECT max(version) FROM modb.clip_versions WHERE clip_id = %s", [clip])
+    r = client.post("/api/edit-scripts/trim10/apply", json={"clips": [clip, clip]}, headers=h)
+    assert r.status_code == 200, r.text
+    assert [x["clip_id"] for x in r.json()["results"]] == [clip]
+    assert scalar(
+        dsn, "SELECT max(version) FROM modb.clip_versions WHERE clip_id = %s", [clip]
+    ) == before + 1
+    detail = scalar(
+        dsn, "SELECT detail FROM modb.audit_log WHERE action = 'edit script apply' ORDER BY id DESC"
+    )
+    assert detail == {"clips": [clip]}
+
+
+def test_an_existing_collection_is_409_and_paths_are_names(rest):
+    """POST of a collection that exists is 409 and not audited as a create; a path with an empty,
+    '.' or '..' segment is refused naming the segment, and no collection so named is made."""
+    dsn, tokens, client, _ = rest
+    h = bearer(tokens["editor"])
+    r = client.post("/api/collections", json={"path": "rest/made"}, headers=h)
+    assert r.status_code == 201, r.text
+    creates = len(
+        query_all(dsn, "SELECT 1 FROM modb.audit_log WHERE action = 'collection create'")
+    )
+    again = client.post("/api/collections", json={"path": "rest/made"}, headers=h)
+    assert again.status_code == 409 and "already exists" in again.json()["error"]
+    assert len(
+        query_all(dsn, "SELECT 1 FROM modb.audit_log WHERE action = 'collection create'")
+    ) == creates
+    for path, segment in (("../..", "'..'"), ("a/./b", "'.'"), ("a//b", "''"), ("/a", "''")):
+        r = client.post("/api/collections", json={"path": path}, headers=h)
+        assert r.status_code == 400 and f"is {segment}" in r.json()["error"], (path, r.text)
+    r = client.patch("/api/collections/rest%2Fmade", json={"name": ".."}, headers=h)
+    assert r.status_code == 400 and "name" in r.json()["error"], r.text
+    assert scalar(dsn, "SELECT count(*) FROM modb.collections WHERE name IN ('.', '..', '')") == 0
+
+
+def query_all(dsn: str, sql: str, params=()):
+    with psycopg.connect(dsn) as conn:
+        return conn.execute(sql, params).fetchall()
+
+
+def test_write_404s_name_what_is_missing(rest, target):
+    """Like the reads: "no clip with id 99999", not "no such page"; an unknown clip, skeleton or
+    script on retarget and apply is 404, not 400."""
+    _, tokens, client, _ = rest
+    clip, skeleton = target
+    h = bearer(tokens["editor"])
+    cases = [
+        ("DELETE", "/api/models/99999", None, "no model with id 99999"),
+        ("PUT", "/api/graphs/99999", {"data": {}}, "no graph with id 99999"),
+        ("DELETE", "/api/clips/99999", None, "no clip with id 99999"),
+        ("POST", "/api/clips/99999/versions/1/current", None, "no clip with id 99999"),
+        ("POST", "/api/clips/99999/retarget", {"skeleton": skeleton}, "no clip with id 99999"),
+        ("POST", f"/api/clips/{clip}/retarget", {"skeleton": 10**9}, "no skeleton with id"),
+        ("POST", "/api/edit-scripts/nothing/apply", {"clips": [clip]}, "no edit script"),
+        ("POST", "/api/edit-scripts/trim10/apply", {"clips": [99999]}, "no clip with id 99999"),
+        ("DELETE", "/api/collections/no%2Fsuch", None, 'no collection "no/such"'),
+    ]
+    for method, path, body, says in cases:
+        content = None if body is None else json.dumps(body)
+        r = client.request(method, path, content=content, headers=h)
+        assert r.status_code == 404, (path, r.text)
+        assert says in r.json()["error"] and "no such page" not in r.json()["error"], r.text
+    assert client.get("/api/nothing/here").json()["error"] == "no such page: /api/nothing/here"
+
+
+def test_database_errors_are_said_without_the_drivers_names(rest, target):
+    """Through REST: an edit the clip cannot take is a 400 without `plpy.Error:`. The central
+    mapping, on errors the database really raises: no `plpy.Error:` or `spiexceptions.X:` prefix,
+    a broken table rule in words, a result past a cap 413, a lock not granted a 503."""
+    from modb.web.database_errors import answer
+
+    dsn, tokens, client, _ = rest
+    h = bearer(tokens["editor"])
+    long = {"commands": [{"op": "trim", "start": 0, "end": 9_999_999}]}
+    assert client.put("/api/edit-scripts/too-long", json=long, headers=h).status_code == 201
+    r = client.post("/api/edit-scripts/too-long/apply", json={"clips": [target[0]]}, headers=h)
+    assert r.status_code == 400 and '"end" must be a frame' in r.json()["error"], r.text
+    assert not r.json()["error"].startswith(("plpy", "spiexceptions", "ERROR")), r.text
+    with psycopg.connect(dsn, autocommit=True) as conn:
+        conn.execute(
+            "CREATE FUNCTION pg_temp.refuse() RETURNS void LANGUAGE plpython3u AS "
+            "$f$ plpy.error('no edit script \"nothing\"', hint='see modb.edit_scripts') $f$"
+        )
+        with pytest.raises(psycopg.Error) as raised:
+            conn.execute("SELECT pg_temp.refuse()")
+        assert "plpy.Error" in str(raised.value)  # what the driver says
+        status, message = answer(raised.value)
+        assert message == 'no edit script "nothing" (see modb.edit_scripts)'
+        conn.execute(
+            "CREATE FUNCTION pg_temp.bad() RETURNS void LANGUAGE plpython3u AS "
+            "$f$ plpy.execute(\"INSERT INTO modb.collections (name) VALUES ('a/b')\") $f$"
+        )
+        with pytest.raises(psycopg.Error) as raised:  # a table rule broken inside PL/Python
+            conn.execute("SELECT pg_temp.bad()")
+        assert "spiexceptions.CheckViolation" in str(raised.value)
+        status, message = answer(raised.value)
+        assert status == 400 and "spiexceptions" not in message and "cannot hold '/'" in message
+        conn.execute(
+            "CREATE FUNCTION pg_temp.huge() RETURNS void LANGUAGE plpython3u AS "
+            "$f$ plpy.error('the result would have 2,000,000 frames', sqlstate='54000') $f$"
+        )
+        with pytest.raises(psycopg.Error) as raised:  # past a cap: too large
+            conn.execute("SELECT pg_temp.huge()")
+        assert answer(raised.value) == (413, "the result would have 2,000,000 frames")
+    with psycopg.connect(dsn) as holder, psycopg.connect(dsn) as other:
+        holder.execute("SELECT 1 FROM modb.collections FOR UPDATE")
+        with pytest.raises(psycopg.Error) as raised:
+            other.execute("SELECT 1 FROM modb.collections FOR UPDATE NOWAIT")
+        status, message = answer(raised.value)
+        assert status == 503 and "try again" in message
+
+
+JUNK = [None, "no", True, 1.5, -1, 0, 10**30, 1e308, [], [[1, "a"]], {}, {"a": {}}, "x" * 300,
+        [None]]  # fmt: skip
+
+
+def test_no_body_makes_a_write_answer_5xx(rest, target):
+    """Every write endpoint that reads a body, each field of a good body replaced by each junk
+    value, and junk as the whole body: never a 5xx."""
+    dsn, tokens, client, _ = rest
+    clip, skeleton = target
+    h = bearer(tokens["editor"])
+    maps = client.get(f"/api/skeletons/{skeleton}/maps")
+    version = client.get(f"/api/clips/{clip}").json()["versions"][-1]["version"]
+    meta_url = f"/api/clips/{clip}/versions/{version}/meta"
+    model = client.post(
+        "/api/models", json={"name": "fuzz", "kind": "k", "data": {}}, headers=h
+    ).json()["id"]
+    good = [
+        ("POST", "/api/collections", {"path": "fuzz/a"}),
+        ("PATCH", "/api/collections/fuzz%2Fnone", {"name": "b", "parent": ""}),
+        ("POST", f"/api/clips/{clip}/retarget",
+         {"skeleton": 10**9, "collection": "fuzz/r", "fps": 30, "mirror": False}),
+        ("PUT", "/api/edit-scripts/fuzz",
+         {"commands": [{"op": "trim", "start": 0, "end": 5}], "comment": "c"}),
+        ("POST", "/api/edit-scripts/none/apply", {"clips": [clip]}),
+        ("POST", "/api/edit-scripts/none/apply", {"collection": "fuzz/none"}),
+        ("POST", "/api/models", {"name": "m", "kind": "k", "data": {}, "meta": {},
+                                 "skeleton_id": skeleton}),
+        ("PUT", f"/api/models/{model}", {"name": "fuzz", "data": {}, "meta": {},
+                                         "skeleton_id": None}),
+        ("POST", "/api/graphs", {"name": "g", "kind": "k", "data": {}}),
+        ("PUT", f"/api/skeletons/{skeleton}/maps",
+         {k: maps.json()[k] for k in ("joint_map", "mirror_pairs", "joint_axes")}),
+        ("PUT", meta_url, {"meta": {"tags": ["x"]}}),
+    ]  # fmt: skip
+    answered = []
+    for method, url, body in good:
+        tries = [junk for junk in JUNK] + [
+            {**body, key: junk} for key in body for junk in JUNK if junk != body[key]
+        ]
+        for attempt in tries:
+            headers = dict(h)
+            if url.endswith(("/maps", "/meta")):  # the current ETag: the junk reaches the write
+                headers["If-Match"] = client.get(url).headers["etag"]
+            r = client.request(method, url, json=attempt, headers=headers)
+            answered.append(r.status_code)
+            assert r.status_code < 500, (method, url, attempt, r.text)
+            assert "plpy" not in r.text and "spiexceptions" not in r.text, r.text
+    assert len(answered) > 400
+    # nothing the junk left behind (joint axes of strings, say) breaks the next retargeting
+    r = client.post(f"/api/clips/{clip}/retarget", json={"skeleton": skeleton}, headers=h)
+    assert r.status_code < 500, r.text

@@ -12,11 +12,14 @@ import http.client
 import itertools
 import json
 import os
+import shutil
 import socket
+import tempfile
 import threading
 import time
 from pathlib import Path
 
+import httpx
 import numpy as np
 import psycopg
 import pytest
@@ -26,6 +29,7 @@ from support.commands import run_modb
 from support.data import mocap
 from support.databases import scratch_database
 
+from modb.database.cluster import Cluster
 from modb.web import api
 from modb.web.app import HEAVY_QUEUE, HEAVY_SLOTS, _configure, create_app
 from modb.web.avatar_socket import MAX_MESSAGE_BYTES, MAX_MESSAGE_DEPTH
@@ -508,3 +512,44 @@ def test_the_guard_refuses_repeated_host_and_origin_whatever_their_order(scope_t
         code = 1008 if scope_type == "websocket" else 403
         assert outcome != "passed" and detail[0] == code, (name, values, outcome, detail)
         assert f"2 {name} headers are refused" in detail[1], detail
+
+
+# --- the database goes away and comes back (issue 39) ---------------------------------------------
+
+
+@pytest.fixture
+def own_cluster():
+    """A private cluster of this test's own (it is stopped under a running `modb serve`)."""
+    home = Path(tempfile.mkdtemp(prefix="modb-gone-"))
+    home.chmod(0o711)  # the cluster's OS user (postgres, when run as root) passes through it
+    cluster = Cluster(home / "cluster")
+    cluster.start()  # with database modb and the extension
+    try:
+        yield cluster
+    finally:
+        cluster.stop()
+        shutil.rmtree(home, ignore_errors=True)
+
+
+def test_a_database_that_went_away_is_said_at_once_and_the_server_comes_back(own_cluster):
+    """After the database stops, a request is answered 503 saying the database is unreachable and
+    where (not "busy" after the pool's 30 s wait: the client gives up at 20 s), with Retry-After;
+    once it runs again the same server answers by itself."""
+    with serving(own_cluster.dsn()) as address:
+        with httpx.Client(base_url=f"http://{address}", timeout=20) as client:
+            assert client.get("/api/collections").status_code == 200
+            own_cluster.stop()
+            for path in ("/api/collections", "/api/clips/1"):
+                r = client.get(path)
+                assert r.status_code == 503, r.text
+                error = r.json()["error"]
+                assert "database is unreachable" in error and str(own_cluster.socket_dir) in error
+                assert r.headers["retry-after"].isdigit()
+            own_cluster.run_server()
+            for _ in range(60):
+                r = client.get("/api/collections")
+                if r.status_code == 200:
+                    break
+                assert r.status_code == 503, r.text
+                time.sleep(1)
+            assert r.status_code == 200, r.text

@@ -45,9 +45,12 @@ def _commands(args: argparse.Namespace) -> list:
         raise SystemExit(f"modb edit: {where}: {e.strerror}") from None
     except json.JSONDecodeError as e:
         raise SystemExit(f"modb edit: {where}:{e.lineno}: not JSON: {e.msg}") from None
-    if not isinstance(commands, list) or not commands:
-        raise SystemExit(f"modb edit: {where}: a script is a non-empty JSON list of commands")
-    return commands
+    from modb.web.body_rules import Invalid, check_script
+
+    try:
+        return check_script(commands, where)
+    except Invalid as e:
+        raise SystemExit(f"modb edit: {e}") from None
 
 
 def run(args: argparse.Namespace) -> int:
@@ -68,11 +71,16 @@ def run(args: argparse.Namespace) -> int:
             for name, commands, comment in conn.execute(
                 "SELECT name, commands, comment FROM modb.edit_scripts ORDER BY name"
             ):
-                ops = ", ".join(c.get("op", "?") for c in commands)
+                # rows stored before 0.17.0 checked scripts may hold anything: list them anyway
+                listed = commands if isinstance(commands, list) else [commands]
+                ops = ", ".join(
+                    str(c.get("op", "?")) if isinstance(c, dict) else "?" for c in listed
+                )
                 print(f"{name}: {ops}" + (f"  ({comment})" if comment else ""))
             return 0
         try:
-            clips = [c for target in args.targets for c in clips_in(conn, target)]
+            # A clip named twice, or named and in a named collection, is edited once.
+            clips = list(dict.fromkeys(c for t in args.targets for c in clips_in(conn, t)))
         except ClipNotFound as e:
             print(f"modb edit: {e}", file=sys.stderr)
             return 2

@@ -24,8 +24,10 @@ def reporting_errors(command: Callable[[], int]) -> int:
         )
         return 2
     except psycopg.Error as e:
+        from modb.web.database_errors import without_prefixes
+
         print(
-            f"modb: database error: {e.diag.message_primary or e}"
+            f"modb: database error: {without_prefixes(e.diag.message_primary or str(e))}"
             + (f"\n  hint: {e.diag.message_hint}" if e.diag.message_hint else ""),
             file=sys.stderr,
         )

@@ -59,7 +59,8 @@ def run(args: argparse.Namespace) -> int:
     with connect(args) as conn:
         try:
             skeleton = _skeleton(conn, args.to)
-            clips = [c for spec in args.sources for c in clips_in(conn, spec)]
+            # A clip named twice, or named and in a named collection, is retargeted once.
+            clips = list(dict.fromkeys(c for spec in args.sources for c in clips_in(conn, spec)))
         except ClipNotFound as e:
             print(f"modb retarget: {e}", file=sys.stderr)
             return 2

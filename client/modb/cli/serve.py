@@ -98,6 +98,7 @@ def run(args: argparse.Namespace) -> int:
             writer_role=args.write_user,
             nodes=nodes,
             max_avatars=max_avatars,
+            warn=lambda message: print(f"modb serve: warning: {message}", file=sys.stderr),
         )
     except ThreeMissing as e:
         print(f"modb serve: {e}", file=sys.stderr)

@@ -34,10 +34,12 @@ from starlette.staticfiles import StaticFiles
 from modb.database import pgarray
 from modb.database.connection import connect
 from modb.database.read_nodes import ReadNodes
-from . import api, catalog_writes, downloads, openapi
+from . import api, catalog_writes, database_errors, downloads, openapi
 from .avatar_socket import avatar_endpoint, default_max_avatars
 from .auth import Tokens
+from .body_rules import Invalid
 from .guard import HostOriginGuard, allowed_hosts
+from .server_pool import ServerPool, Unreachable, probe
 from .writes import MAX_UPLOAD_MB, WRITER_ROLE, Writer, meta_endpoints, upload_endpoint
 
 HERE = Path(__file__).parent
@@ -50,7 +52,7 @@ POOL_SIZE = 4  # database connections for the JSON endpoints and the avatar sock
 HEAVY_SLOTS = 2  # frame requests answered at once: the other connections stay for the light reads
 HEAVY_QUEUE = 16  # frame requests that may wait for a slot; more are answered 503 at once
 HEAVY_WAIT_S = 30  # a frame request that waits this long for a slot is answered 503
-RETRY_AFTER_S = 2  # the 503's Retry-After
+RETRY_AFTER_S = database_errors.RETRY_AFTER_S  # the 503's Retry-After
 POOL_WAIT_S = 30  # a request that waits this long for a database connection is answered 503
 STATEMENT_TIMEOUT = "30s"  # a pooled connection's query that takes longer is cancelled (a 503)
 
@@ -231,7 +233,9 @@ def _error(status: int) -> Callable:
 
 
 async def _http_error(request: Request, exc: HTTPException) -> JSONResponse:
-    message = f"no such page: {request.url.path}" if exc.status_code == 404 else exc.detail
+    # The router's own 404 (no route) says "Not Found"; a handler's names what is missing.
+    unrouted = exc.status_code == 404 and exc.detail == "Not Found"
+    message = f"no such page: {request.url.path}" if unrouted else exc.detail
     # The headers: a 405 keeps its Allow.
     return JSONResponse({"error": message}, status_code=exc.status_code, headers=exc.headers)
 
@@ -260,6 +264,37 @@ async def _query_canceled(request: Request, exc: psycopg.errors.QueryCanceled) -
     )
 
 
+async def _unreachable(request: Request, exc: Unreachable) -> JSONResponse:
+    log.warning("%s: %s", request.url.path, exc)
+    return _unavailable(f"{exc}; try again in {RETRY_AFTER_S} s")
+
+
+def _database_error(conninfo: str) -> Callable:
+    """Every database error the views let through: a broken connection (is the server there?), a
+    cancelled query, or what database_errors says of the rest."""
+
+    async def handler(request: Request, exc: psycopg.Error) -> JSONResponse:
+        if isinstance(exc, psycopg.errors.QueryCanceled):
+            return await _query_canceled(request, exc)
+        if isinstance(exc, psycopg.OperationalError) and not database_errors.is_transient(exc):
+            try:
+                await run_in_threadpool(probe, conninfo)
+            except Unreachable as gone:
+                return await _unreachable(request, gone)
+            log.warning("the database connection broke answering %s: %s", request.url.path, exc)
+            return _unavailable(
+                f"the connection to the database broke ({database_errors.message(exc)}): "
+                f"try again in {RETRY_AFTER_S} s"
+            )
+        status, message = database_errors.answer(exc)
+        if status == 503:
+            log.warning("%s: %s", request.url.path, exc)
+            return _unavailable(message)
+        return JSONResponse({"error": message}, status_code=status)
+
+    return handler
+
+
 async def _internal_error(request: Request, exc: Exception) -> JSONResponse:
     # The details go to the server's log, not the page.
     log.exception("while answering %s", request.url.path)
@@ -285,25 +320,30 @@ def create_app(
     writer_role: str = WRITER_ROLE,
     nodes: ReadNodes | None = None,
     max_avatars: int | None = None,
+    warn: Callable[[str], None] = log.warning,
 ) -> HostOriginGuard:
+    """The app behind its Host/Origin guard; `warn` hears what the server cannot do (writes off)."""
     if not (THREE / "build" / "three.module.js").exists():
         raise ThreeMissing(
             f"three.js is not installed in {THREE.parent}: run `make setup` (npm ci there)"
         )
     # Fails now, saying what to do, when the database has no modb extension.
     connect(conninfo).close()
-    pool = ConnectionPool(
+    # It checks each connection it hands out: a restarted server costs no failed request.
+    pool = ServerPool(
         conninfo,
         min_size=1,
         max_size=POOL_SIZE,
         timeout=POOL_WAIT_S,
         configure=_configure,
         open=False,
-        check=ConnectionPool.check_connection,  # a restarted server costs no failed request
     )
 
     tokens = Tokens(pool, require_token)
     writer = Writer.for_server(conninfo, writer_role)
+    writes_off = writer.check()
+    if writes_off:
+        warn(f"writes are off on this server: {writes_off}")
     nodes = nodes or ReadNodes(conninfo)
     max_avatars = max_avatars or default_max_avatars(nodes)
 
@@ -341,9 +381,11 @@ def create_app(
         exception_handlers={
             api.NotFound: _error(404),
             api.BadRequest: _error(400),
+            Invalid: _error(400),
             Busy: _busy,
             PoolTimeout: _pool_timeout,
-            psycopg.errors.QueryCanceled: _query_canceled,
+            Unreachable: _unreachable,
+            psycopg.Error: _database_error(conninfo),
             HTTPException: _http_error,
             Exception: _internal_error,
         },

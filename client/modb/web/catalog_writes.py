@@ -6,13 +6,12 @@ the writer role's connection, one transaction with its modb.audit_log row, and e
 
 from __future__ import annotations
 
-import contextlib
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 import psycopg
-from psycopg import errors, sql
+from psycopg import sql
 from psycopg.types.json import Jsonb
 from starlette.concurrency import run_in_threadpool
 from starlette.exceptions import HTTPException
@@ -24,8 +23,28 @@ from modb.access import audit
 from modb.clips import collection_clips
 from modb.editing import catalog
 
+from .api import BadRequest, NotFound
 from .auth import Tokens
 from .bodies import authorized_json
+from .body_rules import (
+    FPS,
+    JOINT_AXES,
+    MAX_ID,
+    CollectionPath,
+    Fixed,
+    Flag,
+    JsonObject,
+    ListOf,
+    MapOf,
+    Name,
+    Nullable,
+    ParentPath,
+    Rule,
+    Shape,
+    Text,
+    Whole,
+    check_script,
+)
 from .writes import Writer
 
 MAX_DOCUMENT_BYTES = 64 << 20  # a model's or graph's data, as JSON
@@ -46,57 +65,46 @@ class Done:
 Handler = Callable[[psycopg.Connection, Request, Any], Done]
 
 
-@contextlib.contextmanager
-def _database_errors() -> Iterator[None]:
-    """The database's refusals as HTTP answers with its message and hint."""
-    try:
-        yield
-    except psycopg.OperationalError:
-        raise
-    except psycopg.Error as e:
-        message = e.diag.message_primary or str(e)
-        if e.diag.message_hint:
-            message += f" ({e.diag.message_hint})"
-        status = (
-            404
-            if isinstance(e, errors.NoDataFound)
-            else 409
-            if isinstance(e, (errors.UniqueViolation, errors.DependentObjectsStillExist))
-            else 400
+def _int(request: Request, name: str, what: str) -> int:
+    """A whole number from the path (an id, a version)."""
+    text = request.path_params[name]
+    if not text.isascii() or not text.isdigit() or int(text) > MAX_ID:
+        raise BadRequest(f"{what}: a whole number from 0 to {MAX_ID}, got {text!r:.40}")
+    return int(text)
+
+
+TABLES = {"clip": "clips", "skeleton": "skeletons", "model": "models", "graph": "graphs"}
+
+
+def _existing(conn: psycopg.Connection, what: str, ident: int) -> int:
+    """`ident`, or 404 naming the object that is not there (as the reads do)."""
+    table = sql.Identifier("modb", TABLES[what])
+    query = sql.SQL("SELECT 1 FROM {} WHERE id = %s").format(table)
+    if conn.execute(query, [ident]).fetchone() is None:
+        raise NotFound(f"no {what} with id {ident}")
+    return ident
+
+
+def _current_clips(conn: psycopg.Connection, clips: list[int]) -> list[int]:
+    """The clips, each with a version of its own, or 404 naming the first that has none."""
+    have = {
+        c
+        for (c,) in conn.execute(
+            "SELECT clip_id FROM modb.current_clips WHERE clip_id = ANY(%s)", [clips]
         )
-        raise HTTPException(status, message) from None
-
-
-def _int(request: Request, name: str) -> int:
-    try:
-        return int(request.path_params[name])
-    except ValueError:
-        raise HTTPException(400, f"{name} is a whole number") from None
-
-
-def _object(body: Any, *required: str) -> dict[str, Any]:
-    if not isinstance(body, dict):
-        raise HTTPException(400, "the body is a JSON object")
-    missing = [k for k in required if k not in body]
+    }
+    missing = [c for c in clips if c not in have]
     if missing:
-        raise HTTPException(400, f"the body needs {', '.join(missing)}")
-    return body
-
-
-def _text(body: dict[str, Any], key: str, required: bool = True) -> str | None:
-    value = body.get(key)
-    if value is None and not required:
-        return None
-    if not isinstance(value, str) or not value.strip() or len(value) > 200:
-        raise HTTPException(400, f"{key}: a string of 1 to 200 characters")
-    return value
+        raise NotFound(f"no clip with id {missing[0]} (with a version of its own)")
+    return clips
 
 
 def write_endpoint(tokens: Tokens, writer: Writer, handler: Handler, with_body: bool = True):
     """An endpoint running `handler` as one audited transaction of the writer role."""
 
     def run(request: Request, grant, body: Any) -> JSONResponse:
-        with writer.pool().connection() as conn, _database_errors():
+        # A database error leaves the transaction rolled back; the app answers it (database_errors)
+        with writer.pool().connection() as conn:
             with conn.transaction():
                 done = handler(conn, request, body)
                 audit.record(conn, grant.name, done.action, done.obj, done.detail)
@@ -111,46 +119,50 @@ def write_endpoint(tokens: Tokens, writer: Writer, handler: Handler, with_body: 
 
 # Collections
 
+NEW_COLLECTION = Shape({"path": CollectionPath()}, ("path",))
+CHANGED_COLLECTION = Shape({"name": Name(), "parent": Nullable(ParentPath())}, at_least_one=True)
+
 
 def _create_collection(conn, request, body) -> Done:
-    path = _text(_object(body, "path"), "path")
-    existed = catalog.find_collection(conn, path) is not None
+    """A new collection (and the levels above it); 409 when it exists (nothing audited)."""
+    path = NEW_COLLECTION(None, body)["path"]
+    if catalog.find_collection(conn, path) is not None:
+        raise Conflict(f"collection {path!r} already exists")
     found, shown = catalog.create_collection(conn, path)
-    return Done(
-        {"id": found, "path": shown}, "collection create", shown, {}, 200 if existed else 201
-    )
+    return Done({"id": found, "path": shown}, "collection create", shown, {}, 201)
 
 
 def _change_collection(conn, request, body) -> Done:
     path = request.path_params["path"]
-    body = _object(body)
-    if not {"name", "parent"} & body.keys():
-        raise HTTPException(
-            400, 'the body has "name" (rename) and/or "parent" (move; "" for the top)'
-        )
+    body = CHANGED_COLLECTION(None, body)
     shown = path
     if "parent" in body:
-        parent = body["parent"]
-        if parent is not None and not isinstance(parent, str):
-            raise HTTPException(400, "parent: a collection path, or '' for the top")
-        shown = catalog.move_collection(conn, shown, parent)
+        shown = catalog.move_collection(conn, shown, body["parent"])
     if "name" in body:
-        shown = catalog.rename_collection(conn, shown, _text(body, "name"))
+        shown = catalog.rename_collection(conn, shown, body["name"])
     return Done({"path": shown}, "collection change", path, {"now": shown})
 
 
 def _delete_collection(conn, request, body) -> Done:
     path = request.path_params["path"]
-    with_clips = request.query_params.get("with_clips", "false").lower() in ("1", "true", "yes")
+    given = request.query_params.get("with_clips", "false").lower()
+    if given not in ("1", "true", "yes", "0", "false", "no"):
+        raise BadRequest(f"with_clips: true or false, got {given!r:.40}")
+    with_clips = given in ("1", "true", "yes")
     clips = catalog.delete_collection(conn, path, with_clips)
     return Done({"deleted": path, "clips": clips}, "collection delete", path, {"clips": clips})
+
+
+class Conflict(HTTPException):
+    def __init__(self, detail: str) -> None:
+        super().__init__(409, detail)
 
 
 # Clips and versions
 
 
 def _delete_clip(conn, request, body) -> Done:
-    clip_id = _int(request, "ident")
+    clip_id = _existing(conn, "clip", _int(request, "ident", "clip id"))
     versions = catalog.delete_clip(conn, clip_id)
     return Done(
         {"deleted": clip_id, "versions": versions},
@@ -160,8 +172,13 @@ def _delete_clip(conn, request, body) -> Done:
     )
 
 
+def _version_path(conn, request) -> tuple[int, int]:
+    clip_id = _existing(conn, "clip", _int(request, "clip_id", "clip id"))
+    return clip_id, _int(request, "version", "version")
+
+
 def _delete_version(conn, request, body) -> Done:
-    clip_id, version = _int(request, "clip_id"), _int(request, "version")
+    clip_id, version = _version_path(conn, request)
     r = catalog.delete_version(conn, clip_id, version)
     return Done(
         {"deleted": version, "current_version": r.version, "snippets": r.snippets},
@@ -172,7 +189,7 @@ def _delete_version(conn, request, body) -> Done:
 
 
 def _restore_version(conn, request, body) -> Done:
-    clip_id, version = _int(request, "clip_id"), _int(request, "version")
+    clip_id, version = _version_path(conn, request)
     r = catalog.restore_version(conn, clip_id, version)
     return Done(
         {"restored": version, "current_version": r.version, "snippets": r.snippets},
@@ -185,6 +202,16 @@ def _restore_version(conn, request, body) -> Done:
 
 # A skeleton's joint map and mirror pairs
 
+MAPS = Shape(
+    {
+        "joint_map": MapOf(Text(), most=100),
+        "mirror_pairs": ListOf(Fixed(Text(), 2), most=1000),
+        "joint_axes": Nullable(JOINT_AXES),
+        "skeleton_id": Whole(what="the skeleton's id"),  # as GET answers, so it can be sent back
+    },
+    ("joint_map", "mirror_pairs"),
+)
+
 
 def _maps_body(maps: catalog.SkeletonMaps, **extra: Any) -> dict[str, Any]:
     return {"skeleton_id": maps.skeleton_id, **maps.document, **extra}
@@ -196,11 +223,12 @@ def maps_endpoint(read_pool, tokens: Tokens, writer: Writer):
 
     def get(request: Request) -> JSONResponse:
         tokens.reader(request)
+        skeleton_id = _int(request, "skeleton_id", "skeleton id")
         with read_pool.connection() as conn:
             try:
-                maps = catalog.read_maps(conn, _int(request, "skeleton_id"))
-            except catalog.SkeletonNotFound as e:
-                raise HTTPException(404, str(e)) from None
+                maps = catalog.read_maps(conn, skeleton_id)
+            except catalog.SkeletonNotFound:
+                raise NotFound(f"no skeleton with id {skeleton_id}") from None
         return JSONResponse(_maps_body(maps), headers={"ETag": maps.etag})
 
     async def endpoint(request: Request) -> JSONResponse:
@@ -212,20 +240,25 @@ def maps_endpoint(read_pool, tokens: Tokens, writer: Writer):
 
 
 def _put_maps(conn, request, body) -> Done:
-    skeleton_id = _int(request, "skeleton_id")
+    skeleton_id = _int(request, "skeleton_id", "skeleton id")
     if_match = request.headers.get("if-match")
     if not if_match:
         raise HTTPException(428, "send If-Match with the ETag of the maps you read")
-    body = _object(body, "joint_map", "mirror_pairs")
-    axes = body.get("joint_axes")
-    if axes is not None and not isinstance(axes, dict):
-        raise HTTPException(400, 'joint_axes: {} or {"joints": {...}, "pose": ...}')
+    body = MAPS(None, body)
+    if body.get("skeleton_id", skeleton_id) != skeleton_id:
+        raise BadRequest(f"skeleton_id: {body['skeleton_id']}, but the path names {skeleton_id}")
+    if not body["joint_map"]:
+        raise BadRequest(
+            "joint_map: empty; snippets are cut from the standard joints it maps "
+            "(GET the maps for the current one)"
+        )
     try:
         maps, recut = catalog.write_maps(
-            conn, skeleton_id, body["joint_map"], body["mirror_pairs"], if_match, axes
-        )
-    except catalog.SkeletonNotFound as e:
-        raise HTTPException(404, str(e)) from None
+            conn, skeleton_id, body["joint_map"], body["mirror_pairs"], if_match,
+            body.get("joint_axes"),
+        )  # fmt: skip
+    except catalog.SkeletonNotFound:
+        raise NotFound(f"no skeleton with id {skeleton_id}") from None
     except catalog.StaleMaps as e:
         raise _Stale(e) from None
     return Done(
@@ -249,35 +282,56 @@ class _Stale(HTTPException):
 BUILT_KINDS = ("transitions",)
 
 
-def _row_fields(body: Any, table: str, partial: bool) -> dict[str, Any]:
-    body = _object(body, *(() if partial else ("name", "kind", "data")))
-    fields: dict[str, Any] = {}
-    for key in ("name", "kind"):
-        if key in body:
-            fields[key] = _text(body, key)
+class Document(Rule):
+    """A model's or graph's data: any JSON but null."""
+
+    expects = "any JSON value but null"
+
+    def __call__(self, where: str, value: Any) -> Any:
+        if value is None:
+            raise self.refuse(where, value)
+        return value
+
+
+ROW_FIELDS = {
+    "name": Text(),
+    "kind": Text(),
+    "data": Document(),
+    "meta": JsonObject(),
+    "skeleton_id": Nullable(Whole(what="a skeleton id")),
+}
+NEW_ROW = Shape(ROW_FIELDS, ("name", "kind", "data"))
+CHANGED_ROW = Shape(ROW_FIELDS, at_least_one=True)
+
+
+def _row_fields(conn, body: Any, table: str, partial: bool) -> dict[str, Any]:
+    fields = (CHANGED_ROW if partial else NEW_ROW)(None, body)
     if fields.get("kind") in BUILT_KINDS and table == "graphs":
-        raise HTTPException(400, "transition graphs are built: `modb graph build NAME`")
-    if "data" in body:
-        fields["data"] = Jsonb(body["data"])
-    if "meta" in body:
-        if not isinstance(body["meta"], dict):
-            raise HTTPException(400, "meta: a JSON object")
-        fields["meta"] = Jsonb(body["meta"])
-    if "skeleton_id" in body:
-        if body["skeleton_id"] is not None and not isinstance(body["skeleton_id"], int):
-            raise HTTPException(400, "skeleton_id: a skeleton's id, or null")
-        fields["skeleton_id"] = body["skeleton_id"]
-    if not fields:
-        raise HTTPException(400, "nothing to change: give name, kind, data, meta or skeleton_id")
+        raise BadRequest("transition graphs are built: `modb graph build NAME`")
+    if fields.get("skeleton_id") is not None:
+        _existing(conn, "skeleton", fields["skeleton_id"])
+    for key in ("data", "meta"):
+        if key in fields:
+            fields[key] = Jsonb(fields[key])
     return fields
+
+
+def _taken(conn, table: str, name: str, kind: str) -> None:
+    """409 when a row of that name and kind exists (the table's unique key)."""
+    query = sql.SQL("SELECT id FROM {} WHERE name = %s AND kind = %s").format(
+        sql.Identifier("modb", table)
+    )
+    row = conn.execute(query, [name, kind]).fetchone()
+    if row is not None:
+        what = f"a {table[:-1]} named {name!r} of kind {kind!r}"
+        raise Conflict(f"{what} already exists: id {row[0]}")
 
 
 def _create_row(table: str):
     def handler(conn, request, body) -> Done:
-        fields = _row_fields(body, table, partial=False)
-        if (
-            table == "graphs"
-        ):  # a graph's name is also its row in modb.graph_names (83_graphs.sql)
+        fields = _row_fields(conn, body, table, partial=False)
+        _taken(conn, table, fields["name"], fields["kind"])
+        if table == "graphs":  # a graph's name is also its row in modb.graph_names (83_graphs.sql)
             conn.execute(
                 "INSERT INTO modb.graph_names (name, kind) VALUES (%s, %s)",
                 [fields["name"], fields["kind"]],
@@ -309,21 +363,24 @@ def _row(conn, table: str, ident: int) -> tuple[str, str]:
         [ident],
     ).fetchone()
     if row is None:
-        raise HTTPException(404, f"no {table[:-1]} with id {ident}")
+        raise NotFound(f"no {table[:-1]} with id {ident}")
     return row
 
 
 def _replace_row(table: str):
     def handler(conn, request, body) -> Done:
-        ident = _int(request, "ident")
+        ident = _int(request, "ident", f"{table[:-1]} id")
+        fields = _row_fields(conn, body, table, partial=True)
         name, kind = _row(conn, table, ident)
-        fields = _row_fields(body, table, partial=True)
         if table == "graphs" and (kind in BUILT_KINDS or {"name", "kind"} & fields.keys()):
-            raise HTTPException(
-                400,
+            raise BadRequest(
                 "a graph's name and kind stay; a transition graph is rebuilt, not replaced "
-                "(`modb graph build NAME`)",
+                "(`modb graph build NAME`)"
             )
+        if {"name", "kind"} & fields.keys():
+            new = (fields.get("name", name), fields.get("kind", kind))
+            if new != (name, kind):
+                _taken(conn, table, *new)
         assignments = sql.SQL(", ").join(
             sql.SQL("{} = %s").format(sql.Identifier(k)) for k in fields
         )
@@ -345,7 +402,7 @@ def _replace_row(table: str):
 
 def _delete_row(table: str):
     def handler(conn, request, body) -> Done:
-        ident = _int(request, "ident")
+        ident = _int(request, "ident", f"{table[:-1]} id")
         name, kind = _row(conn, table, ident)
         if table == "graphs":  # its rows go with its name (ON DELETE CASCADE)
             conn.execute("DELETE FROM modb.graph_names WHERE name = %s AND kind = %s", [name, kind])
@@ -363,26 +420,40 @@ def _delete_row(table: str):
 
 # Edit scripts and retargeting (modb.apply_edit_script, modb.retarget)
 
+SCRIPT = Shape({"commands": Rule(), "comment": Nullable(Text(2000, lines=True))}, ("commands",))
+TARGETS = Shape(
+    {"clips": ListOf(Whole(what="a clip id"), 1, distinct=True), "collection": CollectionPath()}
+)
+RETARGET = Shape(
+    {
+        "skeleton": Whole(what="a skeleton id"),
+        "collection": Nullable(CollectionPath()),
+        "fps": Nullable(FPS),
+        "mirror": Flag(),
+    },
+    ("skeleton",),
+)
+
+
+def _script_name(request: Request) -> str:
+    return Text()("edit script name", request.path_params["name"])
+
 
 def _put_script(conn, request, body) -> Done:
-    name = request.path_params["name"]
-    body = _object(body, "commands")
-    if not isinstance(body["commands"], list) or not body["commands"]:
-        raise HTTPException(400, "commands: a non-empty list of commands")
-    comment = body.get("comment")
-    if comment is not None and not isinstance(comment, str):
-        raise HTTPException(400, "comment: a string")
+    name = _script_name(request)
+    body = SCRIPT(None, body)
+    commands = check_script(body["commands"])
     (made,) = conn.execute(
         "INSERT INTO modb.edit_scripts (name, commands, comment) VALUES (%s, %s, %s) "
         "ON CONFLICT (name) DO UPDATE SET commands = EXCLUDED.commands, "
         "comment = EXCLUDED.comment RETURNING xmax = 0",
-        [name, Jsonb(body["commands"]), comment],
+        [name, Jsonb(commands), body.get("comment")],
     ).fetchone()
     return Done(
-        {"name": name, "commands": len(body["commands"])},
+        {"name": name, "commands": len(commands)},
         "edit script save",
         name,
-        {"commands": body["commands"]},
+        {"commands": commands},
         201 if made else 200,
     )
 
@@ -390,43 +461,44 @@ def _put_script(conn, request, body) -> Done:
 def _delete_script(conn, request, body) -> Done:
     name = request.path_params["name"]
     if conn.execute("DELETE FROM modb.edit_scripts WHERE name = %s", [name]).rowcount == 0:
-        raise HTTPException(404, f"no edit script {name!r}")
+        raise NotFound(f"no edit script {name!r}")
     return Done({"deleted": name}, "edit script delete", name, {})
 
 
 def _target_clips(conn, body) -> list[int]:
+    """The clips named (each once), or those of the collection; 404 for one that is not there."""
+    body = TARGETS(None, body)
+    if len(body) != 1:
+        raise BadRequest('the body names the clips: {"clips": [ids]} or {"collection": "path"}')
     if "collection" in body:
-        path = _text(body, "collection")
+        path = body["collection"]
+        if catalog.find_collection(conn, path) is None:
+            raise NotFound(f"no collection {path!r}")
         clips = collection_clips(conn, path)
         if not clips:
-            raise HTTPException(404, f"no clips in collection {path!r}")
-        return clips
-    clips = body.get("clips")
-    if not isinstance(clips, list) or not clips or not all(type(c) is int for c in clips):
-        raise HTTPException(400, 'give "clips": [ids] or "collection": "path"')
-    return clips
+            raise NotFound(f"no clips in collection {path!r}")
+        return list(dict.fromkeys(clips))
+    return _current_clips(conn, body["clips"])
 
 
 def _apply_script(conn, request, body) -> Done:
     name = request.path_params["name"]
-    clips = _target_clips(conn, _object(body))
+    clips = _target_clips(conn, body)
+    if conn.execute("SELECT 1 FROM modb.edit_scripts WHERE name = %s", [name]).fetchone() is None:
+        raise NotFound(f"no edit script {name!r}")
     rows = conn.execute("SELECT * FROM modb.apply_edit_script(%s, %s)", [name, clips]).fetchall()
     results = [{"clip_id": c, "version": v, "n_frames": n, "snippets": k} for c, v, n, k in rows]
     return Done({"script": name, "results": results}, "edit script apply", name, {"clips": clips})
 
 
 def _retarget(conn, request, body) -> Done:
-    clip_id = _int(request, "ident")
-    body = _object(body, "skeleton")
-    skeleton, fps = body["skeleton"], body.get("fps")
-    if type(skeleton) is not int:
-        raise HTTPException(400, "skeleton: a skeleton's id")
-    if fps is not None and (isinstance(fps, bool) or not isinstance(fps, (int, float))):
-        raise HTTPException(400, "fps: a number")
-    collection = _text(body, "collection", required=False)
+    clip_id = _int(request, "ident", "clip id")
+    body = RETARGET(None, body)
+    _current_clips(conn, [clip_id])
+    skeleton = _existing(conn, "skeleton", body["skeleton"])
     (made,) = conn.execute(
         "SELECT modb.retarget(%s, %s, %s, %s, %s)",
-        [clip_id, skeleton, collection, fps, bool(body.get("mirror", False))],
+        [clip_id, skeleton, body.get("collection"), body.get("fps"), body.get("mirror", False)],
     ).fetchone()
     version, n_frames, rate, path = conn.execute(
         "SELECT version, n_frames, fps, collection FROM modb.current_clips WHERE clip_id = %s",

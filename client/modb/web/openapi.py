@@ -7,6 +7,8 @@ from typing import Any
 
 from modb.version import __version__
 
+from . import body_rules
+
 ERROR = {"type": "object", "properties": {"error": {"type": "string"}}, "required": ["error"]}
 ANY = {"type": "object"}
 
@@ -22,15 +24,17 @@ def _query(name: str, about: str, schema: dict[str, Any]) -> dict[str, Any]:
 
 def _responses(ok: str, *errors: int, body: dict[str, Any] = ANY) -> dict[str, Any]:
     why = {
-        400: "bad input (the message says which and why)",
+        400: "bad input: the message names the field and what it takes (checked before any work)",
         401: "no token, or an unknown or revoked one",
         403: "a reader's token on a write",
-        404: "no such object",
-        409: "the meta changed since it was read (the body holds the current meta and ETag)",
+        404: "no such object (the message names it: 'no clip with id 7')",
+        409: "it already exists, or it changed since it was read (for meta and maps the body or "
+        "headers hold the current ETag)",
         411: "no Content-Length",
         413: "larger than the server's upload limit",
         428: "no If-Match",
-        503: "busy, or writes are off on this server (the message says why)",
+        503: "try again (Retry-After): busy, a write met another on the same rows, the database "
+        "unreachable (the message says where), or writes are off on this server (it says why)",
     }
     out: dict[str, Any] = {
         "200": {"description": ok, "content": {"application/json": {"schema": body}}}
@@ -104,8 +108,22 @@ def _object(required: list[str], **properties: dict[str, Any]) -> dict[str, Any]
 
 
 TEXT = {"type": "string", "minLength": 1, "maxLength": 200}
+NAME = {**TEXT, "pattern": "^[^/]+$", "description": "a name: no '/', not '.' or '..'"}
+PATH = {**TEXT, "description": "names joined by '/' (no empty segment, '.' or '..')"}
+ID = {"type": "integer", "minimum": 1}
+COMMANDS = {
+    "type": "array",
+    "minItems": 1,
+    "maxItems": 100,
+    "items": {
+        "type": "object",
+        "required": ["op"],
+        "properties": {"op": {"enum": list(body_rules.COMMANDS)}},
+        "description": "modb_kernel/edits.py lists each command's fields",
+    },
+}
 ROW = {"name": TEXT, "kind": TEXT, "data": {}, "meta": {"type": "object"},
-       "skeleton_id": {"type": ["integer", "null"]}}  # fmt: skip
+       "skeleton_id": {"type": ["integer", "null"], "minimum": 1}}  # fmt: skip
 IF_MATCH = {"name": "If-Match", "in": "header", "required": True, "schema": {"type": "string"}}
 COLLECTION_PATH = {"name": "path", "in": "path", "required": True, "schema": {"type": "string"},
                    "description": 'a path like "bandai/walks", URL-encoded'}  # fmt: skip
@@ -118,15 +136,15 @@ def catalog_writes() -> dict[str, dict[str, Any]]:
         "/api/collections": {
             "post": _write(
                 "create a collection (and the levels above it)",
-                body=_object(["path"], path=TEXT),
-                ok="its id and path (201 when new)",
+                body=_object(["path"], path=PATH),
+                ok="its id and path (201); 409 when it exists",
             )
         },
         "/api/collections/{path}": {
             "patch": _write(
                 "rename and/or move a collection",
                 COLLECTION_PATH,
-                body=_object([], name=TEXT, parent={"type": ["string", "null"]}),
+                body=_object([], name=NAME, parent={"type": ["string", "null"]}),
                 ok="its new path",
                 about='"parent": "" moves it to the top.',
             ),
@@ -185,18 +203,19 @@ def catalog_writes() -> dict[str, dict[str, Any]]:
               "description": "the edit script's name"}  # fmt: skip
     out["/api/clips/{ident}/retarget"] = {"post": _write(
         "retarget the clip onto another skeleton, as a new clip linked to it", CLIP,
-        body=_object(["skeleton"], skeleton={"type": "integer"}, collection=TEXT,
-                     fps={"type": "number"}, mirror={"type": "boolean"}),
+        body=_object(["skeleton"], skeleton=ID, collection=PATH,
+                     fps={"type": "number", "minimum": 1, "maximum": 1000},
+                     mirror={"type": "boolean"}),
         ok="the new clip (201)")}  # fmt: skip
     out["/api/edit-scripts/{name}"] = {
         "put": _write("store an edit script (replacing one of that name)", script,
-                      body=_object(["commands"], commands={"type": "array"}, comment=TEXT),
+                      body=_object(["commands"], commands=COMMANDS, comment=TEXT),
                       ok="stored (201 when new)"),
         "delete": _write("delete an edit script", script, ok="its name"),
     }  # fmt: skip
     out["/api/edit-scripts/{name}/apply"] = {"post": _write(
         "apply an edit script: a new version of each clip (one transaction)", script,
-        body=_object([], clips={"type": "array", "items": {"type": "integer"}}, collection=TEXT),
+        body=_object([], clips={"type": "array", "items": ID, "minItems": 1}, collection=PATH),
         ok="each clip's new version")}  # fmt: skip
     for table in ("models", "graphs"):
         one = _id("ident", f"{table[:-1]} id")

@@ -41,6 +41,8 @@ from modb.editing.meta import (
 from .api import NotFound
 from .auth import Tokens
 from .bodies import authorized_json
+from .body_rules import CollectionPath, JsonObject, Shape
+from .server_pool import ServerPool
 
 MAX_UPLOAD_MB = 100  # a request's body; `modb serve --max-upload-mb` changes it
 MAX_UPLOAD_FILES = 500
@@ -56,13 +58,15 @@ class WritesOff(HTTPException):
 
 @dataclass
 class Writer:
-    """The writer role's connections, opened at the first write; refused (503, saying why) when the
-    role cannot log in, is a superuser or is not a member of modb_loader."""
+    """The writer role's connections; refused (503, saying why) when the role cannot log in, is a
+    superuser or is not a member of modb_loader. `modb serve` checks that at start-up (check()),
+    so that it can say so then, not only at the first write."""
 
     conninfo: str
     role: str
     _pool: ConnectionPool | None = None
     _why_not: str | None = None
+    _checked: bool = False
 
     @classmethod
     def for_server(cls, conninfo: str, role: str = WRITER_ROLE) -> Writer:
@@ -73,29 +77,38 @@ class Writer:
         pgarray.register(conn)  # the loader sends its arrays as binary float4
         conn.execute("SELECT set_config('statement_timeout', %s, false)", [WRITE_TIMEOUT])
 
-    def pool(self) -> ConnectionPool:
-        if self._why_not:
-            raise WritesOff(self._why_not)
-        if self._pool is None:
-            try:
-                with psycopg.connect(self.conninfo) as conn:
-                    superuser, loader = conn.execute(
-                        "SELECT rolsuper, pg_has_role(current_user, 'modb_loader', 'MEMBER') "
-                        "FROM pg_roles WHERE rolname = current_user"
-                    ).fetchone()
-            except psycopg.Error as e:
-                self._why_not = (
-                    f"the writer role {self.role} cannot connect ({str(e).strip()[:200]}); "
-                    f"create it: CREATE ROLE {self.role} LOGIN IN ROLE modb_loader"
-                )
-                raise WritesOff(self._why_not) from None
+    def check(self) -> str | None:
+        """Why writes are off on this server (None: they are on). Asked once: a role created
+        later takes a restart of `modb serve`."""
+        if self._checked:
+            return self._why_not
+        try:
+            with psycopg.connect(self.conninfo, connect_timeout=10) as conn:
+                superuser, loader = conn.execute(
+                    "SELECT rolsuper, pg_has_role(current_user, 'modb_loader', 'MEMBER') "
+                    "FROM pg_roles WHERE rolname = current_user"
+                ).fetchone()
+        except psycopg.Error as e:
+            reason = " ".join(str(e).split())[:200]
+            self._why_not = (
+                f"the writer role {self.role} cannot connect ({reason}); create it "
+                f"(CREATE ROLE {self.role} LOGIN IN ROLE modb_loader, with a password on a "
+                f"server that asks one) or name another with --write-user, then restart modb serve"
+            )
+        else:
             if superuser or not loader:
                 self._why_not = (
                     f"the writer role {self.role} must be a member of modb_loader and not a "
                     f"superuser"
                 )
-                raise WritesOff(self._why_not)
-            self._pool = ConnectionPool(
+        self._checked = True
+        return self._why_not
+
+    def pool(self) -> ConnectionPool:
+        if self.check():
+            raise WritesOff(self._why_not)
+        if self._pool is None:
+            self._pool = ServerPool(
                 self.conninfo, min_size=0, max_size=2, configure=self._configure, open=True
             )
         return self._pool
@@ -119,6 +132,9 @@ def _path_ints(request: Request) -> tuple[int, int]:
         raise HTTPException(400, "clip and version are whole numbers") from None
 
 
+META_BODY = Shape({"meta": JsonObject()}, ("meta",))  # the whole new meta
+
+
 def meta_endpoints(read_pool: ConnectionPool, tokens: Tokens, writer: Writer):
     """GET and PUT /api/clips/{clip_id}/versions/{version}/meta."""
 
@@ -138,8 +154,7 @@ def meta_endpoints(read_pool: ConnectionPool, tokens: Tokens, writer: Writer):
             raise HTTPException(
                 428, "send If-Match with the ETag of the meta you read, so no edit is lost"
             )
-        if not isinstance(body, dict) or not isinstance(body.get("meta"), dict):
-            raise HTTPException(400, 'the body is {"meta": {...}}: the whole new meta')
+        body = META_BODY(None, body)
 
         def audited(conn: psycopg.Connection, written: VersionMeta) -> None:
             audit.record(
@@ -260,9 +275,10 @@ def upload_endpoint(tokens: Tokens, writer: Writer, max_upload_mb: int):
         except Exception as e:  # python-multipart's parse errors
             raise HTTPException(400, f"a malformed multipart body: {e}") from None
         try:
-            collection = str(form.get("collection") or "uploads").strip().strip("/")
-            if not collection or len(collection) > 200:
-                raise HTTPException(400, "collection: 1 to 200 characters")
+            given = form.get("collection") or "uploads"
+            if not isinstance(given, str):
+                raise HTTPException(400, "collection: a form field, not a file")
+            collection = CollectionPath()("collection", given.strip().strip("/"))
             files = _uploaded_files(form)
             answer = await run_in_threadpool(_load_upload, writer, grant, collection, files)
         finally:
