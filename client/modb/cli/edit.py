@@ -68,7 +68,11 @@ def run(args: argparse.Namespace) -> int:
             for name, commands, comment in conn.execute(
                 "SELECT name, commands, comment FROM modb.edit_scripts ORDER BY name"
             ):
-                ops = ", ".join(c.get("op", "?") for c in commands)
+                # rows stored before 0.17.0 checked scripts may hold anything: list them anyway
+                listed = commands if isinstance(commands, list) else [commands]
+                ops = ", ".join(
+                    str(c.get("op", "?")) if isinstance(c, dict) else "?" for c in listed
+                )
                 print(f"{name}: {ops}" + (f"  ({comment})" if comment else ""))
             return 0
         try:
