@@ -21,4 +21,4 @@ BEGIN
 END
 $$;
 COMMENT ON FUNCTION modb.raise_in_words(text, text, text, text) IS
-    'Raises an error again without the Python exception names PL/Python puts before its message (plpy.Error, spiexceptions.X), keeping its SQLSTATE, detail and hint';
+    'Internal: raises an error again without the Python exception names PL/Python puts before its message (plpy.Error, spiexceptions.X), keeping its SQLSTATE, detail and hint';

@@ -338,7 +338,7 @@ plpy.execute("SELECT modb.fill_futures()")  # after every clip's snippets exist:
 return added
 $py$;
 COMMENT ON FUNCTION modb._build_snippets(text, bigint, float8, float8, boolean) IS
-    'What modb.build_snippets runs (PL/Python): call that one, whose errors read without Python''s exception names';
+    'Internal: what modb.build_snippets runs (PL/Python); call that one, whose errors read without Python''s exception names';
 
 REVOKE EXECUTE ON FUNCTION modb._build_snippets(text, bigint, float8, float8, boolean) FROM PUBLIC;
 GRANT EXECUTE ON FUNCTION modb._build_snippets(text, bigint, float8, float8, boolean) TO modb_loader;

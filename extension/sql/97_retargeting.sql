@@ -153,7 +153,7 @@ gc.collect()  # a large result's lists are garbage now: give their memory back b
 return made
 $py$;
 COMMENT ON FUNCTION modb._retarget(bigint, bigint, text, float8, boolean) IS
-    'What modb.retarget runs (PL/Python): call that one, whose errors read without Python''s exception names';
+    'Internal: what modb.retarget runs (PL/Python); call that one, whose errors read without Python''s exception names';
 REVOKE EXECUTE ON FUNCTION modb._retarget(bigint, bigint, text, float8, boolean) FROM PUBLIC;
 GRANT EXECUTE ON FUNCTION modb._retarget(bigint, bigint, text, float8, boolean) TO modb_loader;
 CREATE FUNCTION modb.retarget(clip bigint, skeleton bigint, collection text DEFAULT NULL,
@@ -172,6 +172,6 @@ EXCEPTION WHEN OTHERS THEN  -- the error again, in words (15_errors_in_words.sql
 END
 $$;
 COMMENT ON FUNCTION modb.retarget(bigint, bigint, text, float8, boolean) IS
-    'Retargets the clip''s current motion onto the skeleton (its joint_axes: twist and swing aligned joint by joint, parents first; travel scaled by the legs'' length ratio; the feet as low as the source''s), resampled to fps (default: the rate most of the skeleton''s clips have), and stores it as a clip of collection (default: "SOURCE_COLLECTION on skeleton N") named as the source, linked to it in meta and load_params.retargeted_from, cut into snippets (and mirrored ones when asked); a retargeting done before stores nothing. Returns the new clip''s id';
+    'Retargets the clip''s current motion onto the skeleton (its joint_axes: twist and swing aligned joint by joint, parents first; travel scaled by the legs'' length ratio; the feet as low as the source''s), resampled to fps (1 to 1000; default: the rate most of the skeleton''s clips have; a result past the caps on frames and bytes is refused before any work), and stores it as a clip of collection (default: "SOURCE_COLLECTION on skeleton N") named as the source, linked to it in meta and load_params.retargeted_from, cut into snippets (and mirrored ones when asked); a retargeting done before stores nothing. Returns the new clip''s id';
 REVOKE EXECUTE ON FUNCTION modb.retarget(bigint, bigint, text, float8, boolean) FROM PUBLIC;
 GRANT EXECUTE ON FUNCTION modb.retarget(bigint, bigint, text, float8, boolean) TO modb_loader;

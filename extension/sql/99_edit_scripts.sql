@@ -153,7 +153,7 @@ gc.collect()  # a large edit's lists are garbage now: give their memory back bef
 return results
 $py$;
 COMMENT ON FUNCTION modb._apply_edit_script(text, bigint[]) IS
-    'What modb.apply_edit_script runs (PL/Python): call that one, whose errors read without Python''s exception names';
+    'Internal: what modb.apply_edit_script runs (PL/Python); call that one, whose errors read without Python''s exception names';
 REVOKE EXECUTE ON FUNCTION modb._apply_edit_script(text, bigint[]) FROM PUBLIC;
 GRANT EXECUTE ON FUNCTION modb._apply_edit_script(text, bigint[]) TO modb_loader;
 CREATE FUNCTION modb.apply_edit_script(script text, clips bigint[])
@@ -171,6 +171,6 @@ EXCEPTION WHEN OTHERS THEN  -- the error again, in words (15_errors_in_words.sql
 END
 $$;
 COMMENT ON FUNCTION modb.apply_edit_script(text, bigint[]) IS
-    'Applies the edit script to each clip''s current version: a new version per clip (load_params.edit_script records the script''s name, commands and the version it started from, so it can be replayed), cut into snippets as the clip was (mirrored too when it was); annotations stay with the old version when the frame count changes. One transaction: a failing clip stores none';
+    'Applies the edit script to each clip''s current version: a new version per clip (load_params.edit_script records the script''s name, commands and the version it started from, so it can be replayed), cut into snippets as the clip was (mirrored too when it was); annotations stay with the old version when the frame count changes. Each clip once, however often named; a result past the caps on frames and bytes (docs/reference.md, Limits) is refused before any work; edits of one clip queue on its row. One transaction: a failing clip stores none';
 REVOKE EXECUTE ON FUNCTION modb.apply_edit_script(text, bigint[]) FROM PUBLIC;
 GRANT EXECUTE ON FUNCTION modb.apply_edit_script(text, bigint[]) TO modb_loader;

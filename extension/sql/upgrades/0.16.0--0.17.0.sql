@@ -138,3 +138,7 @@ EXCEPTION WHEN OTHERS THEN  -- the error again, in words (15_errors_in_words.sql
     PERFORM modb.raise_in_words(message, error_state, detail, hint);
 END
 $$;
+COMMENT ON FUNCTION modb.retarget(bigint, bigint, text, float8, boolean) IS
+    'Retargets the clip''s current motion onto the skeleton (its joint_axes: twist and swing aligned joint by joint, parents first; travel scaled by the legs'' length ratio; the feet as low as the source''s), resampled to fps (1 to 1000; default: the rate most of the skeleton''s clips have; a result past the caps on frames and bytes is refused before any work), and stores it as a clip of collection (default: "SOURCE_COLLECTION on skeleton N") named as the source, linked to it in meta and load_params.retargeted_from, cut into snippets (and mirrored ones when asked); a retargeting done before stores nothing. Returns the new clip''s id';
+COMMENT ON FUNCTION modb.apply_edit_script(text, bigint[]) IS
+    'Applies the edit script to each clip''s current version: a new version per clip (load_params.edit_script records the script''s name, commands and the version it started from, so it can be replayed), cut into snippets as the clip was (mirrored too when it was); annotations stay with the old version when the frame count changes. Each clip once, however often named; a result past the caps on frames and bytes (docs/reference.md, Limits) is refused before any work; edits of one clip queue on its row. One transaction: a failing clip stores none';
