@@ -39,7 +39,6 @@ RETURNS bigint
 LANGUAGE plpython3u VOLATILE PARALLEL UNSAFE
 AS $py$
 #@modb_kernel
-import gc
 import json
 import numpy as np
 
@@ -149,7 +148,7 @@ plpy.execute(plpy.prepare(
 del rotations, translations
 plpy.execute(plpy.prepare("SELECT modb.build_snippets(clip => $1, mirrored => $2)", ["bigint", "boolean"]),
              [made, bool(mirrored)])
-gc.collect()  # a large result's lists are garbage now: give their memory back before the next call
+kernel.memory.release()  # a large result's frames are garbage now: their memory goes back to the system
 return made
 $py$;
 COMMENT ON FUNCTION modb._retarget(bigint, bigint, text, float8, boolean) IS

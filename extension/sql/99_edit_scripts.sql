@@ -19,7 +19,6 @@ RETURNS TABLE (clip_id bigint, version int, n_frames int, snippets bigint)
 LANGUAGE plpython3u VOLATILE PARALLEL UNSAFE
 AS $py$
 #@modb_kernel
-import gc
 import json
 import numpy as np
 
@@ -149,7 +148,7 @@ for clip_id in targets:
     del rotations, translations
     plpy.execute(cut, [clip_id, mirrored])
     results.append((clip_id, made, n_frames, plpy.execute(count, [clip_id])[0]["n"]))
-gc.collect()  # a large edit's lists are garbage now: give their memory back before the next call
+kernel.memory.release()  # a large edit's frames are garbage now: their memory goes back to the system
 return results
 $py$;
 COMMENT ON FUNCTION modb._apply_edit_script(text, bigint[]) IS
