@@ -8,6 +8,7 @@ of these say what, which object and what to do, never a constraint's name."""
 from __future__ import annotations
 
 import json
+import os
 import threading
 
 import psycopg
@@ -110,16 +111,24 @@ def test_packing_blocks_never_deadlocks_with_a_writer_of_a_new_frame_rate(walk):
         errors: list[BaseException] = []
 
         def write():
-            errors.extend(in_threads(lambda: writer.execute(
-                "SELECT * FROM modb.apply_edit_script('at 24', %s)", [[clip]])))
+            errors.extend(
+                in_threads(
+                    lambda: writer.execute(
+                        "SELECT * FROM modb.apply_edit_script('at 24', %s)", [[clip]]
+                    )
+                )
+            )
 
         thread = threading.Thread(target=write)
         thread.start()
         with psycopg.connect(dsn, autocommit=True) as watcher:  # until the writer waits on a lock
-            while thread.is_alive() and not watcher.execute(
-                "SELECT wait_event_type = 'Lock' FROM pg_stat_activity WHERE pid = %s",
-                [writer_pid],
-            ).fetchone()[0]:
+            while (
+                thread.is_alive()
+                and not watcher.execute(
+                    "SELECT wait_event_type = 'Lock' FROM pg_stat_activity WHERE pid = %s",
+                    [writer_pid],
+                ).fetchone()[0]
+            ):
                 watcher.execute("SELECT pg_sleep(0.05)")
         packer.execute("SELECT * FROM modb.pack_snippet_blocks(0)")
         packer.commit()
@@ -200,10 +209,14 @@ def test_retargeting_from_a_skeleton_without_length_says_so(walk):
 @pytest.mark.parametrize(
     "axes, says",
     [
-        ({"joints": {"pelvis": {"joint": "Hips", "twist": ["a", "b", "c"], "swing": [0, 1, 0]}}},
-         "lists of three numbers"),
-        ({"joints": {"pelvis": {"joint": "Hips", "twist": [[1], [0], [0]], "swing": [0, 1, 0]}}},
-         "lists of three numbers"),
+        (
+            {"joints": {"pelvis": {"joint": "Hips", "twist": ["a", "b", "c"], "swing": [0, 1, 0]}}},
+            "lists of three numbers",
+        ),
+        (
+            {"joints": {"pelvis": {"joint": "Hips", "twist": [[1], [0], [0]], "swing": [0, 1, 0]}}},
+            "lists of three numbers",
+        ),
         ({"joints": {}, "pose": ["a"]}, '"pose" must be null or a list'),
     ],
 )
@@ -228,7 +241,7 @@ def test_edit_scripts_are_lists_of_known_commands(walk):
     e = refusal(
         dsn,
         "INSERT INTO modb.edit_scripts (name, commands) VALUES "
-        "('typed', '[{\"op\": \"resample\", \"fps\": \"30\"}]')",
+        '(\'typed\', \'[{"op": "resample", "fps": "30"}]\')',
     )
     assert '"fps" must be a number from 1 to 1000' in e, e
 
@@ -252,3 +265,40 @@ def test_collection_paths_are_names(walk, path):
     dsn, _ = walk
     e = refusal(dsn, "SELECT modb.ensure_collection(%s)", [path])
     assert "cannot be named" in e, e
+
+
+def test_the_update_repairs_rows_the_checks_would_refuse(cluster):
+    """Rows 0.16.0 stored that 0.17.0's checks refuse do not stop ALTER EXTENSION UPDATE: each is
+    repaired with a WARNING saying what was done (else a dump of the database would not restore)."""
+    name = f"write_hardening_update_{os.getpid()}"
+    with psycopg.connect(cluster.dsn("postgres"), autocommit=True) as admin:
+        admin.execute(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
+        admin.execute(f'CREATE DATABASE "{name}"')
+    try:
+        with psycopg.connect(cluster.dsn(name), autocommit=True) as conn:
+            conn.execute("CREATE EXTENSION modb VERSION '0.16.0' CASCADE")
+            conn.execute(
+                """INSERT INTO modb.skeletons (name, hierarchy, joint_axes)
+                   VALUES ('one', '{"unit_m": 1,
+                     "joints": [{"name": "Hips", "parent": -1, "offset": [0, 0, 0]}]}',
+                   '{"joints": {"pelvis": {"joint": "Hips", "twist": ["a", "b", "c"],
+                                           "swing": [0, 1, 0]}}}')"""
+            )
+            conn.execute("SELECT modb.ensure_collection('../..')")
+            conn.execute(
+                "INSERT INTO modb.edit_scripts (name, commands) VALUES ('bad', '[1, \"x\", null]')"
+            )
+            notices: list[str] = []
+            conn.add_notice_handler(lambda d: notices.append(d.message_primary or ""))
+            conn.execute("ALTER EXTENSION modb UPDATE")
+            assert conn.execute("SELECT joint_axes FROM modb.skeletons").fetchone()[0] == {}
+            assert conn.execute(
+                "SELECT array_agg(name ORDER BY id) FROM modb.collections"
+            ).fetchone()[0] == ["renamed 1", "renamed 2"]
+            assert conn.execute("SELECT count(*) FROM modb.edit_scripts").fetchone()[0] == 0
+        said = "\n".join(notices)
+        assert "joint_axes" in said and 'collection "../.."' in said, said
+        assert 'edit script "bad" is deleted' in said and '[1, "x", null]' in said, said
+    finally:
+        with psycopg.connect(cluster.dsn("postgres"), autocommit=True) as admin:
+            admin.execute(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')

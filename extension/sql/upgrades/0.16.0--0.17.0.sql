@@ -48,29 +48,29 @@ CREATE TRIGGER snippet_blocks_generation BEFORE INSERT OR UPDATE OR DELETE OR TR
 
 -- Validation of stored documents (joint axes, joint maps, scripts, collection paths).
 --@include 99_stored_document_checks.sql
--- Rows stored before these checks that fail them are repaired here, each with a NOTICE, not left: the
--- checks are triggers, which a restore's COPY runs too, so a row left as it was would make the next
--- dump fail to restore (and such rows already fail where they are read). Joint axes go back to {} (the
--- next retargeting derives them again); collections named "." or ".." get a name; scripts that cannot
--- run are deleted, their text in the NOTICE.
+-- Rows stored before these checks that fail them are repaired here, each with a WARNING (an update
+-- hides NOTICEs), not left: the checks are triggers, which a restore's COPY runs too, so a row left as
+-- it was would make the next dump fail to restore (and such rows already fail where they are read).
+-- Joint axes go back to {} (the next retargeting derives them again); collections named "." or ".."
+-- get a name; scripts that cannot run are deleted, their text in the WARNING.
 DO $$
 DECLARE
     r record;
 BEGIN
     FOR r IN SELECT id, modb.joint_axes_problem(hierarchy, joint_axes) AS problem FROM modb.skeletons
               WHERE modb.joint_axes_problem(hierarchy, joint_axes) IS NOT NULL ORDER BY id LOOP
-        RAISE NOTICE 'skeleton %: its joint_axes (%) are set to {}: the next retargeting derives them again',
+        RAISE WARNING 'skeleton %: its joint_axes (%) are set to {}: the next retargeting derives them again',
             r.id, r.problem;
         UPDATE modb.skeletons SET joint_axes = '{}' WHERE id = r.id;
     END LOOP;
     FOR r IN SELECT id, modb.collection_path(id) AS path FROM modb.collections
               WHERE name IN ('.', '..') OR btrim(name) = '' ORDER BY id LOOP
         UPDATE modb.collections SET name = 'renamed ' || id WHERE id = r.id;
-        RAISE NOTICE 'collection "%" is renamed "%": "." and ".." are not names', r.path, modb.collection_path(r.id);
+        RAISE WARNING 'collection "%" is renamed "%": "." and ".." are not names', r.path, modb.collection_path(r.id);
     END LOOP;
     FOR r IN SELECT name, commands, modb.edit_script_problems(commands) AS problems FROM modb.edit_scripts
               WHERE cardinality(modb.edit_script_problems(commands)) > 0 ORDER BY name LOOP
-        RAISE NOTICE 'edit script "%" is deleted: it cannot run (%); its commands were %',
+        RAISE WARNING 'edit script "%" is deleted: it cannot run (%); its commands were %',
             r.name, array_to_string(r.problems, '; '), r.commands;
         DELETE FROM modb.edit_scripts WHERE name = r.name;
     END LOOP;
