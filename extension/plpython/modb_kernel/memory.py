@@ -1,9 +1,10 @@
 """Giving a server process's memory back after a large result (plain Python, server side).
 
-A large edit or retargeting leaves its frames' Python lists and numpy arrays as garbage; freed, most
-of that memory stays with the C library's heap (the blocks are too scattered to shrink it), so a
-session's size would keep the largest result it ever made, growing with fragmentation. release()
-collects the garbage, then asks glibc to hand free heap pages back to the system."""
+A large edit or retargeting leaves its frames' Python lists and numpy arrays as garbage; freed, much
+of that memory stays with the C library's heap. release() collects the garbage, then asks glibc to
+hand free heap pages back to the system. (Measured in 0.17.0: a session still grows by about 6 kB
+per frame of each large result it makes, outside PostgreSQL's memory contexts and outside Python's
+collected objects; the caps on one result bound each call, not a session.)"""
 
 import ctypes
 import ctypes.util
