@@ -259,6 +259,7 @@ def test_a_bad_command_stores_nothing_and_names_itself(edits):
     """Refused as it is saved (`modb edit save` checks each command's op and fields) or, for what
     only the clip can tell (its frames), as it is applied; either way named, nothing stored."""
     versions = scalar(edits, "SELECT count(*) FROM modb.clip_versions")
+    # wrong whatever the clip: refused when saved (the database checks every writer's scripts)
     for commands, said in (
         ([{"op": "trim", "start": 0, "end": 10}, {"op": "twirl"}], "[1]: unknown command"),
         ([{"op": "trim", "start": 50, "end": 10**6}], 'command 1: trim: "end" must be a frame'),
@@ -268,4 +269,10 @@ def test_a_bad_command_stores_nothing_and_names_itself(edits):
         if r.returncode == 0:
             r = run_modb(edits, "edit", "apply", "bad", "cmu")
         assert r.returncode != 0 and said in r.stderr, r.stderr
+    # wrong for this clip: refused when applied
+    commands = [{"op": "trim", "start": 50, "end": 10**6}]
+    r = run_modb(edits, "edit", "save", "bad", "--commands", json.dumps(commands))
+    assert r.returncode == 0, r.stderr
+    r = run_modb(edits, "edit", "apply", "bad", "cmu")
+    assert r.returncode != 0 and 'command 1: trim: "end" must be a frame' in r.stderr, r.stderr
     assert scalar(edits, "SELECT count(*) FROM modb.clip_versions") == versions

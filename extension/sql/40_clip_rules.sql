@@ -22,6 +22,9 @@ BEGIN
             USING ERRCODE = 'check_violation',
                   HINT = 'translations is real[n_frames][n_translated][3], NULL when no joint has position channels';
     END IF;
+    -- Every writer of a clip's versions queues on its row (0.17.0), so the newest + 1 read below is
+    -- still free when this insert commits; a writer that read the clip locked it already.
+    PERFORM FROM modb.clips c WHERE c.id = NEW.clip_id FOR NO KEY UPDATE;
     IF NEW.version IS NULL THEN
         SELECT coalesce(max(version), 0) + 1 INTO NEW.version FROM modb.clip_versions WHERE clip_id = NEW.clip_id;
     END IF;
@@ -29,7 +32,7 @@ BEGIN
 END
 $$;
 COMMENT ON FUNCTION modb.clip_versions_before_insert() IS
-    'Trigger: checks the frame arrays against the skeleton and numbers the version (newest + 1) when not given';
+    'Trigger: checks the frame arrays against the skeleton, locks the clip''s row (writers of its versions queue there) and numbers the version (newest + 1) when not given';
 
 CREATE TRIGGER clip_versions_before_insert BEFORE INSERT ON modb.clip_versions
     FOR EACH ROW EXECUTE FUNCTION modb.clip_versions_before_insert();

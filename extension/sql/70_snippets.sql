@@ -188,7 +188,7 @@ REVOKE EXECUTE ON FUNCTION modb.fill_futures() FROM PUBLIC;
 GRANT EXECUTE ON FUNCTION modb.fill_futures() TO modb_loader;
 
 -- Cutting clips into snippets (the kernel's terminators module computes what they store).
-CREATE OR REPLACE FUNCTION modb.build_snippets(collection text DEFAULT NULL, clip bigint DEFAULT NULL,
+CREATE OR REPLACE FUNCTION modb._build_snippets(collection text DEFAULT NULL, clip bigint DEFAULT NULL,
                                     window_seconds float8 DEFAULT 0.5, stride_seconds float8 DEFAULT 1.0 / 30,
                                     mirrored boolean DEFAULT false)
 RETURNS bigint
@@ -279,6 +279,11 @@ while True:
                    hint="complete modb.skeletons.joint_map for it, then call modb.build_snippets again")
     n_frames = row["n_frames"]
     firsts, length, stride = T.windows(n_frames, row["fps"], window_seconds, stride_seconds)
+    slow = T.snippet_rate_error(row["fps"], window_seconds)
+    if slow:  # checked here, not left to snippet_sources' constraint, to say what to do
+        plpy.error(f'clip {row["clip_id"]} ({row["name"]}) cannot be cut into snippets: {slow}',
+                   hint="resample the clip (modb resample, or an edit script's resample) or give a longer window_seconds",
+                   sqlstate="22023")
     # A new version replaces the old versions' snippets, and keeps their mirror images if they had them.
     old_flags = {r["mirrored"] for r in plpy.execute(drop_old, [row["clip_id"], row["version"]])}
     existing = {r["mirrored"] for r in plpy.execute(built, [row["clip_id"], row["version"]])}
@@ -332,8 +337,28 @@ while True:
 plpy.execute("SELECT modb.fill_futures()")  # after every clip's snippets exist: futures chain through them
 return added
 $py$;
+COMMENT ON FUNCTION modb._build_snippets(text, bigint, float8, float8, boolean) IS
+    'Internal: what modb.build_snippets runs (PL/Python); call that one, whose errors read without Python''s exception names';
+
+REVOKE EXECUTE ON FUNCTION modb._build_snippets(text, bigint, float8, float8, boolean) FROM PUBLIC;
+GRANT EXECUTE ON FUNCTION modb._build_snippets(text, bigint, float8, float8, boolean) TO modb_loader;
+CREATE FUNCTION modb.build_snippets(collection text DEFAULT NULL, clip bigint DEFAULT NULL,
+                                    window_seconds float8 DEFAULT 0.5, stride_seconds float8 DEFAULT 1.0 / 30,
+                                    mirrored boolean DEFAULT false)
+RETURNS bigint
+LANGUAGE plpgsql VOLATILE PARALLEL UNSAFE
+AS $$
+DECLARE
+    message text; error_state text; detail text; hint text;
+BEGIN
+    RETURN modb._build_snippets(collection, clip, window_seconds, stride_seconds, mirrored);
+EXCEPTION WHEN OTHERS THEN  -- the error again, in words (15_errors_in_words.sql)
+    GET STACKED DIAGNOSTICS message = MESSAGE_TEXT, error_state = RETURNED_SQLSTATE, detail = PG_EXCEPTION_DETAIL,
+                            hint = PG_EXCEPTION_HINT;
+    PERFORM modb.raise_in_words(message, error_state, detail, hint);
+END
+$$;
 COMMENT ON FUNCTION modb.build_snippets(text, bigint, float8, float8, boolean) IS
     'Cuts the newest version of every clip in scope (a collection''s subtree, one clip, or all) that has no snippets yet into windows of window_seconds starting every stride_seconds, with their terminators; drops the snippets of older versions. mirrored => true adds the clips'' mirror images (through the skeleton''s mirror_pairs) as further sources. Returns the number of snippets added';
-
 REVOKE EXECUTE ON FUNCTION modb.build_snippets(text, bigint, float8, float8, boolean) FROM PUBLIC;
 GRANT EXECUTE ON FUNCTION modb.build_snippets(text, bigint, float8, float8, boolean) TO modb_loader;

@@ -37,7 +37,10 @@ COMMENT ON COLUMN modb.snippet_blocks.codes IS
     'snippets x features bytes: floor((feature - low) / ((high - low) / 255)), clamped to 0..255';
 CREATE INDEX snippet_blocks_source_idx ON modb.snippet_blocks (clip_id, version, mirrored);  -- ON DELETE CASCADE
 
-CREATE TRIGGER snippet_blocks_generation AFTER INSERT OR UPDATE OR DELETE OR TRUNCATE ON modb.snippet_blocks
+-- BEFORE (0.17.0): a writer takes the generation row before it locks any block, the order
+-- modb.pack_snippet_blocks takes them in, so a packing and a write (a delete of a clip's old blocks by
+-- cascade) cannot each hold what the other waits for. The new number is seen with the rows, at commit.
+CREATE TRIGGER snippet_blocks_generation BEFORE INSERT OR UPDATE OR DELETE OR TRUNCATE ON modb.snippet_blocks
     FOR EACH STATEMENT EXECUTE FUNCTION modb.next_generation('snippet_blocks');
 
 CREATE FUNCTION modb.add_snippet_blocks(snippet_ids bigint[])

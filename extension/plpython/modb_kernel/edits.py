@@ -24,9 +24,122 @@ import numpy as np
 from . import mirror as mirroring
 from . import quaternion, resample, retarget
 
+# The one frame-rate range of the extension (the loader's, `resample`'s and retargeting's).
+FPS_RANGE = (1.0, 1000.0)
+# The most one result (a clip version from an edit script, a retargeting or a resampling) may hold,
+# checked before any work: 50,000 frames is 7 minutes at 120 fps (the longest shipped clip has
+# 2,752), and 64 MB of stored frames (float4 rotations and translations) is 50,000 frames of a
+# 80-joint skeleton with one translated joint.
+MAX_RESULT_FRAMES = 50_000
+MAX_RESULT_BYTES = 64 * 1024 * 1024
+
 
 class EditError(ValueError):
     """A command that cannot run on this clip, and why."""
+
+
+def result_bytes(n_frames, n_joints, n_translated):
+    """The bytes a version of n_frames frames stores (float4 quaternions and translations)."""
+    return int(n_frames) * (4 * int(n_joints) + 3 * int(n_translated)) * 4
+
+
+def check_result_size(n_frames, n_joints, n_translated, what):
+    """Raises EditError when a result of this size passes MAX_RESULT_FRAMES or MAX_RESULT_BYTES."""
+    size = result_bytes(n_frames, n_joints, n_translated)
+    if n_frames > MAX_RESULT_FRAMES or size > MAX_RESULT_BYTES:
+        raise EditError(
+            f"{what} would have {int(n_frames):,} frames ({size / 2**20:,.1f} MB), more than the "
+            f"{MAX_RESULT_FRAMES:,} frames and {MAX_RESULT_BYTES / 2**20:,.0f} MB one result may "
+            "have: trim the clip first, or use a smaller factor or frame rate"
+        )
+
+
+def fps_error(fps):
+    """Why a frame rate is refused (None when it is in FPS_RANGE)."""
+    low, high = FPS_RANGE
+    if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not low <= fps <= high:
+        return f"fps must be a number from {low:g} to {high:g}, got {fps!r}"
+    return None
+
+
+# Each command's parameters: name -> (kind, required); kinds: "frame" (an integer >= 0), "id" (an
+# integer > 0), "number" with its range, "joints" (a non-empty list of names).
+_PARAMETERS = {
+    "mirror": {},
+    "trim": {"start": ("frame", True), "end": ("frame", True)},
+    "smooth": {"seconds": ((1e-3, 10.0), True)},
+    "resample": {"fps": (FPS_RANGE, True)},
+    "time_stretch": {"factor": ((0.05, 20.0), True)},
+    "copy_joints": {
+        "clip": ("id", True),
+        "joints": ("joints", True),
+        "start": ("frame", True),
+        "end": ("frame", True),
+        "source_start": ("frame", False),
+        "blend": ((0, 10000), False),
+    },
+    "retarget": {"skeleton": ("id", True)},
+}
+COMMANDS = tuple(_PARAMETERS)
+
+
+def _parameter_error(op, key, kind, value):
+    if kind == "frame":
+        ok = isinstance(value, int) and not isinstance(value, bool) and value >= 0
+        return None if ok else f'{op}: "{key}" must be a frame number (an integer from 0)'
+    if kind == "id":
+        ok = isinstance(value, int) and not isinstance(value, bool) and value > 0
+        return None if ok else f'{op}: "{key}" must be an id (an integer from 1)'
+    if kind == "joints":
+        ok = isinstance(value, list) and value and all(isinstance(j, str) for j in value)
+        return None if ok else f'{op}: "{key}" must be a non-empty list of joint names'
+    low, high = kind
+    number = isinstance(value, (int, float)) and not isinstance(value, bool)
+    if not number or not low <= value <= high:
+        return f'{op}: "{key}" must be a number from {low:g} to {high:g}'
+    return None
+
+
+def script_errors(commands):
+    """Why a stored script cannot run whatever the clip: a list of messages, empty when it is a
+    non-empty list of known commands with parameters of the right types and ranges."""
+    if not isinstance(commands, list) or not commands:
+        return ["an edit script is a non-empty list of commands"]
+    errors = []
+    for k, command in enumerate(commands, 1):
+        if not isinstance(command, dict) or not isinstance(command.get("op"), str):
+            got = repr(command)[:80]
+            errors.append(f'command {k}: each command is an object with an "op", got {got}')
+            continue
+        op = command["op"]
+        if op not in _PARAMETERS:
+            errors.append(f'command {k}: unknown command "{op[:80]}": {", ".join(COMMANDS)}')
+            continue
+        for key, (kind, required) in _PARAMETERS[op].items():
+            if key not in command:
+                if required:
+                    errors.append(f'command {k}: {op}: "{key}" is missing')
+                continue
+            problem = _parameter_error(op, key, kind, command[key])
+            if problem:
+                errors.append(f"command {k}: {problem}")
+    return errors
+
+
+def result_frames(commands, n_frames, fps):
+    """The frame count and rate the script's result will have, from its parameters alone (a
+    script that script_errors passes): so a result too large is refused before any work."""
+    for command in commands:
+        op = command["op"]
+        if op == "trim":
+            start, end = command["start"], min(command["end"], n_frames - 1)
+            n_frames = max(1, end - start + 1)
+        elif op == "resample":
+            n_frames = len(resample.fps_frames(n_frames, fps, command["fps"]))
+            fps = float(command["fps"])
+        elif op == "time_stretch":
+            n_frames = int(math.floor((n_frames - 1) * command["factor"] + 1e-9)) + 1
+    return n_frames, fps
 
 
 def _number(command, key, low, high):
@@ -134,7 +247,7 @@ def apply_command(clip, command, fetch, fetch_skeleton):
         return dict(clip, rotations=smooth_rotations(clip["rotations"], weights),
                     translations=smooth_values(clip["translations"], weights))  # fmt: skip
     if op == "resample":
-        fps = _number(command, "fps", 1.0, 1000.0)
+        fps = _number(command, "fps", *FPS_RANGE)
         frames = resample.fps_frames(n, clip["fps"], fps)
         r, t = resample.sampled(clip["rotations"], clip["translations"], frames)
         return dict(clip, rotations=r, translations=t, fps=fps)
@@ -153,9 +266,9 @@ def apply_command(clip, command, fetch, fetch_skeleton):
         try:
             source = retarget.with_axes(sk, (clip["rotations"], clip["translations"]))
             target = retarget.with_axes(destination, reference)
+            r, t = retarget.retarget(source, target, clip["rotations"], clip["translations"])
         except retarget.RetargetError as e:
             raise EditError(f"retarget: {e}") from None
-        r, t = retarget.retarget(source, target, clip["rotations"], clip["translations"])
         return dict(clip, skeleton=destination, rotations=r, translations=t)
     raise EditError(f'unknown command "{op}": mirror, trim, smooth, resample, time_stretch, '
                     "copy_joints or retarget")  # fmt: skip
@@ -164,8 +277,9 @@ def apply_command(clip, command, fetch, fetch_skeleton):
 def apply(clip, commands, fetch=lambda clip_id: None, fetch_skeleton=lambda skeleton_id: None):
     """The clip after every command in order; an EditError names the command (1-based) that
     failed."""
-    if not isinstance(commands, list) or not commands:
-        raise EditError("an edit script is a non-empty list of commands")
+    errors = script_errors(commands)
+    if errors:
+        raise EditError("; ".join(errors))
     for k, command in enumerate(commands, 1):
         try:
             clip = apply_command(clip, command, fetch, fetch_skeleton)

@@ -300,6 +300,15 @@ def retarget(source, destination, rotations, translations):
     local
     rotations (joints, 4) of the pose the axes came from); rotations and translations: the source's
     frames."""
+    legs = {}
+    for role, sk in (("source", source), ("destination", destination)):
+        legs[role] = leg_length(sk["parents"], sk["offsets"], sk["names"], sk["joint_map"])
+        if not np.isfinite(legs[role]) or legs[role] <= 1e-6:
+            raise RetargetError(
+                f"the {role} skeleton's legs have no length (its hip, knee and ankle joints sit at "
+                "one point), and the travel is scaled by the legs' length ratio: map joints with "
+                "offsets, or retarget from and to a skeleton whose legs have length"
+            )
     src_pos, src_rot = kinematics.world_transforms(
         source["parents"], source["offsets"], rotations, translations, source["translated"]
     )
@@ -359,9 +368,7 @@ def retarget(source, destination, rotations, translations):
     d_trans = np.broadcast_to(d_offsets[d_translated], (n_frames, len(d_translated), 3)).copy()
 
     # The travel: the destination pelvis where the source pelvis is, scaled by the legs' ratio.
-    scale = leg_length(
-        d_parents, d_offsets, destination["names"], destination["joint_map"]
-    ) / leg_length(source["parents"], source["offsets"], source["names"], source["joint_map"])
+    scale = legs["destination"] / legs["source"]
     pelvis = d_index[destination["joint_map"]["pelvis"]]
     goal = src_pos[:, s_index[source["joint_map"]["pelvis"]]] * scale
     carrier = pelvis

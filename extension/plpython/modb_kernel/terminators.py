@@ -157,6 +157,19 @@ def windows(n_frames, fps, window_s, stride_s):
     return np.arange(0, max(n_frames - length + 1, 0), stride), length, stride
 
 
+def snippet_rate_error(fps, window_s=0.5):
+    """Why clips at this rate cannot be cut into snippets of window_s seconds (a window needs two
+    frames), None when they can."""
+    length = int(round(window_s * fps)) + 1
+    if length >= 2:
+        return None
+    lowest = int(0.5 / window_s) + 1  # round() takes 0.5 to 0: more than half a frame is needed
+    return (
+        f"a {window_s:g} s snippet holds {length} frame at {fps:g} fps and snippets need 2: "
+        f"use a rate of {lowest} fps or more"
+    )
+
+
 def chunks(n_frames, fps, firsts, length, chunk_frames=CHUNK_FRAMES):
     """Runs of the snippet starts `firsts` (ascending, evenly spaced) whose frames, with the margins
     the heading's window and the central differences reach, span about chunk_frames: yields (lo, hi,
