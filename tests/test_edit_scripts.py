@@ -261,9 +261,9 @@ def test_a_bad_command_stores_nothing_and_names_itself(edits):
     versions = scalar(edits, "SELECT count(*) FROM modb.clip_versions")
     # wrong whatever the clip: refused when saved (the database checks every writer's scripts)
     for commands, said in (
-        ([{"op": "trim", "start": 0, "end": 10}, {"op": "twirl"}], "[1]: unknown command"),
+        ([{"op": "trim", "start": 0, "end": 10}, {"op": "twirl"}], "command 2: unknown command"),
         ([{"op": "trim", "start": 50, "end": 10**6}], 'command 1: trim: "end" must be a frame'),
-        ([{"op": "smooth", "seconds": "x'); DROP TABLE modb.clips; --"}], "[0] (smooth).seconds"),
+        ([{"op": "smooth", "seconds": "x'); DROP TABLE modb.clips; --"}], "command 1: smooth"),
     ):
         r = run_modb(edits, "edit", "save", "bad", "--commands", json.dumps(commands))
         if r.returncode == 0:

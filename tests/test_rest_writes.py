@@ -522,8 +522,8 @@ BAD_BODIES = [
     ("POST", "/api/edit-scripts/trim10/apply", {"clips": [True]}, "clips[0]"),
     ("POST", "/api/edit-scripts/trim10/apply", {"clips": "all"}, "clips: a list"),
     ("POST", "/api/edit-scripts/trim10/apply", {"clips": [[1]]}, "clips[0]"),
-    ("PUT", "/api/edit-scripts/bad", {"commands": [1, "x", None]}, "commands[0]"),
-    ("PUT", "/api/edit-scripts/bad", {"commands": [{"op": "zap"}]}, "unknown command 'zap'"),
+    ("PUT", "/api/edit-scripts/bad", {"commands": [1, "x", None]}, "command 1:"),
+    ("PUT", "/api/edit-scripts/bad", {"commands": [{"op": "zap"}]}, 'unknown command "zap"'),
     ("PUT", "/api/edit-scripts/bad", {"commands": [{"op": "resample", "fps": 9999}]}, "fps"),
     ("PUT", "/api/edit-scripts/bad", {"commands": [{"op": "trim", "start": "1", "end": 2}]},
      "start"),  # fmt: skip

@@ -296,6 +296,14 @@ def test_the_update_repairs_rows_the_checks_would_refuse(cluster):
                 "SELECT array_agg(name ORDER BY id) FROM modb.collections"
             ).fetchone()[0] == ["renamed 1", "renamed 2"]
             assert conn.execute("SELECT count(*) FROM modb.edit_scripts").fetchone()[0] == 0
+            kept = conn.execute(
+                "SELECT table_name, old_value FROM modb.repaired_rows ORDER BY id"
+            ).fetchall()  # nothing lost: every old value kept
+            tables = [t for t, _ in kept]
+            assert tables == ["skeletons", "collections", "collections", "edit_scripts"]
+            assert kept[0][1]["joint_axes"]["joints"]["pelvis"]["twist"] == ["a", "b", "c"]
+            assert [v["name"] for _, v in kept[1:3]] == ["..", ".."]
+            assert kept[3][1]["commands"] == [1, "x", None]
         said = "\n".join(notices)
         assert "joint_axes" in said and 'collection "../.."' in said, said
         assert 'edit script "bad" is deleted' in said and '[1, "x", null]' in said, said

@@ -130,3 +130,21 @@ COMMENT ON FUNCTION modb.collections_check_name() IS
     'Trigger: a collection''s name (a part of its path) is a name: not empty, "." or ".."';
 CREATE TRIGGER collections_check_name BEFORE INSERT OR UPDATE OF name ON modb.collections
     FOR EACH ROW EXECUTE FUNCTION modb.collections_check_name();
+
+-- What an update of the extension repaired, as it was: a row stored before a check that refuses it is
+-- changed so a dump of the database restores (the checks run on a restore's COPY too), and its old
+-- value is kept here, so nothing a user stored is lost.
+CREATE TABLE modb.repaired_rows (
+    id          bigint GENERATED ALWAYS AS IDENTITY PRIMARY KEY,
+    table_name  text NOT NULL,
+    row_key     text NOT NULL,
+    old_value   jsonb NOT NULL,
+    problem     text NOT NULL,
+    repaired_by text NOT NULL,
+    repaired_at timestamptz NOT NULL DEFAULT now()
+);
+COMMENT ON TABLE modb.repaired_rows IS
+    'Rows an update of the extension repaired because a newer check refuses them: the table, the row''s key, its old value, the problem and the version that repaired it';
+SELECT pg_catalog.pg_extension_config_dump('modb.repaired_rows', '');
+SELECT pg_catalog.pg_extension_config_dump('modb.repaired_rows_id_seq', '');
+GRANT SELECT ON modb.repaired_rows TO modb_loader;

@@ -8,7 +8,7 @@ SELECT has_schema('modb');
 SELECT tables_are('modb', ARRAY['collections', 'skeletons', 'clips', 'clip_versions', 'models', 'graphs',
                                'snippet_sources', 'terminators', 'snippets', 'match_profiles', 'graph_snippets',
                                'graph_transitions', 'graph_names', 'snippet_blocks', 'generations', 'access_tokens',
-                               'audit_log', 'clip_segments', 'edit_scripts']);
+                               'audit_log', 'clip_segments', 'edit_scripts', 'repaired_rows']);
 SELECT views_are('modb', ARRAY['current_clips']);
 SELECT functions_are('modb', ARRAY[
     'skeleton_identity', 'unit_quaternions_ok', 'finite_ok', 'skeleton_joint_names', 'joint_map_ok', 'mirror_pairs_ok',
@@ -72,7 +72,7 @@ SELECT set_eq(
           'modb.graphs', 'modb.graphs_id_seq', 'modb.clip_segments', 'modb.edit_scripts', 'modb.snippet_sources', 'modb.terminators', 'modb.terminators_id_seq',
           'modb.snippets', 'modb.snippets_id_seq', 'modb.match_profiles', 'modb.graph_snippets', 'modb.graph_transitions',
           'modb.graph_names', 'modb.access_tokens', 'modb.access_tokens_id_seq', 'modb.audit_log',
-          'modb.audit_log_id_seq'],
+          'modb.audit_log_id_seq', 'modb.repaired_rows', 'modb.repaired_rows_id_seq'],
     'every data table and id sequence is registered for pg_dump');
 
 DROP EXTENSION modb;

@@ -14,6 +14,7 @@ from typing import Any
 
 from modb.loader.limits import FPS_RANGE
 from modb.validation import checked_number, number_range
+from modb_kernel.edits import script_errors
 
 MAX_ID = 2**63 - 1  # a bigint
 MAX_IDS = 10_000  # ids in one request
@@ -242,50 +243,16 @@ class Shape(Rule):
         return {k: self.fields[k](f"{inner}{k}", v) for k, v in value.items()}
 
 
-# Edit scripts: modb_kernel/edits.py runs them; these are the fields each command takes. Ranges
-# that depend on the clip (frames) are the kernel's to check when the script is applied.
-
-FRAME = Whole(0, 10_000_000, "a frame")
-COMMANDS: dict[str, Shape] = {
-    "mirror": Shape({}),
-    "trim": Shape({"start": FRAME, "end": FRAME}, ("start", "end")),
-    "smooth": Shape({"seconds": Number(0.001, 10.0, "seconds")}, ("seconds",)),
-    "resample": Shape({"fps": FPS}, ("fps",)),
-    "time_stretch": Shape({"factor": Number(0.05, 20.0)}, ("factor",)),
-    "copy_joints": Shape(
-        {
-            "clip": Whole(what="a clip id"),
-            "joints": ListOf(Text(), 1, 1000, distinct=True),
-            "start": FRAME,
-            "end": FRAME,
-            "source_start": FRAME,
-            "blend": Whole(0, 10_000, "frames"),
-        },
-        ("clip", "joints", "start", "end"),
-    ),
-    "retarget": Shape({"skeleton": Whole(what="a skeleton id")}, ("skeleton",)),
-}
-
-
-class Command(Rule):
-    expects = 'an object {"op": ' + " | ".join(f'"{op}"' for op in COMMANDS) + ", ...}"
-
-    def __call__(self, where: str, value: Any) -> dict[str, Any]:
-        if not isinstance(value, dict) or value.get("op") not in COMMANDS:
-            op = value.get("op") if isinstance(value, dict) else None
-            if isinstance(op, str):
-                raise Invalid(f"{where}: unknown command {op!r:.60}: {', '.join(COMMANDS)}")
-            raise self.refuse(where, value)
-        fields = {k: v for k, v in value.items() if k != "op"}
-        return {"op": value["op"], **COMMANDS[value["op"]](f"{where} ({value['op']})", fields)}
-
-
-SCRIPT = ListOf(Command(), 1, 100)
+# Edit scripts: the kernel's own check (modb_kernel/edits.py), the one the database's trigger runs,
+# so the REST interface, the command line and SQL refuse the same scripts in the same words. Ranges
+# that depend on the clip (frames) are checked when the script is applied.
 
 
 def check_script(commands: Any, where: str = "commands") -> list[dict[str, Any]]:
-    """An edit script's commands as given, once checked (Invalid naming the first bad one)."""
-    SCRIPT(where, commands)
+    """An edit script's commands as given, once checked (Invalid naming every bad command)."""
+    problems = script_errors(commands)
+    if problems:
+        raise Invalid(f"{where}: " + "; ".join(problems))
     return commands
 
 

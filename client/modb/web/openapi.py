@@ -6,8 +6,8 @@ from __future__ import annotations
 from typing import Any
 
 from modb.version import __version__
+from modb_kernel.edits import COMMANDS as COMMAND_NAMES
 
-from . import body_rules
 
 ERROR = {"type": "object", "properties": {"error": {"type": "string"}}, "required": ["error"]}
 ANY = {"type": "object"}
@@ -118,7 +118,7 @@ COMMANDS = {
     "items": {
         "type": "object",
         "required": ["op"],
-        "properties": {"op": {"enum": list(body_rules.COMMANDS)}},
+        "properties": {"op": {"enum": list(COMMAND_NAMES)}},
         "description": "modb_kernel/edits.py lists each command's fields",
     },
 }

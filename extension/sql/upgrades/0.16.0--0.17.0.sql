@@ -51,28 +51,35 @@ CREATE TRIGGER snippet_blocks_generation BEFORE INSERT OR UPDATE OR DELETE OR TR
 -- Rows stored before these checks that fail them are repaired here, each with a WARNING (an update
 -- hides NOTICEs), not left: the checks are triggers, which a restore's COPY runs too, so a row left as
 -- it was would make the next dump fail to restore (and such rows already fail where they are read).
--- Joint axes go back to {} (the next retargeting derives them again); collections named "." or ".."
--- get a name; scripts that cannot run are deleted, their text in the WARNING.
+-- Each old value is kept in modb.repaired_rows. Joint axes go back to {} (the next retargeting derives
+-- them again); collections named "." or ".." get a name; scripts that cannot run are deleted.
 DO $$
 DECLARE
     r record;
 BEGIN
-    FOR r IN SELECT id, modb.joint_axes_problem(hierarchy, joint_axes) AS problem FROM modb.skeletons
+    FOR r IN SELECT id, joint_axes, modb.joint_axes_problem(hierarchy, joint_axes) AS problem FROM modb.skeletons
               WHERE modb.joint_axes_problem(hierarchy, joint_axes) IS NOT NULL ORDER BY id LOOP
-        RAISE WARNING 'skeleton %: its joint_axes (%) are set to {}: the next retargeting derives them again',
-            r.id, r.problem;
+        INSERT INTO modb.repaired_rows (table_name, row_key, old_value, problem, repaired_by)
+        VALUES ('skeletons', r.id::text, jsonb_build_object('joint_axes', r.joint_axes), r.problem, '0.17.0');
         UPDATE modb.skeletons SET joint_axes = '{}' WHERE id = r.id;
+        RAISE WARNING 'skeleton %: its joint_axes (%) are set to {}: the next retargeting derives them again; the old value is in modb.repaired_rows',
+            r.id, r.problem;
     END LOOP;
-    FOR r IN SELECT id, modb.collection_path(id) AS path FROM modb.collections
+    FOR r IN SELECT id, name, modb.collection_path(id) AS path FROM modb.collections
               WHERE name IN ('.', '..') OR btrim(name) = '' ORDER BY id LOOP
-        UPDATE modb.collections SET name = 'renamed ' || id WHERE id = r.id;
+        INSERT INTO modb.repaired_rows (table_name, row_key, old_value, problem, repaired_by)
+        VALUES ('collections', r.id::text, jsonb_build_object('name', r.name, 'path', r.path),
+                '"." and ".." are not names', '0.17.0');
+        UPDATE modb.collections SET name = 'renamed ' || r.id WHERE id = r.id;
         RAISE WARNING 'collection "%" is renamed "%": "." and ".." are not names', r.path, modb.collection_path(r.id);
     END LOOP;
-    FOR r IN SELECT name, commands, modb.edit_script_problems(commands) AS problems FROM modb.edit_scripts
-              WHERE cardinality(modb.edit_script_problems(commands)) > 0 ORDER BY name LOOP
-        RAISE WARNING 'edit script "%" is deleted: it cannot run (%); its commands were %',
-            r.name, array_to_string(r.problems, '; '), r.commands;
+    FOR r IN SELECT s.*, modb.edit_script_problems(s.commands) AS problems FROM modb.edit_scripts s
+              WHERE cardinality(modb.edit_script_problems(s.commands)) > 0 ORDER BY s.name LOOP
+        INSERT INTO modb.repaired_rows (table_name, row_key, old_value, problem, repaired_by)
+        VALUES ('edit_scripts', r.name, to_jsonb(r) - 'problems', array_to_string(r.problems, '; '), '0.17.0');
         DELETE FROM modb.edit_scripts WHERE name = r.name;
+        RAISE WARNING 'edit script "%" is deleted: it cannot run (%); its row is in modb.repaired_rows (commands %)',
+            r.name, array_to_string(r.problems, '; '), r.commands;
     END LOOP;
 END
 $$;
