@@ -552,7 +552,7 @@ def test_edit_scripts_are_checked_before_they_are_stored(walks):
     survives a script stored unchecked."""
     dsn, _ = walks
     r = modb(dsn, "edit", "save", "junk", "--commands", '[1, "x", null]')
-    assert r.returncode != 0 and "commands[0]" in r.stderr, r.stderr
+    assert r.returncode != 0 and "command 1: each command is an object" in r.stderr, r.stderr
     r = modb(dsn, "edit", "save", "fast", "--commands", '[{"op": "resample", "fps": 9999}]')
     assert r.returncode != 0 and "fps" in r.stderr, r.stderr
     with psycopg.connect(dsn, autocommit=True) as conn:
