@@ -31,7 +31,7 @@ from support.commands import run_modb
 from support.data import mocap
 from support.databases import scratch_database
 
-from modb.database.cluster import ensure_writer_role
+from modb.database.cluster import WRITER_ROLE, ensure_writer_role
 from modb.web.app import create_app
 
 HOSTILE = "x'); DROP TABLE modb.clips; --"
@@ -580,6 +580,34 @@ def test_a_clip_named_twice_is_edited_once(rest, target):
         dsn, "SELECT detail FROM modb.audit_log WHERE action = 'edit script apply' ORDER BY id DESC"
     )
     assert detail == {"clips": [clip]}
+
+
+def writer_processes(dsn: str) -> set[int]:
+    return {
+        pid
+        for (pid,) in query_all(
+            dsn,
+            "SELECT pid FROM pg_stat_activity WHERE datname = current_database() "
+            "AND usename = %s",
+            [WRITER_ROLE],
+        )
+    }
+
+
+def test_a_write_that_makes_frames_is_not_followed_by_its_server_process(rest, target):
+    """A server process keeps part of the memory of the frames it computed: after an edit (or a
+    retargeting, or an upload) its connection is closed, while other writes keep theirs pooled."""
+    dsn, tokens, client, _ = rest
+    clip, _ = target
+    h = bearer(tokens["editor"])
+    trim = {"commands": [{"op": "trim", "start": 0, "end": 9}]}
+    assert client.put("/api/edit-scripts/trim10", json=trim, headers=h).status_code in (200, 201)
+    pooled = writer_processes(dsn)
+    assert pooled, "a plain write leaves its connection in the pool"
+    r = client.post("/api/edit-scripts/trim10/apply", json={"clips": [clip]}, headers=h)
+    assert r.status_code == 200, r.text
+    after = writer_processes(dsn)
+    assert after < pooled, (pooled, after)  # the process that made the frames is gone
 
 
 def test_an_existing_collection_is_409_and_paths_are_names(rest):

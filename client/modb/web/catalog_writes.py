@@ -99,15 +99,25 @@ def _current_clips(conn: psycopg.Connection, clips: list[int]) -> list[int]:
     return clips
 
 
-def write_endpoint(tokens: Tokens, writer: Writer, handler: Handler, with_body: bool = True):
-    """An endpoint running `handler` as one audited transaction of the writer role."""
+def write_endpoint(
+    tokens: Tokens, writer: Writer, handler: Handler, with_body: bool = True, frames: bool = False
+):
+    """An endpoint running `handler` as one audited transaction of the writer role. `frames`: the
+    handler makes clip versions (edits, retargeting), after which the connection is closed, not
+    pooled again: a server process keeps part of the memory of the frames it computed (about 2 kB
+    per frame, outside PostgreSQL's and Python's accounting, BENCHMARKS.md), so each such write gets
+    a fresh one and the writers' memory stays bounded."""
 
     def run(request: Request, grant, body: Any) -> JSONResponse:
         # A database error leaves the transaction rolled back; the app answers it (database_errors)
         with writer.pool().connection() as conn:
-            with conn.transaction():
-                done = handler(conn, request, body)
-                audit.record(conn, grant.name, done.action, done.obj, done.detail)
+            try:
+                with conn.transaction():
+                    done = handler(conn, request, body)
+                    audit.record(conn, grant.name, done.action, done.obj, done.detail)
+            finally:
+                if frames:
+                    conn.close()  # the pool drops a closed connection and opens another
         return JSONResponse(done.body, status_code=done.status, headers=done.headers)
 
     async def endpoint(request: Request) -> JSONResponse:
@@ -520,8 +530,11 @@ def _retarget(conn, request, body) -> Done:
 
 
 def routes(read_pool, tokens: Tokens, writer: Writer) -> list[Route]:
-    def write(path: str, method: str, handler: Handler, with_body: bool = True) -> Route:
-        return Route(path, write_endpoint(tokens, writer, handler, with_body), methods=[method])
+    def write(
+        path: str, method: str, handler: Handler, with_body: bool = True, frames: bool = False
+    ) -> Route:
+        endpoint = write_endpoint(tokens, writer, handler, with_body, frames)
+        return Route(path, endpoint, methods=[method])
 
     rows = [
         route
@@ -541,10 +554,10 @@ def routes(read_pool, tokens: Tokens, writer: Writer) -> list[Route]:
             "/api/clips/{clip_id}/versions/{version}", "DELETE", _delete_version, with_body=False
         ),
         write("/api/clips/{clip_id}/versions/{version}/current", "POST", _restore_version, False),
-        write("/api/clips/{ident}/retarget", "POST", _retarget),
+        write("/api/clips/{ident}/retarget", "POST", _retarget, frames=True),
         write("/api/edit-scripts/{name}", "PUT", _put_script),
         write("/api/edit-scripts/{name}", "DELETE", _delete_script, with_body=False),
-        write("/api/edit-scripts/{name}/apply", "POST", _apply_script),
+        write("/api/edit-scripts/{name}/apply", "POST", _apply_script, frames=True),
         Route(
             "/api/skeletons/{skeleton_id}/maps",
             maps_endpoint(read_pool, tokens, writer),

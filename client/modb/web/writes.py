@@ -224,32 +224,35 @@ def _load_upload(
     options = ReadOptions()  # one per upload: an ASF shared by its AMC files is read once
     results = []
     with writer.pool().connection() as conn:
-        for source in sources:
-            with conn.transaction():  # the file, its snippets and its audit row together
-                r = load_files(conn, [source], options, keep_going=True).results[0]
-                if r.status == "loaded":
-                    audit.record(
-                        conn,
-                        grant.name,
-                        "upload",
-                        f"clip {r.clip_id} version {r.version}",
-                        {
-                            "file": source.path.name,
-                            "collection": collection,
-                            "frames": r.frames,
-                        },
-                    )
-            results.append(
-                {
-                    "file": source.path.name,
-                    "status": r.status,
-                    "clip_id": r.clip_id,
-                    "version": r.version,
-                    "frames": r.frames,
-                    "snippets": r.snippets,
-                    "message": r.message,
-                }
-            )
+        try:
+            for source in sources:
+                with conn.transaction():  # the file, its snippets and its audit row together
+                    r = load_files(conn, [source], options, keep_going=True).results[0]
+                    if r.status == "loaded":
+                        audit.record(
+                            conn,
+                            grant.name,
+                            "upload",
+                            f"clip {r.clip_id} version {r.version}",
+                            {
+                                "file": source.path.name,
+                                "collection": collection,
+                                "frames": r.frames,
+                            },
+                        )
+                results.append(
+                    {
+                        "file": source.path.name,
+                        "status": r.status,
+                        "clip_id": r.clip_id,
+                        "version": r.version,
+                        "frames": r.frames,
+                        "snippets": r.snippets,
+                        "message": r.message,
+                    }
+                )
+        finally:
+            conn.close()  # its snippets were built there: a fresh process next (write_endpoint)
     return {"collection": collection, "results": results}
 
 
