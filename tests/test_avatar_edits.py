@@ -13,6 +13,7 @@ from test_cli_hardening import WALKS, modb
 
 from modb.database.connection import connect
 from modb.synthesis.avatar import Avatar
+from modb.synthesis.chain import Settings
 
 
 @pytest.fixture(scope="module")
@@ -30,7 +31,8 @@ def test_the_walk_goes_on_when_an_edit_drops_the_snippet_it_continues_from(walks
             "INSERT INTO modb.edit_scripts (name, commands) "
             """VALUES ('smooth', '[{"op": "smooth", "seconds": 0.05}]')"""
         )
-        avatar = Avatar(conn, goals=[(0.0, 30.0)])
+        # as the web view's avatar: the readout counts the candidates each choice examined
+        avatar = Avatar(conn, goals=[(0.0, 30.0)], settings=Settings(count_candidates=True))
         edited = None
         for _ in avatar.frames():
             if edited is None:  # the first snippet is playing: its clip gets a new version

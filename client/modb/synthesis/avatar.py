@@ -308,10 +308,7 @@ class Avatar:
                 row = self._step(query)
             latency = (time.perf_counter() - t) * 1000.0
             if row is not None and request["count_candidates"]:
-                candidates = self.conn.execute(
-                    "SELECT modb.candidates_examined(%s, %s, %s)",
-                    [request["prev"], row[6], request["profile"]],
-                ).fetchone()[0]
+                candidates = self._candidates(query.get("prev"), row[6], request["profile"])
             if row is None and previous is None:
                 raise NoContinuation(
                     "no snippet to start from: the collection (or the database) has no snippets; "
@@ -385,16 +382,30 @@ class Avatar:
         try:
             return self.conn.execute(_STEP, query, prepare=True).fetchone()
         except psycopg.errors.InvalidParameterValue:  # check_request: "no snippet N"
-            gone = self.conn.execute(
-                "SELECT NOT EXISTS (SELECT FROM modb.snippets WHERE id = %s)", [query["prev"]]
-            ).fetchone()[0]
-            if not gone:
+            if not self._gone(query["prev"]):
                 raise
         self.notes.append(
             f"snippet {query['prev']} was rebuilt by an edit of its clip: set off again from where "
             "it ended"
         )
-        return self.conn.execute(_SELECT, {**query, "prev": None}, prepare=True).fetchone()
+        query["prev"] = None  # a start: what the readout counts too
+        return self.conn.execute(_SELECT, query, prepare=True).fetchone()
+
+    def _gone(self, snippet: int) -> bool:
+        return self.conn.execute(
+            "SELECT NOT EXISTS (SELECT FROM modb.snippets WHERE id = %s)", [snippet]
+        ).fetchone()[0]
+
+    def _candidates(self, prev: int | None, relax_level: int, profile: str) -> int | None:
+        """The readout's count of candidates examined; None when an edit dropped `prev` since."""
+        try:
+            return self.conn.execute(
+                "SELECT modb.candidates_examined(%s, %s, %s)", [prev, relax_level, profile]
+            ).fetchone()[0]
+        except psycopg.errors.RaiseException:  # "no snippet N"
+            if prev is None or not self._gone(prev):
+                raise
+            return None
 
     @property
     def collection(self) -> str | None:
