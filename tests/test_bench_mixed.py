@@ -39,7 +39,7 @@ def test_the_verdict_fails_on_a_server_error_or_an_unequal_count():
     def mixed(status: int, checks: list[Check]) -> Mixed:
         ledger = Ledger()
         ledger.answered("writer", "edit same clip", status, "")
-        return Mixed(1, 0, 0, 1.0, 3, ledger, checks, 0)
+        return Mixed(1, 0, 0, 1.0, 3, ledger, checks, [])
 
     assert mixed(200, [Check("audit rows", 1, 1)]).passed
     assert not mixed(500, [Check("audit rows", 1, 1)]).passed

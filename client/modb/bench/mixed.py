@@ -73,7 +73,7 @@ class Mixed:
     clips: int
     ledger: Ledger
     checks: list[Check]
-    server_tracebacks: int
+    server_tracebacks: list[str]  # each traceback's last line: the exception
     postgres: Counter | None = None  # "deadlock detected", "ERROR"; None: a log not its own
 
     @property
@@ -326,7 +326,7 @@ def run(
                     before = _snapshot(conn)
                 say(f"{writers} writers, {readers} readers, {avatars} avatars for {seconds:g} s")
                 _run_clients(dsn, plan, readers, avatars, seconds, prepared["snippets"], ledger)
-            tracebacks = serve_log.read_text(errors="replace").count("Traceback")
+            tracebacks = _exceptions(serve_log.read_text(errors="replace"))
         with psycopg.connect(dsn, autocommit=True) as conn:
             checks = _checks(conn, before, ledger, prepared["token_prefix"])
         return Mixed(
@@ -346,6 +346,15 @@ def run(
         if home is not None:
             shutil.rmtree(home, ignore_errors=True)
 
+
+
+def _exceptions(log: str) -> list[str]:
+    """The exception each traceback in a log ends with (the first unindented line after it)."""
+    found = []
+    for block in log.split("Traceback (most recent call last):")[1:]:
+        lines = block.splitlines()[1:]
+        found.append(next((x for x in lines if x and not x.startswith(" ")), "?")[:200])
+    return found
 
 def report(m: Mixed) -> str:
     lines = [
@@ -375,8 +384,9 @@ def report(m: Mixed) -> str:
     )
     lines += [
         "",
-        f"modb serve's log: {m.server_tracebacks} tracebacks; PostgreSQL's log: {postgres}",
+        f"modb serve's log: {len(m.server_tracebacks)} tracebacks; PostgreSQL's log: {postgres}",
     ]
+    lines += [f"  {n} x {e}" for e, n in Counter(m.server_tracebacks).most_common()]
     answers = Counter()
     for (kind, action), t in m.ledger.tallies.items():
         for (status, message), n in t.messages.items():

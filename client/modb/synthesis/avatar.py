@@ -70,6 +70,16 @@ SELECT s.id, s.clip_id, s.version, s.mirrored, s.first_frame, s.n_frames, NULL::
 """
 
 
+# The snippet of a clip's newest version nearest a dropped one (same side, same rate).
+_STAND_IN = """
+SELECT s.id
+  FROM modb.snippets s JOIN modb.current_clips c ON c.clip_id = s.clip_id AND c.version = s.version
+ WHERE s.clip_id = %(clip_id)s AND s.mirrored = %(mirrored)s AND s.fps = %(fps)s
+ ORDER BY abs(s.first_frame - %(first_frame)s), s.id
+ LIMIT 1
+"""
+
+
 ASK_AGAIN = 3  # a choice cancelled by a standby's replay, or whose node stopped, is asked again
 
 
@@ -305,7 +315,7 @@ class Avatar:
                 row = self.conn.execute(_SELECT, query, prepare=True).fetchone()
             else:
                 query["resting"] = request["resting"] and self._can_rest(request["collection"])
-                row = self._step(query)
+                row = self._step(query, previous)
             latency = (time.perf_counter() - t) * 1000.0
             if row is not None and request["count_candidates"]:
                 candidates = self._candidates(query.get("prev"), row[6], request["profile"])
@@ -375,21 +385,30 @@ class Avatar:
         )
         return choice, rotations, translations
 
-    def _step(self, query: dict) -> tuple | None:
+    def _step(self, query: dict, previous: Choice) -> tuple | None:
         """The step after a snippet. An edit of that snippet's clip, committed since it was chosen,
-        rebuilds the clip's snippets and drops this one: the walk sets off again from where the
-        snippet ended (the seam treatment smooths the join) rather than stopping."""
+        rebuilds the clip's snippets and drops this one: the walk goes on from the snippet of the
+        clip's new version nearest the dropped one (the same frames after a smoothing, say; the
+        seam treatment smooths what differs), or stops saying why when the new version has none at
+        this rate."""
         try:
             return self.conn.execute(_STEP, query, prepare=True).fetchone()
         except psycopg.errors.InvalidParameterValue:  # check_request: "no snippet N"
             if not self._gone(query["prev"]):
                 raise
+        where = {k: getattr(previous, k) for k in ("clip_id", "mirrored", "fps", "first_frame")}
+        found = self.conn.execute(_STAND_IN, where).fetchone()
+        if found is None:
+            raise NoContinuation(
+                f"snippet {previous.snippet_id} was dropped by an edit of clip {previous.clip_id}, "
+                f"whose new version has no snippet at {previous.fps:g} fps; click to start again"
+            )
         self.notes.append(
-            f"snippet {query['prev']} was rebuilt by an edit of its clip: set off again from where "
-            "it ended"
+            f"snippet {previous.snippet_id} was rebuilt by an edit of clip {previous.clip_id}: "
+            f"going on from snippet {found[0]} of its new version"
         )
-        query["prev"] = None  # a start: what the readout counts too
-        return self.conn.execute(_SELECT, query, prepare=True).fetchone()
+        query["prev"] = found[0]  # what the readout counts from too
+        return self.conn.execute(_STEP, query, prepare=True).fetchone()
 
     def _gone(self, snippet: int) -> bool:
         return self.conn.execute(
