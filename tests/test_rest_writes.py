@@ -525,15 +525,27 @@ BAD_BODIES = [
     ("PUT", "/api/edit-scripts/bad", {"commands": [1, "x", None]}, "command 1:"),
     ("PUT", "/api/edit-scripts/bad", {"commands": [{"op": "zap"}]}, 'unknown command "zap"'),
     ("PUT", "/api/edit-scripts/bad", {"commands": [{"op": "resample", "fps": 9999}]}, "fps"),
-    ("PUT", "/api/edit-scripts/bad", {"commands": [{"op": "trim", "start": "1", "end": 2}]},
-     "start"),  # fmt: skip
+    (
+        "PUT",
+        "/api/edit-scripts/bad",
+        {"commands": [{"op": "trim", "start": "1", "end": 2}]},
+        "start",
+    ),  # fmt: skip
     ("POST", "/api/collections", {"path": ["a"]}, "path: a collection path"),
     ("POST", "/api/models", {"name": 5, "kind": "k", "data": {}}, "name: a string"),
-    ("POST", "/api/models", {"name": "m", "kind": "k", "data": {}, "skeleton_id": "x"},
-     "skeleton_id"),  # fmt: skip
+    (
+        "POST",
+        "/api/models",
+        {"name": "m", "kind": "k", "data": {}, "skeleton_id": "x"},
+        "skeleton_id",
+    ),  # fmt: skip
     ("PUT", "/api/skeletons/SKELETON/maps", {"joint_map": {}, "mirror_pairs": []}, "joint_map"),
-    ("PUT", "/api/skeletons/SKELETON/maps", {"joint_map": {"head": 1}, "mirror_pairs": []},
-     "joint_map.head"),  # fmt: skip
+    (
+        "PUT",
+        "/api/skeletons/SKELETON/maps",
+        {"joint_map": {"head": 1}, "mirror_pairs": []},
+        "joint_map.head",
+    ),  # fmt: skip
     ("PUT", "/api/skeletons/SKELETON/maps", "AXES", "joint_axes.joints.head.twist[0]"),
 ]
 
@@ -573,9 +585,10 @@ def test_a_clip_named_twice_is_edited_once(rest, target):
     r = client.post("/api/edit-scripts/trim10/apply", json={"clips": [clip, clip]}, headers=h)
     assert r.status_code == 200, r.text
     assert [x["clip_id"] for x in r.json()["results"]] == [clip]
-    assert scalar(
-        dsn, "SELECT max(version) FROM modb.clip_versions WHERE clip_id = %s", [clip]
-    ) == before + 1
+    assert (
+        scalar(dsn, "SELECT max(version) FROM modb.clip_versions WHERE clip_id = %s", [clip])
+        == before + 1
+    )
     detail = scalar(
         dsn, "SELECT detail FROM modb.audit_log WHERE action = 'edit script apply' ORDER BY id DESC"
     )
@@ -587,8 +600,7 @@ def writer_processes(dsn: str) -> set[int]:
         pid
         for (pid,) in query_all(
             dsn,
-            "SELECT pid FROM pg_stat_activity WHERE datname = current_database() "
-            "AND usename = %s",
+            "SELECT pid FROM pg_stat_activity WHERE datname = current_database() AND usename = %s",
             [WRITER_ROLE],
         )
     }
@@ -617,14 +629,13 @@ def test_an_existing_collection_is_409_and_paths_are_names(rest):
     h = bearer(tokens["editor"])
     r = client.post("/api/collections", json={"path": "rest/made"}, headers=h)
     assert r.status_code == 201, r.text
-    creates = len(
-        query_all(dsn, "SELECT 1 FROM modb.audit_log WHERE action = 'collection create'")
-    )
+    creates = len(query_all(dsn, "SELECT 1 FROM modb.audit_log WHERE action = 'collection create'"))
     again = client.post("/api/collections", json={"path": "rest/made"}, headers=h)
     assert again.status_code == 409 and "already exists" in again.json()["error"]
-    assert len(
-        query_all(dsn, "SELECT 1 FROM modb.audit_log WHERE action = 'collection create'")
-    ) == creates
+    assert (
+        len(query_all(dsn, "SELECT 1 FROM modb.audit_log WHERE action = 'collection create'"))
+        == creates
+    )
     for path, segment in (("../..", "'..'"), ("a/./b", "'.'"), ("a//b", "''"), ("/a", "''")):
         r = client.post("/api/collections", json={"path": path}, headers=h)
         assert r.status_code == 400 and f"is {segment}" in r.json()["error"], (path, r.text)

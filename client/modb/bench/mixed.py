@@ -347,7 +347,6 @@ def run(
             shutil.rmtree(home, ignore_errors=True)
 
 
-
 def _exceptions(log: str) -> list[str]:
     """The exception each traceback in a log ends with (the first unindented line after it)."""
     found = []
@@ -355,6 +354,7 @@ def _exceptions(log: str) -> list[str]:
         lines = block.splitlines()[1:]
         found.append(next((x for x in lines if x and not x.startswith(" ")), "?")[:200])
     return found
+
 
 def report(m: Mixed) -> str:
     lines = [

@@ -258,6 +258,7 @@ def check_script(commands: Any, where: str = "commands") -> list[dict[str, Any]]
 
 # Joint maps and axes (modb.skeletons): the database checks the joints against the skeleton.
 
+
 class Axis(Fixed):
     """A direction: three numbers, not all zero."""
 
