@@ -155,6 +155,14 @@ def test_results_past_the_cap_are_refused_before_any_work(walk):
     e = refusal(dsn, "SELECT * FROM modb.apply_edit_script('huge', %s)", [[clip]])
     # (146 - 1) * 20 ** 3 + 1 frames: the would-be size and the cap, in the message
     assert "1,160,001 frames" in e and "50,000 frames" in e, e
+    # as large on the way and trimmed back: the largest step counts, not only the result
+    save_script(
+        dsn,
+        "huge between",
+        [{"op": "time_stretch", "factor": 20}] * 3 + [{"op": "trim", "start": 0, "end": 60}],
+    )
+    e = refusal(dsn, "SELECT * FROM modb.apply_edit_script('huge between', %s)", [[clip]])
+    assert "a step would have 1,160,001 frames" in e, e
     assert versions(dsn, clip) == 1
     with psycopg.connect(dsn) as conn:
         (skeleton,) = conn.execute("SELECT skeleton_id FROM modb.current_clips").fetchone()

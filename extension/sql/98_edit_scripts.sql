@@ -102,15 +102,15 @@ def fetch_skeleton(skeleton_id):
 
 def check_size(clip_id, size):
     """The result's frames, bytes and rate from the script's parameters, refused before any work."""
-    n_frames, fps = E.result_frames(commands, size["n_frames"], size["fps"])
+    n_frames, fps, largest = E.result_frames(commands, size["n_frames"], size["fps"])
     joints, translated = size["joints"], size["translated"]
-    last_skeleton = [c["skeleton"] for c in commands if c["op"] == "retarget"][-1:]
-    if last_skeleton:
-        other = plpy.execute(skeleton_size, [last_skeleton[0]])
+    for skeleton in {c["skeleton"] for c in commands if c["op"] == "retarget"}:  # the largest
+        other = plpy.execute(skeleton_size, [skeleton])
         if other:
-            joints, translated = other[0]["joints"], other[0]["translated"]
+            joints, translated = max(joints, other[0]["joints"]), max(translated, other[0]["translated"])
+    what = "the result" if largest <= n_frames else "a step"
     try:
-        E.check_result_size(n_frames, joints, translated, f'edit script "{script}" on clip {clip_id}: the result')
+        E.check_result_size(largest, joints, translated, f'edit script "{script}" on clip {clip_id}: {what}')
     except E.EditError as e:
         plpy.error(str(e), hint="the caps are in docs/reference.md (Limits)", sqlstate="54000")
     slow = T.snippet_rate_error(fps)

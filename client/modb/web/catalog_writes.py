@@ -136,6 +136,11 @@ CHANGED_COLLECTION = Shape({"name": Name(), "parent": Nullable(ParentPath())}, a
 def _create_collection(conn, request, body) -> Done:
     """A new collection (and the levels above it); 409 when it exists (nothing audited)."""
     path = NEW_COLLECTION(None, body)["path"]
+    # two creates of one path queue here, so the second finds the first's and is the 409
+    conn.execute(
+        "SELECT pg_advisory_xact_lock(hashtext('modb.collections: a create'), hashtext(%s))",
+        [path],
+    )
     if catalog.find_collection(conn, path) is not None:
         raise Conflict(f"collection {path!r} already exists")
     found, shown = catalog.create_collection(conn, path)

@@ -37,7 +37,6 @@ CHECKS = {
 RACED_KEYS = {
     "clip_versions_pkey",
     "snippet_sources_pkey",
-    "edit_scripts_pkey",
     "terminators_clip_id_version_mirrored_frame_key",
 }
 TRANSIENT = (errors.TransactionRollback, errors.LockNotAvailable)  # deadlock, serialization

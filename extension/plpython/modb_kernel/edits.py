@@ -127,8 +127,10 @@ def script_errors(commands):
 
 
 def result_frames(commands, n_frames, fps):
-    """The frame count and rate the script's result will have, from its parameters alone (a
-    script that script_errors passes): so a result too large is refused before any work."""
+    """The frame count and rate the script's result will have, and the most frames any step makes
+    on the way (a stretch trimmed back is as large in between), from its parameters alone (a script
+    that script_errors passes): so a result too large is refused before any work."""
+    largest = 0
     for command in commands:
         op = command["op"]
         if op == "trim":
@@ -139,7 +141,8 @@ def result_frames(commands, n_frames, fps):
             fps = float(command["fps"])
         elif op == "time_stretch":
             n_frames = int(math.floor((n_frames - 1) * command["factor"] + 1e-9)) + 1
-    return n_frames, fps
+        largest = max(largest, n_frames)
+    return n_frames, fps, largest
 
 
 def _number(command, key, low, high):
