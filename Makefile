@@ -102,7 +102,7 @@ bench-load: setup
 # All real data in $(DATA), mirrored, in the embedded database (once: re-loads store nothing new).
 bench-data: setup
 	$(VENV)/bin/modb load "$(DATA)/bandai-1" "$(DATA)/bandai-2-dev" --mirror --quiet
-	$(VENV)/bin/modb load "$(DATA)"/cmu/131/*.amc "$(DATA)"/cmu/01/*.amc --collection cmu --mirror --quiet
+	$(VENV)/bin/modb load "$(DATA)"/cmu/131/*.amc "$(DATA)"/cmu/01/*.amc "$(DATA)"/cmu/16/*.amc --collection cmu --mirror --quiet
 
 # Selection at scale: select_next_snippet at ~10k, ~100k, all (~235k) and ~1M snippets (the real clips
 # again at other speeds) beside the paper's flat query, numpy and a k-d tree, candidates, index and pgbench

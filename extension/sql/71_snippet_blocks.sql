@@ -24,15 +24,21 @@ CREATE TABLE modb.snippet_blocks (
     FOREIGN KEY (clip_id, version, mirrored) REFERENCES modb.snippet_sources ON DELETE CASCADE,
     pack_order    int,
     objective_inputs real[],
+    term_bounds   bytea,
+    term_codes    bytea,
     CONSTRAINT snippet_blocks_source_check CHECK (pack_order IS NOT NULL OR (clip_id IS NOT NULL
         AND version IS NOT NULL AND mirrored IS NOT NULL AND collection_id IS NOT NULL))
-) WITH (toast_tuple_target = 8160);  -- a block (about 3.3 kB, two a page) stays uncompressed
+) WITH (toast_tuple_target = 8160);  -- a block (about 7.8 kB, one a page) stays uncompressed
 COMMENT ON TABLE modb.snippet_blocks IS
-    'Up to 32 snippets of one pose and rate: consecutive ones of a clip source (as loaded) or packed ones near each other (pack_order set); the bounds of their begin features and each one''s 8-bit code within them; select_next_snippets'' box search (kept by triggers on modb.snippets)';
+    'Up to 32 snippets of one pose and rate: consecutive ones of a clip source (as loaded) or packed ones near each other (pack_order set); the bounds of their begin features and each one''s 8-bit code within them, and of every term of the continuity ratio (term_bounds, term_codes); select_next_snippets'' box search (kept by triggers on modb.snippets)';
 COMMENT ON COLUMN modb.snippet_blocks.objective_inputs IS
     'Per snippet, what its objective is computed from, as float4: net_translation (3), future_translation (3), future_heading; NaN for NULL. A call reads candidates in the order of the least objective these allow and stops when none left can make the answer';
 COMMENT ON COLUMN modb.snippet_blocks.pack_order IS
     'The block''s place in its pose''s packing (modb.pack_snippet_blocks), NULL for a block of consecutive snippets of the clip source named by clip_id, version, mirrored and collection_id (NULL in a packed block)';
+COMMENT ON COLUMN modb.snippet_blocks.term_bounds IS
+    'Every term of the continuity ratio bounded (0.18.0, src/term_codes.c): per joint and kind (position, rotation as the x, y, z of the quaternion with w >= 0, velocity, angular velocity) and axis, the bounds of the block''s begin terminators as 16-bit codes on a fixed scale per kind (0: unbounded below, 65535: above), all low codes then all high ones; NULL in a block written before 0.18.0';
+COMMENT ON COLUMN modb.snippet_blocks.term_codes IS
+    'Per snippet, each term component''s 4-bit code within term_bounds (two a byte): select_next_snippets rejects a block or a candidate whose continuity ratio cannot be within the level from these, without reading its rows';
 COMMENT ON COLUMN modb.snippet_blocks.codes IS
     'snippets x features bytes: floor((feature - low) / ((high - low) / 255)), clamped to 0..255';
 CREATE INDEX snippet_blocks_source_idx ON modb.snippet_blocks (clip_id, version, mirrored);  -- ON DELETE CASCADE
@@ -74,8 +80,8 @@ AS $$
 BEGIN
     PERFORM modb.add_snippet_blocks(ARRAY(
         SELECT n.id FROM new_rows n JOIN old_rows o ON o.id = n.id
-         WHERE (n.begin_features, n.pose_key, n.fps, n.collection_id, n.clip_id, n.version, n.mirrored)
-               IS DISTINCT FROM (o.begin_features, o.pose_key, o.fps, o.collection_id, o.clip_id, o.version, o.mirrored)
+         WHERE (n.begin_features, n.begin_terminator, n.pose_key, n.fps, n.collection_id, n.clip_id, n.version, n.mirrored)
+               IS DISTINCT FROM (o.begin_features, o.begin_terminator, o.pose_key, o.fps, o.collection_id, o.clip_id, o.version, o.mirrored)
             OR (o.future_heading IS NOT NULL
                 AND (n.net_translation, n.future_translation, n.future_heading)
                     IS DISTINCT FROM (o.net_translation, o.future_translation, o.future_heading))));
@@ -83,10 +89,30 @@ BEGIN
 END
 $$;
 COMMENT ON FUNCTION modb.snippets_updated() IS
-    'Trigger: blocks for snippets whose features, pose, rate, collection or source an UPDATE changed, or their objective''s inputs once filled';
+    'Trigger: blocks for snippets whose features, begin terminator, pose, rate, collection or source an UPDATE changed, or their objective''s inputs once filled';
 CREATE TRIGGER snippets_blocks_update AFTER UPDATE ON modb.snippets
     REFERENCING OLD TABLE AS old_rows NEW TABLE AS new_rows
     FOR EACH STATEMENT EXECUTE FUNCTION modb.snippets_updated();
+
+-- A block's term codes are its snippets' begin terminators: an UPDATE of a terminator's terms (which no
+-- writer of the project makes; a hand edit might) adds blocks for the snippets that begin there.
+CREATE FUNCTION modb.terminators_updated()
+RETURNS trigger
+LANGUAGE plpgsql VOLATILE PARALLEL UNSAFE
+AS $$
+BEGIN
+    PERFORM modb.add_snippet_blocks(ARRAY(
+        SELECT s.id FROM new_rows n JOIN old_rows o ON o.id = n.id JOIN modb.snippets s ON s.begin_terminator = n.id
+         WHERE (n.positions, n.rotations, n.velocities, n.angular_velocities)
+               IS DISTINCT FROM (o.positions, o.rotations, o.velocities, o.angular_velocities)));
+    RETURN NULL;
+END
+$$;
+COMMENT ON FUNCTION modb.terminators_updated() IS
+    'Trigger: blocks for the snippets beginning at terminators whose terms an UPDATE changed (their term codes)';
+CREATE TRIGGER terminators_blocks_update AFTER UPDATE ON modb.terminators
+    REFERENCING OLD TABLE AS old_rows NEW TABLE AS new_rows
+    FOR EACH STATEMENT EXECUTE FUNCTION modb.terminators_updated();
 
 GRANT SELECT ON modb.snippet_blocks TO modb_reader;
 -- The loader's snippets bring their blocks (the triggers run as the inserting role).

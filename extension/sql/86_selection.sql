@@ -269,12 +269,12 @@ COMMENT ON FUNCTION modb.select_next_snippets(bigint, float8[], int, text, text,
 
 CREATE OR REPLACE FUNCTION modb.explain_selection(prev_snippet bigint, target float8[], k int DEFAULT 1,
                                           profile text DEFAULT 'default', collection text DEFAULT NULL,
-                                          exclude bigint[] DEFAULT NULL)
+                                          exclude bigint[] DEFAULT NULL, verbose boolean DEFAULT false)
 RETURNS SETOF text
-LANGUAGE c STABLE CALLED ON NULL INPUT PARALLEL SAFE COST 1000 ROWS 12
+LANGUAGE c STABLE CALLED ON NULL INPUT PARALLEL SAFE COST 1000 ROWS 24
 AS 'MODULE_PATHNAME', 'modb_explain_selection';
-COMMENT ON FUNCTION modb.explain_selection(bigint, float8[], int, text, text, bigint[]) IS
-    'How select_next_snippets answers this call (its arguments, in its order): the profile as resolved, which path answered, and per relaxation level the box, the scan that read it, rows scanned, filtered, within the continuity ratio and returned, and the time of each stage';
+COMMENT ON FUNCTION modb.explain_selection(bigint, float8[], int, text, text, bigint[], boolean) IS
+    'How select_next_snippets answers this call (its arguments, in its order), in at most 40 lines of at most 120 characters: which path answered, and per relaxation level the blocks its box met, the blocks and candidates the term codes rejected (by term kind), the rows read, in the box, filtered, within the continuity ratio and returned, and the time of each stage; verbose adds the profile as resolved and each level''s box';
 
 CREATE OR REPLACE FUNCTION modb.select_next_snippet(prev_snippet bigint, target float8[], profile text DEFAULT 'default',
                                          collection text DEFAULT NULL, exclude bigint[] DEFAULT NULL)

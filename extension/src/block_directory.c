@@ -35,9 +35,10 @@
 #include "utils/snapmgr.h"
 
 #include "selection.h"
+#include "term_codes.h"
 
 #define SUPER_BLOCKS 32
-#define MaxBlockColumns 12		/* objective_inputs is the 12th */
+#define MaxBlockColumns 14		/* objective_inputs is the 12th, term_bounds and term_codes the 13th and 14th */
 
 /* 8-bit bounds on the fixed scale met twice as many blocks as the float bounds; 16-bit ones, as many. */
 #define SCALE_STEPS 65535
@@ -54,6 +55,8 @@ typedef struct Entry
 	int32		order;			/* pack_order; PG_INT32_MAX (after the packed ones) when none */
 	int32		tid_order;		/* its place in the table scan */
 	Box16		box;
+	uint8		terms[TERM_COMPONENTS];	/* its term bounds within its super block's (modb_term_nibbles) */
+	uint8	   *term_bounds;	/* while the directory is read: its own (NULL: none) */
 } Entry;
 
 typedef struct PoseGroup
@@ -64,6 +67,7 @@ typedef struct PoseGroup
 	int			capacity;
 	Entry	   *entries;
 	Box16	   *supers;			/* one per SUPER_BLOCKS entries */
+	uint8	   *super_terms;	/* one TERM_BOUNDS_BYTES per super block: its blocks' term bounds */
 } PoseGroup;
 
 typedef struct Directory
@@ -185,7 +189,8 @@ read_directory(Relation rel, int64 generation)
 	HeapTuple	tuple;
 	TupleDesc	desc = RelationGetDescr(rel);
 	MemoryContext old,
-				per_block;
+				per_block,
+				while_reading;
 	double		per_step[N_FEATURES];
 
 	if (directory_context == NULL)
@@ -194,6 +199,8 @@ read_directory(Relation rel, int64 generation)
 	MemoryContextReset(directory_context);
 	memset(&directory, 0, sizeof(directory));
 	per_block = AllocSetContextCreate(CurrentMemoryContext, "modb block", ALLOCSET_SMALL_SIZES);
+	/* Each block's own term bounds, until its super block's are known (about 0.9 kB a block) */
+	while_reading = AllocSetContextCreate(CurrentMemoryContext, "modb block term bounds", ALLOCSET_DEFAULT_SIZES);
 	old = MemoryContextSwitchTo(directory_context);
 	scan = table_beginscan(rel, GetActiveSnapshot(), 0, NULL);
 	for (int d = 0; d < N_FEATURES; d++)
@@ -223,6 +230,17 @@ read_directory(Relation rel, int64 generation)
 		}
 		e = &g->entries[g->count++];
 		e->tid = tuple->t_self;
+		e->term_bounds = NULL;
+		if (desc->natts >= 14 && !nulls[12])
+		{
+			bytea	   *bounds = DatumGetByteaPP(values[12]);
+
+			if (VARSIZE_ANY_EXHDR(bounds) == TERM_BOUNDS_BYTES)
+			{
+				e->term_bounds = MemoryContextAlloc(while_reading, TERM_BOUNDS_BYTES);
+				memcpy(e->term_bounds, VARDATA_ANY(bounds), TERM_BOUNDS_BYTES);
+			}
+		}
 		e->order = desc->natts < 11 || nulls[10] ? PG_INT32_MAX : DatumGetInt32(values[10]);	/* 0.10.0: none */
 		for (int d = 0; d < N_FEATURES; d++)
 		{
@@ -247,6 +265,7 @@ read_directory(Relation rel, int64 generation)
 			g->entries[e].tid_order = e;
 		qsort(g->entries, g->count, sizeof(Entry), entry_order);
 		g->supers = palloc(sizeof(Box16) * Max((g->count + SUPER_BLOCKS - 1) / SUPER_BLOCKS, 1));
+		g->super_terms = palloc((Size) TERM_BOUNDS_BYTES * Max((g->count + SUPER_BLOCKS - 1) / SUPER_BLOCKS, 1));
 		for (int e = 0; e < g->count; e++)
 		{
 			Box16	   *box = &g->entries[e].box;
@@ -257,23 +276,54 @@ read_directory(Relation rel, int64 generation)
 				super->lo[d] = e % SUPER_BLOCKS == 0 ? box->lo[d] : Min(super->lo[d], box->lo[d]);
 				super->hi[d] = e % SUPER_BLOCKS == 0 ? box->hi[d] : Max(super->hi[d], box->hi[d]);
 			}
+			modb_term_union(g->super_terms + (Size) TERM_BOUNDS_BYTES * (e / SUPER_BLOCKS),
+							g->entries[e].term_bounds, e % SUPER_BLOCKS == 0);
+		}
+		for (int e = 0; e < g->count; e++)
+		{
+			modb_term_nibbles(g->super_terms + (Size) TERM_BOUNDS_BYTES * (e / SUPER_BLOCKS),
+							  g->entries[e].term_bounds, g->entries[e].terms);
+			g->entries[e].term_bounds = NULL;
 		}
 	}
 	MemoryContextSwitchTo(old);
 	MemoryContextDelete(per_block);
+	MemoryContextDelete(while_reading);
 	directory.relid = RelationGetRelid(rel);
 	directory.relfilenode = rel->rd_node.relNode;
 	directory.generation = generation;
 	directory.valid = true;
 }
 
+/* A block's term bounds and codes for n snippets, or NULL (a block written before 0.18.0). */
+static const uint8 *
+term_columns(const Datum *values, const bool *nulls, TupleDesc desc, int n, const uint8 **codes)
+{
+	bytea	   *bounds,
+			   *coded;
+
+	if (desc->natts < 14 || nulls[12] || nulls[13])
+		return NULL;
+	bounds = DatumGetByteaPP(values[12]);
+	coded = DatumGetByteaPP(values[13]);
+	if (VARSIZE_ANY_EXHDR(bounds) != TERM_BOUNDS_BYTES || VARSIZE_ANY_EXHDR(coded) != n * TERM_CODE_BYTES)
+		elog(ERROR, "modb: a snippet block's term codes are not those of %d snippets", n);
+	*codes = (const uint8 *) VARDATA_ANY(coded);
+	return (const uint8 *) VARDATA_ANY(bounds);
+}
+
 /*
- * Tests a block's snippets' codes against [lo, hi]; appends those that pass, with the objective inputs the
- * block holds for them (blocks from 0.10.0 hold none).
+ * Tests a block's snippets' codes against [lo, hi], and their term codes against `test` (NULL: none);
+ * appends those that pass, with the objective inputs the block holds for them (blocks from 0.10.0 hold
+ * none) and the least continuity ratio their term codes allow.
  */
 static int
-scan_block(HeapTuple tuple, TupleDesc desc, const double *lo, const double *hi, BlockCandidate *out, int n_out)
+scan_block(HeapTuple tuple, TupleDesc desc, const double *lo, const double *hi, const TermTest *test,
+		   BlockCandidate *out, int n_out, BlockStats *stats)
 {
+	static TermBlock terms;
+	const uint8 *term_bounds = NULL;
+	const uint8 *term_codes = NULL;
 	Datum		values[MaxBlockColumns];
 	bool		nulls[MaxBlockColumns];
 	ArrayType  *snippets;
@@ -309,6 +359,19 @@ scan_block(HeapTuple tuple, TupleDesc desc, const double *lo, const double *hi, 
 			to[d] = 255;
 		}
 	}
+	if (test != NULL)
+		term_bounds = term_columns(values, nulls, desc, n, &term_codes);
+	if (term_bounds != NULL)
+	{
+		int			kind = modb_term_block(test, term_bounds, term_codes, &terms);
+
+		if (kind >= 0)
+		{
+			if (stats)
+				stats->blocks_rejected[kind]++;
+			return n_out;		/* no snippet of the block can be within the level's ratio */
+		}
+	}
 	if (desc->natts >= 12 && !nulls[11])
 	{
 		ArrayType  *a = DatumGetArrayTypeP(values[11]);
@@ -326,6 +389,20 @@ scan_block(HeapTuple tuple, TupleDesc desc, const double *lo, const double *hi, 
 			d++;
 		if (d < N_FEATURES)
 			continue;
+		if (stats)
+			stats->in_codes++;
+		candidate->least_ratio = 0;
+		if (term_bounds != NULL)
+		{
+			int			kind = modb_term_snippet(test, &terms, i, &candidate->least_ratio);
+
+			if (kind >= 0)
+			{
+				if (stats)
+					stats->candidates_rejected[kind]++;
+				continue;
+			}
+		}
 		candidate->id = ((int64 *) ARR_DATA_PTR(snippets))[i];
 		/* Not yet filled futures (NaN) may be filled since: such a snippet's block says nothing of them. */
 		candidate->hinted = inputs != NULL;
@@ -355,7 +432,7 @@ typedef struct IdPlace
 
 BlockCandidate *
 modb_block_candidates(Oid relid, int64 generation, const char *pose_key, double fps, const double *lo,
-					  const double *hi, int *n_out, BlockStats *stats)
+					  const double *hi, const TermTest *test, int *n_out, BlockStats *stats)
 {
 	Relation	rel;
 	BlockCandidate *out;
@@ -396,8 +473,20 @@ modb_block_candidates(Oid relid, int64 generation, const char *pose_key, double 
 			continue;
 		for (int s = 0; s * SUPER_BLOCKS < g->count; s++)
 		{
+			static TermBlock super_terms;
+			int			kind;
+
 			if (!box_meets(&g->supers[s], from, to))
 				continue;
+			if (stats)
+				stats->supers_met++;
+			if (test != NULL
+				&& (kind = modb_term_block(test, g->super_terms + (Size) TERM_BOUNDS_BYTES * s, NULL, &super_terms)) >= 0)
+			{
+				if (stats)
+					stats->supers_rejected[kind]++;
+				continue;		/* no block of the super block can hold a snippet within the level */
+			}
 			for (int e = s * SUPER_BLOCKS; e < Min(g->count, (s + 1) * SUPER_BLOCKS); e++)
 			{
 				HeapTupleData tuple;
@@ -405,6 +494,14 @@ modb_block_candidates(Oid relid, int64 generation, const char *pose_key, double 
 
 				if (!box_meets(&g->entries[e].box, from, to))
 					continue;
+				if (stats)
+					stats->blocks_met++;
+				if (test != NULL && (kind = modb_term_sub_block(test, &super_terms, g->entries[e].terms)) >= 0)
+				{
+					if (stats)
+						stats->directory_rejected[kind]++;
+					continue;	/* rejected without reading it */
+				}
 				if (stats)
 					stats->blocks_read++;
 				tuple.t_self = g->entries[e].tid;
@@ -415,7 +512,7 @@ modb_block_candidates(Oid relid, int64 generation, const char *pose_key, double 
 					capacity *= 2;
 					out = repalloc(out, sizeof(BlockCandidate) * capacity);
 				}
-				n = scan_block(&tuple, RelationGetDescr(rel), lo, hi, out, n);
+				n = scan_block(&tuple, RelationGetDescr(rel), lo, hi, test, out, n, stats);
 				ReleaseBuffer(buffer);
 			}
 		}
@@ -423,7 +520,8 @@ modb_block_candidates(Oid relid, int64 generation, const char *pose_key, double 
 	table_close(rel, AccessShareLock);
 	/*
 	 * A snippet in two blocks (its values updated since its first block) is one candidate, and neither
-	 * block's objective inputs need be its own.
+	 * block's objective inputs or term codes need be its own. (One block's term codes rejecting it is
+	 * right: the other block yields it if it has the current ones.)
 	 */
 	{
 		IdPlace    *order = palloc(sizeof(IdPlace) * Max(n, 1));
@@ -439,7 +537,10 @@ modb_block_candidates(Oid relid, int64 generation, const char *pose_key, double 
 		for (int i = 0; i < n; i++)
 		{
 			if (*n_out > 0 && order[i].id == unique[*n_out - 1].id)
+			{
 				unique[*n_out - 1].hinted = false;
+				unique[*n_out - 1].least_ratio = 0;
+			}
 			else
 				unique[(*n_out)++] = out[order[i].place];
 		}

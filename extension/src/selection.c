@@ -22,6 +22,7 @@
 
 #include "extension/cube/cubedata.h"
 #include "selection.h"
+#include "term_codes.h"
 
 PG_FUNCTION_INFO_V1(modb_select_next_snippets);
 
@@ -110,6 +111,7 @@ typedef struct Pending
 	bool		hinted;			/* false: unknown (read first) */
 	bool		has_proximity;
 	double		bound;
+	double		least_ratio;	/* from its block's term codes (0: unknown) */
 } Pending;
 
 static const float *
@@ -580,6 +582,7 @@ run_level(LevelRead *lr, const BlockCandidate *from_blocks, const int64 *stored_
 		p->hinted = from_blocks && from_blocks[i].hinted;
 		p->has_proximity = false;
 		p->bound = 0;
+		p->least_ratio = from_blocks ? from_blocks[i].least_ratio : 0;
 		if (p->hinted)
 		{
 			const double *inputs = from_blocks[i].inputs;
@@ -595,8 +598,9 @@ run_level(LevelRead *lr, const BlockCandidate *from_blocks, const int64 *stored_
 												  r->plan->heading_weight, &p->bound);
 			p->bound -= ldexp(2 * largest + fabs(r->plan->heading_weight) * fabs(inputs[6]), -20)
 				+ 1e-12 * (1 + fabs(p->bound));
-			/* x + y rounds monotonically in y: no key at this level is below this */
-			p->bound += least;
+			/* x + y rounds monotonically in y: no key at this level is below this (nor, for a weight of
+			 * at least 0, below the weight times the least ratio its term codes allow) */
+			p->bound += weight >= 0 ? Max(least, weight * p->least_ratio) : least;
 		}
 	}
 	lr->need = r->k - *emitted;
@@ -761,13 +765,15 @@ fast_path(Request *r, Tuplestorestate *store, TupleDesc out, SelectionStats *sta
 					hi[N_FEATURES];
 		int			n;
 		BlockCandidate *candidates;
+		TermTest	test;
+		bool		testing = modb_term_test(&test, &r->end, &r->plan->thresholds, scale);
 		LevelRead	lr = {.r = r, .graph_id = Int64GetDatum(r->plan->graph_id), .no_graph = !r->plan->has_graph,
 			.annotations = annotations, .lo = lo, .hi = hi, .low = level == 0 ? -INFINITY : scale / 2, .high = scale,
 		.stats = stats ? &stats->levels[level] : NULL};
 
 		box_of(r, scale, lo, hi, lr.stats);
-		candidates = modb_block_candidates(r->blocks_relid, r->blocks_generation, r->pose_key, r->fps, lo, hi, &n,
-										   lr.stats ? &lr.stats->blocks : NULL);
+		candidates = modb_block_candidates(r->blocks_relid, r->blocks_generation, r->pose_key, r->fps, lo, hi,
+										   testing ? &test : NULL, &n, lr.stats ? &lr.stats->blocks : NULL);
 		lr.query = candidates_query(false, annotated);
 		run_level(&lr, candidates, NULL, n, level, store, out, &emitted);
 	}

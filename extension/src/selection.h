@@ -65,16 +65,25 @@ typedef struct BlockCandidate
 	int64		id;
 	bool		hinted;			/* in exactly one block, which holds its objective's inputs */
 	double		inputs[N_OBJECTIVE_INPUTS];
+	double		least_ratio;	/* the least continuity ratio its block's term codes allow (0: unknown) */
 } BlockCandidate;
 
 extern int	modb_block_code(double x, float low, float high);
 extern void modb_store_block(const int64 *ids, const double (*x)[N_FEATURES],
-							 const double (*inputs)[N_OBJECTIVE_INPUTS], int n, const BlockSource *s,
-							 int pack_order);
-/* A snippet's id (column 1), begin features (column `features`) and objective inputs (the three after). */
-extern void modb_block_row(HeapTuple row, TupleDesc desc, int features, int64 *id, double *x, double *inputs);
+							 const double (*inputs)[N_OBJECTIVE_INPUTS], const Terminator *begins, int n,
+							 const BlockSource *s, int pack_order);
+/*
+ * A snippet's id (column 1), begin features (column `features`), objective inputs (the three after) and
+ * begin terminator (the four after those).
+ */
+extern void modb_block_row(HeapTuple row, TupleDesc desc, int features, int64 *id, double *x, double *inputs,
+						   Terminator *begin);
+/* The begin terminator's columns (terminators joined as b) that modb_block_row's rows end with. */
+#define BEGIN_TERMINATOR_COLUMNS "b.positions, b.rotations, b.velocities, b.angular_velocities"
+struct TermTest;					/* term_codes.h */
 extern BlockCandidate *modb_block_candidates(Oid relid, int64 generation, const char *pose_key, double fps,
-											 const double *lo, const double *hi, int *n, BlockStats *stats);
+											 const double *lo, const double *hi, const struct TermTest *test,
+											 int *n, BlockStats *stats);
 
 /* Runs a selection into `store` (rows of select_next_snippets' result type); stats may be NULL. */
 extern void modb_select(FunctionCallInfo fcinfo, Tuplestorestate *store, TupleDesc desc, SelectionStats *stats);

@@ -1,8 +1,10 @@
 /*
  * modb.explain_selection: what a select_next_snippets call did, for the DBA who cannot see it in EXPLAIN (a
  * C function is one Function Scan there): the profile as resolved, which path answered, and per relaxation
- * level the box, how its rows were found (the kept query's scan nodes), how many rows it yielded, passed
- * the filters, passed the continuity test and were returned, and the time each stage took.
+ * level the blocks its box met, what the term codes rejected (by term kind), how its rows were read (the
+ * kept query's scan nodes), how many were in the box, passed the filters, passed the continuity test and
+ * were returned, and the time each stage took: a screen (lines of at most 120 characters); the profile as
+ * resolved and each level's box when `verbose`.
  */
 #include "postgres.h"
 
@@ -12,6 +14,7 @@
 #include "utils/builtins.h"
 
 #include "selection.h"
+#include "selection_stats.h"
 
 PG_FUNCTION_INFO_V1(modb_explain_selection);
 
@@ -25,6 +28,7 @@ modb_explain_selection(PG_FUNCTION_ARGS)
 	StringInfoData line;
 	Datum		value;
 	bool		isnull = false;
+	bool		verbose = PG_NARGS() > 6 && !PG_ARGISNULL(6) && PG_GETARG_BOOL(6);
 
 	InitMaterializedSRF(fcinfo, MAT_SRF_USE_EXPECTED_DESC);
 	/* The selection's rows go to a store of their own: only the report is returned. */
@@ -52,9 +56,13 @@ modb_explain_selection(PG_FUNCTION_ARGS)
 					 (long long) stats.returned, stats.total_ms);
 	EMIT();
 	if (stats.plan)
-		appendStringInfo(&line, "  Profile as resolved (%s, %.3f ms): %s",
+	{
+		appendStringInfo(&line, "  Profile: %s (%.3f ms)",
 						 stats.plan->cached ? "this session's cached plan" : "resolved by modb.match_plan",
-						 stats.plan_ms, stats.plan->shown);
+						 stats.plan_ms);
+		if (verbose)
+			appendStringInfo(&line, ": %s", stats.plan->shown);
+	}
 	else
 		appendStringInfoString(&line, "  Profile: resolved by the reference query");
 	EMIT();
@@ -67,6 +75,10 @@ modb_explain_selection(PG_FUNCTION_ARGS)
 	for (int level = 0; level < N_LEVELS; level++)
 	{
 		LevelStats *s = &stats.levels[level];
+		BlockStats *b = &s->blocks;
+		static const char *const kinds[N_TERM_KINDS] = TERM_KIND_NAMES;
+		int64		blocks_rejected = 0,
+					candidates_rejected = 0;
 
 		if (!s->ran)
 		{
@@ -75,23 +87,61 @@ modb_explain_selection(PG_FUNCTION_ARGS)
 			continue;
 		}
 		if (s->stored)
-			appendStringInfo(&line, "  Level 0: the graph's stored transitions: %lld candidates, %lld read by %s",
-							 (long long) s->candidates, (long long) s->scanned, s->access);
+		{
+			appendStringInfo(&line, "  Level 0: the graph's stored transitions: %lld candidates",
+							 (long long) s->candidates);
+			EMIT();
+		}
 		else
-			appendStringInfo(&line, "  Level %d: box over %lld blocks of %lld snippets (block directory %s): "
-							 "%lld blocks met it, %lld candidates from their codes (%.3f ms), "
-							 "%lld read (best objective first) by %s, %lld in the box",
-							 level, (long long) s->blocks.blocks, (long long) s->blocks.snippets,
-							 s->blocks.read_directory ? "read now" : "cached", (long long) s->blocks.blocks_read,
-							 (long long) s->candidates, s->blocks.ms, (long long) s->scanned, s->access,
-							 (long long) s->in_box);
-		appendStringInfo(&line, ", %lld %s, %lld within ratio %g, %lld returned (%.3f ms)",
-						 (long long) s->filtered,
-						 s->stored ? "in the collection and not excluded"
-						 : "of the same pose and rate, in the collection and not excluded",
-						 (long long) s->within, (double) (1 << level), (long long) s->returned, s->ms);
+		{
+			int64		supers_rejected = 0,
+						directory_rejected = 0;
+
+			for (int k = 0; k < N_TERM_KINDS; k++)
+			{
+				supers_rejected += b->supers_rejected[k];
+				directory_rejected += b->directory_rejected[k];
+				blocks_rejected += b->blocks_rejected[k];
+				candidates_rejected += b->candidates_rejected[k];
+			}
+			appendStringInfo(&line, "  Level %d: box over %lld blocks of %lld snippets (directory %s): %lld super blocks met it",
+							 level, (long long) b->blocks, (long long) b->snippets,
+							 b->read_directory ? "read now" : "cached", (long long) b->supers_met);
+			EMIT();
+			appendStringInfo(&line, "    term bounds rejected %lld super blocks; %lld blocks met the box, %lld rejected (directory)",
+							 (long long) supers_rejected, (long long) b->blocks_met, (long long) directory_rejected);
+			EMIT();
+			appendStringInfo(&line, "    %lld blocks read, %lld rejected; %lld candidates from feature codes, %lld rejected, %lld left",
+							 (long long) b->blocks_read, (long long) blocks_rejected, (long long) b->in_codes,
+							 (long long) candidates_rejected, (long long) s->candidates);
+			EMIT();
+			for (int half = 0; half < 2; half++)
+			{
+				appendStringInfo(&line, "    %s (super blocks/blocks/candidates):", half ? "      " : "rejected by");
+				for (int k = 2 * half; k < 2 * half + 2; k++)
+					appendStringInfo(&line, "%s %s %lld/%lld/%lld", k % 2 ? "," : "", kinds[k],
+									 (long long) b->supers_rejected[k],
+									 (long long) (b->directory_rejected[k] + b->blocks_rejected[k]),
+									 (long long) b->candidates_rejected[k]);
+				EMIT();
+			}
+			appendStringInfo(&line, "    block search %.3f ms", b->ms);
+			EMIT();
+		}
+		appendStringInfo(&line, "    %lld read (best key first), %lld in the box, %lld %s, %lld within ratio %g, %lld returned",
+						 (long long) s->scanned, (long long) s->in_box, (long long) s->filtered,
+						 s->stored ? "in the collection, not excluded" : "of the pose, rate and collection, not excluded",
+						 (long long) s->within, (double) (1 << level), (long long) s->returned);
 		EMIT();
-		if (s->box)
+		appendStringInfo(&line, "    %.3f ms; rows read by %s", s->ms, s->access);
+		if (!verbose && line.len > 120)
+		{
+			line.data[116] = '\0';
+			line.len = 116;
+			appendStringInfoString(&line, " ...");
+		}
+		EMIT();
+		if (s->box && verbose)
 		{
 			appendStringInfo(&line, "    Box: begin_features <@ '%s'", s->box);
 			EMIT();

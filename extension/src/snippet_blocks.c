@@ -1,7 +1,8 @@
 /*
  * modb.add_snippet_blocks: cuts snippets into blocks of up to BLOCK_SNIPPETS consecutive ones of a clip
  * source (71_snippet_blocks.sql) and stores, per block, the bounds of their begin features (float4, rounded
- * outward), each snippet's 8-bit code within them and its objective's inputs. block_directory.c searches
+ * outward), each snippet's 8-bit code within them, its objective's inputs and the term codes of its begin
+ * terminator (term_codes.c). block_directory.c searches
  * them; pack_blocks.c re-cuts them.
  */
 #include "postgres.h"
@@ -18,6 +19,7 @@
 
 #include "extension/cube/cubedata.h"
 #include "selection.h"
+#include "term_codes.h"
 
 PG_FUNCTION_INFO_V1(modb_add_snippet_blocks);
 
@@ -74,17 +76,21 @@ same_source(const BlockSource *a, const BlockSource *b)
  */
 void
 modb_store_block(const int64 *ids, const double (*x)[N_FEATURES], const double (*inputs)[N_OBJECTIVE_INPUTS],
-				 int n, const BlockSource *s, int pack_order)
+				 const Terminator *begins, int n, const BlockSource *s, int pack_order)
 {
 	static SPIPlanPtr insert;
+	static SPIPlanPtr insert_017;
 	static SPIPlanPtr insert_010;
 	Oid			relid = RangeVarGetRelid(makeRangeVar("modb", "snippet_blocks", -1), NoLock, false);
-	/* A 0.10.0 database (not updated yet) has neither packing nor objective inputs. */
+	/* A 0.10.0 database (not updated yet) has neither packing nor objective inputs, 0.17.0 no term codes. */
 	bool		at_010 = get_attnum(relid, "objective_inputs") == InvalidAttrNumber;
-	Oid			types[12] = {INT8OID, INT4OID, BOOLOID, TEXTOID, FLOAT8OID, INT8OID, INT8ARRAYOID,
-	FLOAT4ARRAYOID, FLOAT4ARRAYOID, BYTEAOID, INT4OID, FLOAT4ARRAYOID};
-	Datum		args[12];
-	char		nulls[12];
+	bool		at_017 = !at_010 && get_attnum(relid, "term_codes") == InvalidAttrNumber;
+	Oid			types[14] = {INT8OID, INT4OID, BOOLOID, TEXTOID, FLOAT8OID, INT8OID, INT8ARRAYOID,
+	FLOAT4ARRAYOID, FLOAT4ARRAYOID, BYTEAOID, INT4OID, FLOAT4ARRAYOID, BYTEAOID, BYTEAOID};
+	Datum		args[14];
+	char		nulls[14];
+	bytea	   *term_bounds = palloc(VARHDRSZ + TERM_BOUNDS_BYTES);
+	bytea	   *term_codes = palloc(VARHDRSZ + n * TERM_CODE_BYTES);
 	Datum		id_datums[BLOCK_SNIPPETS];
 	Datum		input_datums[BLOCK_SNIPPETS * N_OBJECTIVE_INPUTS];
 	Datum		low[N_FEATURES],
@@ -135,18 +141,29 @@ modb_store_block(const int64 *ids, const double (*x)[N_FEATURES], const double (
 		input_datums[i] = Float4GetDatum((float) inputs[i / N_OBJECTIVE_INPUTS][i % N_OBJECTIVE_INPUTS]);
 	args[11] = PointerGetDatum(construct_array(input_datums, n * N_OBJECTIVE_INPUTS, FLOAT4OID, 4, true,
 											   TYPALIGN_INT));
+	SET_VARSIZE(term_bounds, VARHDRSZ + TERM_BOUNDS_BYTES);
+	SET_VARSIZE(term_codes, VARHDRSZ + n * TERM_CODE_BYTES);
+	modb_term_encode(begins, n, (uint8 *) VARDATA(term_bounds), (uint8 *) VARDATA(term_codes));
+	args[12] = PointerGetDatum(term_bounds);
+	args[13] = PointerGetDatum(term_codes);
 	if (at_010)
 		modb_kept_plan(&insert_010,
 					   "INSERT INTO modb.snippet_blocks (clip_id, version, mirrored, pose_key, fps, collection_id,"
 					   " snippets, low, high, codes) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10)",
 					   10, types);
-	else
-		modb_kept_plan(&insert,
+	else if (at_017)
+		modb_kept_plan(&insert_017,
 					   "INSERT INTO modb.snippet_blocks (clip_id, version, mirrored, pose_key, fps, collection_id,"
 					   " snippets, low, high, codes, pack_order, objective_inputs)"
 					   " VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12)",
 					   12, types);
-	if (SPI_execute_plan(at_010 ? insert_010 : insert, args, nulls, false, 0) != SPI_OK_INSERT)
+	else
+		modb_kept_plan(&insert,
+					   "INSERT INTO modb.snippet_blocks (clip_id, version, mirrored, pose_key, fps, collection_id,"
+					   " snippets, low, high, codes, pack_order, objective_inputs, term_bounds, term_codes)"
+					   " VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14)",
+					   14, types);
+	if (SPI_execute_plan(at_010 ? insert_010 : at_017 ? insert_017 : insert, args, nulls, false, 0) != SPI_OK_INSERT)
 		elog(ERROR, "modb: storing a snippet block failed");
 }
 
@@ -176,15 +193,18 @@ objective_inputs(Datum net, bool net_null, Datum future, bool future_null, Datum
 }
 
 /*
- * One snippet of an SPI row: its id (column 1), begin features (column `features`, a cube) and objective
- * inputs (the three columns after it).
+ * One snippet of an SPI row: its id (column 1), begin features (column `features`, a cube), objective
+ * inputs (the three columns after it) and begin terminator (the four arrays after those; they live as long
+ * as the row).
  */
 void
-modb_block_row(HeapTuple row, TupleDesc desc, int features, int64 *id, double *x, double *inputs)
+modb_block_row(HeapTuple row, TupleDesc desc, int features, int64 *id, double *x, double *inputs,
+			   Terminator *begin)
 {
 	bool		isnull;
 	bool		nulls[3];
 	Datum		values[3];
+	const float *arrays[4];
 	NDBOX	   *f = DatumGetNDBOXP(SPI_getbinval(row, desc, features, &isnull));
 
 	if (DIM(f) != N_FEATURES)
@@ -195,6 +215,18 @@ modb_block_row(HeapTuple row, TupleDesc desc, int features, int64 *id, double *x
 	for (int i = 0; i < 3; i++)
 		values[i] = SPI_getbinval(row, desc, features + 1 + i, &nulls[i]);
 	objective_inputs(values[0], nulls[0], values[1], nulls[1], values[2], nulls[2], inputs);
+	for (int i = 0; i < 4; i++)
+	{
+		ArrayType  *a = DatumGetArrayTypeP(SPI_getbinval(row, desc, features + 4 + i, &isnull));
+
+		if (isnull || ARR_NDIM(a) != 1 || ARR_HASNULL(a) || ARR_DIMS(a)[0] != (i == 1 ? 4 : 3) * N_JOINTS)
+			elog(ERROR, "modb: a begin terminator's arrays are not %d joints", N_JOINTS);
+		arrays[i] = (const float *) ARR_DATA_PTR(a);
+	}
+	begin->positions = arrays[0];
+	begin->rotations = arrays[1];
+	begin->velocities = arrays[2];
+	begin->angular_velocities = arrays[3];
 }
 
 /* Stores rows [first, first + n) of the SPI result (one source, clip order) as one block. */
@@ -204,11 +236,12 @@ store_rows(SPITupleTable *rows, uint64 first, int n, const BlockSource *s)
 	int64		ids[BLOCK_SNIPPETS];
 	double		x[BLOCK_SNIPPETS][N_FEATURES];
 	double		inputs[BLOCK_SNIPPETS][N_OBJECTIVE_INPUTS];
+	Terminator	begins[BLOCK_SNIPPETS];
 
 	for (int i = 0; i < n; i++)
-		modb_block_row(rows->vals[first + i], rows->tupdesc, 8, &ids[i], x[i], inputs[i]);
-	modb_store_block(ids, (const double (*)[N_FEATURES]) x, (const double (*)[N_OBJECTIVE_INPUTS]) inputs, n, s,
-					 -1);
+		modb_block_row(rows->vals[first + i], rows->tupdesc, 8, &ids[i], x[i], inputs[i], &begins[i]);
+	modb_store_block(ids, (const double (*)[N_FEATURES]) x, (const double (*)[N_OBJECTIVE_INPUTS]) inputs, begins,
+					 n, s, -1);
 }
 
 Datum
@@ -226,8 +259,8 @@ modb_add_snippet_blocks(PG_FUNCTION_ARGS)
 		elog(ERROR, "modb: SPI_connect failed");
 	modb_kept_plan(&query,
 				   "SELECT s.id, s.clip_id, s.version, s.mirrored, s.pose_key, s.fps, s.collection_id, s.begin_features,"
-				   "       s.net_translation, s.future_translation, s.future_heading"
-				   "  FROM modb.snippets s WHERE s.id = ANY ($1)"
+				   "       s.net_translation, s.future_translation, s.future_heading, " BEGIN_TERMINATOR_COLUMNS
+				   "  FROM modb.snippets s JOIN modb.terminators b ON b.id = s.begin_terminator WHERE s.id = ANY ($1)"
 				   " ORDER BY s.clip_id, s.version, s.mirrored, s.pose_key, s.fps, s.collection_id, s.first_frame, s.id",
 				   1, types);
 	if (SPI_execute_plan(query, args, NULL, false, 0) != SPI_OK_SELECT)
