@@ -56,6 +56,9 @@ typedef struct Entry
 	int32		tid_order;		/* its place in the table scan */
 	Box16		box;
 	uint8		terms[TERM_COMPONENTS];	/* its term bounds within its super block's (modb_term_nibbles) */
+	bool		inputs_known;	/* every snippet's objective inputs are finite (float4) */
+	float		inputs_lo[N_OBJECTIVE_INPUTS];	/* their bounds over the block's snippets */
+	float		inputs_hi[N_OBJECTIVE_INPUTS];
 	uint8	   *term_bounds;	/* while the directory is read: its own (NULL: none) */
 } Entry;
 
@@ -231,6 +234,29 @@ read_directory(Relation rel, int64 generation)
 		e = &g->entries[g->count++];
 		e->tid = tuple->t_self;
 		e->term_bounds = NULL;
+		e->inputs_known = false;
+		if (desc->natts >= 12 && !nulls[11])
+		{
+			ArrayType  *a = DatumGetArrayTypeP(values[11]);
+			int			count = ARR_DIMS(a)[0];
+
+			if (ARR_NDIM(a) == 1 && !ARR_HASNULL(a) && count > 0 && count % N_OBJECTIVE_INPUTS == 0)
+			{
+				const float *x = (const float *) ARR_DATA_PTR(a);
+
+				e->inputs_known = true;
+				for (int k = 0; k < N_OBJECTIVE_INPUTS; k++)
+					e->inputs_lo[k] = e->inputs_hi[k] = x[k];
+				for (int i = 0; i < count; i++)
+				{
+					float		v = x[i];
+
+					e->inputs_known &= isfinite(v);
+					e->inputs_lo[i % N_OBJECTIVE_INPUTS] = Min(e->inputs_lo[i % N_OBJECTIVE_INPUTS], v);
+					e->inputs_hi[i % N_OBJECTIVE_INPUTS] = Max(e->inputs_hi[i % N_OBJECTIVE_INPUTS], v);
+				}
+			}
+		}
 		if (desc->natts >= 14 && !nulls[12])
 		{
 			bytea	   *bounds = DatumGetByteaPP(values[12]);
@@ -416,44 +442,41 @@ scan_block(HeapTuple tuple, TupleDesc desc, const double *lo, const double *hi, 
 	return n_out;
 }
 
-/* A candidate's id and place, sorted by id (a specialised sort: candidates are thousands a call). */
-typedef struct IdPlace
-{
-	int64		id;
-	int32		place;
-} IdPlace;
 
-#define ST_SORT sort_id_places
-#define ST_ELEMENT_TYPE IdPlace
-#define ST_COMPARE(a, b) ((a)->id < (b)->id ? -1 : ((a)->id > (b)->id ? 1 : 0))
-#define ST_SCOPE static
-#define ST_DEFINE
-#include "lib/sort_template.h"
-
-BlockCandidate *
-modb_block_candidates(Oid relid, int64 generation, const char *pose_key, double fps, const double *lo,
-					  const double *hi, const TermTest *test, int *n_out, BlockStats *stats)
+/* A box search: the blocks the directory could not reject, each with the least key its snippets can have. */
+struct BlockSearch
 {
 	Relation	rel;
-	BlockCandidate *out;
-	int			n = 0,
-				capacity = 1024;
+	const double *lo;
+	const double *hi;
+	const TermTest *test;
+	BlockStats *stats;
+	int			n;
+	const Entry **entries;
+	double	   *bounds;
+};
+
+BlockSearch *
+modb_block_search(Oid relid, int64 generation, const char *pose_key, double fps, const double *lo,
+				  const double *hi, const TermTest *test, BlockBound bound, void *arg, BlockStats *stats)
+{
+	BlockSearch *search = palloc0(sizeof(BlockSearch));
+	int			capacity = 256;
 	int			from[N_FEATURES],
 				to[N_FEATURES];
 	instr_time	start,
 				end;
 
 	INSTR_TIME_SET_CURRENT(start);
-
-	rel = table_open(relid, AccessShareLock);
+	search->rel = table_open(relid, AccessShareLock);
 	/* Read directly, not through a query: check the caller's right to read it as a query would. */
 	if (pg_class_aclcheck(relid, GetUserId(), ACL_SELECT) != ACLCHECK_OK)
-		aclcheck_error(ACLCHECK_NO_PRIV, OBJECT_TABLE, RelationGetRelationName(rel));
-	check_columns(RelationGetDescr(rel));
+		aclcheck_error(ACLCHECK_NO_PRIV, OBJECT_TABLE, RelationGetRelationName(search->rel));
+	check_columns(RelationGetDescr(search->rel));
 	if (!directory.valid || directory.relid != relid || directory.generation != generation
-		|| directory.relfilenode != rel->rd_node.relNode)
+		|| directory.relfilenode != search->rel->rd_node.relNode)
 	{
-		read_directory(rel, generation);
+		read_directory(search->rel, generation);
 		if (stats)
 			stats->read_directory = true;
 	}
@@ -462,7 +485,12 @@ modb_block_candidates(Oid relid, int64 generation, const char *pose_key, double 
 		stats->blocks = directory.n_blocks;
 		stats->snippets = directory.n_snippets;
 	}
-	out = palloc(sizeof(BlockCandidate) * capacity);
+	search->lo = lo;
+	search->hi = hi;
+	search->test = test;
+	search->stats = stats;
+	search->entries = palloc(sizeof(Entry *) * capacity);
+	search->bounds = palloc(sizeof(double) * capacity);
 	for (int d = 0; d < N_FEATURES; d++)
 		code_range(lo[d], hi[d], scale_min(d), scale_step(d), SCALE_STEPS, &from[d], &to[d]);
 	for (int k = 0; k < directory.n_groups; k++)
@@ -489,70 +517,81 @@ modb_block_candidates(Oid relid, int64 generation, const char *pose_key, double 
 			}
 			for (int e = s * SUPER_BLOCKS; e < Min(g->count, (s + 1) * SUPER_BLOCKS); e++)
 			{
-				HeapTupleData tuple;
-				Buffer		buffer;
+				const Entry *entry = &g->entries[e];
 
-				if (!box_meets(&g->entries[e].box, from, to))
+				if (!box_meets(&entry->box, from, to))
 					continue;
 				if (stats)
 					stats->blocks_met++;
-				if (test != NULL && (kind = modb_term_sub_block(test, &super_terms, g->entries[e].terms)) >= 0)
+				if (test != NULL && (kind = modb_term_sub_block(test, &super_terms, entry->terms)) >= 0)
 				{
 					if (stats)
 						stats->directory_rejected[kind]++;
 					continue;	/* rejected without reading it */
 				}
-				if (stats)
-					stats->blocks_read++;
-				tuple.t_self = g->entries[e].tid;
-				if (!heap_fetch(rel, GetActiveSnapshot(), &tuple, &buffer, false))
-					continue;	/* not visible to this snapshot */
-				if (n + BLOCK_SNIPPETS > capacity)
+				if (search->n == capacity)
 				{
 					capacity *= 2;
-					out = repalloc(out, sizeof(BlockCandidate) * capacity);
+					search->entries = repalloc(search->entries, sizeof(Entry *) * capacity);
+					search->bounds = repalloc(search->bounds, sizeof(double) * capacity);
 				}
-				n = scan_block(&tuple, RelationGetDescr(rel), lo, hi, test, out, n, stats);
-				ReleaseBuffer(buffer);
+				search->entries[search->n] = entry;
+				search->bounds[search->n++] = entry->inputs_known
+					? bound(entry->inputs_lo, entry->inputs_hi, arg) : -INFINITY;
 			}
 		}
-	}
-	table_close(rel, AccessShareLock);
-	/*
-	 * A snippet in two blocks (its values updated since its first block) is one candidate, and neither
-	 * block's objective inputs or term codes need be its own. (One block's term codes rejecting it is
-	 * right: the other block yields it if it has the current ones.)
-	 */
-	{
-		IdPlace    *order = palloc(sizeof(IdPlace) * Max(n, 1));
-		BlockCandidate *unique = palloc(sizeof(BlockCandidate) * Max(n, 1));
-
-		for (int i = 0; i < n; i++)
-		{
-			order[i].id = out[i].id;
-			order[i].place = i;
-		}
-		sort_id_places(order, n);
-		*n_out = 0;
-		for (int i = 0; i < n; i++)
-		{
-			if (*n_out > 0 && order[i].id == unique[*n_out - 1].id)
-			{
-				unique[*n_out - 1].hinted = false;
-				unique[*n_out - 1].least_ratio = 0;
-			}
-			else
-				unique[(*n_out)++] = out[order[i].place];
-		}
-		pfree(order);
-		pfree(out);
-		out = unique;
 	}
 	if (stats)
 	{
 		INSTR_TIME_SET_CURRENT(end);
 		INSTR_TIME_SUBTRACT(end, start);
-		stats->ms = INSTR_TIME_GET_MILLISEC(end);
+		stats->ms += INSTR_TIME_GET_MILLISEC(end);
 	}
-	return out;
+	return search;
+}
+
+int
+modb_block_search_count(const BlockSearch *search)
+{
+	return search->n;
+}
+
+double
+modb_block_search_bound(const BlockSearch *search, int i)
+{
+	return search->bounds[i];
+}
+
+int
+modb_block_search_read(BlockSearch *search, int i, BlockCandidate *out)
+{
+	HeapTupleData tuple;
+	Buffer		buffer;
+	int			n = 0;
+	instr_time	start,
+				end;
+
+	INSTR_TIME_SET_CURRENT(start);
+	if (search->stats)
+		search->stats->blocks_read++;
+	tuple.t_self = search->entries[i]->tid;
+	if (heap_fetch(search->rel, GetActiveSnapshot(), &tuple, &buffer, false))
+	{
+		n = scan_block(&tuple, RelationGetDescr(search->rel), search->lo, search->hi, search->test, out, 0,
+					   search->stats);
+		ReleaseBuffer(buffer);
+	}							/* else not visible to this snapshot */
+	if (search->stats)
+	{
+		INSTR_TIME_SET_CURRENT(end);
+		INSTR_TIME_SUBTRACT(end, start);
+		search->stats->ms += INSTR_TIME_GET_MILLISEC(end);
+	}
+	return n;
+}
+
+void
+modb_block_search_end(BlockSearch *search)
+{
+	table_close(search->rel, AccessShareLock);
 }

@@ -2,15 +2,12 @@
  * modb.pack_snippet_blocks: re-cuts the snippet blocks of a pose and rate into blocks of snippets that lie
  * near each other in feature space, whatever their clip. A load adds blocks of up to 32 consecutive
  * snippets of a clip (snippet_blocks.c), which are loose: 32 consecutive snippets of a walk cross much of
- * its cycle, so a small box meets hundreds of them. Packing splits the group in the space of its begin
- * features and the components of every continuity term of their begin terminators (term_codes.c), each
- * in units of the default profile's box half-width or threshold, along the line through the two snippets
- * farthest apart (found by two passes: the farthest from the first, then the farthest from that one), at
- * the median of the projections, into leaves of BLOCK_SNIPPETS. An axis-aligned split (the widest
- * feature, before 0.18.0) narrows only the few dimensions it cuts, of 277; splitting the longest extent
- * narrows a leaf in all of them at once, as poses lie near a surface of few dimensions: a block is tight
- * in its features and in every term, so the term bounds reject it. Leaves are stored in the order of the split with their place in it
- * (pack_order), so that the directory's super boxes (block_directory.c) cover subtrees. A packed block
+ * its cycle, so a small box meets hundreds of them. Packing splits the group's begin features k-d tree
+ * fashion (each split at the median of the feature that spreads widest in units of the default profile's
+ * box) into leaves of BLOCK_SNIPPETS, stored in the order of the split with their place in it
+ * (pack_order), so that the directory's super boxes (block_directory.c) cover subtrees. (Splitting on the
+ * term components too, or along the line through the two snippets farthest apart, made blocks looser in
+ * the features, which the box tests first: more blocks met and read, BENCHMARKS.md "Every term bounded".) A packed block
  * is the one block of each of its snippets, so the objective inputs it holds are theirs: a call reads
  * its candidates in the order of their objective (selection.c).
  *
@@ -33,42 +30,45 @@
 
 #include "extension/cube/cubedata.h"
 #include "selection.h"
-#include "term_codes.h"
 
 PG_FUNCTION_INFO_V1(modb_pack_snippet_blocks);
 
 #define READ_BATCH 10000
-#define PACK_DIMS (N_FEATURES + TERM_COMPONENTS)	/* what a split may cut along */
 
 typedef struct Packing
 {
 	int64		n;
 	int64	   *ids;
-	float	   *features;		/* n x PACK_DIMS, float4, in units: where to split, not the bounds */
-	float	   *key;			/* per snippet: its projection on the current split's line */
-	double		unit[PACK_DIMS];	/* a dimension's spread is measured in these (Infinity: never split on it) */
+	float	   *features;		/* n x N_FEATURES, float4: where to split, not the bounds */
+	double		unit[N_FEATURES];	/* a feature's spread is measured in these (Infinity: never split on it) */
 	BlockSource source;
 	int			blocks;
 } Packing;
 
-/* Reorders idx so that idx[m] holds the m-th smallest key, smaller ones before it. */
+static inline float
+feature(const Packing *p, int32 i, int d)
+{
+	return p->features[(int64) i * N_FEATURES + d];
+}
+
+/* Reorders idx so that idx[m] holds the m-th smallest value of feature d, smaller ones before it. */
 static void
-select_nth(const Packing *p, int32 *idx, int n, int m)
+select_nth(const Packing *p, int32 *idx, int n, int m, int d)
 {
 	int			lo = 0,
 				hi = n - 1;
 
 	while (lo < hi)
 	{
-		float		pivot = p->key[idx[lo + (hi - lo) / 2]];
+		float		pivot = feature(p, idx[lo + (hi - lo) / 2], d);
 		int			i = lo,
 					j = hi;
 
 		while (i <= j)
 		{
-			while (p->key[idx[i]] < pivot)
+			while (feature(p, idx[i], d) < pivot)
 				i++;
-			while (p->key[idx[j]] > pivot)
+			while (feature(p, idx[j], d) > pivot)
 				j--;
 			if (i <= j)
 			{
@@ -97,8 +97,8 @@ int64_order(const void *a, const void *b)
 }
 
 /*
- * Stores one leaf as a block, with its snippets' exact (float8) features and begin terminators read again,
- * in a memory context of its own (a group has tens of thousands of leaves).
+ * Stores one leaf as a block, with its snippets' exact (float8) features and begin terminators (for its
+ * term codes) read again, in a memory context of its own (a group has tens of thousands of leaves).
  */
 static void
 store_leaf(Packing *p, const int32 *idx, int n)
@@ -143,50 +143,12 @@ store_leaf(Packing *p, const int32 *idx, int n)
 	MemoryContextReset(leaf_context);
 }
 
-/* The squared distance of snippets a and b (in units). */
-static double
-distance_sq(const Packing *p, int32 a, int32 b)
-{
-	const float *x = p->features + (int64) a * PACK_DIMS,
-			   *y = p->features + (int64) b * PACK_DIMS;
-	double		sum = 0;
-
-	for (int d = 0; d < PACK_DIMS; d++)
-	{
-		double		diff = (double) x[d] - (double) y[d];
-
-		sum += diff * diff;
-	}
-	return sum;
-}
-
-/* Of idx[0..n), the snippet farthest from `from` (the first of equals). */
-static int32
-farthest(const Packing *p, const int32 *idx, int n, int32 from)
-{
-	int32		best = idx[0];
-	double		longest = -1;
-
-	for (int i = 0; i < n; i++)
-	{
-		double		d = distance_sq(p, from, idx[i]);
-
-		if (d > longest)
-		{
-			longest = d;
-			best = idx[i];
-		}
-	}
-	return best;
-}
-
-/* Splits idx[0..n) at the median along its longest extent until the parts fit a block; leaves in order. */
+/* Splits idx[0..n) at the median of its widest feature until the parts fit a block; leaves in order. */
 static void
 split(Packing *p, int32 *idx, int n)
 {
-	int32		a,
-				b;
-	float		line[PACK_DIMS];
+	int			widest = -1;
+	double		spread = 0;
 	int			half;
 
 	CHECK_FOR_INTERRUPTS();
@@ -195,27 +157,35 @@ split(Packing *p, int32 *idx, int n)
 		store_leaf(p, idx, n);
 		return;
 	}
-	a = farthest(p, idx, n, idx[0]);
-	b = farthest(p, idx, n, a);
-	for (int d = 0; d < PACK_DIMS; d++)
-		line[d] = p->features[(int64) b * PACK_DIMS + d] - p->features[(int64) a * PACK_DIMS + d];
-	for (int i = 0; i < n; i++)
+	for (int d = 0; d < N_FEATURES; d++)
 	{
-		const float *x = p->features + (int64) idx[i] * PACK_DIMS;
-		double		projection = 0;
+		float		min = feature(p, idx[0], d),
+					max = min;
+		double		s;
 
-		for (int d = 0; d < PACK_DIMS; d++)
-			projection += (double) x[d] * line[d];
-		p->key[idx[i]] = (float) projection;
+		for (int i = 1; i < n; i++)
+		{
+			float		v = feature(p, idx[i], d);
+
+			min = Min(min, v);
+			max = Max(max, v);
+		}
+		s = ((double) max - (double) min) / p->unit[d];
+		if (s > spread)
+		{
+			spread = s;
+			widest = d;
+		}
 	}
 	/* Halves that are whole blocks, so that only the last leaf of a subtree is short. */
 	half = Max(BLOCK_SNIPPETS, (n / 2) / BLOCK_SNIPPETS * BLOCK_SNIPPETS);
-	select_nth(p, idx, n, half);
+	if (widest >= 0)
+		select_nth(p, idx, n, half, widest);
 	split(p, idx, half);
 	split(p, idx + half, n - half);
 }
 
-/* Reads the ids, begin features and term components (as float4) of every snippet of the group this snapshot sees. */
+/* Reads the ids and begin features (as float4) of every snippet of the group this snapshot sees. */
 static void
 read_group(Packing *p)
 {
@@ -226,13 +196,11 @@ read_group(Packing *p)
 	int64		capacity = READ_BATCH;
 
 	modb_kept_plan(&query,
-				   "SELECT s.id, s.begin_features, " BEGIN_TERMINATOR_COLUMNS
-				   "  FROM modb.snippets s JOIN modb.terminators b ON b.id = s.begin_terminator"
-				   " WHERE s.pose_key = $1 AND s.fps = $2",
+				   "SELECT s.id, s.begin_features FROM modb.snippets s WHERE s.pose_key = $1 AND s.fps = $2",
 				   2, types);
 	p->n = 0;
 	p->ids = MemoryContextAllocHuge(CurrentMemoryContext, sizeof(int64) * capacity);
-	p->features = MemoryContextAllocHuge(CurrentMemoryContext, sizeof(float) * PACK_DIMS * capacity);
+	p->features = MemoryContextAllocHuge(CurrentMemoryContext, sizeof(float) * N_FEATURES * capacity);
 	cursor = SPI_cursor_open(NULL, query, args, NULL, false);
 	for (;;)
 	{
@@ -243,34 +211,19 @@ read_group(Packing *p)
 		{
 			capacity = Max(2 * capacity, p->n + (int64) SPI_processed);
 			p->ids = repalloc_huge(p->ids, sizeof(int64) * capacity);
-			p->features = repalloc_huge(p->features, sizeof(float) * PACK_DIMS * capacity);
+			p->features = repalloc_huge(p->features, sizeof(float) * N_FEATURES * capacity);
 		}
 		for (uint64 i = 0; i < SPI_processed; i++)
 		{
 			HeapTuple	row = SPI_tuptable->vals[i];
 			bool		isnull;
 			NDBOX	   *f = DatumGetNDBOXP(SPI_getbinval(row, SPI_tuptable->tupdesc, 2, &isnull));
-			float	   *into = p->features + p->n * PACK_DIMS;
-			double		terms[TERM_COMPONENTS],
-						w[N_JOINTS];
-			const float *arrays[4];
-			Terminator	begin;
 
 			if (DIM(f) != N_FEATURES)
 				elog(ERROR, "modb: snippet features have %d dimensions, not %d", DIM(f), N_FEATURES);
 			p->ids[p->n] = DatumGetInt64(SPI_getbinval(row, SPI_tuptable->tupdesc, 1, &isnull));
 			for (int d = 0; d < N_FEATURES; d++)
-				into[d] = (float) (LL_COORD(f, d) / p->unit[d]);	/* 0 where the unit is Infinity */
-			for (int a = 0; a < 4; a++)
-				arrays[a] = (const float *) ARR_DATA_PTR(DatumGetArrayTypeP(SPI_getbinval(row, SPI_tuptable->tupdesc,
-																							 3 + a, &isnull)));
-			begin.positions = arrays[0];
-			begin.rotations = arrays[1];
-			begin.velocities = arrays[2];
-			begin.angular_velocities = arrays[3];
-			modb_term_components(&begin, terms, w);
-			for (int c = 0; c < TERM_COMPONENTS; c++)
-				into[N_FEATURES + c] = (float) (terms[c] / p->unit[N_FEATURES + c]);
+				p->features[p->n * N_FEATURES + d] = (float) LL_COORD(f, d);
 			p->n++;
 		}
 		SPI_freetuptable(SPI_tuptable);
@@ -279,52 +232,32 @@ read_group(Packing *p)
 	SPI_cursor_close(cursor);
 }
 
-/* The values of a float8[] of `length` (column `column` of the one SPI row) into `into`, where positive. */
-static void
-read_positive(int column, int length, double scale, double *into)
-{
-	bool		isnull;
-	Datum		value = SPI_getbinval(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, column, &isnull);
-	ArrayType  *a;
-
-	if (isnull)
-		return;
-	a = DatumGetArrayTypeP(value);
-	if (ARR_NDIM(a) != 1 || ARR_HASNULL(a) || ARR_DIMS(a)[0] != length)
-		return;
-	for (int i = 0; i < length; i++)
-	{
-		double		w = ((double *) ARR_DATA_PTR(a))[i] * scale;
-
-		if (isfinite(w) && w > 0)
-			into[i] = w;
-	}
-}
-
-/*
- * The units a split measures spreads in: the default profile's box half-widths for the features, its
- * thresholds for the term components (half the angle threshold for a rotation's, about the chord of that
- * angle): a split separates what its boxes and its continuity test separate.
- */
+/* The default profile's box half-widths: a split separates what its boxes separate. */
 static void
 read_units(double *unit)
 {
-	double		thresholds[N_TERM_KINDS][N_JOINTS];
+	bool		isnull;
+	Datum		value;
 
-	if (SPI_execute("SELECT p.box_half_width, p.position_threshold, p.angle_threshold, p.velocity_threshold,"
-					"       p.angular_velocity_threshold FROM modb.match_plan('default') p", true, 1) != SPI_OK_SELECT
+	if (SPI_execute("SELECT (modb.match_plan('default')).box_half_width", true, 1) != SPI_OK_SELECT
 		|| SPI_processed != 1)
 		elog(ERROR, "modb: the default profile's box could not be read");
-	for (int d = 0; d < PACK_DIMS; d++)
+	value = SPI_getbinval(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 1, &isnull);
+	for (int d = 0; d < N_FEATURES; d++)
 		unit[d] = INFINITY;
-	for (int k = 0; k < N_TERM_KINDS; k++)
-		for (int j = 0; j < N_JOINTS; j++)
-			thresholds[k][j] = INFINITY;
-	read_positive(1, N_FEATURES, 1.0, unit);
-	for (int k = 0; k < N_TERM_KINDS; k++)
-		read_positive(2 + k, N_JOINTS, k == 1 ? 0.5 : 1.0, thresholds[k]);
-	for (int c = 0; c < TERM_COMPONENTS; c++)
-		unit[N_FEATURES + c] = thresholds[(c % TERM_JOINT_COMPONENTS) / TERM_KIND_COMPONENTS][c / TERM_JOINT_COMPONENTS];
+	if (!isnull)
+	{
+		ArrayType  *a = DatumGetArrayTypeP(value);
+
+		if (ARR_NDIM(a) == 1 && !ARR_HASNULL(a) && ARR_DIMS(a)[0] == N_FEATURES)
+			for (int d = 0; d < N_FEATURES; d++)
+			{
+				double		w = ((double *) ARR_DATA_PTR(a))[d];
+
+				if (isfinite(w) && w > 0)
+					unit[d] = w;
+			}
+	}
 }
 
 /* Replaces the group's blocks with packed ones; returns how many snippets they hold. */
@@ -343,7 +276,6 @@ pack_group(Packing *p)
 	if (p->n > PG_INT32_MAX)
 		elog(ERROR, "modb: more than %d snippets of one pose and rate cannot be packed", PG_INT32_MAX);
 	idx = MemoryContextAllocHuge(CurrentMemoryContext, sizeof(int32) * Max(p->n, 1));
-	p->key = MemoryContextAllocHuge(CurrentMemoryContext, sizeof(float) * Max(p->n, 1));
 	for (int64 i = 0; i < p->n; i++)
 		idx[i] = (int32) i;
 	p->blocks = 0;
@@ -352,7 +284,6 @@ pack_group(Packing *p)
 	pfree(idx);
 	pfree(p->ids);
 	pfree(p->features);
-	pfree(p->key);
 	return p->n;
 }
 

@@ -19,6 +19,7 @@
 #include "utils/array.h"
 #include "utils/builtins.h"
 #include "utils/guc.h"
+#include "utils/hsearch.h"
 
 #include "extension/cube/cubedata.h"
 #include "selection.h"
@@ -104,10 +105,14 @@ typedef struct Candidate
 	double		ratio;
 } Candidate;
 
-/* A candidate not read yet: the least key it can have, from the objective inputs its block holds. */
+/*
+ * A candidate not read yet, or a block not read yet: the least key it can have, from the objective inputs
+ * its block holds (a block: from their bounds over its snippets).
+ */
 typedef struct Pending
 {
-	int64		id;
+	int64		id;				/* a block's: PG_INT64_MIN, first among equal bounds */
+	int			block;			/* the box search's block, or -1: a candidate */
 	bool		hinted;			/* false: unknown (read first) */
 	bool		has_proximity;
 	double		bound;
@@ -548,26 +553,119 @@ read_and_check(LevelRead *lr, const Pending *pending, int n)
 	}
 }
 
+/* A candidate's place in the reading order, from the objective inputs and least ratio its block holds. */
+static void
+candidate_pending(const LevelRead *lr, const BlockCandidate *c, double least, Pending *p)
+{
+	const Request *r = lr->r;
+	double		weight = r->plan->continuity_weight;
+
+	p->id = c->id;
+	p->block = -1;
+	p->hinted = c->hinted;
+	p->has_proximity = false;
+	p->bound = 0;
+	p->least_ratio = c->least_ratio;
+	if (p->hinted)
+	{
+		const double *inputs = c->inputs;
+		double		largest = 0;
+
+		/* The row's function (proximity_of) on the float4 roundings of its values: a float4 is within
+		 * 2^-24 of its value, distances and the turn move by at most what their inputs do, so the
+		 * objective is within 2^-24 (sqrt(3) the largest translation + heading_weight x the heading):
+		 * allowed for sixteen times over, and the double arithmetic's own rounding. */
+		for (int k = 0; k < 6; k++)
+			largest = Max(largest, fabs(inputs[k]));
+		p->has_proximity = modb_approach_cost(inputs, inputs + 3, true, inputs[6], r->aim, r->n, r->direction,
+											  r->plan->heading_weight, &p->bound);
+		p->bound -= ldexp(2 * largest + fabs(r->plan->heading_weight) * fabs(inputs[6]), -20)
+			+ 1e-12 * (1 + fabs(p->bound));
+		/* x + y rounds monotonically in y: no key at this level is below this (nor, for a weight of
+		 * at least 0, below the weight times the least ratio its term codes allow) */
+		p->bound += weight >= 0 ? Max(least, weight * p->least_ratio) : least;
+	}
+}
+
+/* The distance from the aim point to a box of translations (3 values), in the objective's coordinates. */
+static double
+distance_to_box(const float *lo, const float *hi, const double *aim, int n)
+{
+	double		sum = 0;
+
+	for (int i = 0; i < n; i++)
+	{
+		int			axis = n == 3 ? i : 2 * i;	/* {x, z}: the translation's 0 and 2 */
+		double		gap = aim[i] < lo[axis] ? lo[axis] - aim[i] : (aim[i] > hi[axis] ? aim[i] - hi[axis] : 0);
+
+		sum += gap * gap;
+	}
+	return sqrt(sum);
+}
+
 /*
- * One level: of the candidates (ids from the box's blocks with their objective inputs, or the stored
- * transitions), those that pass the box (exactly), the filters and low < ratio <= high (low is -Infinity
- * at level 0), ranked by objective + continuity_weight x ratio; the best (k - *emitted) go into the store.
- * Candidates are read in the order of the least key they can have (their objective, from the inputs their
- * block holds, plus the weight times the least ratio of the level), in batches, and no further than that
- * least key can still beat the k-th best found: the rows and order are those of reading every one.
+ * The least key a block's snippets can have at this level, from the bounds of their objective inputs:
+ * the least of the distances from the aim to the net and future boxes, plus heading_weight times the
+ * least turn from the aim's direction to a heading between the bounds, with the same allowance for
+ * float4 as a candidate's (candidate_pending), plus the level's least weight x ratio.
+ */
+static double
+block_bound(const float *lo, const float *hi, void *arg)
+{
+	const LevelRead *lr = arg;
+	const Request *r = lr->r;
+	double		weight = r->plan->continuity_weight;
+	double		heading_weight = r->plan->heading_weight;
+	double		largest = 0,
+				turn = 0,
+				bound;
+
+	for (int k = 0; k < 6; k++)
+		largest = Max(largest, Max(fabs(lo[k]), fabs(hi[k])));
+	if ((double) hi[6] - (double) lo[6] < 2 * M_PI)
+	{
+		double		from = (double) lo[6] - r->direction,
+					to = (double) hi[6] - r->direction;
+
+		/* |wrap(h - direction)| is least at a multiple of 2 pi, else at an end of the interval */
+		if (floor(to / (2 * M_PI)) < ceil(from / (2 * M_PI)))
+			turn = Min(fabs(atan2(sin(from), cos(from))), fabs(atan2(sin(to), cos(to))));
+	}
+	bound = Min(distance_to_box(lo, hi, r->aim, r->n), distance_to_box(lo + 3, hi + 3, r->aim, r->n))
+		+ heading_weight * turn;
+	bound -= ldexp(2 * largest + fabs(heading_weight) * Max(fabs(lo[6]), fabs(hi[6])), -20) + 1e-12 * (1 + fabs(bound))
+		+ 1e-9 * (1 + heading_weight);	/* sin, cos and atan2 of an end, against the row's own */
+	return bound + (weight >= 0 ? weight * Max(lr->low, 0.0) : weight * lr->high);
+}
+
+/*
+ * One level: of the candidates (from the blocks of a box search, or the stored transitions), those that
+ * pass the box (exactly), the filters and low < ratio <= high (low is -Infinity at level 0), ranked by
+ * objective + continuity_weight x ratio; the best (k - *emitted) go into the store. Blocks and
+ * candidates are taken in the order of the least key they can have (a block's from the bounds of its
+ * snippets' objective inputs, a candidate's from its own), a block read into its candidates when its
+ * turn comes and candidates read in batches, and no further than that least key can still beat the
+ * k-th best found: the rows and order are those of reading every one. A snippet in several blocks (its
+ * values updated since its first block) is read once; the newest of them holds its values, so its
+ * bound from that block is right and one from an older block that is too low only reads it earlier.
  */
 static void
-run_level(LevelRead *lr, const BlockCandidate *from_blocks, const int64 *stored_ids, int n, int level,
+run_level(LevelRead *lr, BlockSearch *search, const int64 *stored_ids, int n_stored, int level,
 		  Tuplestorestate *store, TupleDesc out, int *emitted)
 {
 	const Request *r = lr->r;
 	double		weight = r->plan->continuity_weight;
 	/* The least weight x ratio at this level: the ratio is at least 0, above low and at most high. */
 	double		least = weight >= 0 ? weight * Max(lr->low, 0.0) : weight * lr->high;
+	int			n_blocks = search ? modb_block_search_count(search) : 0;
+	int			n = search ? n_blocks : n_stored;
 	Pending    *pending = palloc(sizeof(Pending) * Max(n, 1));
+	BlockCandidate found[BLOCK_SNIPPETS];
 	binaryheap *heap;
 	Pending    *batch;
-	int			n_unknown = 0;
+	HASHCTL		ctl = {.keysize = sizeof(int64), .entrysize = sizeof(int64), .hcxt = CurrentMemoryContext};
+	HTAB	   *read = hash_create("modb candidates read", 256, &ctl, HASH_ELEM | HASH_BLOBS | HASH_CONTEXT);
+	int64		candidates = search ? 0 : n_stored;
 	int			limit;
 	instr_time	start,
 				duration;
@@ -578,44 +676,23 @@ run_level(LevelRead *lr, const BlockCandidate *from_blocks, const int64 *stored_
 	{
 		Pending    *p = &pending[i];
 
-		p->id = from_blocks ? from_blocks[i].id : stored_ids[i];
-		p->hinted = from_blocks && from_blocks[i].hinted;
-		p->has_proximity = false;
-		p->bound = 0;
-		p->least_ratio = from_blocks ? from_blocks[i].least_ratio : 0;
-		if (p->hinted)
-		{
-			const double *inputs = from_blocks[i].inputs;
-			double		largest = 0;
-
-			/* The row's function (proximity_of) on the float4 roundings of its values: a float4 is within
-			 * 2^-24 of its value, distances and the turn move by at most what their inputs do, so the
-			 * objective is within 2^-24 (sqrt(3) the largest translation + heading_weight x the heading):
-			 * allowed for sixteen times over, and the double arithmetic's own rounding. */
-			for (int k = 0; k < 6; k++)
-				largest = Max(largest, fabs(inputs[k]));
-			p->has_proximity = modb_approach_cost(inputs, inputs + 3, true, inputs[6], r->aim, r->n, r->direction,
-												  r->plan->heading_weight, &p->bound);
-			p->bound -= ldexp(2 * largest + fabs(r->plan->heading_weight) * fabs(inputs[6]), -20)
-				+ 1e-12 * (1 + fabs(p->bound));
-			/* x + y rounds monotonically in y: no key at this level is below this (nor, for a weight of
-			 * at least 0, below the weight times the least ratio its term codes allow) */
-			p->bound += weight >= 0 ? Max(least, weight * p->least_ratio) : least;
-		}
+		memset(p, 0, sizeof(Pending));
+		p->block = search ? i : -1;
+		p->id = search ? PG_INT64_MIN : stored_ids[i];
+		p->has_proximity = search != NULL;
+		p->bound = search ? modb_block_search_bound(search, i) : 0;
+		p->hinted = search != NULL && isfinite(p->bound);
 	}
 	lr->need = r->k - *emitted;
 	lr->best = palloc(sizeof(Candidate) * Max(lr->need, 1));
 	lr->n_best = 0;
-	/* From a heap: a call reads few of them, and every unknown one, all in its first read. */
-	heap = binaryheap_allocate(Max(n, 1), pending_heap_order, NULL);
+	/* From a heap: a call reads few of them; every unknown one of the stored transitions in its first read. */
+	heap = binaryheap_allocate(Max(search ? n_blocks * (1 + BLOCK_SNIPPETS) : n, 1), pending_heap_order, NULL);
 	for (int i = 0; i < n; i++)
-	{
 		binaryheap_add_unordered(heap, PointerGetDatum(&pending[i]));
-		n_unknown += !pending[i].hinted;
-	}
 	binaryheap_build(heap);
-	batch = palloc(sizeof(Pending) * (n_unknown + LARGEST_BATCH));
-	limit = n_unknown + FIRST_BATCH;
+	batch = palloc(sizeof(Pending) * ((search ? 0 : n) + LARGEST_BATCH));
+	limit = (search ? 0 : n) + FIRST_BATCH;
 	for (int size = FIRST_BATCH;; limit = size = Min(2 * size, LARGEST_BATCH))
 	{
 		int			n_batch = 0;
@@ -623,7 +700,28 @@ run_level(LevelRead *lr, const BlockCandidate *from_blocks, const int64 *stored_
 		while (!binaryheap_empty(heap) && n_batch < limit
 			   && (lr->n_best < lr->need
 				   || may_beat((const Pending *) DatumGetPointer(binaryheap_first(heap)), &lr->best[lr->need - 1])))
-			batch[n_batch++] = *(Pending *) DatumGetPointer(binaryheap_remove_first(heap));
+		{
+			Pending    *p = (Pending *) DatumGetPointer(binaryheap_remove_first(heap));
+			bool		seen;
+
+			if (p->block >= 0)
+			{
+				/* a block's turn: its candidates join the queue */
+				int			m = modb_block_search_read(search, p->block, found);
+				Pending    *more = palloc(sizeof(Pending) * Max(m, 1));
+
+				candidates += m;
+				for (int i = 0; i < m; i++)
+				{
+					candidate_pending(lr, &found[i], least, &more[i]);
+					binaryheap_add(heap, PointerGetDatum(&more[i]));
+				}
+				continue;
+			}
+			hash_search(read, &p->id, HASH_ENTER, &seen);
+			if (!seen)
+				batch[n_batch++] = *p;
+		}
 		if (n_batch == 0)
 			break;
 		read_and_check(lr, batch, n_batch);
@@ -649,13 +747,14 @@ run_level(LevelRead *lr, const BlockCandidate *from_blocks, const int64 *stored_
 		tuplestore_putvalues(store, out, values, isnull);
 		(*emitted)++;
 	}
+	hash_destroy(read);
 	if (lr->stats)
 	{
 		INSTR_TIME_SET_CURRENT(duration);
 		INSTR_TIME_SUBTRACT(duration, start);
 		lr->stats->ran = true;
 		lr->stats->stored = lr->lo == NULL;
-		lr->stats->candidates = n;
+		lr->stats->candidates = candidates;
 		lr->stats->returned = lr->n_best;
 		lr->stats->ms = INSTR_TIME_GET_MILLISEC(duration);
 		lr->stats->access = outliving(modb_describe_access(lr->query));
@@ -763,8 +862,7 @@ fast_path(Request *r, Tuplestorestate *store, TupleDesc out, SelectionStats *sta
 		double		scale = (double) (1 << level);
 		double		lo[N_FEATURES],
 					hi[N_FEATURES];
-		int			n;
-		BlockCandidate *candidates;
+		BlockSearch *search;
 		TermTest	test;
 		bool		testing = modb_term_test(&test, &r->end, &r->plan->thresholds, scale);
 		LevelRead	lr = {.r = r, .graph_id = Int64GetDatum(r->plan->graph_id), .no_graph = !r->plan->has_graph,
@@ -772,10 +870,11 @@ fast_path(Request *r, Tuplestorestate *store, TupleDesc out, SelectionStats *sta
 		.stats = stats ? &stats->levels[level] : NULL};
 
 		box_of(r, scale, lo, hi, lr.stats);
-		candidates = modb_block_candidates(r->blocks_relid, r->blocks_generation, r->pose_key, r->fps, lo, hi,
-										   testing ? &test : NULL, &n, lr.stats ? &lr.stats->blocks : NULL);
+		search = modb_block_search(r->blocks_relid, r->blocks_generation, r->pose_key, r->fps, lo, hi,
+								   testing ? &test : NULL, block_bound, &lr, lr.stats ? &lr.stats->blocks : NULL);
 		lr.query = candidates_query(false, annotated);
-		run_level(&lr, candidates, NULL, n, level, store, out, &emitted);
+		run_level(&lr, search, NULL, 0, level, store, out, &emitted);
+		modb_block_search_end(search);
 	}
 	return emitted >= r->k;
 }

@@ -81,9 +81,24 @@ extern void modb_block_row(HeapTuple row, TupleDesc desc, int features, int64 *i
 /* The begin terminator's columns (terminators joined as b) that modb_block_row's rows end with. */
 #define BEGIN_TERMINATOR_COLUMNS "b.positions, b.rotations, b.velocities, b.angular_velocities"
 struct TermTest;					/* term_codes.h */
-extern BlockCandidate *modb_block_candidates(Oid relid, int64 generation, const char *pose_key, double fps,
-											 const double *lo, const double *hi, const struct TermTest *test,
-											 int *n, BlockStats *stats);
+
+/*
+ * A box search over the blocks (block_directory.c): the blocks of the pose and rate whose bounds meet the
+ * box and whose term bounds the directory cannot reject (`test`: NULL, none), each with the least key
+ * its snippets can have, which `bound` computes from the bounds of their objective inputs (-Infinity
+ * where one is not known); a block is read when the caller asks, for its candidates.
+ */
+typedef struct BlockSearch BlockSearch;
+typedef double (*BlockBound) (const float *inputs_lo, const float *inputs_hi, void *arg);
+
+extern BlockSearch *modb_block_search(Oid relid, int64 generation, const char *pose_key, double fps,
+									  const double *lo, const double *hi, const struct TermTest *test,
+									  BlockBound bound, void *arg, BlockStats *stats);
+extern int	modb_block_search_count(const BlockSearch *search);
+extern double modb_block_search_bound(const BlockSearch *search, int i);
+/* Reads block i: its snippets in the box that its term codes do not reject, into out (BLOCK_SNIPPETS long). */
+extern int	modb_block_search_read(BlockSearch *search, int i, BlockCandidate *out);
+extern void modb_block_search_end(BlockSearch *search);
 
 /* Runs a selection into `store` (rows of select_next_snippets' result type); stats may be NULL. */
 extern void modb_select(FunctionCallInfo fcinfo, Tuplestorestate *store, TupleDesc desc, SelectionStats *stats);
