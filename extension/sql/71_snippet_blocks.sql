@@ -26,9 +26,10 @@ CREATE TABLE modb.snippet_blocks (
     objective_inputs real[],
     term_bounds   bytea,
     term_codes    bytea,
+    input_bounds  real[],
     CONSTRAINT snippet_blocks_source_check CHECK (pack_order IS NOT NULL OR (clip_id IS NOT NULL
         AND version IS NOT NULL AND mirrored IS NOT NULL AND collection_id IS NOT NULL))
-) WITH (toast_tuple_target = 8160);  -- a block (about 7.8 kB, one a page) stays uncompressed
+) WITH (toast_tuple_target = 8160);  -- a block (about 7.9 kB, one a page) stays uncompressed
 COMMENT ON TABLE modb.snippet_blocks IS
     'Up to 32 snippets of one pose and rate: consecutive ones of a clip source (as loaded) or packed ones near each other (pack_order set); the bounds of their begin features and each one''s 8-bit code within them, and of every term of the continuity ratio (term_bounds, term_codes); select_next_snippets'' box search (kept by triggers on modb.snippets)';
 COMMENT ON COLUMN modb.snippet_blocks.objective_inputs IS
@@ -41,7 +42,13 @@ COMMENT ON COLUMN modb.snippet_blocks.term_codes IS
     'Per snippet, each term component''s 4-bit code within term_bounds (two a byte): select_next_snippets rejects a block or a candidate whose continuity ratio cannot be within the level from these, without reading its rows';
 COMMENT ON COLUMN modb.snippet_blocks.codes IS
     'snippets x features bytes: floor((feature - low) / ((high - low) / 255)), clamped to 0..255';
+COMMENT ON COLUMN modb.snippet_blocks.input_bounds IS
+    'The least of each objective input over the block''s snippets (as in objective_inputs), then the greatest of each; NULL where one is not known: the block directory ranks blocks by the least objective they allow (0.18.0)';
 CREATE INDEX snippet_blocks_source_idx ON modb.snippet_blocks (clip_id, version, mirrored);  -- ON DELETE CASCADE
+-- What a session's block directory holds (src/block_directory.c), read by an index-only scan of narrow
+-- tuples instead of a sequential scan of the blocks (about 8 kB each).
+CREATE INDEX snippet_blocks_directory_idx ON modb.snippet_blocks (pose_key, fps, pack_order)
+    INCLUDE (low, high, input_bounds);
 
 -- BEFORE (0.17.0): a writer takes the generation row before it locks any block, the order
 -- modb.pack_snippet_blocks takes them in, so a packing and a write (a delete of a clip's old blocks by

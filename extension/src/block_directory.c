@@ -1,15 +1,18 @@
 /*
- * The block directory: each snippet block's bounds, 16-bit on each feature's fixed physical scale, by
- * (pose, rate) group, kept in this session's memory (about 210 bytes a block: 7.3 MiB at a million
- * snippets), with a box over every SUPER_BLOCKS consecutive blocks above them (packed blocks in the
- * order of their packing, a subtree of its split each, then the others in table order). A box search
- * tests the groups, the super boxes and the blocks here, reads only the blocks that meet the box from
- * modb.snippet_blocks (under the caller's snapshot, by their tuple ids) and tests their snippets' codes:
- * what passes is a superset of the snippets whose features lie in the box, which the caller checks
- * exactly.
+ * The block directory: each snippet block's bounds, 16-bit on each feature's fixed physical scale, and the
+ * bounds of its snippets' objective inputs, by (pose, rate) group, kept in this session's memory (about 270
+ * bytes a block: 8.4 MiB at a million snippets), with a box over every SUPER_BLOCKS consecutive blocks above
+ * them (packed blocks in the order of their packing, a subtree of its split each, then the others in
+ * table order). A box search tests the groups, the super boxes and the blocks here and ranks the blocks
+ * that meet the box by the least key their snippets can have; the caller reads them in that order, each
+ * from modb.snippet_blocks (under the caller's snapshot, by its tuple id), whose snippets' feature codes
+ * and term codes (term_codes.c) are tested: what passes is a superset of the snippets in the box whose
+ * continuity ratio can be within the level, which the caller checks exactly.
  *
- * The directory is valid for one generation of modb.snippet_blocks (71_snippet_blocks.sql): every change
- * of the blocks takes a new generation, and writers of blocks queue on the one generation row, so the
+ * The directory is read from the covering index snippet_blocks_directory_idx (0.18.0: an index-only scan
+ * of its narrow tuples, not the blocks' wide ones; the blocks themselves where a database is not updated
+ * yet). It is valid for one generation of modb.snippet_blocks (71_snippet_blocks.sql): every change of
+ * the blocks takes a new generation, and writers of blocks queue on the one generation row, so the
  * generation a snapshot reads names exactly the blocks it sees. A call whose snapshot reads another
  * generation (new blocks, its own uncommitted ones, an older REPEATABLE READ snapshot) reads the directory
  * again first.
@@ -18,13 +21,17 @@
 
 #include <math.h>
 
+#include "access/genam.h"
 #include "access/heapam.h"
+#include "access/visibilitymap.h"
 #include "access/tableam.h"
 #include "access/detoast.h"
 #include "access/relation.h"
 #include "access/table.h"
 #include "catalog/pg_type.h"
 #include "executor/spi.h"
+#include "executor/tuptable.h"
+#include "utils/lsyscache.h"
 #include "storage/bufmgr.h"
 #include "miscadmin.h"
 #include "utils/acl.h"
@@ -38,7 +45,7 @@
 #include "term_codes.h"
 
 #define SUPER_BLOCKS 32
-#define MaxBlockColumns 14		/* objective_inputs is the 12th, term_bounds and term_codes the 13th and 14th */
+#define MaxBlockColumns 15		/* objective_inputs is the 12th, term_bounds and term_codes the 13th and 14th */
 
 /* 8-bit bounds on the fixed scale met twice as many blocks as the float bounds; 16-bit ones, as many. */
 #define SCALE_STEPS 65535
@@ -55,11 +62,9 @@ typedef struct Entry
 	int32		order;			/* pack_order; PG_INT32_MAX (after the packed ones) when none */
 	int32		tid_order;		/* its place in the table scan */
 	Box16		box;
-	uint8		terms[TERM_COMPONENTS];	/* its term bounds within its super block's (modb_term_nibbles) */
 	bool		inputs_known;	/* every snippet's objective inputs are finite (float4) */
 	float		inputs_lo[N_OBJECTIVE_INPUTS];	/* their bounds over the block's snippets */
 	float		inputs_hi[N_OBJECTIVE_INPUTS];
-	uint8	   *term_bounds;	/* while the directory is read: its own (NULL: none) */
 } Entry;
 
 typedef struct PoseGroup
@@ -70,7 +75,6 @@ typedef struct PoseGroup
 	int			capacity;
 	Entry	   *entries;
 	Box16	   *supers;			/* one per SUPER_BLOCKS entries */
-	uint8	   *super_terms;	/* one TERM_BOUNDS_BYTES per super block: its blocks' term bounds */
 } PoseGroup;
 
 typedef struct Directory
@@ -83,7 +87,6 @@ typedef struct Directory
 	int			groups_capacity;
 	PoseGroup  *groups;
 	int64		n_blocks;
-	int64		n_snippets;
 } Directory;
 
 static Directory directory;
@@ -181,117 +184,192 @@ group_of(const char *pose_key, int length, double fps)
 	return g;
 }
 
+/* A new entry of the group of pose_key and fps, with its tuple id and its place in the packing. */
+static Entry *
+new_entry(text *pose_key, double fps, ItemPointer tid, bool packed, int32 order)
+{
+	PoseGroup  *g = group_of(VARDATA_ANY(pose_key), VARSIZE_ANY_EXHDR(pose_key), fps);
+	Entry	   *e;
+
+	if (g->count == g->capacity)
+	{
+		g->capacity *= 2;
+		g->entries = repalloc(g->entries, sizeof(Entry) * g->capacity);
+	}
+	e = &g->entries[g->count];
+	e->tid = *tid;
+	e->order = packed ? order : PG_INT32_MAX;
+	e->tid_order = g->count++;	/* its place in the scan: table order, or (pack_order, tid) in the index */
+	e->inputs_known = false;
+	directory.n_blocks++;
+	return e;
+}
+
+/* An entry's box: the block's float4 bounds coded on the fixed scale, outward. */
+static void
+code_box(Entry *e, Datum low_array, Datum high_array)
+{
+	float		low[N_FEATURES],
+				high[N_FEATURES];
+
+	float4_values(low_array, low);
+	float4_values(high_array, high);
+	for (int d = 0; d < N_FEATURES; d++)
+	{
+		/* times the reciprocal, not divided: within a code of the quotient, so one more code out */
+		double		a = floor(((double) low[d] - scale_min(d)) * (1.0 / scale_step(d))) - 1;
+		double		b = ceil(((double) high[d] - scale_min(d)) * (1.0 / scale_step(d))) + 1;
+
+		e->box.lo[d] = (uint16) (a < 0 ? 0 : (a > SCALE_STEPS ? SCALE_STEPS : a));
+		e->box.hi[d] = (uint16) (b < 0 ? 0 : (b > SCALE_STEPS ? SCALE_STEPS : b));
+	}
+}
+
 /*
- * Reads every block's bounds visible to the caller's snapshot into the directory: one sequential scan of
- * modb.snippet_blocks, each block's bounds coded on the fixed scale, outward.
+ * An entry's objective input bounds from `values` (count of them, float4): per input, the least and the
+ * greatest over the values (`count` a multiple of N_OBJECTIVE_INPUTS, a snippet's inputs in a row), or
+ * unknown where one is not finite.
  */
+static void
+bound_inputs(Entry *e, const float *x, int count)
+{
+	if (count <= 0 || count % N_OBJECTIVE_INPUTS != 0)
+		return;
+	e->inputs_known = true;
+	for (int k = 0; k < N_OBJECTIVE_INPUTS; k++)
+		e->inputs_lo[k] = e->inputs_hi[k] = x[k];
+	for (int i = 0; i < count; i++)
+	{
+		e->inputs_known &= isfinite(x[i]);
+		e->inputs_lo[i % N_OBJECTIVE_INPUTS] = Min(e->inputs_lo[i % N_OBJECTIVE_INPUTS], x[i]);
+		e->inputs_hi[i % N_OBJECTIVE_INPUTS] = Max(e->inputs_hi[i % N_OBJECTIVE_INPUTS], x[i]);
+	}
+}
+
+static void
+bound_inputs_of(Entry *e, Datum array, bool isnull)
+{
+	ArrayType  *a;
+
+	if (isnull)
+		return;
+	a = DatumGetArrayTypeP(array);
+	if (ARR_NDIM(a) == 1 && !ARR_HASNULL(a))
+		bound_inputs(e, (const float *) ARR_DATA_PTR(a), ARR_DIMS(a)[0]);
+}
+
+/*
+ * The directory from snippet_blocks_directory_idx: (pose_key, fps, pack_order) INCLUDE (low, high,
+ * input_bounds), an index-only scan under the caller's snapshot (a heap page not all-visible has its
+ * tuple's visibility checked there, as an Index Only Scan does). Blocks are never updated, only added and
+ * deleted, so an index entry's tuple id is its block's. False when there is no such index.
+ */
+static bool
+read_index(Relation rel)
+{
+	Oid			index_oid = get_relname_relid("snippet_blocks_directory_idx", RelationGetNamespace(rel));
+	Relation	index;
+	IndexScanDesc scan;
+	TupleTableSlot *slot;
+	Buffer		vm_buffer = InvalidBuffer;
+	ItemPointer tid;
+	MemoryContext per_block = AllocSetContextCreate(CurrentMemoryContext, "modb block", ALLOCSET_SMALL_SIZES);
+
+	if (!OidIsValid(index_oid))
+		return false;
+	index = index_open(index_oid, AccessShareLock);
+	if (RelationGetDescr(index)->natts != 6)
+		elog(ERROR, "modb: snippet_blocks_directory_idx has %d columns, not 6", RelationGetDescr(index)->natts);
+	slot = table_slot_create(rel, NULL);
+	scan = index_beginscan(rel, index, GetActiveSnapshot(), 0, 0);
+	scan->xs_want_itup = true;
+	index_rescan(scan, NULL, 0, NULL, 0);
+	while ((tid = index_getnext_tid(scan, ForwardScanDirection)) != NULL)
+	{
+		Datum		values[6];
+		bool		nulls[6];
+		MemoryContext old;
+		Entry	   *e;
+
+		CHECK_FOR_INTERRUPTS();
+		if (!VM_ALL_VISIBLE(rel, ItemPointerGetBlockNumber(tid), &vm_buffer))
+		{
+			if (!index_fetch_heap(scan, slot))
+				continue;		/* not visible to this snapshot */
+			ExecClearTuple(slot);
+		}
+		old = MemoryContextSwitchTo(per_block);
+		index_deform_tuple(scan->xs_itup, scan->xs_itupdesc, values, nulls);
+		MemoryContextSwitchTo(old);
+		e = new_entry(DatumGetTextPP(values[0]), DatumGetFloat8(values[1]), tid, !nulls[2],
+					  nulls[2] ? 0 : DatumGetInt32(values[2]));
+		code_box(e, values[3], values[4]);
+		/* input_bounds holds the lows, then the highs: the inputs of a block of two snippets */
+		bound_inputs_of(e, values[5], nulls[5]);
+		MemoryContextReset(per_block);
+	}
+	if (vm_buffer != InvalidBuffer)
+		ReleaseBuffer(vm_buffer);
+	index_endscan(scan);
+	ExecDropSingleTupleTableSlot(slot);
+	index_close(index, AccessShareLock);
+	MemoryContextDelete(per_block);
+	return true;
+}
+
+/* The directory from the blocks themselves (a database not updated to 0.18.0): a sequential scan. */
+static void
+read_table(Relation rel)
+{
+	TableScanDesc scan = table_beginscan(rel, GetActiveSnapshot(), 0, NULL);
+	TupleDesc	desc = RelationGetDescr(rel);
+	MemoryContext per_block = AllocSetContextCreate(CurrentMemoryContext, "modb block", ALLOCSET_SMALL_SIZES);
+	HeapTuple	tuple;
+
+	check_columns(desc);
+	while ((tuple = heap_getnext(scan, ForwardScanDirection)) != NULL)
+	{
+		Datum		values[MaxBlockColumns];
+		bool		nulls[MaxBlockColumns];
+		MemoryContext old = MemoryContextSwitchTo(per_block);
+		bool		packed;
+		Entry	   *e;
+
+		heap_deform_tuple(tuple, desc, values, nulls);
+		packed = desc->natts >= 11 && !nulls[10];	/* 0.10.0: no packing */
+		MemoryContextSwitchTo(old);
+		e = new_entry(DatumGetTextPP(values[3]), DatumGetFloat8(values[4]), &tuple->t_self, packed,
+					  packed ? DatumGetInt32(values[10]) : 0);
+		code_box(e, values[7], values[8]);
+		if (desc->natts >= 12)
+			bound_inputs_of(e, values[11], nulls[11]);
+		MemoryContextReset(per_block);
+	}
+	table_endscan(scan);
+	MemoryContextDelete(per_block);
+}
+
+/* Reads every block visible to the caller's snapshot into the directory. */
 static void
 read_directory(Relation rel, int64 generation)
 {
-	TableScanDesc scan;
-	HeapTuple	tuple;
-	TupleDesc	desc = RelationGetDescr(rel);
-	MemoryContext old,
-				per_block,
-				while_reading;
-	double		per_step[N_FEATURES];
+	MemoryContext old;
 
 	if (directory_context == NULL)
 		directory_context = AllocSetContextCreate(TopMemoryContext, "modb block directory", ALLOCSET_DEFAULT_SIZES);
 	directory.valid = false;
 	MemoryContextReset(directory_context);
 	memset(&directory, 0, sizeof(directory));
-	per_block = AllocSetContextCreate(CurrentMemoryContext, "modb block", ALLOCSET_SMALL_SIZES);
-	/* Each block's own term bounds, until its super block's are known (about 0.9 kB a block) */
-	while_reading = AllocSetContextCreate(CurrentMemoryContext, "modb block term bounds", ALLOCSET_DEFAULT_SIZES);
 	old = MemoryContextSwitchTo(directory_context);
-	scan = table_beginscan(rel, GetActiveSnapshot(), 0, NULL);
-	for (int d = 0; d < N_FEATURES; d++)
-		per_step[d] = 1.0 / scale_step(d);
-	check_columns(desc);
-	while ((tuple = heap_getnext(scan, ForwardScanDirection)) != NULL)
-	{
-		Datum		values[MaxBlockColumns];
-		bool		nulls[MaxBlockColumns];
-		text	   *pose_key;
-		float		low[N_FEATURES],
-					high[N_FEATURES];
-		PoseGroup  *g;
-		Entry	   *e;
-
-		MemoryContextSwitchTo(per_block);
-		heap_deform_tuple(tuple, desc, values, nulls);
-		pose_key = DatumGetTextPP(values[3]);
-		float4_values(values[7], low);
-		float4_values(values[8], high);
-		MemoryContextSwitchTo(directory_context);
-		g = group_of(VARDATA_ANY(pose_key), VARSIZE_ANY_EXHDR(pose_key), DatumGetFloat8(values[4]));
-		if (g->count == g->capacity)
-		{
-			g->capacity *= 2;
-			g->entries = repalloc(g->entries, sizeof(Entry) * g->capacity);
-		}
-		e = &g->entries[g->count++];
-		e->tid = tuple->t_self;
-		e->term_bounds = NULL;
-		e->inputs_known = false;
-		if (desc->natts >= 12 && !nulls[11])
-		{
-			ArrayType  *a = DatumGetArrayTypeP(values[11]);
-			int			count = ARR_DIMS(a)[0];
-
-			if (ARR_NDIM(a) == 1 && !ARR_HASNULL(a) && count > 0 && count % N_OBJECTIVE_INPUTS == 0)
-			{
-				const float *x = (const float *) ARR_DATA_PTR(a);
-
-				e->inputs_known = true;
-				for (int k = 0; k < N_OBJECTIVE_INPUTS; k++)
-					e->inputs_lo[k] = e->inputs_hi[k] = x[k];
-				for (int i = 0; i < count; i++)
-				{
-					float		v = x[i];
-
-					e->inputs_known &= isfinite(v);
-					e->inputs_lo[i % N_OBJECTIVE_INPUTS] = Min(e->inputs_lo[i % N_OBJECTIVE_INPUTS], v);
-					e->inputs_hi[i % N_OBJECTIVE_INPUTS] = Max(e->inputs_hi[i % N_OBJECTIVE_INPUTS], v);
-				}
-			}
-		}
-		if (desc->natts >= 14 && !nulls[12])
-		{
-			bytea	   *bounds = DatumGetByteaPP(values[12]);
-
-			if (VARSIZE_ANY_EXHDR(bounds) == TERM_BOUNDS_BYTES)
-			{
-				e->term_bounds = MemoryContextAlloc(while_reading, TERM_BOUNDS_BYTES);
-				memcpy(e->term_bounds, VARDATA_ANY(bounds), TERM_BOUNDS_BYTES);
-			}
-		}
-		e->order = desc->natts < 11 || nulls[10] ? PG_INT32_MAX : DatumGetInt32(values[10]);	/* 0.10.0: none */
-		for (int d = 0; d < N_FEATURES; d++)
-		{
-			/* times the reciprocal, not divided: within a code of the quotient, so one more code out */
-			double		a = floor(((double) low[d] - scale_min(d)) * per_step[d]) - 1;
-			double		b = ceil(((double) high[d] - scale_min(d)) * per_step[d]) + 1;
-
-			e->box.lo[d] = (uint16) (a < 0 ? 0 : (a > SCALE_STEPS ? SCALE_STEPS : a));
-			e->box.hi[d] = (uint16) (b < 0 ? 0 : (b > SCALE_STEPS ? SCALE_STEPS : b));
-		}
-		directory.n_snippets += toast_raw_datum_size(values[9]) / N_FEATURES;
-		MemoryContextReset(per_block);
-		directory.n_blocks++;
-	}
-	table_endscan(scan);
+	if (!read_index(rel))
+		read_table(rel);
 	for (int k = 0; k < directory.n_groups; k++)
 	{
 		PoseGroup  *g = &directory.groups[k];
 
 		/* Stable: blocks of consecutive snippets keep their table (clip) order. */
-		for (int e = 0; e < g->count; e++)
-			g->entries[e].tid_order = e;
 		qsort(g->entries, g->count, sizeof(Entry), entry_order);
 		g->supers = palloc(sizeof(Box16) * Max((g->count + SUPER_BLOCKS - 1) / SUPER_BLOCKS, 1));
-		g->super_terms = palloc((Size) TERM_BOUNDS_BYTES * Max((g->count + SUPER_BLOCKS - 1) / SUPER_BLOCKS, 1));
 		for (int e = 0; e < g->count; e++)
 		{
 			Box16	   *box = &g->entries[e].box;
@@ -302,19 +380,9 @@ read_directory(Relation rel, int64 generation)
 				super->lo[d] = e % SUPER_BLOCKS == 0 ? box->lo[d] : Min(super->lo[d], box->lo[d]);
 				super->hi[d] = e % SUPER_BLOCKS == 0 ? box->hi[d] : Max(super->hi[d], box->hi[d]);
 			}
-			modb_term_union(g->super_terms + (Size) TERM_BOUNDS_BYTES * (e / SUPER_BLOCKS),
-							g->entries[e].term_bounds, e % SUPER_BLOCKS == 0);
-		}
-		for (int e = 0; e < g->count; e++)
-		{
-			modb_term_nibbles(g->super_terms + (Size) TERM_BOUNDS_BYTES * (e / SUPER_BLOCKS),
-							  g->entries[e].term_bounds, g->entries[e].terms);
-			g->entries[e].term_bounds = NULL;
 		}
 	}
 	MemoryContextSwitchTo(old);
-	MemoryContextDelete(per_block);
-	MemoryContextDelete(while_reading);
 	directory.relid = RelationGetRelid(rel);
 	directory.relfilenode = rel->rd_node.relNode;
 	directory.generation = generation;
@@ -481,10 +549,7 @@ modb_block_search(Oid relid, int64 generation, const char *pose_key, double fps,
 			stats->read_directory = true;
 	}
 	if (stats)
-	{
 		stats->blocks = directory.n_blocks;
-		stats->snippets = directory.n_snippets;
-	}
 	search->lo = lo;
 	search->hi = hi;
 	search->test = test;
@@ -501,20 +566,10 @@ modb_block_search(Oid relid, int64 generation, const char *pose_key, double fps,
 			continue;
 		for (int s = 0; s * SUPER_BLOCKS < g->count; s++)
 		{
-			static TermBlock super_terms;
-			int			kind;
-
 			if (!box_meets(&g->supers[s], from, to))
 				continue;
 			if (stats)
 				stats->supers_met++;
-			if (test != NULL
-				&& (kind = modb_term_block(test, g->super_terms + (Size) TERM_BOUNDS_BYTES * s, NULL, &super_terms)) >= 0)
-			{
-				if (stats)
-					stats->supers_rejected[kind]++;
-				continue;		/* no block of the super block can hold a snippet within the level */
-			}
 			for (int e = s * SUPER_BLOCKS; e < Min(g->count, (s + 1) * SUPER_BLOCKS); e++)
 			{
 				const Entry *entry = &g->entries[e];
@@ -523,12 +578,6 @@ modb_block_search(Oid relid, int64 generation, const char *pose_key, double fps,
 					continue;
 				if (stats)
 					stats->blocks_met++;
-				if (test != NULL && (kind = modb_term_sub_block(test, &super_terms, entry->terms)) >= 0)
-				{
-					if (stats)
-						stats->directory_rejected[kind]++;
-					continue;	/* rejected without reading it */
-				}
 				if (search->n == capacity)
 				{
 					capacity *= 2;

@@ -88,52 +88,41 @@ modb_explain_selection(PG_FUNCTION_ARGS)
 		}
 		if (s->stored)
 		{
-			appendStringInfo(&line, "  Level 0: the graph's stored transitions: %lld candidates",
+			appendStringInfo(&line, "  Level 0, ratio <= 1: the graph's stored transitions: %lld candidates",
 							 (long long) s->candidates);
 			EMIT();
 		}
 		else
 		{
-			int64		supers_rejected = 0,
-						directory_rejected = 0;
-
 			for (int k = 0; k < N_TERM_KINDS; k++)
 			{
-				supers_rejected += b->supers_rejected[k];
-				directory_rejected += b->directory_rejected[k];
 				blocks_rejected += b->blocks_rejected[k];
 				candidates_rejected += b->candidates_rejected[k];
 			}
-			appendStringInfo(&line, "  Level %d: box over %lld blocks of %lld snippets (directory %s): %lld super blocks met it",
-							 level, (long long) b->blocks, (long long) b->snippets,
-							 b->read_directory ? "read now" : "cached", (long long) b->supers_met);
+			appendStringInfo(&line, "  Level %d, ratio <= %g: box over %lld blocks (directory %s): %lld super blocks, %lld blocks met it",
+							 level, (double) (1 << level), (long long) b->blocks,
+							 b->read_directory ? "read now" : "cached", (long long) b->supers_met,
+							 (long long) b->blocks_met);
 			EMIT();
-			appendStringInfo(&line, "    term bounds rejected %lld super blocks; %lld blocks met the box, %lld rejected (directory)",
-							 (long long) supers_rejected, (long long) b->blocks_met, (long long) directory_rejected);
-			EMIT();
-			appendStringInfo(&line, "    %lld blocks read, %lld rejected; %lld candidates from feature codes, %lld rejected, %lld left",
+			appendStringInfo(&line, "    %lld blocks read (least key first), %lld rejected by term bounds; %lld snippets in their"
+							 " codes' box, %lld rejected by term codes",
 							 (long long) b->blocks_read, (long long) blocks_rejected, (long long) b->in_codes,
-							 (long long) candidates_rejected, (long long) s->candidates);
+							 (long long) candidates_rejected);
 			EMIT();
 			for (int half = 0; half < 2; half++)
 			{
-				appendStringInfo(&line, "    %s (super blocks/blocks/candidates):", half ? "      " : "rejected by");
+				appendStringInfo(&line, "    %s", half ? "                     " : "rejected (blocks/snippets):");
 				for (int k = 2 * half; k < 2 * half + 2; k++)
-					appendStringInfo(&line, "%s %s %lld/%lld/%lld", k % 2 ? "," : "", kinds[k],
-									 (long long) b->supers_rejected[k],
-									 (long long) (b->directory_rejected[k] + b->blocks_rejected[k]),
-									 (long long) b->candidates_rejected[k]);
+					appendStringInfo(&line, "%s %s %lld/%lld", k % 2 ? "," : "", kinds[k],
+									 (long long) b->blocks_rejected[k], (long long) b->candidates_rejected[k]);
 				EMIT();
 			}
-			appendStringInfo(&line, "    block search %.3f ms", b->ms);
-			EMIT();
 		}
-		appendStringInfo(&line, "    %lld read (best key first), %lld in the box, %lld %s, %lld within ratio %g, %lld returned",
-						 (long long) s->scanned, (long long) s->in_box, (long long) s->filtered,
-						 s->stored ? "in the collection, not excluded" : "of the pose, rate and collection, not excluded",
+		appendStringInfo(&line, "    %lld candidates, %lld rows read: %lld in the box, %lld pass the filters, %lld within ratio %g, %lld returned",
+						 (long long) s->candidates, (long long) s->scanned, (long long) s->in_box, (long long) s->filtered,
 						 (long long) s->within, (double) (1 << level), (long long) s->returned);
 		EMIT();
-		appendStringInfo(&line, "    %.3f ms; rows read by %s", s->ms, s->access);
+		appendStringInfo(&line, "    %.3f ms (block search %.3f ms); rows read by %s", s->ms, b->ms, s->access);
 		if (!verbose && line.len > 120)
 		{
 			line.data[116] = '\0';

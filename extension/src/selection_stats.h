@@ -13,13 +13,10 @@ typedef struct BlockStats
 {
 	bool		read_directory;	/* this call read the block directory (a new generation of blocks) */
 	int64		blocks;			/* blocks in the directory */
-	int64		snippets;		/* snippets in them */
 	int64		supers_met;		/* super blocks (of 32 blocks) whose feature bounds met the box */
-	int64		supers_rejected[N_TERM_KINDS];	/* of those: by a term no snippet of theirs can be within */
-	int64		blocks_met;		/* blocks of the others whose feature bounds met the box */
-	int64		directory_rejected[N_TERM_KINDS];	/* of those: by a term, from the directory */
-	int64		blocks_read;	/* the others, read */
-	int64		blocks_rejected[N_TERM_KINDS];	/* of those: by a term, from their own term bounds */
+	int64		blocks_met;		/* blocks of those whose feature bounds met the box */
+	int64		blocks_read;	/* of those: read, in the order of the least key their snippets can have */
+	int64		blocks_rejected[N_TERM_KINDS];	/* of those: by a term their term bounds put out of range */
 	int64		in_codes;		/* snippets whose feature codes met the box */
 	int64		candidates_rejected[N_TERM_KINDS];	/* of those: by a term their term codes put out of range */
 	double		ms;				/* the search's time (the directory's reading included) */

@@ -85,10 +85,11 @@ modb_store_block(const int64 *ids, const double (*x)[N_FEATURES], const double (
 	/* A 0.10.0 database (not updated yet) has neither packing nor objective inputs, 0.17.0 no term codes. */
 	bool		at_010 = get_attnum(relid, "objective_inputs") == InvalidAttrNumber;
 	bool		at_017 = !at_010 && get_attnum(relid, "term_codes") == InvalidAttrNumber;
-	Oid			types[14] = {INT8OID, INT4OID, BOOLOID, TEXTOID, FLOAT8OID, INT8OID, INT8ARRAYOID,
-	FLOAT4ARRAYOID, FLOAT4ARRAYOID, BYTEAOID, INT4OID, FLOAT4ARRAYOID, BYTEAOID, BYTEAOID};
-	Datum		args[14];
-	char		nulls[14];
+	Oid			types[15] = {INT8OID, INT4OID, BOOLOID, TEXTOID, FLOAT8OID, INT8OID, INT8ARRAYOID,
+	FLOAT4ARRAYOID, FLOAT4ARRAYOID, BYTEAOID, INT4OID, FLOAT4ARRAYOID, BYTEAOID, BYTEAOID, FLOAT4ARRAYOID};
+	Datum		args[15];
+	char		nulls[15];
+	Datum		input_bounds[2 * N_OBJECTIVE_INPUTS];
 	bytea	   *term_bounds = palloc(VARHDRSZ + TERM_BOUNDS_BYTES);
 	bytea	   *term_codes = palloc(VARHDRSZ + n * TERM_CODE_BYTES);
 	Datum		id_datums[BLOCK_SNIPPETS];
@@ -141,6 +142,25 @@ modb_store_block(const int64 *ids, const double (*x)[N_FEATURES], const double (
 		input_datums[i] = Float4GetDatum((float) inputs[i / N_OBJECTIVE_INPUTS][i % N_OBJECTIVE_INPUTS]);
 	args[11] = PointerGetDatum(construct_array(input_datums, n * N_OBJECTIVE_INPUTS, FLOAT4OID, 4, true,
 											   TYPALIGN_INT));
+	/* the directory's summary of them: each input's least, then each one's greatest (NULL: one not known) */
+	for (int k = 0; k < N_OBJECTIVE_INPUTS; k++)
+	{
+		float		lo = DatumGetFloat4(input_datums[k]),
+					hi = lo;
+
+		for (int i = 0; i < n; i++)
+		{
+			float		v = DatumGetFloat4(input_datums[i * N_OBJECTIVE_INPUTS + k]);
+
+			if (!isfinite(v))
+				nulls[14] = 'n';
+			lo = Min(lo, v);
+			hi = Max(hi, v);
+		}
+		input_bounds[k] = Float4GetDatum(lo);
+		input_bounds[N_OBJECTIVE_INPUTS + k] = Float4GetDatum(hi);
+	}
+	args[14] = PointerGetDatum(construct_array(input_bounds, 2 * N_OBJECTIVE_INPUTS, FLOAT4OID, 4, true, TYPALIGN_INT));
 	SET_VARSIZE(term_bounds, VARHDRSZ + TERM_BOUNDS_BYTES);
 	SET_VARSIZE(term_codes, VARHDRSZ + n * TERM_CODE_BYTES);
 	modb_term_encode(begins, n, (uint8 *) VARDATA(term_bounds), (uint8 *) VARDATA(term_codes));
@@ -160,9 +180,9 @@ modb_store_block(const int64 *ids, const double (*x)[N_FEATURES], const double (
 	else
 		modb_kept_plan(&insert,
 					   "INSERT INTO modb.snippet_blocks (clip_id, version, mirrored, pose_key, fps, collection_id,"
-					   " snippets, low, high, codes, pack_order, objective_inputs, term_bounds, term_codes)"
-					   " VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14)",
-					   14, types);
+					   " snippets, low, high, codes, pack_order, objective_inputs, term_bounds, term_codes, input_bounds)"
+					   " VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14, $15)",
+					   15, types);
 	if (SPI_execute_plan(at_010 ? insert_010 : at_017 ? insert_017 : insert, args, nulls, false, 0) != SPI_OK_INSERT)
 		elog(ERROR, "modb: storing a snippet block failed");
 }

@@ -147,20 +147,15 @@ gap_sq(double x, double low, double high)
 }
 
 #define WHOLE_BLOCK (-1)
-#define SUB_BLOCK (-2)
 
 static double least_sq(const TermTest *test, int t, const TermBlock *block, int i);
 
-/*
- * A term's interval per component: the block's bounds (i = WHOLE_BLOCK), a sub-block's within them
- * (SUB_BLOCK), or snippet i's code within them.
- */
+/* A term's interval per component: the block's bounds (i = WHOLE_BLOCK), or snippet i's code within them. */
 static inline void
 interval(const TermBlock *block, int c, int i, double *low, double *high)
 {
 	double		step = block->step[c];
-	int			from,
-				to;
+	int			k;
 
 	if (i == WHOLE_BLOCK || step == 0)
 	{
@@ -168,100 +163,12 @@ interval(const TermBlock *block, int c, int i, double *low, double *high)
 		*high = block->high[c];
 		return;
 	}
-	if (i == SUB_BLOCK)
-	{
-		from = block->sub[c] & 0x0F;
-		to = block->sub[c] >> 4;
-	}
-	else
-		from = to = (block->codes[i * TERM_CODE_BYTES + c / 2] >> (4 * (c % 2))) & 0x0F;
+	k = (block->codes[i * TERM_CODE_BYTES + c / 2] >> (4 * (c % 2))) & 0x0F;
 	/* 1/64 of a code of margin: the encoder's own rounding */
-	*low = block->low[c] + from * step - step / 64;
-	*high = block->low[c] + (to + 1) * step + step / 64;
+	*low = block->low[c] + k * step - step / 64;
+	*high = block->low[c] + (k + 1) * step + step / 64;
 }
 
-void
-modb_term_union(uint8 *into, const uint8 *bounds, bool first)
-{
-	uint16		lo[TERM_COMPONENTS],
-				hi[TERM_COMPONENTS],
-				b_lo[TERM_COMPONENTS],
-				b_hi[TERM_COMPONENTS];
-
-	if (bounds == NULL)
-	{
-		memset(lo, 0, sizeof(lo));
-		for (int c = 0; c < TERM_COMPONENTS; c++)
-			hi[c] = CODE_STEPS;
-	}
-	else if (first)
-	{
-		memcpy(lo, bounds, sizeof(lo));
-		memcpy(hi, bounds + sizeof(lo), sizeof(hi));
-	}
-	else
-	{
-		memcpy(lo, into, sizeof(lo));
-		memcpy(hi, into + sizeof(lo), sizeof(hi));
-		memcpy(b_lo, bounds, sizeof(b_lo));
-		memcpy(b_hi, bounds + sizeof(b_lo), sizeof(b_hi));
-		for (int c = 0; c < TERM_COMPONENTS; c++)
-		{
-			lo[c] = Min(lo[c], b_lo[c]);
-			hi[c] = Max(hi[c], b_hi[c]);
-		}
-	}
-	memcpy(into, lo, sizeof(lo));
-	memcpy(into + sizeof(lo), hi, sizeof(hi));
-}
-
-void
-modb_term_nibbles(const uint8 *super_bounds, const uint8 *bounds, uint8 *nibbles)
-{
-	uint16		s_lo[TERM_COMPONENTS],
-				s_hi[TERM_COMPONENTS],
-				lo[TERM_COMPONENTS],
-				hi[TERM_COMPONENTS];
-
-	memcpy(s_lo, super_bounds, sizeof(s_lo));
-	memcpy(s_hi, super_bounds + sizeof(s_lo), sizeof(s_hi));
-	if (bounds == NULL)
-	{
-		memset(nibbles, 0xF0, TERM_COMPONENTS);
-		return;
-	}
-	memcpy(lo, bounds, sizeof(lo));
-	memcpy(hi, bounds + sizeof(lo), sizeof(hi));
-	for (int c = 0; c < TERM_COMPONENTS; c++)
-	{
-		/* in the super block's codes, as modb_term_block decodes them: 16 steps between its bounds */
-		double		width = (double) s_hi[c] - (double) s_lo[c];
-		int			from = 0,
-					to = NIBBLE_STEPS - 1;
-
-		if (s_lo[c] != 0 && s_hi[c] != CODE_STEPS && lo[c] != 0 && hi[c] != CODE_STEPS && width > 0)
-		{
-			from = (int) floor(((double) lo[c] - s_lo[c]) * NIBBLE_STEPS / width);
-			to = (int) floor(((double) hi[c] - s_lo[c]) * NIBBLE_STEPS / width);
-			from = Max(0, Min(NIBBLE_STEPS - 1, from));
-			to = Max(from, Min(NIBBLE_STEPS - 1, to));
-		}
-		nibbles[c] = (uint8) (from | (to << 4));
-	}
-}
-
-int
-modb_term_sub_block(const TermTest *test, TermBlock *super, const uint8 *nibbles)
-{
-	super->sub = nibbles;
-	for (int t = 0; t < Min(test->n_terms, BLOCK_TERMS); t++)
-		if (least_sq(test, t, super, SUB_BLOCK) > test->limit_sq[t])
-		{
-			rejections[test->joint[t] * N_TERM_KINDS + test->kind[t]]++;
-			return test->kind[t];
-		}
-	return -1;
-}
 
 /* The least squared distance (the smaller chord to +-q for a rotation) term t of snippet i can have. */
 static double

@@ -45,7 +45,6 @@ typedef struct TermBlock
 	double		step[TERM_COMPONENTS];	/* of a 4-bit code; 0: the component is unbounded in this block */
 	double		high[TERM_COMPONENTS];
 	const uint8 *codes;
-	const uint8 *sub;			/* a sub-block's bounds within these (modb_term_sub_block) */
 } TermBlock;
 
 /*
@@ -53,21 +52,6 @@ typedef struct TermBlock
  * block, or -1. `bytes` is TERM_BOUNDS_BYTES long.
  */
 extern int	modb_term_block(const TermTest *test, const uint8 *bytes, const uint8 *codes, TermBlock *block);
-
-/*
- * Bounds over several blocks (a super block of the directory, block_directory.c): `into` becomes their
- * union with `bounds` (NULL: a block without term codes, which leaves every component unbounded).
- */
-extern void modb_term_union(uint8 *into, const uint8 *bounds, bool first);
-
-/*
- * A block's bounds within its super block's, one byte a component (the low 4-bit code, the high one
- * << 4), that contain the block's: TERM_COMPONENTS bytes. NULL bounds: the whole super block.
- */
-extern void modb_term_nibbles(const uint8 *super_bounds, const uint8 *bounds, uint8 *nibbles);
-
-/* Tests a sub-block whose nibbles are within `super` (decoded by modb_term_block): as modb_term_block. */
-extern int	modb_term_sub_block(const TermTest *test, TermBlock *super, const uint8 *nibbles);
 
 /*
  * Tests snippet i of a block: the kind of the first term that rejects it, or -1 and the least continuity
