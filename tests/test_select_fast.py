@@ -58,11 +58,28 @@ def _answered_by(conn, args) -> str:
     return next(line for line in lines if "Answered by" in line)
 
 
-def test_fast_path_equals_the_reference_at_every_level(cmu):
-    rng = random.Random(23)
+# A profile of odd user thresholds (0.18.0, every term bounded): only wrists and ankles, the L1
+# norm, no velocity terms, on top of the tightness factors.
+ODD_KNOBS = {
+    "joints": "left_wrist,right_wrist,left_ankle,right_ankle",
+    "norm": "l1",
+    "velocity_terms": "off",
+}
+
+
+def _set_knobs(conn, knobs: dict) -> None:
+    for knob in ODD_KNOBS:
+        conn.execute("SELECT set_config(%s, %s, false)", [f"modb.{knob}", knobs.get(knob, "")])
+
+
+def _every_level(dsn: str, seed: int, knobs: dict) -> None:
+    """Seeded requests until every relaxation level 0-4 answered PER_LEVEL of them: the fast path's
+    rows (ids, levels, order, proximity, continuity) are the reference's."""
+    rng = random.Random(seed)
     per_level = {level: 0 for level in range(5)}
     fast_answers = 0
-    with connect(cmu) as conn:
+    with connect(dsn) as conn:
+        _set_knobs(conn, knobs)
         ids = [r[0] for r in conn.execute("SELECT id FROM modb.snippets ORDER BY id")]
         collections = [
             r[0] for r in conn.execute("SELECT modb.collection_path(id) FROM modb.collections")
@@ -81,7 +98,7 @@ def test_fast_path_equals_the_reference_at_every_level(cmu):
             collection = rng.choice(collections) if rng.random() < 0.2 else None
             args = [prev, target, k, rng.choice(PROFILES), collection, exclude or None]
             fast, reference = _both(conn, args)
-            assert fast == reference, (args, f)
+            assert fast == reference, (args, f, knobs)
             if reference:
                 per_level[reference[0][7]] += 1
                 if (
@@ -93,8 +110,19 @@ def test_fast_path_equals_the_reference_at_every_level(cmu):
                     assert "the fast path" in _answered_by(conn, args), args
                     fast_answers += 1
         _set_tightness(conn, None)
+        _set_knobs(conn, {})
     assert min(per_level.values()) >= PER_LEVEL, per_level
     assert fast_answers >= 20
+
+
+def test_fast_path_equals_the_reference_at_every_level(cmu):
+    _every_level(cmu, 23, {})
+
+
+def test_fast_path_equals_the_reference_with_odd_user_thresholds(cmu):
+    """Term codes bound every term a profile can name: a profile that names few joints, compares
+    positions by the L1 norm and leaves velocities out gets the reference's rows at every level."""
+    _every_level(cmu, 29, ODD_KNOBS)
 
 
 def test_fast_path_equals_the_reference_with_a_transition_graph(locomotion):
@@ -133,35 +161,47 @@ def test_a_start_and_errors_are_the_references(cmu):
                 conn.execute(CALL.format("select_next_snippets"), bad)
 
 
-def test_explain_selection_counts_what_a_box_scan_finds(cmu):
-    """The rows explain_selection says level 0 found in its box are the snippets a sequential scan
-    finds in the box it prints (asked for more rows than there are, a call reads every candidate;
-    asked for one in a wide box, it reads fewer, best objective first)."""
+def _explain(conn, args, verbose=False) -> list[str]:
+    return [
+        r[0]
+        for r in conn.execute(
+            "SELECT * FROM modb.explain_selection(%s, %s, %s, %s, %s, %s, %s)", [*args, verbose]
+        )
+    ]
+
+
+def _level(lines: list[str], level: int) -> list[str]:
+    """The lines of one level's report (its first line and the indented ones after it)."""
+    first = next(i for i, line in enumerate(lines) if line.startswith(f"  Level {level}"))
+    rest = [line for line in lines[first + 1 :]]
+    end = next((i for i, line in enumerate(rest) if not line.startswith("    ")), len(rest))
+    return lines[first : first + 1 + end]
+
+
+def test_explain_selection_counts_what_the_rule_finds_and_fits_a_screen(cmu):
+    """The rows explain_selection says level 0 found within the ratio are the reference's level-0
+    rows (asked for more rows than there are, it returns every one); asked for one in a wide box, it
+    reads fewer rows than it has candidates (least key first). Its report fits a screen (at most 40
+    lines of at most 120 characters) at every level; verbose adds the profile and each level's box,
+    the box a sequential scan agrees with."""
     rng = random.Random(8)
     with connect(cmu) as conn:
         ids = [r[0] for r in conn.execute("SELECT id FROM modb.snippets ORDER BY id")]
-        fewer = 0
-        for _ in range(10):
+        fewer = levels_seen = 0
+        for i in range(10):
             prev = rng.choice(ids)
             _set_tightness(conn, 2.0)  # a wider box: more candidates than one batch
-            one = next(
-                r[0]
-                for r in conn.execute(
-                    "SELECT * FROM modb.explain_selection(%s, '{0.5, 3.0}', 1)", [prev]
-                )
-                if r[0].startswith("  Level 0:")
-            )
+            one = _level(_explain(conn, [prev, [0.5, 3.0], 1, "default", None, None]), 0)
             _set_tightness(conn, None)
             args = [prev, [0.5, 3.0], len(ids) + 1, "default", None, None]
-            lines = [
-                r[0]
-                for r in conn.execute(
-                    "SELECT * FROM modb.explain_selection(%s, %s, %s, %s, %s, %s)", args
-                )
-            ]
-            level0 = next(line for line in lines if line.startswith("  Level 0:"))
+            lines = _explain(conn, args, verbose=True)
+            level0 = " ".join(_level(lines, 0))
+            within = int(re.search(r"(\d+) within ratio 1,", level0).group(1))
+            reference = conn.execute(CALL.format("select_next_snippets_reference"), args).fetchall()
+            assert within == sum(1 for row in reference if row[7] == 0), (args, level0)
+            assert '"position_threshold"' in lines[1], lines[1]
             box = next(line for line in lines if line.startswith("    Box:")).split("'")[1]
-            in_box = int(re.search(r"(\d+) in the box", level0).group(1))
+            in_box = int(re.search(r"rows read: (\d+) in the box", level0).group(1))
             conn.execute("SET enable_indexscan = off")
             conn.execute("SET enable_bitmapscan = off")
             (brute,) = conn.execute(
@@ -169,13 +209,22 @@ def test_explain_selection_counts_what_a_box_scan_finds(cmu):
             ).fetchone()
             conn.execute("RESET enable_indexscan")
             conn.execute("RESET enable_bitmapscan")
-            assert in_box == brute, (args, level0)
-            assert "Profile as resolved" in lines[1]
-            read = int(re.search(r"(\d+) read \(best objective first\)", one).group(1))
-            candidates = int(re.search(r"(\d+) candidates from their codes", one).group(1))
-            assert read <= candidates and candidates >= in_box
+            assert in_box <= brute, (args, level0)  # the term codes left out some of the box
+            m = re.search(r"(\d+) candidates, (\d+) rows read", " ".join(one))
+            candidates, read = int(m.group(1)), int(m.group(2))
+            assert read <= candidates
             fewer += read < candidates
+            # a screen, whatever the level reached (tight thresholds reach levels 1-3)
+            _set_tightness(conn, (1.0, 0.25, 0.1)[i % 3])
+            successor = [r[0] for r in conn.execute(SUCCESSOR, [prev])] or None
+            short = _explain(conn, [prev, [4.0, -2.0], 1, "default", None, successor])
+            _set_tightness(conn, None)
+            assert len(short) <= 40 and max(map(len, short)) <= 120, short
+            levels_seen = max(
+                levels_seen, sum("not run" not in line for line in short if "  Level" in line)
+            )
         assert fewer >= 3
+        assert levels_seen >= 2
 
 
 def _requests(conn, rng, n, but_clip=None):
@@ -324,3 +373,33 @@ def test_a_packing_waits_for_a_load_in_flight_and_keeps_its_blocks(cmu):
         (n_snippets,) = packer.execute("SELECT count(*) FROM modb.snippets").fetchone()
         assert sum(row[2] for row in packed) == n_snippets
         assert _covered_once(packer) == (0, 0)
+
+
+def test_a_terminator_edited_by_hand_brings_its_snippets_new_term_codes(cmu):
+    """A block's term codes are its snippets' begin terminators: an UPDATE of a terminator (which no
+    writer of the project makes) adds a block for each snippet that begins there, and a selection
+    that the edit changes still answers as the reference (rolled back: the database is shared)."""
+    rng = random.Random(31)
+    with connect(cmu) as conn, conn.transaction(force_rollback=True):
+        ids = [r[0] for r in conn.execute("SELECT id FROM modb.snippets ORDER BY id")]
+        edited = rng.sample(ids, 20)
+        before = conn.execute(
+            "SELECT count(*) FROM modb.snippet_blocks b WHERE b.snippets && %s::bigint[]", [edited]
+        ).fetchone()[0]
+        # both wrists' rotations made a quarter turn about x: their candidates' ratios change
+        conn.execute(
+            "UPDATE modb.terminators t SET rotations = (SELECT array_agg(CASE"
+            " WHEN (i - 1) / 4 IN (11, 18)"
+            " THEN (ARRAY[0.70710677, 0, 0, 0.70710677])[(i - 1) %% 4 + 1]"
+            " ELSE t.rotations[i] END ORDER BY i) FROM generate_subscripts(t.rotations, 1) i)"
+            " WHERE t.id IN (SELECT begin_terminator FROM modb.snippets WHERE id = ANY (%s))",
+            [edited],
+        )
+        after = conn.execute(
+            "SELECT count(*) FROM modb.snippet_blocks b WHERE b.snippets && %s::bigint[]", [edited]
+        ).fetchone()[0]
+        assert after > before
+        for prev in rng.sample(ids, 30):
+            args = [prev, [1.0, 2.0], 5, "default", None, None]
+            fast, reference = _both(conn, args)
+            assert fast == reference, args

@@ -55,6 +55,7 @@ OLD_VERSIONS = [
     "0.14.0",
     "0.15.0",
     "0.16.0",
+    "0.17.0",
 ]
 
 
@@ -149,6 +150,16 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
             "SELECT count(*) FROM modb.snippets s WHERE NOT EXISTS "
             "(SELECT FROM modb.snippet_blocks b WHERE s.id = ANY (b.snippets))"
         ).fetchone() == (0,)
+        # 0.18.0: the update derived every block again, with its term codes and directory summary
+        assert (
+            db.execute(
+                "SELECT count(*) FILTER (WHERE term_codes IS NULL OR term_bounds IS NULL"
+                " OR octet_length(term_codes) <> 114 * cardinality(snippets)), count(*)"
+                " FROM modb.snippet_blocks"
+            ).fetchone()[0]
+            == 0
+        )
+        assert db.execute("SELECT to_regclass('modb.snippet_blocks_directory_idx')").fetchone()[0]
         # 0.11.0: the blocks a load left are packed; a load packed them already since 0.11.0
         db.execute("SELECT * FROM modb.pack_snippet_blocks(0.2)")
         assert db.execute(

@@ -369,6 +369,8 @@ read_directory(Relation rel, int64 generation)
 
 		/* Stable: blocks of consecutive snippets keep their table (clip) order. */
 		qsort(g->entries, g->count, sizeof(Entry), entry_order);
+		/* what the doubling left unused goes back (a session keeps these) */
+		g->entries = repalloc(g->entries, sizeof(Entry) * Max(g->count, 1));
 		g->supers = palloc(sizeof(Box16) * Max((g->count + SUPER_BLOCKS - 1) / SUPER_BLOCKS, 1));
 		for (int e = 0; e < g->count; e++)
 		{

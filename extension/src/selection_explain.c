@@ -45,8 +45,11 @@ modb_explain_selection(PG_FUNCTION_ARGS)
 	tuplestore_end(rows);
 
 	initStringInfo(&line);
+/* A line of at most 120 characters unless verbose (then the plan and the boxes are whole). */
 #define EMIT() \
-	do { value = CStringGetTextDatum(line.data); \
+	do { if (!verbose && line.len > 120) { line.data[116] = '\0'; line.len = 116; \
+			 appendStringInfoString(&line, " ..."); } \
+		 value = CStringGetTextDatum(line.data); \
 		 tuplestore_putvalues(rsinfo->setResult, rsinfo->setDesc, &value, &isnull); \
 		 resetStringInfo(&line); } while (0)
 
@@ -104,10 +107,11 @@ modb_explain_selection(PG_FUNCTION_ARGS)
 							 b->read_directory ? "read now" : "cached", (long long) b->supers_met,
 							 (long long) b->blocks_met);
 			EMIT();
-			appendStringInfo(&line, "    %lld blocks read (least key first), %lld rejected by term bounds; %lld snippets in their"
-							 " codes' box, %lld rejected by term codes",
-							 (long long) b->blocks_read, (long long) blocks_rejected, (long long) b->in_codes,
-							 (long long) candidates_rejected);
+			appendStringInfo(&line, "    blocks: %lld read (least key first), %lld rejected by term bounds",
+							 (long long) b->blocks_read, (long long) blocks_rejected);
+			EMIT();
+			appendStringInfo(&line, "    snippets in the codes' box: %lld, rejected by term codes: %lld",
+							 (long long) b->in_codes, (long long) candidates_rejected);
 			EMIT();
 			for (int half = 0; half < 2; half++)
 			{
@@ -123,12 +127,6 @@ modb_explain_selection(PG_FUNCTION_ARGS)
 						 (long long) s->within, (double) (1 << level), (long long) s->returned);
 		EMIT();
 		appendStringInfo(&line, "    %.3f ms (block search %.3f ms); rows read by %s", s->ms, b->ms, s->access);
-		if (!verbose && line.len > 120)
-		{
-			line.data[116] = '\0';
-			line.len = 116;
-			appendStringInfoString(&line, " ...");
-		}
 		EMIT();
 		if (s->box && verbose)
 		{

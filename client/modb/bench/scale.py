@@ -81,8 +81,8 @@ def sized_database(dsn: str, size: int, seed: int, progress=print) -> str:
     return _with_dbname(dsn, name)
 
 
-def pgbench(dsn: str, clients: int, seconds: int) -> float:
-    """Selections per second: the shipped script, prepared, with the server's default settings.
+def pgbench(dsn: str, clients: int, seconds: int, mode: str = "prepared") -> float:
+    """Selections per second: the shipped script (-M mode), with the server's default settings.
 
     Each call draws a random prev and target.
     """
@@ -93,7 +93,7 @@ def pgbench(dsn: str, clients: int, seconds: int) -> float:
             PGBENCH,
             "-n",
             "-M",
-            "prepared",
+            mode,
             "-T",
             str(seconds),
             "-c",

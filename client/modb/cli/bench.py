@@ -22,6 +22,8 @@ from .load import load_paths
 ROUNDS = whole(1, 1000)
 QUERIES = whole(1, 100_000)
 BASELINE_QUERIES = whole(0, 100_000)
+TAIL_QUERIES = whole(10, 1_000_000)
+TAIL_EXACT = whole(0, 100_000)
 PGBENCH_SECONDS = whole(1, 3600, "seconds")
 COURSE_SECONDS = positive(MAX_SECONDS, "seconds")
 AVATARS = whole(1, 500)
@@ -214,6 +216,38 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     scale.add_argument("--profile", default="default", help="match profile (default: default)")
     scale.set_defaults(func=run_scale)
 
+    tail = benchmarks.add_parser(
+        "tail",
+        help="select_next_snippet's tail on the user's path: p50 to max on each client path, first "
+        "calls, pgbench, stages, exactness against the reference, bytes read per snippet",
+    )
+    tail.add_argument(
+        "--sizes",
+        type=sizes,
+        default="100000,all,1000000",
+        help="snippet counts to measure at, as for `bench scale` (default 100000,all,1000000)",
+    )
+    tail.add_argument(
+        "--queries",
+        type=TAIL_QUERIES,
+        default=10_000,
+        help=f"seeded requests per client path ({TAIL_QUERIES.span}; default 10000)",
+    )
+    tail.add_argument(
+        "--exact",
+        type=TAIL_EXACT,
+        default=1000,
+        help=f"requests compared with the reference function ({TAIL_EXACT.span}; default 1000)",
+    )
+    tail.add_argument(
+        "--pgbench-seconds",
+        type=PGBENCH_SECONDS,
+        default=10,
+        help=f"length of each pgbench run ({PGBENCH_SECONDS.span}; default 10)",
+    )
+    tail.add_argument("--seed", type=SEED, default=1, help=f"random seed ({SEED.span}; default 1)")
+    tail.set_defaults(func=run_tail)
+
 
 class BenchCommands:
     """The commands a benchmark runs to fill a database of its own (modb.bench.commands), each as
@@ -333,6 +367,22 @@ def run_scale(args: argparse.Namespace) -> int:
         progress=lambda text: print(text, file=sys.stderr),
     )
     print("\n\n".join(scale_report(name, r) for name, r in results))
+    return 0
+
+
+def run_tail(args: argparse.Namespace) -> int:
+    from modb.bench.tail import bench_tail, report  # numpy (60 ms)
+
+    results = bench_tail(
+        resolve(args.dsn)[0],
+        args.sizes,
+        args.queries,
+        args.exact,
+        args.seed,
+        args.pgbench_seconds,
+        progress=lambda text: print(text, file=sys.stderr),
+    )
+    print("\n\n".join(report(name, r) for name, r in results))
     return 0
 
 

@@ -1,0 +1,318 @@
+"""`modb bench tail`: select_next_snippet's tail on the user's path (0.18.0: every term of the
+rule bounded where the scan reads). Per database, with the server's settings and no SET:
+
+- 10,000 seeded requests (a random previous snippet, a target within 5 m, the default profile)
+  on each client path: psql one call per statement (\\timing), psycopg not prepared, psycopg
+  prepared: p50, p99, p99.9, max and calls over 20 ms, the first call of five new sessions apart,
+  and the share of requests each relaxation level answered;
+- pgbench with the shipped script at 1, 2 and 8 clients prepared, and 2 clients -M simple;
+- modb.explain_selection's stages (blocks met and read, candidates, rows read) on 500 requests;
+- exactness: seeded requests, every shipped profile and one of odd user thresholds, thresholds
+  scaled down to reach every relaxation level, against the reference function (the rule), whose
+  time per call is the baseline of the same run;
+- what the scan reads per snippet (the blocks' live bytes and the directory's index) and a
+  session's memory (its block directory).
+
+    modb --dsn DSN bench tail --sizes 100000,all,1000000
+"""
+
+from __future__ import annotations
+
+import random
+import re
+import statistics
+import subprocess
+import time
+
+import numpy as np
+import psycopg
+
+from .scale import PSQL, FUNCTION, pgbench, sized_database
+
+PROFILES = ("default", "strict", "locomotion")
+ODD = {
+    "joints": "left_wrist,right_wrist,left_ankle,right_ankle",
+    "norm": "l1",
+    "velocity_terms": "off",
+}
+THRESHOLDS = {
+    "position_threshold": 0.12,
+    "angle_threshold": 0.3,
+    "velocity_threshold": 0.6,
+    "angular_velocity_threshold": 4.0,
+}
+CALL = "SELECT * FROM modb.{}(%s, %s, %s, %s)"
+
+
+def requests_for(conn: psycopg.Connection, n: int, seed: int) -> list[tuple[int, list[float]]]:
+    ids = np.array([r[0] for r in conn.execute("SELECT id FROM modb.snippets ORDER BY id")])
+    rng = np.random.default_rng(seed)
+    return [
+        (int(rng.choice(ids)), [float(v) for v in rng.uniform(-5, 5, size=2)]) for _ in range(n)
+    ]
+
+
+def _psql_ms(dsn: str, requests: list, profile: str) -> list[float]:
+    lines = ["\\timing on"] + [
+        f"SELECT snippet_id, relax_level FROM modb.select_next_snippet({prev}, "
+        f"'{{{target[0]!r}, {target[1]!r}}}', '{profile}');"
+        for prev, target in requests
+    ]
+    out = subprocess.run(
+        [PSQL, "-X", "-q", "-A", "-t", "-d", dsn],
+        input="\n".join(lines),
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
+    return [float(m) for m in re.findall(r"^Time: ([0-9.]+) ms", out, re.M)]
+
+
+def _psycopg_ms(dsn: str, requests: list, profile: str, prepare: bool) -> tuple[list[float], list]:
+    """Times after the session's first call (which warms its directory and plan)."""
+    ms, levels = [], []
+    with psycopg.connect(dsn, autocommit=True) as conn:
+        prev, target = requests[0]
+        conn.execute(FUNCTION, [prev, target, profile], prepare=prepare).fetchone()
+        for prev, target in requests:
+            t = time.perf_counter()
+            row = conn.execute(FUNCTION, [prev, target, profile], prepare=prepare).fetchone()
+            ms.append((time.perf_counter() - t) * 1000)
+            levels.append(row[1])
+    return ms, levels
+
+
+def _first_calls(dsn: str, requests: list, profile: str, sessions: int = 5) -> list[float]:
+    times = []
+    for prev, target in requests[:sessions]:
+        with psycopg.connect(dsn, autocommit=True) as conn:
+            t = time.perf_counter()
+            conn.execute(FUNCTION, [prev, target, profile]).fetchone()
+            times.append((time.perf_counter() - t) * 1000)
+    return times
+
+
+def stages(dsn: str, requests: list) -> dict[str, list[float]]:
+    patterns = {
+        "blocks met": r"(\d+) blocks met it",
+        "blocks read": r"blocks: (\d+) read",
+        "snippets in the codes' box": r"snippets in the codes' box: (\d+)",
+        "rejected by term codes": r"rejected by term codes: (\d+)",
+        "rows read": r"(\d+) rows read",
+        "block search ms": r"block search ([\d.]+) ms",
+    }
+    out: dict[str, list[float]] = {k: [] for k in (*patterns, "whole call ms")}
+    with psycopg.connect(dsn, autocommit=True) as conn:
+        for prev, target in requests:
+            lines = [
+                r[0]
+                for r in conn.execute(
+                    "SELECT * FROM modb.explain_selection(%s, %s)", [prev, target]
+                )
+            ]
+            text = "\n".join(lines)
+            for name, pattern in patterns.items():
+                out[name].append(sum(float(v) for v in re.findall(pattern, text)))
+            out["whole call ms"].append(float(re.search(r"rows in ([\d.]+) ms", lines[0])[1]))
+    return out
+
+
+def _exactness(dsn: str, n: int, seed: int) -> dict:
+    """The fast path against the reference on seeded requests (every level, every profile, odd
+    thresholds); the reference's time per call is the run's baseline."""
+    rng = random.Random(seed)
+    levels: dict[int, int] = {}
+    same = 0
+    fast_ms, reference_ms = [], []
+    with psycopg.connect(dsn, autocommit=True) as conn:
+        ids = [r[0] for r in conn.execute("SELECT id FROM modb.snippets ORDER BY id")]
+        for i in range(n):
+            odd = i % 4 == 3
+            for knob, value in ODD.items():
+                conn.execute(
+                    "SELECT set_config(%s, %s, false)", [f"modb.{knob}", value if odd else ""]
+                )
+            f = rng.choice((None, 1.0, 0.5, 0.25, 0.12))
+            for knob, value in THRESHOLDS.items():
+                conn.execute(
+                    "SELECT set_config(%s, %s, false)",
+                    [f"modb.{knob}", "" if f is None else repr(value * f)],
+                )
+            args = [
+                rng.choice(ids),
+                [round(rng.uniform(-6, 6), 3), round(rng.uniform(-6, 6), 3)],
+                rng.choice((1, 1, 5)),
+                rng.choice(PROFILES),
+            ]
+            t = time.perf_counter()
+            fast = conn.execute(CALL.format("select_next_snippets"), args).fetchall()
+            fast_ms.append((time.perf_counter() - t) * 1000)
+            t = time.perf_counter()
+            reference = conn.execute(CALL.format("select_next_snippets_reference"), args).fetchall()
+            reference_ms.append((time.perf_counter() - t) * 1000)
+            same += fast == reference
+            if reference:
+                levels[reference[0][7]] = levels.get(reference[0][7], 0) + 1
+    return {
+        "n": n,
+        "same": same,
+        "levels": dict(sorted(levels.items())),
+        "ratio": statistics.median(r / f for r, f in zip(reference_ms, fast_ms)),
+    }
+
+
+# Every selection a user triggers (besides the plain call above), on the same requests: SQL per
+# kind, its parameters from (prev, target, excluded ids).
+KINDS = {
+    "k-best (k = 5)": (
+        "SELECT snippet_id FROM modb.select_next_snippets(%s, %s, 5)",
+        lambda prev, target, excluded: [prev, target],
+    ),
+    "exclusion list (20 snippets)": (
+        "SELECT snippet_id FROM modb.select_next_snippet(%s, %s, 'default', NULL, %s)",
+        lambda prev, target, excluded: [prev, target, excluded],
+    ),
+    "coming to rest after the last goal (select_synthesis_step)": (
+        "SELECT snippet_id FROM modb.select_synthesis_step(%s, '{0,0,0}', 0, %s, 'default', NULL, "
+        "NULL, true)",
+        lambda prev, target, excluded: [prev, [target[0], 0.0, target[1]]],
+    ),
+    "setting off again (select_synthesis_step)": (
+        "SELECT snippet_id FROM modb.select_synthesis_step(%s, '{0,0,0}', 0, %s, 'default', NULL, "
+        "NULL, false)",
+        lambda prev, target, excluded: [prev, [target[0], 0.0, target[1]]],
+    ),
+}
+
+
+def kinds(dsn: str, requests: list, seed: int) -> dict[str, list[float]]:
+    """Each kind's times over the requests, prepared, after a first call (psycopg)."""
+    rng = np.random.default_rng(seed)
+    out: dict[str, list[float]] = {}
+    with psycopg.connect(dsn, autocommit=True) as conn:
+        ids = np.array([r[0] for r in conn.execute("SELECT id FROM modb.snippets ORDER BY id")])
+        excluded = [[int(v) for v in rng.choice(ids, 20)] for _ in requests]
+        for name, (sql, params) in KINDS.items():
+            prev, target = requests[0]
+            conn.execute(sql, params(prev, target, excluded[0]), prepare=True).fetchall()
+            out[name] = []
+            for (prev, target), x in zip(requests, excluded):
+                t = time.perf_counter()
+                conn.execute(sql, params(prev, target, x), prepare=True).fetchall()
+                out[name].append((time.perf_counter() - t) * 1000)
+    return out
+
+
+def _costs(dsn: str) -> dict:
+    with psycopg.connect(dsn, autocommit=True) as conn:
+        snippets, blocks, block_bytes, index_bytes = conn.execute(
+            "SELECT (SELECT count(*) FROM modb.snippets), count(*), sum(pg_column_size(b.*)), "
+            "pg_relation_size('modb.snippet_blocks_directory_idx') FROM modb.snippet_blocks b"
+        ).fetchone()
+        prev = conn.execute("SELECT min(id) FROM modb.snippets").fetchone()[0]
+        conn.execute(FUNCTION, [prev, [1.0, 2.0], "default"]).fetchone()
+        (memory,) = conn.execute(
+            "SELECT coalesce(sum(total_bytes), 0) FROM pg_backend_memory_contexts "
+            "WHERE name = 'modb block directory'"
+        ).fetchone()
+    return {
+        "snippets": snippets,
+        "blocks": blocks,
+        "block_bytes_per_snippet": float(block_bytes) / snippets,
+        "index_bytes_per_snippet": index_bytes / snippets,
+        "directory_bytes": memory,
+    }
+
+
+def bench_database(
+    dsn: str, queries: int, exact: int, seed: int, pgbench_seconds: int, progress=print
+) -> dict:
+    with psycopg.connect(dsn, autocommit=True) as conn:
+        requests = requests_for(conn, queries, seed)
+    progress("  first calls of new sessions")
+    first = _first_calls(dsn, requests, "default")
+    progress(f"  {queries:,} requests: psycopg prepared, not prepared, psql")
+    prepared, levels = _psycopg_ms(dsn, requests, "default", True)
+    plain, _ = _psycopg_ms(dsn, requests, "default", False)
+    psql = _psql_ms(dsn, requests, "default")
+    progress("  stages (explain_selection) on 500 of them")
+    stage_figures = stages(dsn, requests[:500])
+    progress("  each selection kind on 2,000 of them")
+    kind_ms = kinds(dsn, requests[:2000], seed)
+    progress("  pgbench")
+    tps = {f"{c} prepared": pgbench(dsn, c, pgbench_seconds) for c in (1, 2, 8)}
+    tps["2 simple"] = pgbench(dsn, 2, pgbench_seconds, mode="simple")
+    progress(f"  exactness: {exact} requests against the reference")
+    return {
+        "first": first,
+        "paths": {
+            "psql, one call per statement": psql,
+            "psycopg, not prepared": plain,
+            "psycopg, prepared": prepared,
+        },
+        "levels": {lvl: levels.count(lvl) for lvl in sorted(set(levels))},
+        "stages": stage_figures,
+        "kinds": kind_ms,
+        "tps": tps,
+        "exact": _exactness(dsn, exact, seed),
+        "costs": _costs(dsn),
+    }
+
+
+def report(name: str, r: dict) -> str:
+    def row(label: str, ms: list[float]) -> str:
+        a = np.array(ms)
+        p50, p99, p999 = np.percentile(a, [50, 99, 99.9])
+        return (
+            f"| {label} | {p50:.3f} | {p99:.3f} | {p999:.3f} | {a.max():.1f} | {(a > 20).sum()} |"
+        )
+
+    n = sum(r["levels"].values())
+    c, e = r["costs"], r["exact"]
+    lines = [
+        f"### {name}: {c['snippets']:,} snippets",
+        "",
+        "| select_next_snippet, server defaults | p50 ms | p99 ms | p99.9 ms | max ms "
+        "| over 20 ms |",
+        "|---|---|---|---|---|---|",
+        *(row(f"{label} ({len(ms):,})", ms) for label, ms in r["paths"].items()),
+        row(f"first call of a new session ({len(r['first'])})", r["first"]),
+        *(row(f"{kind} ({len(ms):,}, prepared)", ms) for kind, ms in r.get("kinds", {}).items()),
+        "",
+        "- Levels answering: "
+        + ", ".join(f"{k}: {v:,} ({100 * v / n:.1f}%)" for k, v in r["levels"].items())
+        + ".",
+        "- pgbench (shipped script): "
+        + ", ".join(f"{k} {v:,.0f}/s" for k, v in r["tps"].items())
+        + ".",
+        f"- Exact: {e['same']}/{e['n']} requests the reference's rows (levels {e['levels']}); "
+        f"the reference takes {e['ratio']:.0f}x the fast path's time, median per request.",
+        f"- The scan reads {c['block_bytes_per_snippet']:.0f} bytes of blocks per snippet "
+        f"({c['blocks']:,} blocks) and {c['index_bytes_per_snippet']:.0f} of the directory's "
+        f"index; a session's directory {c['directory_bytes'] / 2**20:.1f} MiB.",
+        "",
+        "| stage, per call (500 requests) | p50 | p90 | p99 |",
+        "|---|---|---|---|",
+    ]
+    for stage, values in r["stages"].items():
+        p = np.percentile(values, [50, 90, 99])
+        lines.append(f"| {stage} | {p[0]:,.2f} | {p[1]:,.2f} | {p[2]:,.2f} |")
+    return "\n".join(lines)
+
+
+def bench_tail(
+    dsn: str,
+    sizes: list[int | None],
+    queries: int,
+    exact: int,
+    seed: int,
+    pgbench_seconds: int,
+    progress=print,
+) -> list[tuple[str, dict]]:
+    out = []
+    for size in sizes:
+        where = dsn if size is None else sized_database(dsn, size, seed, progress)
+        name = "all the data" if size is None else f"about {size:,}"
+        progress(f"{name}:")
+        out.append((name, bench_database(where, queries, exact, seed, pgbench_seconds, progress)))
+    return out
