@@ -403,3 +403,30 @@ def test_a_terminator_edited_by_hand_brings_its_snippets_new_term_codes(cmu):
             args = [prev, [1.0, 2.0], 5, "default", None, None]
             fast, reference = _both(conn, args)
             assert fast == reference, args
+
+
+def test_coming_to_rest_and_setting_off_answer_as_their_reference(cmu):
+    """select_snippet_ending (C, 0.18.0) returns what select_snippet_ending_reference (the SQL rule of
+    coming to rest and setting off) returns: the same snippet, level, proximity and ratio, or none."""
+    rng = random.Random(41)
+    call = "SELECT * FROM modb.{}(%s, %s, %s, %s, %s, NULL, %s, %s)"
+    answered = 0
+    with connect(cmu) as conn:
+        ids = [r[0] for r in conn.execute("SELECT id FROM modb.snippets ORDER BY id")]
+        for _ in range(40):
+            args = [
+                rng.choice(ids),
+                [round(rng.uniform(-3, 3), 2), 0.0, round(rng.uniform(-3, 3), 2)],
+                round(rng.uniform(-3, 3), 2),
+                [round(rng.uniform(-6, 6), 2), round(rng.uniform(-6, 6), 2)],
+                rng.choice(PROFILES),
+                rng.sample(ids, rng.choice((0, 3))) or None,
+                rng.random() < 0.6,
+            ]
+            fast = conn.execute(call.format("select_snippet_ending"), args).fetchall()
+            reference = conn.execute(
+                call.format("select_snippet_ending_reference"), args
+            ).fetchall()
+            assert fast == reference, args
+            answered += bool(reference)
+    assert answered >= 10

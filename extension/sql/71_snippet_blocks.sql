@@ -27,6 +27,7 @@ CREATE TABLE modb.snippet_blocks (
     term_bounds   bytea,
     term_codes    bytea,
     input_bounds  real[],
+    end_speeds    real[],
     CONSTRAINT snippet_blocks_source_check CHECK (pack_order IS NOT NULL OR (clip_id IS NOT NULL
         AND version IS NOT NULL AND mirrored IS NOT NULL AND collection_id IS NOT NULL))
 ) WITH (toast_tuple_target = 8160);  -- a block (about 7.9 kB, one a page) stays uncompressed
@@ -44,6 +45,8 @@ COMMENT ON COLUMN modb.snippet_blocks.codes IS
     'snippets x features bytes: floor((feature - low) / ((high - low) / 255)), clamped to 0..255';
 COMMENT ON COLUMN modb.snippet_blocks.input_bounds IS
     'The least of each objective input over the block''s snippets (as in objective_inputs), then the greatest of each; NULL where one is not known: the block directory ranks blocks by the least objective they allow (0.18.0)';
+COMMENT ON COLUMN modb.snippet_blocks.end_speeds IS
+    'Per snippet, its pelvis'' ground speed at its end (float4, as coming to rest computes it): coming to rest and setting off (modb.select_snippet_ending) pass over the snippets that cannot end as wanted without reading them (0.18.0)';
 CREATE INDEX snippet_blocks_source_idx ON modb.snippet_blocks (clip_id, version, mirrored);  -- ON DELETE CASCADE
 -- What a session's block directory holds (src/block_directory.c), read by an index-only scan of narrow
 -- tuples instead of a sequential scan of the blocks (about 8 kB each).

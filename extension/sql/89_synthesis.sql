@@ -39,7 +39,7 @@ AS $$
 -- standing (or walking), the smoothest level first, then the one ending nearest the goal.
 WITH prev AS MATERIALIZED (
     SELECT s.pose_key, s.fps, e AS terminator, p AS plan,
-           modb.check_world_request(snippets_ending_within."position", heading, target_world) AS target
+           modb.check_world_request(snippets_ending_within."position", snippets_ending_within.heading, target_world) AS target
       FROM modb.snippets s
       JOIN modb.terminators e ON e.id = s.end_terminator
      CROSS JOIN modb.match_plan(profile) p
@@ -67,9 +67,9 @@ $$;
 COMMENT ON FUNCTION modb.snippets_ending_within(bigint, float8[], float8, float8[], text, text, bigint[], boolean, float8) IS
     'The snippets of prev''s pool that follow it with a continuity ratio of at most scale, keep to the profile''s or session''s annotations (modb.annotations) and end standing (pelvis slower than modb.rest_speed()) or, standing false, walking (at least modb.walk_speed()), by relaxation level, then nearest the goal at their end';
 
-CREATE OR REPLACE FUNCTION modb.select_snippet_ending(prev_snippet bigint, "position" float8[], heading float8,
-                                                     target_world float8[], profile text, collection text,
-                                                     exclude bigint[], standing boolean)
+CREATE OR REPLACE FUNCTION modb.select_snippet_ending_reference(prev_snippet bigint, "position" float8[],
+                                                               heading float8, target_world float8[], profile text,
+                                                               collection text, exclude bigint[], standing boolean)
 RETURNS TABLE (snippet_id bigint, clip_id bigint, version int, mirrored boolean, first_frame int, n_frames int,
                proximity float8, relax_level int, continuity float8, net_translation float8[],
                net_rotation float8[], net_heading float8)
@@ -86,8 +86,22 @@ BEGIN
     END LOOP;
 END
 $$;
+COMMENT ON FUNCTION modb.select_snippet_ending_reference(bigint, float8[], float8, float8[], text, text, bigint[], boolean) IS
+    'The rule of coming to rest and setting off (0.14.0 to 0.17.0 select_snippet_ending, kept as its statement): the snippet that continues prev most smoothly (relaxation level 0-3) among those of its pool that end standing (pelvis slower than modb.rest_speed()) or, standing false, walking (at least modb.walk_speed()), then the one ending nearest the goal; the columns of select_next_snippet_world; no row when the data has none';
+
+-- The same rule by the box search over snippet blocks and their term codes (src/selection.c, 0.18.0):
+-- the reference read every snippet of a box four times as wide at the levels it needed (seconds on a
+-- large pool).
+CREATE OR REPLACE FUNCTION modb.select_snippet_ending(prev_snippet bigint, "position" float8[], heading float8,
+                                                     target_world float8[], profile text, collection text,
+                                                     exclude bigint[], standing boolean)
+RETURNS TABLE (snippet_id bigint, clip_id bigint, version int, mirrored boolean, first_frame int, n_frames int,
+               proximity float8, relax_level int, continuity float8, net_translation float8[],
+               net_rotation float8[], net_heading float8)
+LANGUAGE c STABLE CALLED ON NULL INPUT PARALLEL SAFE COST 1000 ROWS 1
+AS 'MODULE_PATHNAME', 'modb_select_snippet_ending';
 COMMENT ON FUNCTION modb.select_snippet_ending(bigint, float8[], float8, float8[], text, text, bigint[], boolean) IS
-    'The snippet that continues prev most smoothly (relaxation level 0-3) among those of its pool that end standing (pelvis slower than modb.rest_speed()) or, standing false, walking (at least modb.walk_speed()), then the one ending nearest the goal; the columns of select_next_snippet_world; no row when the data has none';
+    'The snippet that continues prev most smoothly (relaxation level 0-3) among those of its pool that end standing (pelvis slower than modb.rest_speed()) or, standing false, walking (at least modb.walk_speed()), then the one ending nearest the goal; the columns of select_next_snippet_world; no row when the data has none. The rule is modb.select_snippet_ending_reference; this answers it by the box search over snippet blocks';
 
 CREATE OR REPLACE FUNCTION modb.can_rest(collection text DEFAULT NULL)
 RETURNS boolean

@@ -45,7 +45,7 @@
 #include "term_codes.h"
 
 #define SUPER_BLOCKS 32
-#define MaxBlockColumns 15		/* objective_inputs is the 12th, term_bounds and term_codes the 13th and 14th */
+#define MaxBlockColumns 16		/* objective_inputs 12th, term_bounds 13th, term_codes 14th, end_speeds 16th */
 
 /* 8-bit bounds on the fixed scale met twice as many blocks as the float bounds; 16-bit ones, as many. */
 #define SCALE_STEPS 65535
@@ -391,6 +391,21 @@ read_directory(Relation rel, int64 generation)
 	directory.valid = true;
 }
 
+/* A box search: the blocks the directory could not reject, each with the least key its snippets can have. */
+struct BlockSearch
+{
+	Relation	rel;
+	const double *lo;
+	const double *hi;
+	const TermTest *test;
+	BlockKeep	keep;			/* NULL, or what a candidate's end speed must pass before its term test */
+	const void *keep_arg;
+	BlockStats *stats;
+	int			n;
+	const Entry **entries;
+	double	   *bounds;
+};
+
 /* A block's term bounds and codes for n snippets, or NULL (a block written before 0.18.0). */
 static const uint8 *
 term_columns(const Datum *values, const bool *nulls, TupleDesc desc, int n, const uint8 **codes)
@@ -414,9 +429,13 @@ term_columns(const Datum *values, const bool *nulls, TupleDesc desc, int n, cons
  * none) and the least continuity ratio their term codes allow.
  */
 static int
-scan_block(HeapTuple tuple, TupleDesc desc, const double *lo, const double *hi, const TermTest *test,
-		   BlockCandidate *out, int n_out, BlockStats *stats)
+scan_block(const BlockSearch *search, HeapTuple tuple, BlockCandidate *out, int n_out)
 {
+	TupleDesc	desc = RelationGetDescr(search->rel);
+	const double *lo = search->lo;
+	const double *hi = search->hi;
+	const TermTest *test = search->test;
+	BlockStats *stats = search->stats;
 	static TermBlock terms;
 	const uint8 *term_bounds = NULL;
 	const uint8 *term_codes = NULL;
@@ -431,6 +450,7 @@ scan_block(HeapTuple tuple, TupleDesc desc, const double *lo, const double *hi, 
 	int			from[N_FEATURES],
 				to[N_FEATURES];
 	const float *inputs = NULL;
+	const float *speeds = NULL;
 
 	heap_deform_tuple(tuple, desc, values, nulls);
 	snippets = DatumGetArrayTypeP(values[6]);
@@ -468,6 +488,13 @@ scan_block(HeapTuple tuple, TupleDesc desc, const double *lo, const double *hi, 
 			return n_out;		/* no snippet of the block can be within the level's ratio */
 		}
 	}
+	if (desc->natts >= 16 && !nulls[15])
+	{
+		ArrayType  *a = DatumGetArrayTypeP(values[15]);
+
+		if (ARR_NDIM(a) == 1 && !ARR_HASNULL(a) && ARR_DIMS(a)[0] == n)
+			speeds = (const float *) ARR_DATA_PTR(a);
+	}
 	if (desc->natts >= 12 && !nulls[11])
 	{
 		ArrayType  *a = DatumGetArrayTypeP(values[11]);
@@ -487,6 +514,8 @@ scan_block(HeapTuple tuple, TupleDesc desc, const double *lo, const double *hi, 
 			continue;
 		if (stats)
 			stats->in_codes++;
+		if (search->keep && speeds && !search->keep(speeds[i], search->keep_arg))
+			continue;			/* ends otherwise than the caller wants */
 		candidate->least_ratio = 0;
 		if (term_bounds != NULL)
 		{
@@ -500,6 +529,7 @@ scan_block(HeapTuple tuple, TupleDesc desc, const double *lo, const double *hi, 
 			}
 		}
 		candidate->id = ((int64 *) ARR_DATA_PTR(snippets))[i];
+		candidate->end_speed = speeds ? speeds[i] : NAN;
 		/* Not yet filled futures (NaN) may be filled since: such a snippet's block says nothing of them. */
 		candidate->hinted = inputs != NULL;
 		for (int k = 0; k < N_OBJECTIVE_INPUTS; k++)
@@ -513,18 +543,6 @@ scan_block(HeapTuple tuple, TupleDesc desc, const double *lo, const double *hi, 
 }
 
 
-/* A box search: the blocks the directory could not reject, each with the least key its snippets can have. */
-struct BlockSearch
-{
-	Relation	rel;
-	const double *lo;
-	const double *hi;
-	const TermTest *test;
-	BlockStats *stats;
-	int			n;
-	const Entry **entries;
-	double	   *bounds;
-};
 
 BlockSearch *
 modb_block_search(Oid relid, int64 generation, const char *pose_key, double fps, const double *lo,
@@ -628,8 +646,7 @@ modb_block_search_read(BlockSearch *search, int i, BlockCandidate *out)
 	tuple.t_self = search->entries[i]->tid;
 	if (heap_fetch(search->rel, GetActiveSnapshot(), &tuple, &buffer, false))
 	{
-		n = scan_block(&tuple, RelationGetDescr(search->rel), search->lo, search->hi, search->test, out, 0,
-					   search->stats);
+		n = scan_block(search, &tuple, out, 0);
 		ReleaseBuffer(buffer);
 	}							/* else not visible to this snapshot */
 	if (search->stats)
@@ -639,6 +656,13 @@ modb_block_search_read(BlockSearch *search, int i, BlockCandidate *out)
 		search->stats->ms += INSTR_TIME_GET_MILLISEC(end);
 	}
 	return n;
+}
+
+void
+modb_block_search_keep(BlockSearch *search, BlockKeep keep, const void *arg)
+{
+	search->keep = keep;
+	search->keep_arg = arg;
 }
 
 void

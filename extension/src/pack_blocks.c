@@ -114,6 +114,7 @@ store_leaf(Packing *p, const int32 *idx, int n)
 	double		inputs[BLOCK_SNIPPETS][N_OBJECTIVE_INPUTS];
 	int64		sorted[BLOCK_SNIPPETS];
 	Terminator	begins[BLOCK_SNIPPETS];
+	double		speeds[BLOCK_SNIPPETS];
 	SPITupleTable *rows;
 
 	if (leaf_context == NULL)
@@ -128,16 +129,16 @@ store_leaf(Packing *p, const int32 *idx, int n)
 	modb_kept_plan(&query,
 				   "SELECT s.id, s.begin_features, s.net_translation, s.future_translation, s.future_heading, "
 				   BEGIN_TERMINATOR_COLUMNS
-				   "  FROM modb.snippets s JOIN modb.terminators b ON b.id = s.begin_terminator"
+				   "  FROM modb.snippets s" BLOCK_ROW_JOINS
 				   " WHERE s.id = ANY ($1) ORDER BY s.id",
 				   1, types);
 	if (SPI_execute_plan(query, args, NULL, false, 0) != SPI_OK_SELECT || SPI_processed != (uint64) n)
 		elog(ERROR, "modb: the snippets of a block to pack changed while it was packed");
 	rows = SPI_tuptable;
 	for (int i = 0; i < n; i++)
-		modb_block_row(rows->vals[i], rows->tupdesc, 2, &ids[i], x[i], inputs[i], &begins[i]);
+		modb_block_row(rows->vals[i], rows->tupdesc, 2, &ids[i], x[i], inputs[i], &begins[i], &speeds[i]);
 	modb_store_block(ids, (const double (*)[N_FEATURES]) x, (const double (*)[N_OBJECTIVE_INPUTS]) inputs, begins,
-					 n, &p->source, p->blocks++);
+					 speeds, n, &p->source, p->blocks++);
 	SPI_freetuptable(rows);
 	MemoryContextSwitchTo(old);
 	MemoryContextReset(leaf_context);

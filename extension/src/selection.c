@@ -26,6 +26,7 @@
 #include "term_codes.h"
 
 PG_FUNCTION_INFO_V1(modb_select_next_snippets);
+PG_FUNCTION_INFO_V1(modb_select_snippet_ending);
 
 /* The columns both candidate queries start with. */
 #define CANDIDATE_COLUMNS \
@@ -98,6 +99,7 @@ typedef struct Candidate
 {
 	const Row  *row;
 	int64		id;
+	int			level;			/* ranks first (coming to rest or setting off: the ratio's level; else 0) */
 	bool		has_key;
 	double		key;			/* objective + continuity_weight x ratio */
 	bool		has_proximity;
@@ -113,6 +115,7 @@ typedef struct Pending
 {
 	int64		id;				/* a block's: PG_INT64_MIN, first among equal bounds */
 	int			block;			/* the box search's block, or -1: a candidate */
+	int			level;			/* the least level it can have (Candidate.level) */
 	bool		hinted;			/* false: unknown (read first) */
 	bool		has_proximity;
 	double		bound;
@@ -405,6 +408,8 @@ candidate_order(const void *a, const void *b)
 	const Candidate *x = a,
 			   *y = b;
 
+	if (x->level != y->level)
+		return x->level < y->level ? -1 : 1;
 	if (x->has_key != y->has_key)
 		return x->has_key ? -1 : 1;		/* NULLs last */
 	if (x->has_key && x->key != y->key)
@@ -471,15 +476,48 @@ keep_best(Candidate *best, int *n, int need, const Candidate *c)
 static bool
 may_beat(const Pending *p, const Candidate *last)
 {
-	Candidate	at_best = {.id = p->id, .has_key = p->has_proximity, .key = p->bound};
+	Candidate	at_best = {.id = p->id, .level = p->level, .has_key = p->has_proximity, .key = p->bound};
 
 	return !p->hinted || candidate_order(&at_best, last) <= 0;
+}
+
+/*
+ * Coming to rest or setting off (select_snippet_ending_reference, 89_synthesis.sql): among the snippets
+ * that end standing (or walking), the least ratio level first, then the one whose net translation ends
+ * nearest the goal; candidates are excluded by id only (not by the frames they play).
+ */
+typedef struct Ending
+{
+	double		target[2];		/* check_world_request's first two values, as the reference reads them */
+	bool		standing;
+	double		rest_speed;
+	double		walk_speed;
+	const int64 *exclude;
+	int			n_exclude;
+} Ending;
+
+/* The level of a ratio as the reference's ceil(log(2.0, ratio::numeric)): of its 15 significant digits. */
+static int
+ending_level(double ratio)
+{
+	char		digits[32];
+	double		rounded;
+	int			level = 0;
+
+	if (!(ratio > 1))
+		return 0;
+	snprintf(digits, sizeof(digits), "%.15g", ratio);
+	rounded = strtod(digits, NULL);
+	while (level < 64 && rounded > ldexp(1.0, level))
+		level++;
+	return level;
 }
 
 /* A level's reading: its query, what the rows must pass, and the best found so far. */
 typedef struct LevelRead
 {
 	const Request *r;
+	const Ending *ending;		/* NULL: select_next_snippets' rule */
 	SPIPlanPtr	query;
 	Datum		graph_id;
 	bool		no_graph;
@@ -493,6 +531,62 @@ typedef struct LevelRead
 	int			n_best;
 	LevelStats *stats;
 } LevelRead;
+
+/* The reference's filters for coming to rest or setting off: collection, exclude (by id) and end speed. */
+static bool
+ending_filters(const Request *r, const Ending *e, const Row *row)
+{
+	bool		isnull;
+	int64		id = DatumGetInt64(row_value(row, COL_ID, &isnull));
+	Datum		speed = row_value(row, COL_COST_TO_GO, &isnull);
+
+	if (r->collections != NULL)
+	{
+		int64		collection = DatumGetInt64(row_value(row, COL_COLLECTION, &isnull));
+		bool		inside = false;
+
+		for (int i = 0; i < r->n_collections && !inside; i++)
+			inside = r->collections[i] == collection;
+		if (!inside)
+			return false;
+	}
+	for (int i = 0; i < e->n_exclude; i++)
+		if (e->exclude[i] == id)
+			return false;
+	if (row->nulls[COL_COST_TO_GO - 1])
+		return false;
+	return e->standing ? DatumGetFloat8(speed) < e->rest_speed : DatumGetFloat8(speed) >= e->walk_speed;
+}
+
+/*
+ * Whether a snippet whose end speed rounds to `speed` as a float4 (NaN: not known) may end as wanted: a
+ * float4 is within 2^-24 of its value, allowed for a thousand times over.
+ */
+static bool
+ending_speed_may_pass(float speed, const void *arg)
+{
+	const Ending *e = arg;
+	double		slack = ldexp(fabs((double) speed), -14) + 1e-12;
+
+	if (isnan(speed))
+		return true;
+	return e->standing ? (double) speed - slack < e->rest_speed : (double) speed + slack >= e->walk_speed;
+}
+
+static volatile double two = 2.0;	/* SQL's x ^ 2 is pow(x, 2) */
+
+/* sqrt((net[1] - target[1]) ^ 2 + (net[3] - target[2]) ^ 2), as the reference computes it. */
+static bool
+ending_proximity(const Ending *e, const Row *row, double *proximity)
+{
+	int			n_net = 0;
+	const double *net = float8_array(row->values[COL_NET_TRANSLATION - 1], row->nulls[COL_NET_TRANSLATION - 1], &n_net);
+
+	if (net == NULL || n_net < 3)
+		return false;
+	*proximity = sqrt(pow(net[0] - e->target[0], two) + pow(net[2] - e->target[1], two));
+	return true;
+}
 
 /* Reads the rows of ids[0..n) and checks each: the box, pose and rate, filters, ratio, objective. */
 static void
@@ -532,7 +626,7 @@ read_and_check(LevelRead *lr, const Pending *pending, int n)
 			lr->stats->in_box++;
 		if (!stored && !same_pose_and_rate(r, row))
 			continue;
-		if (!passes_filters(r, row))
+		if (lr->ending ? !ending_filters(r, lr->ending, row) : !passes_filters(r, row))
 			continue;
 		if (lr->stats)
 			lr->stats->filtered++;
@@ -544,6 +638,15 @@ read_and_check(LevelRead *lr, const Pending *pending, int n)
 			lr->stats->within++;
 		c.row = row;
 		c.id = DatumGetInt64(row_value(row, COL_ID, &isnull));
+		c.level = 0;
+		if (lr->ending)
+		{
+			c.level = ending_level(c.ratio);
+			c.has_proximity = c.has_key = ending_proximity(lr->ending, row, &c.proximity);
+			c.key = c.proximity;
+			keep_best(lr->best, &lr->n_best, lr->need, &c);
+			continue;
+		}
 		c.has_proximity = stored && r->plan->has_grid
 			? graph_objective(r, row, &c.proximity)
 			: proximity_of(r, row, &c.proximity);
@@ -562,11 +665,24 @@ candidate_pending(const LevelRead *lr, const BlockCandidate *c, double least, Pe
 
 	p->id = c->id;
 	p->block = -1;
+	p->level = 0;
 	p->hinted = c->hinted;
 	p->has_proximity = false;
 	p->bound = 0;
 	p->least_ratio = c->least_ratio;
-	if (p->hinted)
+	if (p->hinted && lr->ending)
+	{
+		/* the distance of its net translation's end from the goal, allowing for float4 as below */
+		const double *inputs = c->inputs;
+		double		dx = inputs[0] - lr->ending->target[0],
+					dz = inputs[2] - lr->ending->target[1];
+
+		p->level = ending_level(p->least_ratio);
+		p->has_proximity = true;
+		p->bound = sqrt(dx * dx + dz * dz);
+		p->bound -= ldexp(2 * Max(fabs(inputs[0]), fabs(inputs[2])), -20) + 1e-12 * (1 + p->bound);
+	}
+	else if (p->hinted)
 	{
 		const double *inputs = c->inputs;
 		double		largest = 0;
@@ -622,6 +738,12 @@ block_bound(const float *lo, const float *hi, void *arg)
 
 	for (int k = 0; k < 6; k++)
 		largest = Max(largest, Max(fabs(lo[k]), fabs(hi[k])));
+	if (lr->ending)
+	{
+		/* the distance from the goal to the box of the net translations' ends ({x, z}) */
+		bound = distance_to_box(lo, hi, lr->ending->target, 2);
+		return bound - ldexp(2 * largest, -20) - 1e-12 * (1 + bound);
+	}
 	if ((double) hi[6] - (double) lo[6] < 2 * M_PI)
 	{
 		double		from = (double) lo[6] - r->direction,
@@ -737,7 +859,7 @@ run_level(LevelRead *lr, BlockSearch *search, const int64 *stored_ids, int n_sto
 			values[j] = row_value(c->row, columns[j], &isnull[j]);
 		values[6] = Float8GetDatum(c->proximity);
 		isnull[6] = !c->has_proximity;
-		values[7] = Int32GetDatum(level);
+		values[7] = Int32GetDatum(lr->ending ? c->level : level);
 		isnull[7] = false;
 		values[8] = Float8GetDatum(c->ratio);
 		isnull[8] = false;
@@ -981,5 +1103,174 @@ modb_select_next_snippets(PG_FUNCTION_ARGS)
 
 	InitMaterializedSRF(fcinfo, 0);
 	modb_select(fcinfo, rsinfo->setResult, rsinfo->setDesc, NULL);
+	return (Datum) 0;
+}
+
+/*
+ * The candidates' rows for coming to rest or setting off: select_next_snippets' columns, then the ground
+ * speed of the pelvis at their end, as the reference computes it ($2: no graph, always NULL).
+ */
+static SPIPlanPtr
+ending_query(bool annotated)
+{
+	static SPIPlanPtr kept[2];
+	Oid			types[3] = {INT8ARRAYOID, INT8OID, TEXTOID};
+
+	if (kept[annotated] != NULL)
+		return kept[annotated];
+	return modb_kept_plan(&kept[annotated],
+						  psprintf("SELECT " CANDIDATE_COLUMNS ", sqrt(e.velocities[1] ^ 2 + e.velocities[3] ^ 2)"
+								   "  FROM unnest($1::bigint[]) AS n(id) JOIN modb.snippets c ON c.id = n.id"
+								   "  JOIN modb.terminators b ON b.id = c.begin_terminator"
+								   "  JOIN modb.terminators e ON e.id = c.end_terminator"
+								   " WHERE $2 IS NULL%s",
+								   annotated ? " AND modb.annotated(c.clip_id, c.version, c.first_frame, c.n_frames, $3::text[])"
+								   : ""),
+						  3, types);
+}
+
+/* The reference (select_snippet_ending_reference) answers calls the fast path does not take. */
+static void
+ending_reference(FunctionCallInfo fcinfo, Tuplestorestate *store, TupleDesc out)
+{
+	static SPIPlanPtr query;
+	Oid			types[8] = {INT8OID, FLOAT8ARRAYOID, FLOAT8OID, FLOAT8ARRAYOID, TEXTOID, TEXTOID, INT8ARRAYOID, BOOLOID};
+	Datum		args[8];
+	char		nulls[8];
+
+	for (int i = 0; i < 8; i++)
+	{
+		nulls[i] = PG_ARGISNULL(i) ? 'n' : ' ';
+		args[i] = PG_ARGISNULL(i) ? (Datum) 0 : PG_GETARG_DATUM(i);
+	}
+	modb_kept_plan(&query, "SELECT * FROM modb.select_snippet_ending_reference($1, $2, $3, $4, $5, $6, $7, $8)", 8,
+				   types);
+	if (SPI_execute_plan(query, args, nulls, true, 0) != SPI_OK_SELECT)
+		elog(ERROR, "modb: the reference of coming to rest failed");
+	for (uint64 i = 0; i < SPI_processed; i++)
+	{
+		Datum		values[12];
+		bool		isnull[12];
+
+		heap_deform_tuple(SPI_tuptable->vals[i], SPI_tuptable->tupdesc, values, isnull);
+		tuplestore_putvalues(store, out, values, isnull);
+	}
+}
+
+/*
+ * modb.select_snippet_ending: coming to rest (standing) or setting off, the rule of
+ * select_snippet_ending_reference (89_synthesis.sql) by the box search over the snippet blocks: for scale
+ * 1, 2, 4, 8 the snippets in the scaled box that follow prev within ratio `scale` and end as wanted, the
+ * least level first, then nearest the goal; the first scale that has one answers.
+ */
+Datum
+modb_select_snippet_ending(PG_FUNCTION_ARGS)
+{
+	static SPIPlanPtr check;
+	ReturnSetInfo *rsinfo = (ReturnSetInfo *) fcinfo->resultinfo;
+	Request		r = {0};
+	Ending		e = {0};
+	bool		fast = true;
+	int			nest_level;
+
+	InitMaterializedSRF(fcinfo, 0);
+	if (SPI_connect() != SPI_OK_CONNECT)
+		elog(ERROR, "modb: SPI_connect failed");
+	nest_level = NewGUCNestLevel();
+	(void) set_config_option("jit", "off", PGC_USERSET, PGC_S_SESSION, GUC_ACTION_SAVE, true, 0, false);
+	for (int i = 0; i < 8; i++)
+		fast &= i == 4 || i == 5 || i == 6 || !PG_ARGISNULL(i);
+	if (fast)
+	{
+		r.prev = PG_GETARG_INT64(0);
+		r.k = 1;
+		fast = read_previous(&r);
+	}
+	if (fast && !PG_ARGISNULL(6))
+	{
+		ArrayType  *a = PG_GETARG_ARRAYTYPE_P(6);
+
+		fast = ARR_NDIM(a) <= 1 && !ARR_HASNULL(a);	/* a NULL id excludes every snippet there */
+		e.exclude = fast && ARR_NDIM(a) == 1 ? (const int64 *) ARR_DATA_PTR(a) : NULL;
+		e.n_exclude = fast && ARR_NDIM(a) == 1 ? ARR_DIMS(a)[0] : 0;
+	}
+	if (fast)
+	{
+		Oid			types[5] = {FLOAT8ARRAYOID, FLOAT8OID, FLOAT8ARRAYOID, TEXTOID, TEXTOID};
+		Datum		args[5] = {PG_GETARG_DATUM(1), PG_GETARG_DATUM(2), PG_GETARG_DATUM(3),
+		PG_ARGISNULL(4) ? (Datum) 0 : PG_GETARG_DATUM(4), PG_ARGISNULL(5) ? (Datum) 0 : PG_GETARG_DATUM(5)};
+		char		nulls[5] = {' ', ' ', ' ', PG_ARGISNULL(4) ? 'n' : ' ', PG_ARGISNULL(5) ? 'n' : ' '};
+		bool		isnull;
+		int			n_target = 0;
+		const double *target;
+
+		/* the reference's errors, and what it reads: the goal in the avatar's frame, the pool, speeds */
+		modb_kept_plan(&check,
+					   "SELECT modb.check_world_request($1, $2, $3), modb.match_plan($4) IS NOT NULL,"
+					   "       CASE WHEN $5 IS NOT NULL THEN modb.collection_subtree($5) END,"
+					   "       modb.rest_speed(), modb.walk_speed()",
+					   5, types);
+		if (SPI_execute_plan(check, args, nulls, true, 1) != SPI_OK_SELECT || SPI_processed != 1)
+			elog(ERROR, "modb: checking a request to come to rest returned nothing");
+		target = float8_array(SPI_getbinval(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 1, &isnull), isnull,
+							  &n_target);
+		fast = target != NULL && n_target >= 2 && !PG_ARGISNULL(4);
+		if (fast)
+		{
+			Datum		ids = SPI_getbinval(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 3, &isnull);
+
+			e.target[0] = target[0];
+			e.target[1] = target[1];
+			e.standing = PG_GETARG_BOOL(7);
+			e.rest_speed = DatumGetFloat8(SPI_getbinval(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 4, &isnull));
+			e.walk_speed = DatumGetFloat8(SPI_getbinval(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 5, &isnull));
+			if (!isnull && !PG_ARGISNULL(5))
+			{
+				ArrayType  *a = DatumGetArrayTypeP(ids);
+				Datum	   *elements;
+				bool	   *element_nulls;
+
+				deconstruct_array(a, INT8OID, 8, FLOAT8PASSBYVAL, TYPALIGN_DOUBLE, &elements, &element_nulls,
+								  &r.n_collections);
+				r.collections = palloc(sizeof(int64) * Max(r.n_collections, 1));
+				for (int i = 0; i < r.n_collections; i++)
+					r.collections[i] = element_nulls[i] ? -1 : DatumGetInt64(elements[i]);
+			}
+			else if (!PG_ARGISNULL(5))
+				fast = false;
+		}
+	}
+	if (fast)
+	{
+		bool		annotated;
+		int			emitted = 0;
+
+		r.plan = modb_match_plan(PG_GETARG_TEXT_PP(4), r.plans_generation);
+		annotated = r.plan->annotations != NULL;
+		for (int level = 0; level < N_LEVELS && emitted == 0; level++)
+		{
+			double		scale = (double) (1 << level);
+			double		lo[N_FEATURES],
+						hi[N_FEATURES];
+			BlockSearch *search;
+			TermTest	test;
+			bool		testing = modb_term_test(&test, &r.end, &r.plan->thresholds, scale);
+			LevelRead	lr = {.r = &r, .ending = &e, .graph_id = (Datum) 0, .no_graph = true,
+				.annotations = annotated ? CStringGetTextDatum(r.plan->annotations) : (Datum) 0,
+				.lo = lo, .hi = hi, .low = -INFINITY, .high = scale};
+
+			box_of(&r, scale, lo, hi, NULL);
+			search = modb_block_search(r.blocks_relid, r.blocks_generation, r.pose_key, r.fps, lo, hi,
+									   testing ? &test : NULL, block_bound, &lr, NULL);
+			modb_block_search_keep(search, ending_speed_may_pass, &e);
+			lr.query = ending_query(annotated);
+			run_level(&lr, search, NULL, 0, level, rsinfo->setResult, rsinfo->setDesc, &emitted);
+			modb_block_search_end(search);
+		}
+	}
+	else
+		ending_reference(fcinfo, rsinfo->setResult, rsinfo->setDesc);
+	AtEOXact_GUC(true, nest_level);
+	SPI_finish();
 	return (Datum) 0;
 }

@@ -66,20 +66,27 @@ typedef struct BlockCandidate
 	bool		hinted;			/* in exactly one block, which holds its objective's inputs */
 	double		inputs[N_OBJECTIVE_INPUTS];
 	double		least_ratio;	/* the least continuity ratio its block's term codes allow (0: unknown) */
+	float		end_speed;		/* its pelvis' ground speed at its end, as its block holds it (NaN: unknown) */
 } BlockCandidate;
 
 extern int	modb_block_code(double x, float low, float high);
 extern void modb_store_block(const int64 *ids, const double (*x)[N_FEATURES],
-							 const double (*inputs)[N_OBJECTIVE_INPUTS], const Terminator *begins, int n,
-							 const BlockSource *s, int pack_order);
+							 const double (*inputs)[N_OBJECTIVE_INPUTS], const Terminator *begins,
+							 const double *end_speeds, int n, const BlockSource *s, int pack_order);
 /*
- * A snippet's id (column 1), begin features (column `features`), objective inputs (the three after) and
- * begin terminator (the four after those).
+ * A snippet's id (column 1), begin features (column `features`), objective inputs (the three after),
+ * begin terminator (the four after those) and end speed (the one after).
  */
 extern void modb_block_row(HeapTuple row, TupleDesc desc, int features, int64 *id, double *x, double *inputs,
-						   Terminator *begin);
-/* The begin terminator's columns (terminators joined as b) that modb_block_row's rows end with. */
-#define BEGIN_TERMINATOR_COLUMNS "b.positions, b.rotations, b.velocities, b.angular_velocities"
+						   Terminator *begin, double *end_speed);
+/*
+ * The columns (terminators joined as b at the begin, e at the end) that modb_block_row's rows end with: the
+ * begin terminator and the end speed, computed as coming to rest computes it (89_synthesis.sql).
+ */
+#define BEGIN_TERMINATOR_COLUMNS \
+	"b.positions, b.rotations, b.velocities, b.angular_velocities, sqrt(e.velocities[1] ^ 2 + e.velocities[3] ^ 2)"
+#define BLOCK_ROW_JOINS \
+	" JOIN modb.terminators b ON b.id = s.begin_terminator JOIN modb.terminators e ON e.id = s.end_terminator"
 struct TermTest;					/* term_codes.h */
 
 /*
@@ -98,6 +105,9 @@ extern int	modb_block_search_count(const BlockSearch *search);
 extern double modb_block_search_bound(const BlockSearch *search, int i);
 /* Reads block i: its snippets in the box that its term codes do not reject, into out (BLOCK_SNIPPETS long). */
 extern int	modb_block_search_read(BlockSearch *search, int i, BlockCandidate *out);
+/* Candidates whose end speed `keep` refuses are passed over before their term test. */
+typedef bool (*BlockKeep) (float end_speed, const void *arg);
+extern void modb_block_search_keep(BlockSearch *search, BlockKeep keep, const void *arg);
 extern void modb_block_search_end(BlockSearch *search);
 
 /* Runs a selection into `store` (rows of select_next_snippets' result type); stats may be NULL. */

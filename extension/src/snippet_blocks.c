@@ -76,7 +76,7 @@ same_source(const BlockSource *a, const BlockSource *b)
  */
 void
 modb_store_block(const int64 *ids, const double (*x)[N_FEATURES], const double (*inputs)[N_OBJECTIVE_INPUTS],
-				 const Terminator *begins, int n, const BlockSource *s, int pack_order)
+				 const Terminator *begins, const double *end_speeds, int n, const BlockSource *s, int pack_order)
 {
 	static SPIPlanPtr insert;
 	static SPIPlanPtr insert_017;
@@ -85,10 +85,12 @@ modb_store_block(const int64 *ids, const double (*x)[N_FEATURES], const double (
 	/* A 0.10.0 database (not updated yet) has neither packing nor objective inputs, 0.17.0 no term codes. */
 	bool		at_010 = get_attnum(relid, "objective_inputs") == InvalidAttrNumber;
 	bool		at_017 = !at_010 && get_attnum(relid, "term_codes") == InvalidAttrNumber;
-	Oid			types[15] = {INT8OID, INT4OID, BOOLOID, TEXTOID, FLOAT8OID, INT8OID, INT8ARRAYOID,
-	FLOAT4ARRAYOID, FLOAT4ARRAYOID, BYTEAOID, INT4OID, FLOAT4ARRAYOID, BYTEAOID, BYTEAOID, FLOAT4ARRAYOID};
-	Datum		args[15];
-	char		nulls[15];
+	Oid			types[16] = {INT8OID, INT4OID, BOOLOID, TEXTOID, FLOAT8OID, INT8OID, INT8ARRAYOID,
+	FLOAT4ARRAYOID, FLOAT4ARRAYOID, BYTEAOID, INT4OID, FLOAT4ARRAYOID, BYTEAOID, BYTEAOID, FLOAT4ARRAYOID,
+	FLOAT4ARRAYOID};
+	Datum		args[16];
+	char		nulls[16];
+	Datum		speeds[BLOCK_SNIPPETS];
 	Datum		input_bounds[2 * N_OBJECTIVE_INPUTS];
 	bytea	   *term_bounds = palloc(VARHDRSZ + TERM_BOUNDS_BYTES);
 	bytea	   *term_codes = palloc(VARHDRSZ + n * TERM_CODE_BYTES);
@@ -161,6 +163,9 @@ modb_store_block(const int64 *ids, const double (*x)[N_FEATURES], const double (
 		input_bounds[N_OBJECTIVE_INPUTS + k] = Float4GetDatum(hi);
 	}
 	args[14] = PointerGetDatum(construct_array(input_bounds, 2 * N_OBJECTIVE_INPUTS, FLOAT4OID, 4, true, TYPALIGN_INT));
+	for (int i = 0; i < n; i++)
+		speeds[i] = Float4GetDatum((float) end_speeds[i]);
+	args[15] = PointerGetDatum(construct_array(speeds, n, FLOAT4OID, 4, true, TYPALIGN_INT));
 	SET_VARSIZE(term_bounds, VARHDRSZ + TERM_BOUNDS_BYTES);
 	SET_VARSIZE(term_codes, VARHDRSZ + n * TERM_CODE_BYTES);
 	modb_term_encode(begins, n, (uint8 *) VARDATA(term_bounds), (uint8 *) VARDATA(term_codes));
@@ -180,9 +185,10 @@ modb_store_block(const int64 *ids, const double (*x)[N_FEATURES], const double (
 	else
 		modb_kept_plan(&insert,
 					   "INSERT INTO modb.snippet_blocks (clip_id, version, mirrored, pose_key, fps, collection_id,"
-					   " snippets, low, high, codes, pack_order, objective_inputs, term_bounds, term_codes, input_bounds)"
-					   " VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14, $15)",
-					   15, types);
+					   " snippets, low, high, codes, pack_order, objective_inputs, term_bounds, term_codes, input_bounds,"
+					   " end_speeds)"
+					   " VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14, $15, $16)",
+					   16, types);
 	if (SPI_execute_plan(at_010 ? insert_010 : at_017 ? insert_017 : insert, args, nulls, false, 0) != SPI_OK_INSERT)
 		elog(ERROR, "modb: storing a snippet block failed");
 }
@@ -219,7 +225,7 @@ objective_inputs(Datum net, bool net_null, Datum future, bool future_null, Datum
  */
 void
 modb_block_row(HeapTuple row, TupleDesc desc, int features, int64 *id, double *x, double *inputs,
-			   Terminator *begin)
+			   Terminator *begin, double *end_speed)
 {
 	bool		isnull;
 	bool		nulls[3];
@@ -247,6 +253,9 @@ modb_block_row(HeapTuple row, TupleDesc desc, int features, int64 *id, double *x
 	begin->rotations = arrays[1];
 	begin->velocities = arrays[2];
 	begin->angular_velocities = arrays[3];
+	*end_speed = DatumGetFloat8(SPI_getbinval(row, desc, features + 8, &isnull));
+	if (isnull)
+		*end_speed = NAN;
 }
 
 /* Stores rows [first, first + n) of the SPI result (one source, clip order) as one block. */
@@ -257,11 +266,12 @@ store_rows(SPITupleTable *rows, uint64 first, int n, const BlockSource *s)
 	double		x[BLOCK_SNIPPETS][N_FEATURES];
 	double		inputs[BLOCK_SNIPPETS][N_OBJECTIVE_INPUTS];
 	Terminator	begins[BLOCK_SNIPPETS];
+	double		speeds[BLOCK_SNIPPETS];
 
 	for (int i = 0; i < n; i++)
-		modb_block_row(rows->vals[first + i], rows->tupdesc, 8, &ids[i], x[i], inputs[i], &begins[i]);
+		modb_block_row(rows->vals[first + i], rows->tupdesc, 8, &ids[i], x[i], inputs[i], &begins[i], &speeds[i]);
 	modb_store_block(ids, (const double (*)[N_FEATURES]) x, (const double (*)[N_OBJECTIVE_INPUTS]) inputs, begins,
-					 n, s, -1);
+					 speeds, n, s, -1);
 }
 
 Datum
@@ -280,7 +290,7 @@ modb_add_snippet_blocks(PG_FUNCTION_ARGS)
 	modb_kept_plan(&query,
 				   "SELECT s.id, s.clip_id, s.version, s.mirrored, s.pose_key, s.fps, s.collection_id, s.begin_features,"
 				   "       s.net_translation, s.future_translation, s.future_heading, " BEGIN_TERMINATOR_COLUMNS
-				   "  FROM modb.snippets s JOIN modb.terminators b ON b.id = s.begin_terminator WHERE s.id = ANY ($1)"
+				   "  FROM modb.snippets s" BLOCK_ROW_JOINS " WHERE s.id = ANY ($1)"
 				   " ORDER BY s.clip_id, s.version, s.mirrored, s.pose_key, s.fps, s.collection_id, s.first_frame, s.id",
 				   1, types);
 	if (SPI_execute_plan(query, args, NULL, false, 0) != SPI_OK_SELECT)

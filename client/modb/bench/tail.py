@@ -175,12 +175,12 @@ KINDS = {
     "coming to rest after the last goal (select_synthesis_step)": (
         "SELECT snippet_id FROM modb.select_synthesis_step(%s, '{0,0,0}', 0, %s, 'default', NULL, "
         "NULL, true)",
-        lambda prev, target, excluded: [prev, [target[0], 0.0, target[1]]],
+        lambda prev, target, excluded: [prev, target],
     ),
     "setting off again (select_synthesis_step)": (
         "SELECT snippet_id FROM modb.select_synthesis_step(%s, '{0,0,0}', 0, %s, 'default', NULL, "
         "NULL, false)",
-        lambda prev, target, excluded: [prev, [target[0], 0.0, target[1]]],
+        lambda prev, target, excluded: [prev, target],
     ),
 }
 

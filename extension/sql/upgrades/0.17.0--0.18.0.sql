@@ -22,13 +22,15 @@ END
 $$;
 
 ALTER TABLE modb.snippet_blocks ADD COLUMN term_bounds bytea, ADD COLUMN term_codes bytea,
-    ADD COLUMN input_bounds real[];
+    ADD COLUMN input_bounds real[], ADD COLUMN end_speeds real[];
 COMMENT ON TABLE modb.snippet_blocks IS
     'Up to 32 snippets of one pose and rate: consecutive ones of a clip source (as loaded) or packed ones near each other (pack_order set); the bounds of their begin features and each one''s 8-bit code within them, and of every term of the continuity ratio (term_bounds, term_codes); select_next_snippets'' box search (kept by triggers on modb.snippets)';
 COMMENT ON COLUMN modb.snippet_blocks.term_bounds IS
     'Every term of the continuity ratio bounded (0.18.0, src/term_codes.c): per joint and kind (position, rotation as the x, y, z of the quaternion with w >= 0, velocity, angular velocity) and axis, the bounds of the block''s begin terminators as 16-bit codes on a fixed scale per kind (0: unbounded below, 65535: above), all low codes then all high ones; NULL in a block written before 0.18.0';
 COMMENT ON COLUMN modb.snippet_blocks.input_bounds IS
     'The least of each objective input over the block''s snippets (as in objective_inputs), then the greatest of each; NULL where one is not known: the block directory ranks blocks by the least objective they allow (0.18.0)';
+COMMENT ON COLUMN modb.snippet_blocks.end_speeds IS
+    'Per snippet, its pelvis'' ground speed at its end (float4, as coming to rest computes it): coming to rest and setting off (modb.select_snippet_ending) pass over the snippets that cannot end as wanted without reading them (0.18.0)';
 COMMENT ON COLUMN modb.snippet_blocks.term_codes IS
     'Per snippet, each term component''s 4-bit code within term_bounds (two a byte): select_next_snippets rejects a block or a candidate whose continuity ratio cannot be within the level from these, without reading its rows';
 
@@ -71,6 +73,10 @@ CREATE TRIGGER terminators_blocks_update AFTER UPDATE ON modb.terminators
 -- explain_selection: a screen by default (0.18.0), the profile and the boxes when verbose.
 DROP FUNCTION modb.explain_selection(bigint, float8[], int, text, text, bigint[]);
 --@include 86_selection.sql
+
+-- Coming to rest and setting off by the box search (select_snippet_ending in C; the SQL kept as
+-- select_snippet_ending_reference).
+--@include 89_synthesis.sql
 
 --@functions
 -- Every block derived again, with its term codes (the loader packs every pose after a load the same way).
