@@ -406,8 +406,9 @@ def test_a_terminator_edited_by_hand_brings_its_snippets_new_term_codes(cmu):
 
 
 def test_coming_to_rest_and_setting_off_answer_as_their_reference(cmu):
-    """select_snippet_ending (C, 0.18.0) returns what select_snippet_ending_reference (the SQL rule of
-    coming to rest and setting off) returns: the same snippet, level, proximity and ratio, or none."""
+    """select_snippet_ending (C, 0.18.0) returns what select_snippet_ending_reference (the SQL
+    rule of coming to rest and setting off) returns: the same snippet, level, proximity and ratio,
+    or none."""
     rng = random.Random(41)
     call = "SELECT * FROM modb.{}(%s, %s, %s, %s, %s, NULL, %s, %s)"
     answered = 0
