@@ -28,7 +28,8 @@ SELECT functions_are('modb', ARRAY[
     'restore_clip_version', 'clip_segments_after_delete', 'clip_versions_not_segment', 'split_by_annotation',
     'joint_axes_ok', 'retarget', 'apply_edit_script', 'raise_in_words', '_build_snippets', '_retarget',
     '_apply_edit_script', 'joint_axes_problem', 'skeletons_check_documents', 'edit_script_problems',
-    'edit_scripts_check_commands', 'collections_check_name']);
+    'edit_scripts_check_commands', 'collections_check_name', 'terminators_updated',
+    'select_snippet_ending_reference']);
 SELECT is((SELECT o.opcname::text FROM pg_index i JOIN pg_opclass o ON o.oid = i.indclass[0]
             WHERE i.indexrelid = 'modb.snippets_begin_features_idx'::regclass), 'cube_feature_ops',
           'the feature index uses modb''s operator class');

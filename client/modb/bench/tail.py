@@ -157,7 +157,7 @@ def _exactness(dsn: str, n: int, seed: int) -> dict:
         "n": n,
         "same": same,
         "levels": dict(sorted(levels.items())),
-        "ratio": statistics.median(r / f for r, f in zip(reference_ms, fast_ms)),
+        "ratio": statistics.median(r / f for r, f in zip(reference_ms, fast_ms)) if n else 0.0,
     }
 
 
@@ -225,7 +225,13 @@ def _costs(dsn: str) -> dict:
 
 
 def bench_database(
-    dsn: str, queries: int, exact: int, seed: int, pgbench_seconds: int, progress=print
+    dsn: str,
+    queries: int,
+    exact: int,
+    kind_queries: int,
+    seed: int,
+    pgbench_seconds: int,
+    progress=print,
 ) -> dict:
     with psycopg.connect(dsn, autocommit=True) as conn:
         requests = requests_for(conn, queries, seed)
@@ -237,8 +243,8 @@ def bench_database(
     psql = _psql_ms(dsn, requests, "default")
     progress("  stages (explain_selection) on 500 of them")
     stage_figures = stages(dsn, requests[:500])
-    progress("  each selection kind on 2,000 of them")
-    kind_ms = kinds(dsn, requests[:2000], seed)
+    progress(f"  each selection kind on {kind_queries:,} of them")
+    kind_ms = kinds(dsn, requests[:kind_queries], seed) if kind_queries else {}
     progress("  pgbench")
     tps = {f"{c} prepared": pgbench(dsn, c, pgbench_seconds) for c in (1, 2, 8)}
     tps["2 simple"] = pgbench(dsn, 2, pgbench_seconds, mode="simple")
@@ -305,6 +311,7 @@ def bench_tail(
     sizes: list[int | None],
     queries: int,
     exact: int,
+    kind_queries: int,
     seed: int,
     pgbench_seconds: int,
     progress=print,
@@ -314,5 +321,12 @@ def bench_tail(
         where = dsn if size is None else sized_database(dsn, size, seed, progress)
         name = "all the data" if size is None else f"about {size:,}"
         progress(f"{name}:")
-        out.append((name, bench_database(where, queries, exact, seed, pgbench_seconds, progress)))
+        out.append(
+            (
+                name,
+                bench_database(
+                    where, queries, exact, kind_queries, seed, pgbench_seconds, progress
+                ),
+            )
+        )
     return out

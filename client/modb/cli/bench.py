@@ -240,6 +240,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help=f"requests compared with the reference function ({TAIL_EXACT.span}; default 1000)",
     )
     tail.add_argument(
+        "--kinds",
+        type=TAIL_EXACT,
+        default=2000,
+        help="requests for each other selection kind (k-best, exclusion, coming to rest, setting "
+        f"off; {TAIL_EXACT.span}; default 2000, 0: none)",
+    )
+    tail.add_argument(
         "--pgbench-seconds",
         type=PGBENCH_SECONDS,
         default=10,
@@ -378,6 +385,7 @@ def run_tail(args: argparse.Namespace) -> int:
         args.sizes,
         args.queries,
         args.exact,
+        args.kinds,
         args.seed,
         args.pgbench_seconds,
         progress=lambda text: print(text, file=sys.stderr),
