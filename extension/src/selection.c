@@ -1196,17 +1196,22 @@ modb_select_snippet_ending(PG_FUNCTION_ARGS)
 	}
 	if (fast)
 	{
-		Oid			types[5] = {FLOAT8ARRAYOID, FLOAT8OID, FLOAT8ARRAYOID, TEXTOID, TEXTOID};
-		Datum		args[5] = {PG_GETARG_DATUM(1), PG_GETARG_DATUM(2), PG_GETARG_DATUM(3),
+		Oid			types[5] = {FLOAT8ARRAYOID, INT8OID, FLOAT8ARRAYOID, TEXTOID, TEXTOID};
+		Datum		args[5] = {PG_GETARG_DATUM(1), PG_GETARG_DATUM(0), PG_GETARG_DATUM(3),
 		PG_ARGISNULL(4) ? (Datum) 0 : PG_GETARG_DATUM(4), PG_ARGISNULL(5) ? (Datum) 0 : PG_GETARG_DATUM(5)};
 		char		nulls[5] = {' ', ' ', ' ', PG_ARGISNULL(4) ? 'n' : ' ', PG_ARGISNULL(5) ? 'n' : ' '};
 		bool		isnull;
 		int			n_target = 0;
 		const double *target;
 
-		/* the reference's errors, and what it reads: the goal in the avatar's frame, the pool, speeds */
+		/*
+		 * The reference's errors, and what it reads: the goal (in the heading of prev's end terminator, as
+		 * the reference reads `heading` there: the column, not the argument), the pool, the speeds.
+		 */
 		modb_kept_plan(&check,
-					   "SELECT modb.check_world_request($1, $2, $3), modb.match_plan($4) IS NOT NULL,"
+					   "SELECT modb.check_world_request($1, (SELECT e.heading FROM modb.snippets s"
+					   "       JOIN modb.terminators e ON e.id = s.end_terminator WHERE s.id = $2), $3),"
+					   "       modb.match_plan($4) IS NOT NULL,"
 					   "       CASE WHEN $5 IS NOT NULL THEN modb.collection_subtree($5) END,"
 					   "       modb.rest_speed(), modb.walk_speed()",
 					   5, types);

@@ -493,7 +493,7 @@ AS $$
 -- standing (or walking), the smoothest level first, then the one ending nearest the goal.
 WITH prev AS MATERIALIZED (
     SELECT s.pose_key, s.fps, e AS terminator, p AS plan,
-           modb.check_world_request(snippets_ending_within."position", snippets_ending_within.heading, target_world) AS target
+           modb.check_world_request(snippets_ending_within."position", heading, target_world) AS target
       FROM modb.snippets s
       JOIN modb.terminators e ON e.id = s.end_terminator
      CROSS JOIN modb.match_plan(profile) p
