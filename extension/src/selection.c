@@ -434,7 +434,10 @@ in_box(const Row *row, const double *lo, const double *hi)
 	return true;
 }
 
-/* In the order candidates are read: unknown ones first, then by the least key they can have, NULLs last. */
+/*
+ * In the order candidates are read: unknown ones first, then by the least level and key they can have, NULLs
+ * last.
+ */
 static int
 pending_order(const void *a, const void *b)
 {
@@ -443,6 +446,8 @@ pending_order(const void *a, const void *b)
 
 	if (x->hinted != y->hinted)
 		return x->hinted ? 1 : -1;
+	if (x->level != y->level)
+		return x->level < y->level ? -1 : 1;	/* coming to rest ranks by level first */
 	if (x->has_proximity != y->has_proximity)
 		return x->has_proximity ? -1 : 1;
 	if (x->has_proximity && x->bound != y->bound)

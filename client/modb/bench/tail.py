@@ -207,7 +207,8 @@ def _costs(dsn: str) -> dict:
     with psycopg.connect(dsn, autocommit=True) as conn:
         snippets, blocks, block_bytes, index_bytes = conn.execute(
             "SELECT (SELECT count(*) FROM modb.snippets), count(*), sum(pg_column_size(b.*)), "
-            "pg_relation_size('modb.snippet_blocks_directory_idx') FROM modb.snippet_blocks b"
+            "coalesce(pg_relation_size(to_regclass('modb.snippet_blocks_directory_idx')), 0)"
+            " FROM modb.snippet_blocks b"
         ).fetchone()
         prev = conn.execute("SELECT min(id) FROM modb.snippets").fetchone()[0]
         conn.execute(FUNCTION, [prev, [1.0, 2.0], "default"]).fetchone()
