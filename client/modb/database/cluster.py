@@ -211,8 +211,11 @@ class Cluster:
                 conn.execute("VACUUM ANALYZE modb.snippets, modb.terminators")
                 conn.execute("REINDEX INDEX modb.snippets_begin_features_idx")
             ensure_writer_role(conn)
-            if before < [0, 11, 0] <= conn.execute(version).fetchone()[0]:
-                # 0.11.0 packs the blocks of consecutive snippets that loads left (a few seconds).
+            after = conn.execute(version).fetchone()[0]
+            if before < [0, 11, 0] <= after or before < [0, 18, 0] <= after:
+                # 0.11.0 packs the blocks of consecutive snippets that loads left (a few seconds);
+                # 0.18.0 derives every block again with its term codes (about 30 s a million
+                # snippets; they count as unpacked), outside the update, beside live selections.
                 # numpy, for the loader (90 ms): not for every `modb db` and connection
                 from modb.loader.ingest import pack_blocks
 

@@ -2,13 +2,17 @@
 \echo Use "ALTER EXTENSION modb UPDATE TO '0.18.0'" to load this file. \quit
 
 -- 0.18.0: every term of the continuity ratio bounded where select_next_snippets' box search reads
--- (src/term_codes.c): snippet blocks carry term bounds and per-snippet term codes, and every existing
--- block is derived again here (modb.pack_snippet_blocks(0), a NOTICE per pose and rate). The update
--- holds modb.snippet_blocks (ALTER TABLE) until it commits: selections wait for it (BENCHMARKS.md says how
--- long at a million snippets).
+-- (src/term_codes.c): snippet blocks carry term bounds and per-snippet term codes. The update adds the
+-- columns and the directory's index in seconds; the blocks it finds have no term codes yet and keep
+-- answering as in 0.17.0 until modb.pack_snippet_blocks derives them again: `modb db start` does that
+-- for the embedded database, a load does it (the blocks without term codes count as unpacked), and on a
+-- user's server `SELECT * FROM modb.pack_snippet_blocks(0)` does it beside live selections (writers of
+-- blocks wait; readers keep their snapshot's blocks), a NOTICE per pose and rate. (Deriving them inside
+-- the update held modb.snippet_blocks for its whole transaction: 27 s at a million snippets, and a hot
+-- standby's selections waited as long; CREATE EXTENSION scripts also hide NOTICEs.)
 
--- A standby's replication slot keeps the WAL the re-derivation writes (about twice the blocks' size):
--- warned about before the work starts, where a slot's limit could be passed.
+-- A standby's replication slot keeps the WAL the re-derivation writes (about one and a half times the
+-- blocks' size at a million snippets): warned about before it, where a slot's limit could be passed.
 DO $$
 DECLARE
     expected bigint := 2.5 * pg_total_relation_size('modb.snippet_blocks') + 64 * 1024 * 1024;
@@ -17,9 +21,9 @@ DECLARE
 BEGIN
     FOR slot IN SELECT slot_name, safe_wal_size FROM pg_replication_slots
                  WHERE safe_wal_size IS NOT NULL AND safe_wal_size < expected LOOP
-        RAISE WARNING 'modb: this update writes about % of WAL; replication slot "%" can keep only % more before max_slot_wal_keep_size (%) invalidates it',
+        RAISE WARNING 'modb: deriving the snippet blocks again after this update (modb.pack_snippet_blocks(0)) writes about % of WAL; replication slot "%" can keep only % more before max_slot_wal_keep_size (%) invalidates it',
             pg_size_pretty(expected), slot.slot_name, pg_size_pretty(slot.safe_wal_size), keep
-            USING HINT = 'Let the standby catch up first, or raise max_slot_wal_keep_size for the update (ALTER SYSTEM, then SELECT pg_reload_conf()), or cancel and run the update when the standby is connected';
+            USING HINT = 'Let the standby catch up first, or raise max_slot_wal_keep_size while it runs (ALTER SYSTEM, then SELECT pg_reload_conf()), then run SELECT * FROM modb.pack_snippet_blocks(0)';
     END LOOP;
 END
 $$;
@@ -890,6 +894,18 @@ COMMENT ON FUNCTION modb.synthesize(float8[], int, bigint, float8[], float8, tex
     'A chain of up to max_snippets snippets from start_position/start_heading (world metres, radians; 0 faces +Z) through the world goals in targets ({{x, z}, ...} or {{x, y, z}, ...}), in order: one row per snippet with where it is placed, where it ends, the goal it served and whether it reached it (pelvis within arrival_radius on the ground), and its selection (relaxation level, continuity, proximity). Without collection or start_snippet it draws from the largest skeleton-and-rate pool (modb.snippet_pools); without a graph set (modb.graph) it chooses among the newest current transition graph over that data (modb.default_graph), or says with a NOTICE that there is none; SET modb.graph = ''none'' for the paper''s plain rule. annotations (''walk, !run'') keeps the chain to snippets so annotated, as modb.annotations does. Its first frame stands in for the previous snippet''s last; start_time is the time of that frame. The chain ends early when nothing can follow (every candidate excluded)';
 
 
+CREATE INDEX snippet_blocks_directory_idx ON modb.snippet_blocks (pose_key, fps, pack_order)
+    INCLUDE (low, high, input_bounds);
+
+-- What to run next, where it is seen (an extension script shows WARNINGs, not NOTICEs).
+DO $$
+BEGIN
+    IF EXISTS (SELECT FROM modb.snippet_blocks) THEN
+        RAISE WARNING 'modb 0.18.0: the snippet blocks have no term codes yet; selections answer as in 0.17.0 until they are derived again'
+            USING HINT = 'Run SELECT * FROM modb.pack_snippet_blocks(0); once (it runs beside live selections: about 30 s a million snippets). modb db start and the next load do it by themselves.';
+    END IF;
+END
+$$;
 -- PL/Python functions re-created with the 0.18.0 kernel
 CREATE OR REPLACE FUNCTION modb.forward_kinematics(hierarchy jsonb, rotations real[], translations real[])
 RETURNS TABLE (frame int, joint_index int, joint text, x float8, y float8, z float8)
@@ -1660,8 +1676,3 @@ return kernel.edits.script_errors(json.loads(commands))
 $py$;
 COMMENT ON FUNCTION modb.edit_script_problems(jsonb) IS
     'Why a list of edit commands cannot run whatever the clip (not a non-empty list of known commands with parameters of the right types and ranges): one message each, empty when it can';
-
--- Every block derived again, with its term codes (the loader packs every pose after a load the same way).
-SELECT count(*) AS pose_groups FROM modb.pack_snippet_blocks(0);
-CREATE INDEX snippet_blocks_directory_idx ON modb.snippet_blocks (pose_key, fps, pack_order)
-    INCLUDE (low, high, input_bounds);
