@@ -172,14 +172,15 @@ group_of(const char *pose_key, int length, double fps)
 		directory.groups_capacity = Max(8, 2 * directory.groups_capacity);
 		directory.groups = directory.groups
 			? repalloc(directory.groups, sizeof(PoseGroup) * directory.groups_capacity)
-			: palloc(sizeof(PoseGroup) * directory.groups_capacity);
+			: MemoryContextAlloc(directory_context, sizeof(PoseGroup) * directory.groups_capacity);
 	}
 	g = &directory.groups[directory.n_groups++];
-	g->pose_key = pnstrdup(pose_key, length);
+	g->pose_key = MemoryContextAllocZero(directory_context, length + 1);
+	memcpy(g->pose_key, pose_key, length);
 	g->fps = fps;
 	g->count = 0;
 	g->capacity = 256;
-	g->entries = palloc(sizeof(Entry) * g->capacity);
+	g->entries = MemoryContextAlloc(directory_context, sizeof(Entry) * g->capacity);
 	g->supers = NULL;
 	return g;
 }
@@ -353,14 +354,17 @@ read_table(Relation rel)
 static void
 read_directory(Relation rel, int64 generation)
 {
-	MemoryContext old;
+	MemoryContext old,
+				reading;
 
 	if (directory_context == NULL)
 		directory_context = AllocSetContextCreate(TopMemoryContext, "modb block directory", ALLOCSET_DEFAULT_SIZES);
 	directory.valid = false;
 	MemoryContextReset(directory_context);
 	memset(&directory, 0, sizeof(directory));
-	old = MemoryContextSwitchTo(directory_context);
+	/* The scan's own allocations (and copies of what it reads) go with this; the directory's are its own. */
+	reading = AllocSetContextCreate(CurrentMemoryContext, "modb block directory reading", ALLOCSET_DEFAULT_SIZES);
+	old = MemoryContextSwitchTo(reading);
 	if (!read_index(rel))
 		read_table(rel);
 	for (int k = 0; k < directory.n_groups; k++)
@@ -371,7 +375,8 @@ read_directory(Relation rel, int64 generation)
 		qsort(g->entries, g->count, sizeof(Entry), entry_order);
 		/* what the doubling left unused goes back (a session keeps these) */
 		g->entries = repalloc(g->entries, sizeof(Entry) * Max(g->count, 1));
-		g->supers = palloc(sizeof(Box16) * Max((g->count + SUPER_BLOCKS - 1) / SUPER_BLOCKS, 1));
+		g->supers = MemoryContextAlloc(directory_context,
+									   sizeof(Box16) * Max((g->count + SUPER_BLOCKS - 1) / SUPER_BLOCKS, 1));
 		for (int e = 0; e < g->count; e++)
 		{
 			Box16	   *box = &g->entries[e].box;
@@ -385,6 +390,7 @@ read_directory(Relation rel, int64 generation)
 		}
 	}
 	MemoryContextSwitchTo(old);
+	MemoryContextDelete(reading);
 	directory.relid = RelationGetRelid(rel);
 	directory.relfilenode = rel->rd_node.relNode;
 	directory.generation = generation;
