@@ -72,9 +72,9 @@ def _set_knobs(conn, knobs: dict) -> None:
         conn.execute("SELECT set_config(%s, %s, false)", [f"modb.{knob}", knobs.get(knob, "")])
 
 
-def _every_level(dsn: str, seed: int, knobs: dict) -> None:
-    """Seeded requests until every relaxation level 0-4 answered PER_LEVEL of them: the fast path's
-    rows (ids, levels, order, proximity, continuity) are the reference's."""
+def _every_level(dsn: str, seed: int, knobs: dict, per_level_wanted: int = PER_LEVEL) -> None:
+    """Seeded requests until every relaxation level 0-4 answered per_level_wanted of them: the fast
+    path's rows (ids, levels, order, proximity, continuity) are the reference's."""
     rng = random.Random(seed)
     per_level = {level: 0 for level in range(5)}
     fast_answers = 0
@@ -85,7 +85,7 @@ def _every_level(dsn: str, seed: int, knobs: dict) -> None:
             r[0] for r in conn.execute("SELECT modb.collection_path(id) FROM modb.collections")
         ]
         for i in range(3000):
-            if min(per_level.values()) >= PER_LEVEL:
+            if min(per_level.values()) >= per_level_wanted:
                 break
             f = rng.choice(TIGHTNESS)
             _set_tightness(conn, f)
@@ -111,8 +111,8 @@ def _every_level(dsn: str, seed: int, knobs: dict) -> None:
                     fast_answers += 1
         _set_tightness(conn, None)
         _set_knobs(conn, {})
-    assert min(per_level.values()) >= PER_LEVEL, per_level
-    assert fast_answers >= 20
+    assert min(per_level.values()) >= per_level_wanted, per_level
+    assert fast_answers >= per_level_wanted * 2 // 5  # 20 of the default 50
 
 
 def test_fast_path_equals_the_reference_at_every_level(cmu):
@@ -121,8 +121,9 @@ def test_fast_path_equals_the_reference_at_every_level(cmu):
 
 def test_fast_path_equals_the_reference_with_odd_user_thresholds(cmu):
     """Term codes bound every term a profile can name: a profile that names few joints, compares
-    positions by the L1 norm and leaves velocities out gets the reference's rows at every level."""
-    _every_level(cmu, 29, ODD_KNOBS)
+    positions by the L1 norm and leaves velocities out gets the reference's rows at every level
+    (15 requests a level here; `modb bench tail` compares hundreds more)."""
+    _every_level(cmu, 29, ODD_KNOBS, 15)
 
 
 def test_fast_path_equals_the_reference_with_a_transition_graph(locomotion):
