@@ -172,12 +172,12 @@ KINDS = {
         "SELECT snippet_id FROM modb.select_next_snippet(%s, %s, 'default', NULL, %s)",
         lambda prev, target, excluded: [prev, target, excluded],
     ),
-    "coming to rest after the last goal (select_synthesis_step)": (
+    "coming to rest": (
         "SELECT snippet_id FROM modb.select_synthesis_step(%s, '{0,0,0}', 0, %s, 'default', NULL, "
         "NULL, true)",
         lambda prev, target, excluded: [prev, target],
     ),
-    "setting off again (select_synthesis_step)": (
+    "setting off": (
         "SELECT snippet_id FROM modb.select_synthesis_step(%s, '{0,0,0}', 0, %s, 'default', NULL, "
         "NULL, false)",
         lambda prev, target, excluded: [prev, target],
