@@ -1006,23 +1006,22 @@ fast_path(Request *r, Tuplestorestate *store, TupleDesc out, SelectionStats *sta
 	return emitted >= r->k;
 }
 
-/* The reference query's answer (the rule itself), put into the store. */
+/* The rows of a reference function (its query, with the call's first nargs arguments), put into the store. */
 static void
-reference(FunctionCallInfo fcinfo, Tuplestorestate *store, TupleDesc out)
+reference_rows(FunctionCallInfo fcinfo, SPIPlanPtr *slot, const char *query, int nargs, Oid *types,
+			   Tuplestorestate *store, TupleDesc out)
 {
-	static SPIPlanPtr query;
-	Oid			types[6] = {INT8OID, FLOAT8ARRAYOID, INT4OID, TEXTOID, TEXTOID, INT8ARRAYOID};
-	Datum		args[6];
-	char		nulls[6];
+	Datum		args[8];
+	char		nulls[8];
 
-	for (int i = 0; i < 6; i++)
+	for (int i = 0; i < nargs; i++)
 	{
 		nulls[i] = PG_ARGISNULL(i) ? 'n' : ' ';
 		args[i] = PG_ARGISNULL(i) ? (Datum) 0 : PG_GETARG_DATUM(i);
 	}
-	modb_kept_plan(&query, "SELECT * FROM modb.select_next_snippets_reference($1, $2, $3, $4, $5, $6)", 6, types);
-	if (SPI_execute_plan(query, args, nulls, true, 0) != SPI_OK_SELECT)
-		elog(ERROR, "modb: the reference selection failed");
+	modb_kept_plan(slot, query, nargs, types);
+	if (SPI_execute_plan(*slot, args, nulls, true, 0) != SPI_OK_SELECT)
+		elog(ERROR, "modb: %s failed", query);
 	for (uint64 i = 0; i < SPI_processed; i++)
 	{
 		Datum		values[12];
@@ -1031,6 +1030,17 @@ reference(FunctionCallInfo fcinfo, Tuplestorestate *store, TupleDesc out)
 		heap_deform_tuple(SPI_tuptable->vals[i], SPI_tuptable->tupdesc, values, isnull);
 		tuplestore_putvalues(store, out, values, isnull);
 	}
+}
+
+/* The reference query's answer (the rule itself), put into the store. */
+static void
+reference(FunctionCallInfo fcinfo, Tuplestorestate *store, TupleDesc out)
+{
+	static SPIPlanPtr query;
+	Oid			types[6] = {INT8OID, FLOAT8ARRAYOID, INT4OID, TEXTOID, TEXTOID, INT8ARRAYOID};
+
+	reference_rows(fcinfo, &query, "SELECT * FROM modb.select_next_snippets_reference($1, $2, $3, $4, $5, $6)", 6,
+				   types, store, out);
 }
 
 void
@@ -1140,26 +1150,9 @@ ending_reference(FunctionCallInfo fcinfo, Tuplestorestate *store, TupleDesc out)
 {
 	static SPIPlanPtr query;
 	Oid			types[8] = {INT8OID, FLOAT8ARRAYOID, FLOAT8OID, FLOAT8ARRAYOID, TEXTOID, TEXTOID, INT8ARRAYOID, BOOLOID};
-	Datum		args[8];
-	char		nulls[8];
 
-	for (int i = 0; i < 8; i++)
-	{
-		nulls[i] = PG_ARGISNULL(i) ? 'n' : ' ';
-		args[i] = PG_ARGISNULL(i) ? (Datum) 0 : PG_GETARG_DATUM(i);
-	}
-	modb_kept_plan(&query, "SELECT * FROM modb.select_snippet_ending_reference($1, $2, $3, $4, $5, $6, $7, $8)", 8,
-				   types);
-	if (SPI_execute_plan(query, args, nulls, true, 0) != SPI_OK_SELECT)
-		elog(ERROR, "modb: the reference of coming to rest failed");
-	for (uint64 i = 0; i < SPI_processed; i++)
-	{
-		Datum		values[12];
-		bool		isnull[12];
-
-		heap_deform_tuple(SPI_tuptable->vals[i], SPI_tuptable->tupdesc, values, isnull);
-		tuplestore_putvalues(store, out, values, isnull);
-	}
+	reference_rows(fcinfo, &query, "SELECT * FROM modb.select_snippet_ending_reference($1, $2, $3, $4, $5, $6, $7, $8)",
+				   8, types, store, out);
 }
 
 /*
