@@ -46,13 +46,6 @@ scale_step(int kind)
 	return (kind_scale[kind][1] - kind_scale[kind][0]) / CODE_STEPS;
 }
 
-/* A terminator's term components, rotations as the representative with w >= 0; each w after them. */
-static bool
-components_of(const Terminator *t, double *out, double *w)
-{
-	return modb_term_components(t, out, w);
-}
-
 bool
 modb_term_components(const Terminator *t, double *out, double *w)
 {
@@ -94,7 +87,7 @@ modb_term_encode(const Terminator *snippets, int n, uint8 *bounds, uint8 *codes)
 		unit[j] = true;
 	for (int i = 0; i < n; i++)
 	{
-		components_of(&snippets[i], values + i * TERM_COMPONENTS, w);
+		modb_term_components(&snippets[i], values + i * TERM_COMPONENTS, w);
 		for (int j = 0; j < N_JOINTS; j++)
 			unit[j] &= !isnan(w[j]);
 	}
@@ -148,7 +141,6 @@ gap_sq(double x, double low, double high)
 
 #define WHOLE_BLOCK (-1)
 
-static double least_sq(const TermTest *test, int t, const TermBlock *block, int i);
 
 /* A term's interval per component: the block's bounds (i = WHOLE_BLOCK), or snippet i's code within them. */
 static inline void
@@ -220,7 +212,7 @@ modb_term_test(TermTest *test, const Terminator *end, const Thresholds *t, doubl
 	int			order[N_JOINTS * N_TERM_KINDS];
 	int			n = 0;
 
-	components_of(end, test->query, w);
+	modb_term_components(end, test->query, w);
 	for (int j = 0; j < N_JOINTS; j++)
 	{
 		const float *q = end->rotations + 4 * j;
@@ -262,27 +254,20 @@ modb_term_test(TermTest *test, const Terminator *end, const Thresholds *t, doubl
 		double		threshold = (k == 0 ? t->position : k == 1 ? t->angle : k == 2 ? t->velocity
 								 : t->angular_velocity)[j];
 		double		limit = threshold * high;
+		const float *q = end->rotations + 4 * j;
+		/* S = 2|a|^2 + 2|b|^2 at most, for a rotation: min chord^2 + max chord^2 = S */
+		double		s_max = 2 * ((double) q[0] * q[0] + (double) q[1] * q[1] + (double) q[2] * q[2]
+								 + (double) q[3] * q[3]) + 2 * (1 + UNIT_SLACK);
 
 		test->joint[s] = j;
 		test->kind[s] = k;
-		test->ratio_factor[s] = 1 / (threshold * threshold);
-		if (k == 1)
-		{
-			/* angle = 4 asin(chord / sqrt(S)) >= 4 chord / sqrt(S) */
-			const float *q = end->rotations + 4 * j;
-			double		s_max = 2 * ((double) q[0] * q[0] + (double) q[1] * q[1] + (double) q[2] * q[2]
-									 + (double) q[3] * q[3]) + 2 * (1 + UNIT_SLACK);
-
-			test->ratio_factor[s] *= 16 / s_max;
-		}
+		/* a rotation's angle = 4 asin(chord / sqrt(S)) >= 4 chord / sqrt(S) */
+		test->ratio_factor[s] = (k == 1 ? 16 / s_max : 1.0) / (threshold * threshold);
 		if (k != 1)
 			test->limit_sq[s] = limit * limit * (1 + LIMIT_SLACK);
 		else if (limit / 4 < M_PI / 2)
 		{
-			/* angle > limit  <=  chord / sqrt(S) > sin(limit / 4), S = 2|a|^2 + 2|b|^2 */
-			const float *q = end->rotations + 4 * j;
-			double		s_max = 2 * ((double) q[0] * q[0] + (double) q[1] * q[1] + (double) q[2] * q[2]
-									 + (double) q[3] * q[3]) + 2 * (1 + UNIT_SLACK);
+			/* angle > limit  <=  chord / sqrt(S) > sin(limit / 4) */
 			double		sine = sin(limit / 4);
 
 			test->limit_sq[s] = s_max * sine * sine * (1 + LIMIT_SLACK);
