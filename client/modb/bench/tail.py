@@ -7,6 +7,8 @@ rule bounded where the scan reads). Per database, with the server's settings and
   and the share of requests each relaxation level answered;
 - pgbench with the shipped script at 1, 2 and 8 clients prepared, and 2 clients -M simple;
 - modb.explain_selection's stages (blocks met and read, candidates, rows read) on 500 requests;
+- every other selection kind on the same requests: k-best, exclusion list, coming to rest, setting
+  off, an annotation spec, and the newest transition graph with and without its cost-to-go;
 - exactness: seeded requests, every shipped profile and one of odd user thresholds, thresholds
   scaled down to reach every relaxation level, against the reference function (the rule), whose
   time per call is the baseline of the same run;
@@ -185,21 +187,49 @@ KINDS = {
 }
 
 
+def _graph_kinds(conn: psycopg.Connection) -> dict[str, dict[str, str]]:
+    """The newest transition graph's kinds (its cost-to-go ranking, and without it), if any."""
+    row = conn.execute(
+        "SELECT name FROM modb.graphs WHERE kind = 'transitions' ORDER BY id DESC LIMIT 1"
+    ).fetchone()
+    if row is None:
+        return {}
+    return {
+        f"graph {row[0]}, cost-to-go": {"modb.graph": row[0]},
+        f"graph {row[0]}, no cost-to-go": {"modb.graph": row[0], "modb.graph_cost_to_go": "off"},
+    }
+
+
 def kinds(dsn: str, requests: list, seed: int) -> dict[str, list[float]]:
-    """Each kind's times over the requests, prepared, after a first call (psycopg)."""
+    """Each kind's times over the requests, prepared, after a first call (psycopg): KINDS, the
+    plain call under an annotation spec, and with the newest transition graph (its snippets as
+    the previous ones) when the database has one."""
     rng = np.random.default_rng(seed)
     out: dict[str, list[float]] = {}
+    plain = ("SELECT snippet_id FROM modb.select_next_snippet(%s, %s)", lambda p, t, x: [p, t])
     with psycopg.connect(dsn, autocommit=True) as conn:
         ids = np.array([r[0] for r in conn.execute("SELECT id FROM modb.snippets ORDER BY id")])
         excluded = [[int(v) for v in rng.choice(ids, 20)] for _ in requests]
-        for name, (sql, params) in KINDS.items():
-            prev, target = requests[0]
+        runs = [(name, query, {}, requests) for name, query in KINDS.items()]
+        runs.append(("annotations '!fall'", plain, {"modb.annotations": "!fall"}, requests))
+        for name, settings in _graph_kinds(conn).items():
+            kept = np.array([r[0] for r in conn.execute(
+                "SELECT snippet_id FROM modb.graph_snippets s JOIN modb.graphs g ON g.id = s.graph_id"
+                " WHERE g.name = %s ORDER BY 1", [settings["modb.graph"]])])
+            graph_requests = [(int(rng.choice(kept)), target) for _, target in requests]
+            runs.append((name, plain, settings, graph_requests))
+        for name, (sql, params), settings, kind_requests in runs:
+            for knob, value in settings.items():
+                conn.execute("SELECT set_config(%s, %s, false)", [knob, value])
+            prev, target = kind_requests[0]
             conn.execute(sql, params(prev, target, excluded[0]), prepare=True).fetchall()
             out[name] = []
-            for (prev, target), x in zip(requests, excluded):
+            for (prev, target), x in zip(kind_requests, excluded):
                 t = time.perf_counter()
                 conn.execute(sql, params(prev, target, x), prepare=True).fetchall()
                 out[name].append((time.perf_counter() - t) * 1000)
+            for knob in settings:
+                conn.execute(f"RESET {knob}")
     return out
 
 
