@@ -1,17 +1,20 @@
-"""Whether two sources on one skeleton chain into each other (issue 26, item 5; BENCHMARKS.md "Mixed
-pools"): for every 10th snippet of each, the relaxation level at which the other source first gives
-a continuation (`modb.select_next_snippet` kept to the other collection, no graph, a goal 2 m
-ahead); then seeded courses synthesized on the default path over their common pool: each source's
-share of the snippets, the seams between sources and the quality aims.
+"""Whether two sources in one pool chain into each other (BENCHMARKS.md "Mixed pools"): for every
+10th snippet of each, the relaxation level at which the other source first gives a continuation
+(`modb.select_next_snippet` kept to the other collection, no graph, a goal 2 m ahead); then seeded
+60 s courses synthesized over the pool on the user's path (`modb synth --collection POOL`: the
+default profile and graph, the graph built first when there is none): each source's share of the
+snippets against its share of the pool, the seams between the sources and their levels, and the
+quality aims.
 
-    .venv/bin/python bench/cross_source.py "host=/var/lib/modb/run dbname=mix4 user=postgres" \
-        cmu bandai 60 1,2,3
+    .venv/bin/python bench/cross_source.py "host=/var/lib/modb/run dbname=mix16 user=postgres" \
+        mixa mixa/cmu16 mixa/bandai 60 1,2,3
 """
 
 import sys
 from collections import Counter
 
 from modb.bench.synth import seeded_course
+from modb.cli.synth import prepare_default_graph
 from modb.database.connection import connect
 from modb.synthesis.avatar import Settings
 from modb.synthesis.synth import report, synthesize
@@ -19,33 +22,60 @@ from modb.synthesis.synth import report, synthesize
 LEVELS = """
 SELECT n.relax_level, count(*)
   FROM modb.snippets s
-  JOIN modb.collections c ON c.id = s.collection_id
-  CROSS JOIN LATERAL modb.select_next_snippet(s.id, ARRAY[0, 2.0], NULL, %(other)s, NULL) n
- WHERE c.name = %(one)s AND NOT s.mirrored AND s.first_frame %% 10 = 0
+  CROSS JOIN LATERAL modb.select_next_snippet(s.id, ARRAY[0, 2.0], %(profile)s, %(other)s, NULL) n
+ WHERE s.collection_id = ANY (modb.collection_subtree(%(one)s))
+   AND NOT s.mirrored AND s.first_frame %% 10 = 0
  GROUP BY 1 ORDER BY 1
+"""
+SOURCE_OF_CLIPS = """
+SELECT cl.id, %(name)s FROM modb.clips cl
+ WHERE cl.collection_id = ANY (modb.collection_subtree(%(name)s))
 """
 
 
-def main(dsn: str, one: str, other: str, seconds: float, seeds: list[int]) -> None:
+def continuations(conn, one: str, other: str, profile: str) -> dict[int, int]:
+    with conn.transaction():
+        conn.execute("SET LOCAL modb.graph = 'none'")
+        return dict(
+            conn.execute(LEVELS, {"one": one, "other": other, "profile": profile}).fetchall()
+        )
+
+
+def main(
+    dsn: str, pool: str, one: str, other: str, seconds: float, seeds: list[int], profile: str
+) -> None:
     with connect(dsn) as conn:
         for a, b in ((one, other), (other, one)):
-            with conn.transaction():
-                conn.execute("SET LOCAL modb.graph = 'none'")
-                levels = dict(conn.execute(LEVELS, {"one": a, "other": b}).fetchall())
+            levels = continuations(conn, a, b, profile)
             print(f"{a} -> {b}: snippets by the level of their first continuation in {b}: {levels}")
-        source = dict(
-            conn.execute(
-                "SELECT cl.id, c.name FROM modb.clips cl JOIN modb.collections c "
-                "ON c.id = cl.collection_id WHERE c.name = ANY (%s)",
-                [[one, other]],
-            ).fetchall()
+        source = {}
+        for name in (one, other):
+            source.update(conn.execute(SOURCE_OF_CLIPS, {"name": name}).fetchall())
+        pool_counts = Counter(
+            source.get(clip_id, "other")
+            for (clip_id,) in conn.execute(
+                "SELECT clip_id FROM modb.snippets WHERE NOT mirrored "
+                "AND collection_id = ANY (modb.collection_subtree(%s))",
+                [pool],
+            )
         )
-        print("| seed | snippets | " + " | ".join(f"from {n}" for n in (one, other)) + " | seams "
-              "between them (their levels) | aims met |")  # fmt: skip
-        print("|---|---|---|---|---|---|")
+        total = sum(pool_counts.values())
+        print(
+            f"pool {pool}: "
+            + ", ".join(
+                f"{n} {pool_counts[n] / total:.1%} of {total:,} snippets" for n in (one, other)
+            )
+        )
+        settings = Settings(profile=profile, collection=pool)
+        prepare_default_graph(conn, settings, None, quiet=True)
+        print(
+            "| seed | snippets | " + " | ".join(f"from {n}" for n in (one, other))
+            + " | seams between them (their levels) | aims met | pose jump max (sources p99.9) |"
+        )  # fmt: skip
+        print("|---|---|---|---|---|---|---|")
         for seed in seeds:
             goals = seeded_course(seed, n_goals=int(seconds // 5) + 1)
-            result = synthesize(conn, goals, seconds, Settings())
+            result = synthesize(conn, goals, seconds, settings)
             names = [source.get(c.clip_id, "other") for c in result.chain]
             counts = Counter(names)
             crossings = [
@@ -53,12 +83,15 @@ def main(dsn: str, one: str, other: str, seconds: float, seeds: list[int]) -> No
                 for x, y, c in zip(names, names[1:], result.chain[1:], strict=False)
                 if x != y
             ]
-            aims = report(conn, result).aims
+            r = report(conn, result)
+            failed = [name for name, ok in r.aims.items() if ok is False]
             print(
                 f"| {seed} | {len(names)} | "
                 + " | ".join(f"{counts[n] / len(names):.0%}" for n in (one, other))
                 + f" | {len(crossings)} {crossings} | "
-                f"{sum(1 for v in aims.values() if v)} of {len(aims)} |"
+                f"{sum(1 for v in r.aims.values() if v)} of {len(r.aims)}"
+                + (f" (missed: {', '.join(failed)})" if failed else "")
+                + f" | {100 * r.pose_jump_max:.1f} cm ({100 * r.natural_pose_jump_p999:.1f}) |"
             )
 
 
@@ -67,6 +100,8 @@ if __name__ == "__main__":
         sys.argv[1],
         sys.argv[2],
         sys.argv[3],
-        float(sys.argv[4]),
-        [int(s) for s in sys.argv[5].split(",")],
+        sys.argv[4],
+        float(sys.argv[5]),
+        [int(s) for s in sys.argv[6].split(",")],
+        sys.argv[7] if len(sys.argv) > 7 else "default",
     )

@@ -15,6 +15,7 @@ import psycopg
 from modb.motion import Motion
 
 from .errors import MotionFileError
+from .licences import LICENCE_KEYS
 from .sources import SourceFile
 from .reading import ReadOptions, read_key, read_source
 from .sidecars import file_meta
@@ -240,7 +241,19 @@ def store_motion(
 def _new_version_meta(
     conn: psycopg.Connection, clip_id: int, n_frames: int, given: dict | None
 ) -> tuple[dict, str]:
-    """A new version's meta and what to say about the previous version's (see store_motion)."""
+    """A new version's meta and what to say about the previous version's (see store_motion); a
+    licence the new file states or finds replaces the previous version's, which stays otherwise."""
+    given = dict(given or {})
+    terms = {k: given.pop(k) for k in LICENCE_KEYS if k in given}
+    meta, note = _carried_meta(conn, clip_id, n_frames, given)
+    if terms:
+        meta = {**{k: v for k, v in meta.items() if k not in LICENCE_KEYS}, **terms}
+    return meta, note
+
+
+def _carried_meta(
+    conn: psycopg.Connection, clip_id: int, n_frames: int, given: dict
+) -> tuple[dict, str]:
     previous = conn.execute(
         "SELECT version, n_frames, meta FROM modb.clip_versions WHERE clip_id = %s "
         "ORDER BY version DESC LIMIT 1",
@@ -357,7 +370,9 @@ def _load_one(
             )
         motion = read_source(source, options, raw)
         del raw  # a large file's bytes need not outlive its parse
-        meta = file_meta(source.path, motion.n_frames, source.folder, options.labels)
+        meta = file_meta(
+            source.path, motion.n_frames, source.folder, options.labels, options.licence
+        )
         clip_id, version, added, note = store_motion(
             conn, motion, source.collection, key, snippets, mirrored, meta
         )

@@ -23,6 +23,7 @@ class ReadOptions:
     allow_truncated: bool = False  # AMC only: drop an incomplete last frame
     warn: Callable[[str], None] | None = None
     labels: Labels = field(default_factory=Labels)  # the dataset's label files, read once a load
+    licence: str | None = None  # --licence: the terms of every file of the load
     _asf_cache: dict[tuple[Folder, Hashable], AsfSkeleton] = field(default_factory=dict)
 
     def asf(self, path: Path, folder: Folder = DISK) -> AsfSkeleton:

@@ -5,6 +5,7 @@
 - Bandai Namco's X.json ({"content": i, "style": j}) with ../cfg/content_label.txt and
   style_label.txt: the clip's tags are the two labels without the dataset prefix (e.g. "walk",
   "chimpira").
+- Its terms of use (licences.py): the licence the load states, else the nearest licence file.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from typing import Any
 from .annotations import AnnotationError, checked, checked_tags
 from .errors import MotionFileError
 from .folders import DISK, Folder
+from .licences import licence_of
 
 SIDECAR = ".annotations.json"
 
@@ -72,11 +74,15 @@ def _bandai_tags(motion_file: Path, folder: Folder, labels: Labels) -> list[str]
 
 
 def file_meta(
-    motion_file: Path, n_frames: int, folder: Folder = DISK, labels: Labels | None = None
+    motion_file: Path,
+    n_frames: int,
+    folder: Folder = DISK,
+    labels: Labels | None = None,
+    licence: str | None = None,
 ) -> dict[str, Any]:
     """The meta the files beside `motion_file` give its new version ({} when none); `labels`: the
-    label files this load has read."""
-    meta: dict[str, Any] = {}
+    label files this load has read; `licence`: the terms the load states (else a licence file's)."""
+    meta: dict[str, Any] = dict(licence_of(motion_file, folder, licence) or {})
     tags = _bandai_tags(motion_file, folder, labels or Labels())
     side = sidecar_path(motion_file)
     if folder.is_file(side):

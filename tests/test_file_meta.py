@@ -1,6 +1,7 @@
 """What the loader stores in a version's meta (issue 25): a sidecar X.annotations.json's segments
-and tags, Bandai Namco's own X.json content and style labels as tags, and a new version's meta
-carried over from the previous one (its annotations only when the frame count is the same)."""
+and tags, Bandai Namco's own X.json content and style labels as tags, the dataset's licence (issue
+41), and a new version's meta carried over from the previous one (its annotations only when the
+frame count is the same)."""
 
 from __future__ import annotations
 
@@ -32,7 +33,9 @@ def test_bandai_labels_become_tags(fresh_db, db):
             for key in ("content", "style")
         ]
         ((_, _, meta),) = stored_meta(db, f.stem)
-        assert meta == {"tags": labels}
+        licence = data.parent / "LICENSE"  # the dataset's terms, a folder above its files
+        title = next(line.strip() for line in licence.read_text().splitlines() if line.strip())
+        assert meta == {"tags": labels, "licence": title, "licence_file": str(licence.resolve())}
         assert labels[0] in f.stem and labels[1] in f.stem  # the file's own name agrees
 
 

@@ -15,11 +15,11 @@ import os
 
 import numpy as np
 import pygltflib as gl
-
 from modb_kernel import kinematics
 
 from modb.motion import Motion, Skeleton
 from modb.output import open_output
+from modb.provenance import credits
 
 CAPSULE_SIDES = 10  # around a bone
 CAPSULE_CAP_RINGS = 3  # per hemisphere
@@ -130,6 +130,10 @@ def to_gltf(motion: Motion) -> gl.GLTF2:
     sk = motion.skeleton
     n_joints = len(sk.joints)
     gltf = gl.GLTF2(asset=gl.Asset(version="2.0", generator="modb"), scene=0)
+    sources = motion.meta.get("sources")
+    if sources:  # a strip's sources and their terms (modb.provenance)
+        gltf.asset.copyright = credits(sources)
+        gltf.asset.extras = {"sources": sources}
     buffer = _Buffer(gltf)
     translated = sk.translated
     rest_local = sk.offsets.copy()

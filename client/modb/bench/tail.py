@@ -213,9 +213,16 @@ def kinds(dsn: str, requests: list, seed: int) -> dict[str, list[float]]:
         runs = [(name, query, {}, requests) for name, query in KINDS.items()]
         runs.append(("annotations '!fall'", plain, {"modb.annotations": "!fall"}, requests))
         for name, settings in _graph_kinds(conn).items():
-            kept = np.array([r[0] for r in conn.execute(
-                "SELECT snippet_id FROM modb.graph_snippets s JOIN modb.graphs g ON g.id = s.graph_id"
-                " WHERE g.name = %s ORDER BY 1", [settings["modb.graph"]])])
+            kept = np.array(
+                [
+                    r[0]
+                    for r in conn.execute(
+                        "SELECT snippet_id FROM modb.graph_snippets s JOIN modb.graphs g"
+                        " ON g.id = s.graph_id WHERE g.name = %s ORDER BY 1",
+                        [settings["modb.graph"]],
+                    )
+                ]
+            )
             graph_requests = [(int(rng.choice(kept)), target) for _, target in requests]
             runs.append((name, plain, settings, graph_requests))
         for name, (sql, params), settings, kind_requests in runs:

@@ -5,6 +5,7 @@ writing output files."""
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 
 import psycopg
@@ -12,6 +13,7 @@ import psycopg
 from modb.database.dsn import resolve
 from modb.loader.limits import FPS_RANGE
 from modb.output import output_target
+from modb.provenance import credits
 from modb.validation import checked_number, number_range
 
 
@@ -98,18 +100,30 @@ def writable(command: str, path: str | None) -> bool:
     return True
 
 
+SOURCES_SUFFIX = ".sources.json"  # beside a BVH file: its sources and their terms
+
+
 def write_bvh_file(command: str, motion, path: str) -> bool:
     """Writes `motion` to `path` (`-`: standard output); if it cannot, False, with the reason on
     stderr."""
     from modb.bvh_export import write_bvh_file  # numpy (70 ms): not for `modb --help`
 
+    sources = motion.meta.get("sources")
     try:
         write_bvh_file(motion, path, allow_stdout=True)
+        if sources and path != "-":  # BVH has no place for them: a file beside it
+            with open(path + SOURCES_SUFFIX, "w", encoding="utf-8") as f:
+                json.dump({"sources": sources}, f, indent=2)
     except BrokenPipeError:
         raise  # the reader left early (`modb export X | head`): main() exits 0
     except OSError as e:
         print(f"modb {command}: cannot write {path}: {e.strerror or e}", file=sys.stderr)
         return False
+    if sources and path == "-":
+        print(
+            f"modb {command}: the motion's sources and their terms: {credits(sources)}",
+            file=sys.stderr,
+        )
     return True
 
 

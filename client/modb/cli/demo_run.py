@@ -12,6 +12,7 @@ import psycopg
 
 from modb.bvh_export import write_bvh_file
 from modb.demo.data import DemoDataError, cmu_01_01, locomotion_files
+from modb.provenance import strip_sources
 from modb.synthesis.avatar import NoContinuation, Settings
 from modb.synthesis.defaults import NO_GRAPH
 from modb.synthesis.graphs import describe, ensure_graph
@@ -125,7 +126,8 @@ def run_demo(
             out.parent.mkdir(parents=True, exist_ok=True)
             write_bvh_file(with_root_motion(result.strip), out)
             rep = report(conn, result)
-            print(format_report(result, rep, clip_names(conn, result.chain)))
+            sources = strip_sources(conn, [c.clip_id for c in result.chain])
+            print(format_report(result, rep, clip_names(conn, result.chain), sources))
             unmet = [aim for aim, met in rep.aims.items() if met is False]
             if unmet:
                 print(_why_unmet(unmet, collection))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 
 from .common import FPS, VERSION, connect, motion_format, writable, write_motion_file
@@ -39,6 +40,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     # numpy and scipy (about 260 ms): not for `modb --help`
     from modb.clips import ClipNotFound, read_motion, resolve_clip
+    from modb.provenance import as_meta, strip_sources
     from modb.resample import at_fps
     from modb.synthesis.root_motion import with_root_motion
 
@@ -46,10 +48,13 @@ def run(args: argparse.Namespace) -> int:
         return 1
     with connect(args) as conn:
         try:
-            motion = read_motion(conn, resolve_clip(conn, args.clip), args.version)
+            clip_id = resolve_clip(conn, args.clip)
+            motion = read_motion(conn, clip_id, args.version)
         except ClipNotFound as e:
             print(f"modb export: {e}", file=sys.stderr)
             return 1
+        sources = as_meta(strip_sources(conn, [clip_id]))
+    motion = dataclasses.replace(motion, meta={**motion.meta, "sources": sources})
     if args.root_motion:
         motion = with_root_motion(motion)
     if args.fps:

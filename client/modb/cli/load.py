@@ -54,6 +54,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     load.add_argument(
         "--keep-going", action="store_true", help="load the good files, list the bad, exit non-zero"
     )
+    load.add_argument(
+        "--licence",
+        metavar="TEXT",
+        help="the terms of use of every file loaded (default: the first line of the nearest "
+        "LICENSE file in its folder or up to three folders above; exports of what is made from "
+        "the clips name it)",
+    )
     load.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     load.set_defaults(func=run)
 
@@ -69,6 +76,7 @@ def run(args: argparse.Namespace) -> int:
         asf=args.asf,
         snippets=not args.no_snippets,
         mirrored=args.mirror,
+        licence=args.licence,
         keep_going=args.keep_going,
         quiet=args.quiet,
     )
@@ -87,6 +95,7 @@ def load_paths(
     mirrored: bool = False,
     keep_going: bool = False,
     quiet: bool = False,
+    licence: str | None = None,
 ) -> int:
     """`modb load PATHS` (its options as arguments) on the database `connect()` opens: the loader's
     load_files with the command's progress bar, messages and exit status. `modb demo` and `modb
@@ -130,6 +139,7 @@ def load_paths(
             fps=fps,
             allow_truncated=allow_truncated,
             warn=lambda message: bar.write(f"warning: {message}", file=sys.stderr),
+            licence=licence,
         )
         summary = load_files(
             conn,

@@ -185,6 +185,7 @@ def prepare_default_graph(conn, settings, start: int | None, quiet: bool) -> Non
 
 def run(args: argparse.Namespace) -> int:
     # numpy, scipy and synthesis on them (about 300 ms): not for `modb --help`
+    from modb.provenance import as_meta, strip_sources
     from modb.resample import at_fps
     from modb.synthesis.foot_lock import lock_feet
     from modb.synthesis.root_motion import with_root_motion
@@ -256,6 +257,8 @@ def run(args: argparse.Namespace) -> int:
         strip = result.strip if args.in_place else with_root_motion(result.strip)
         if args.fps:
             strip = at_fps(strip, args.fps)
+        sources = strip_sources(conn, [c.clip_id for c in result.chain])
+        strip = dataclasses.replace(strip, meta={**strip.meta, "sources": as_meta(sources)})
         if not write_motion_file("synth", strip, args.out, motion_format(args.out)):
             return 1
         print(
@@ -271,9 +274,9 @@ def run(args: argparse.Namespace) -> int:
             try:
                 rep = report(conn, result)
                 if args.report:
-                    print(format_report(result, rep, clip_names(conn, result.chain)))
+                    print(format_report(result, rep, clip_names(conn, result.chain), sources))
                 if args.report_json:
-                    write_report_json(args.report_json, result, rep, allow_stdout=True)
+                    write_report_json(args.report_json, result, rep, sources, allow_stdout=True)
             except ValueError as e:
                 print(f"modb synth: no quality report: {e}", file=sys.stderr)
                 return 1

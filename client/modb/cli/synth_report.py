@@ -10,6 +10,7 @@ from collections.abc import Callable
 from tqdm import tqdm
 
 from modb.output import open_output
+from modb.provenance import StripSources, as_meta
 from modb.synthesis.quality import (
     MISSED,
     NOT_JUDGED,
@@ -27,7 +28,9 @@ def _ms(value: float | None) -> str:
     return "-" if value is None else f"{value:.1f}"
 
 
-def format_report(result: Synthesis, rep: Report, names: dict[int, str]) -> str:
+def format_report(
+    result: Synthesis, rep: Report, names: dict[int, str], sources: StripSources
+) -> str:
     """Every choice, then the summary."""
     lines = [
         "step  time s  snippet  clip (frames)                                   level  continuity  "
@@ -46,7 +49,7 @@ def format_report(result: Synthesis, rep: Report, names: dict[int, str]) -> str:
             f"{level:>5s}  "
             f"{continuity:>10s}  {_ms(c.latency_ms):>8s}  {c.goal}{' reached' if c.reached else ''}"
         )
-    return "\n".join(lines) + "\n\n" + format_summary(result, rep)
+    return "\n".join(lines) + "\n\n" + format_summary(result, rep) + "\n" + sources.summary()
 
 
 def format_summary(result: Synthesis, rep: Report) -> str:
@@ -126,12 +129,13 @@ def _reach_tally(outcomes: list[str]) -> str:
 
 
 def write_report_json(
-    path: str, result: Synthesis, rep: Report, allow_stdout: bool = False
+    path: str, result: Synthesis, rep: Report, sources: StripSources, allow_stdout: bool = False
 ) -> None:
     """The choices and figures as JSON, written through open_output (`-`: standard output if
     `allow_stdout`)."""
     data = {
         "report": rep.as_json(),
+        "sources": {"shares": as_meta(sources), "crossings": sources.crossings},
         "chain": [
             {
                 **{

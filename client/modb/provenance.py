@@ -1,0 +1,94 @@
+"""Where a clip's motion was captured and under which terms: a retargeted clip's origin is the clip
+it was made from (load_params.retargeted_from, followed back to a loaded file), its licence the one
+the loader recorded there (loader/licences.py). Exports of a synthesized strip name every source
+they draw from this way, and the avatar shows each chosen snippet's."""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Iterable, Sequence
+from dataclasses import asdict, dataclass
+
+import psycopg
+
+# Each clip's newest version, followed through its retargeted_from links (a version each) to the
+# first; the deepest row per clip is its origin.
+ORIGINS = """
+WITH RECURSIVE chain(clip_id, at_clip, at_version, depth) AS (
+    SELECT c.id, c.id, (SELECT max(v.version) FROM modb.clip_versions v WHERE v.clip_id = c.id), 0
+      FROM modb.clips c WHERE c.id = ANY (%s)
+    UNION ALL
+    SELECT chain.clip_id, (link->>'clip_id')::bigint, (link->>'version')::int, chain.depth + 1
+      FROM chain
+      JOIN modb.clip_versions v ON v.clip_id = chain.at_clip AND v.version = chain.at_version
+     CROSS JOIN LATERAL (SELECT v.load_params->'retargeted_from' AS link) l
+     WHERE jsonb_typeof(link) = 'object' AND chain.depth < 32
+)
+SELECT DISTINCT ON (chain.clip_id) chain.clip_id, modb.collection_path(c.collection_id), c.name,
+       v.meta->>'licence'
+  FROM chain
+  JOIN modb.clips c ON c.id = chain.at_clip
+  LEFT JOIN modb.clip_versions v ON v.clip_id = chain.at_clip AND v.version = chain.at_version
+ ORDER BY chain.clip_id, chain.depth DESC
+"""
+UNKNOWN_LICENCE = "licence not recorded (modb load --licence states it)"
+
+
+@dataclass(frozen=True)
+class Origin:
+    collection: str  # the collection the motion was loaded into
+    clip: str
+    licence: str | None
+
+
+@dataclass(frozen=True)
+class SourceShare:
+    """One source of a strip: a collection motion was loaded into, its licence, and how many of
+    the strip's snippets came from it."""
+
+    source: str
+    licence: str
+    snippets: int
+
+
+def origins(conn: psycopg.Connection, clip_ids: Iterable[int]) -> dict[int, Origin]:
+    ids = sorted(set(clip_ids))
+    return {row[0]: Origin(*row[1:]) for row in conn.execute(ORIGINS, [ids])}
+
+
+@dataclass(frozen=True)
+class StripSources:
+    shares: list[SourceShare]  # most used first
+    crossings: int  # seams from one source's snippet to another's
+
+    def summary(self) -> str:
+        total = sum(s.snippets for s in self.shares) or 1
+        return (
+            "sources: "
+            + "; ".join(f"{s.source} {s.snippets / total:.0%} ({s.licence})" for s in self.shares)
+            + f"; {self.crossings} seams between sources"
+        )
+
+
+def strip_sources(conn: psycopg.Connection, clip_ids: Sequence[int]) -> StripSources:
+    """The sources of a strip whose snippets came from `clip_ids` (one per snippet, in order)."""
+    found = origins(conn, clip_ids)
+    keys = [
+        (found[c].collection, found[c].licence or UNKNOWN_LICENCE) if c in found else None
+        for c in clip_ids
+    ]
+    counts = Counter(k for k in keys if k is not None)
+    return StripSources(
+        [SourceShare(s, licence, n) for (s, licence), n in counts.most_common()],
+        sum(1 for a, b in zip(keys, keys[1:], strict=False) if a != b),
+    )
+
+
+def as_meta(sources: StripSources) -> list[dict]:
+    """As a Motion's meta["sources"] holds them: what exports write (BVH beside it, glTF inside)."""
+    return [asdict(s) for s in sources.shares]
+
+
+def credits(sources: Sequence[dict]) -> str:
+    """One line naming every source of meta["sources"] and its terms (glTF's asset.copyright)."""
+    return "; ".join(f"{s['source']}: {s['licence']}" for s in sources)

@@ -1,0 +1,86 @@
+"""Each source's name and terms follow its motion (issue 41, item 4): the loader records the licence
+a load states or the nearest LICENSE file's title, retargeted clips lead back to the clip they were
+made from, and exports name every source with its terms (glTF inside the file, BVH beside it)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import pygltflib
+
+from support.commands import run_modb
+from support.data import mocap
+
+CMU_TERMS = "CMU Graphics Lab Motion Capture Database terms"
+
+
+def first_line(path) -> str:
+    return next(line.strip() for line in path.read_text().splitlines() if line.strip())
+
+
+def version_meta(db, collection: str, name: str) -> dict:
+    return db.execute(
+        "SELECT v.meta FROM modb.clip_versions v JOIN modb.clips c ON c.id = v.clip_id "
+        "WHERE c.collection_id = modb.find_collection(%s) AND c.name = %s "
+        "ORDER BY v.version DESC LIMIT 1",
+        [collection, name],
+    ).fetchone()[0]
+
+
+def test_sources_and_terms_follow_the_motion_into_exports(fresh_db, db, tmp_path):
+    walk = mocap("bandai-2-dev", "data", "dataset-2_walk_active_001.bvh")
+    cmu = mocap("cmu", "16")
+    for args in (
+        [walk, "--collection", "bandai"],
+        [cmu / "16_15.amc", "--asf", cmu / "16.asf", "--collection", "cmu16", "--licence", CMU_TERMS],
+    ):
+        r = run_modb(fresh_db, "load", *args, "-q")
+        assert r.returncode == 0, r.stderr
+    bandai_licence = mocap("bandai-2-dev", "LICENSE")
+    meta = version_meta(db, "bandai", walk.stem)
+    assert meta["licence"] == first_line(bandai_licence)  # "Attribution-NonCommercial 4.0 ..."
+    assert meta["licence_file"] == str(bandai_licence.resolve())
+    assert version_meta(db, "cmu16", "16_15")["licence"] == CMU_TERMS
+
+    # a copy in a folder without a licence file above it states none
+    alone = tmp_path / "alone.bvh"
+    shutil.copy(walk, alone)
+    assert run_modb(fresh_db, "load", alone, "--collection", "alone", "-q").returncode == 0
+    assert "licence" not in version_meta(db, "alone", "alone")
+
+    # retargeted onto the Bandai rig, exported: the glTF names the CMU capture and its terms
+    r = run_modb(fresh_db, "retarget", "cmu16", "--to", f"bandai/{walk.stem}", "--fps", "30",
+                 "--collection", "mixed/cmu16", "-q")  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    glb = tmp_path / "cmu_on_bandai.glb"
+    r = run_modb(fresh_db, "export", "mixed/cmu16/16_15", "--out", glb)
+    assert r.returncode == 0, r.stderr
+    asset = pygltflib.GLTF2().load(str(glb)).asset
+    assert asset.copyright == f"cmu16: {CMU_TERMS}"
+    (source,) = asset.extras["sources"]
+    assert (source["source"], source["licence"]) == ("cmu16", CMU_TERMS)
+
+    # a strip over both: the BVH's sidecar counts every snippet once, by its source
+    r = run_modb(fresh_db, "collection", "move", "bandai", "mixed")
+    assert r.returncode == 0, r.stderr
+    out = tmp_path / "strip.bvh"
+    report = tmp_path / "strip.json"
+    r = run_modb(fresh_db, "synth", "--to", "0,4", "--seconds", "6", "--collection", "mixed",
+                 "--out", out, "--report-json", report, "-q")  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    sources = json.loads((tmp_path / "strip.bvh.sources.json").read_text())["sources"]
+    chain = json.loads(report.read_text())["chain"]
+    origin = {"bandai": first_line(bandai_licence), "cmu16": CMU_TERMS}
+    expected = {}
+    for c in chain:  # the test's own origin of each chosen snippet: its clip's collection
+        (path,) = db.execute(
+            "SELECT modb.collection_path(collection_id) FROM modb.clips WHERE id = %s",
+            [c["clip_id"]],
+        ).fetchone()
+        name = "cmu16" if path == "mixed/cmu16" else "mixed/bandai"
+        expected[name] = expected.get(name, 0) + 1
+    got = {s["source"]: s["snippets"] for s in sources}
+    assert got == expected
+    for s in sources:
+        assert s["licence"] == origin[s["source"].split("/")[-1]]
