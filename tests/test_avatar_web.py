@@ -344,7 +344,8 @@ def assert_readouts_summarise_the_last_selections(driver) -> None:
     messages, cells = driver.execute_script(
         "return [window.modbAvatar.state.messages, Object.fromEntries(['latency', 'selections', "
         "'candidates', "
-        "'relax', 'seams', 'node'].map((id) => [id, document.getElementById(id).textContent]))]"
+        "'relax', 'seams', 'node', 'source']"
+        ".map((id) => [id, document.getElementById(id).textContent]))]"
     )
     choices = [m for m in messages if m["type"] == "choice"]
     last, window = choices[-1], choices[-50:]
@@ -370,8 +371,10 @@ def assert_readouts_summarise_the_last_selections(driver) -> None:
         "seams": f"r median {np.median(seams):.2f}, max {seams.max():.2f}; "
         f"{100 * np.mean(seams > 1):.0f}% over 1",
         "node": last["node"],  # the server has no standbys: every session on its primary
+        "source": last["source"]["collection"],  # where the snippet's motion was loaded
     }
     assert last["node"] == "primary"
+    assert all(c["source"] and c["source"]["collection"] for c in choices)
 
 
 def test_two_browser_connections_with_different_settings_do_not_affect_each_other(

@@ -6,6 +6,7 @@ from typing import Any
 
 import numpy as np
 
+from modb.provenance import Origin
 from modb.synthesis.avatar import Choice, Frame
 
 RECENT = 50  # the readouts summarise the last this many selections
@@ -32,11 +33,17 @@ def readout(choices: list[Choice]) -> dict[str, Any]:
 
 
 def choice_message(
-    choice: Choice, course: tuple[list, int, bool], choices: list[Choice], node: str | None = None
+    choice: Choice,
+    course: tuple[list, int, bool],
+    choices: list[Choice],
+    node: str | None = None,
+    origin: Origin | None = None,
 ) -> dict[str, Any]:
     return {
         "type": "choice",
         "node": node,  # the database server that chose it: a standby's name, or "primary"
+        # the collection its motion was loaded into (followed back through retargeting), its terms
+        "source": origin and {"collection": origin.collection, "licence": origin.licence},
         "step": choice.step,
         "snippet_id": choice.snippet_id,
         "clip_id": choice.clip_id,

@@ -21,6 +21,7 @@ from typing import Any
 import psycopg
 
 from modb.database.read_nodes import NoNode, Node, ReadNodes
+from modb.provenance import Origin, origins
 from modb.synthesis.avatar import Avatar, Choice, Frame, NoContinuation, Settings, checked_goal
 from modb.synthesis.placement import Placement
 from modb.synthesis.root_motion import with_root_motion
@@ -60,6 +61,7 @@ class AvatarSession:
         self._skeleton_sent: int | None = None
         # (clip, version) -> skeleton
         self._skeleton_of: dict[tuple[int, int], tuple[int, dict, str]] = {}
+        self._origin_of: dict[int, Origin] = {}  # clip -> where its motion was captured
         # The walk's frames, for downloads: the last KEEP_SECONDS of it (a deque drops the oldest).
         self._walk: deque[Frame] = deque()
 
@@ -207,7 +209,13 @@ class AvatarSession:
                         self._send({"type": "note", "message": "; ".join(avatar.notes)})
                         notes_sent = len(avatar.notes)
                     self._send(
-                        choice_message(choice, avatar.course, avatar.choices, self.node_name)
+                        choice_message(
+                            choice,
+                            avatar.course,
+                            avatar.choices,
+                            self.node_name,
+                            self._origin(avatar, choice.clip_id),
+                        )
                     )
                 self._keep(frame, choice.fps)
                 due = max(due, time.monotonic())  # after a stall, on from now: no burst to catch up
@@ -242,6 +250,16 @@ class AvatarSession:
     def node_name(self) -> str | None:
         node = self._node
         return None if node is None else node.name
+
+    def _origin(self, avatar: Avatar, clip_id: int) -> Origin | None:
+        """The source the chosen snippet's clip came from (once per clip); None when the lookup
+        fails: the readout shows none, the avatar walks on."""
+        if clip_id not in self._origin_of:
+            try:
+                self._origin_of.update(origins(avatar.conn, [clip_id]))
+            except psycopg.Error:
+                log.warning("the source of clip %s could not be read", clip_id, exc_info=True)
+        return self._origin_of.get(clip_id)
 
     def _skeleton(self, avatar: Avatar, choice: Choice) -> None:
         """The skeleton the page poses, when it changes: once per avatar for one-skeleton data."""

@@ -99,5 +99,9 @@ export class Tuning {
     $('seams').textContent = `r median ${fixed(r.seam_ratio_median, 2)}, max ${fixed(r.seam_ratio_max, 2)}; ${fixed(100 * (r.seam_rough_share || 0), 0)}% over 1`;
     $('snippet').textContent = `${choice.snippet_id} (clip ${choice.clip_id}${choice.mirrored ? ', mirrored' : ''})`;
     $('node').textContent = choice.node ?? '-'; // a standby's name, or "primary"
+    // where the snippet's motion was captured (a retargeted clip's origin) and under which terms
+    const source = choice.source;
+    $('source').textContent = source ? source.collection : '-';
+    $('source').title = source ? (source.licence || 'licence not recorded') : '';
   }
 }
