@@ -31,7 +31,7 @@ SELECT DISTINCT ON (chain.clip_id) chain.clip_id, modb.collection_path(c.collect
   LEFT JOIN modb.clip_versions v ON v.clip_id = chain.at_clip AND v.version = chain.at_version
  ORDER BY chain.clip_id, chain.depth DESC
 """
-UNKNOWN_LICENCE = "licence not recorded (modb load --licence states it)"
+UNKNOWN_LICENCE = "licence not recorded"  # `modb load --licence` states it
 
 
 @dataclass(frozen=True)
@@ -66,7 +66,7 @@ class StripSources:
         return (
             "sources: "
             + "; ".join(f"{s.source} {s.snippets / total:.0%} ({s.licence})" for s in self.shares)
-            + f"; {self.crossings} seams between sources"
+            + f"; {self.crossings} seam{'' if self.crossings == 1 else 's'} between sources"
         )
 
 
