@@ -11,26 +11,28 @@ from dataclasses import asdict, dataclass
 
 import psycopg
 
-# Each clip's newest version, followed through its retargeted_from links (a version each) to the
-# first; the deepest row per clip is its origin.
+# Each clip version, followed through its retargeted_from links (a version each) to the first; the
+# deepest row per version is its origin.
 ORIGINS = """
-WITH RECURSIVE chain(clip_id, at_clip, at_version, depth) AS (
-    SELECT c.id, c.id, (SELECT max(v.version) FROM modb.clip_versions v WHERE v.clip_id = c.id), 0
-      FROM modb.clips c WHERE c.id = ANY (%s)
+WITH RECURSIVE chain(clip_id, version, at_clip, at_version, depth) AS (
+    SELECT k.clip_id, k.version, k.clip_id, k.version, 0
+      FROM unnest(%s::bigint[], %s::int[]) AS k(clip_id, version)
     UNION ALL
-    SELECT chain.clip_id, (link->>'clip_id')::bigint, (link->>'version')::int, chain.depth + 1
+    SELECT chain.clip_id, chain.version, (link->>'clip_id')::bigint, (link->>'version')::int,
+           chain.depth + 1
       FROM chain
       JOIN modb.clip_versions v ON v.clip_id = chain.at_clip AND v.version = chain.at_version
      CROSS JOIN LATERAL (SELECT v.load_params->'retargeted_from' AS link) l
      WHERE jsonb_typeof(link) = 'object' AND chain.depth < 32
 )
-SELECT DISTINCT ON (chain.clip_id) chain.clip_id, modb.collection_path(c.collection_id), c.name,
-       v.meta->>'licence'
+SELECT DISTINCT ON (chain.clip_id, chain.version) chain.clip_id, chain.version,
+       modb.collection_path(c.collection_id), c.name, v.meta->>'licence'
   FROM chain
   JOIN modb.clips c ON c.id = chain.at_clip
   LEFT JOIN modb.clip_versions v ON v.clip_id = chain.at_clip AND v.version = chain.at_version
- ORDER BY chain.clip_id, chain.depth DESC
+ ORDER BY chain.clip_id, chain.version, chain.depth DESC
 """
+Version = tuple[int, int]  # (clip id, version)
 UNKNOWN_LICENCE = "licence not recorded"  # `modb load --licence` states it
 
 
@@ -51,9 +53,11 @@ class SourceShare:
     snippets: int
 
 
-def origins(conn: psycopg.Connection, clip_ids: Iterable[int]) -> dict[int, Origin]:
-    ids = sorted(set(clip_ids))
-    return {row[0]: Origin(*row[1:]) for row in conn.execute(ORIGINS, [ids])}
+def origins(conn: psycopg.Connection, versions: Iterable[Version]) -> dict[Version, Origin]:
+    """Each clip version's origin (a version that does not exist has none)."""
+    keys = sorted(set(versions))
+    rows = conn.execute(ORIGINS, [[k[0] for k in keys], [k[1] for k in keys]])
+    return {(row[0], row[1]): Origin(*row[2:]) for row in rows}
 
 
 @dataclass(frozen=True)
@@ -70,12 +74,13 @@ class StripSources:
         )
 
 
-def strip_sources(conn: psycopg.Connection, clip_ids: Sequence[int]) -> StripSources:
-    """The sources of a strip whose snippets came from `clip_ids` (one per snippet, in order)."""
-    found = origins(conn, clip_ids)
+def strip_sources(conn: psycopg.Connection, versions: Sequence[Version]) -> StripSources:
+    """The sources of a strip whose snippets came from these clip versions (one per snippet, in
+    order)."""
+    found = origins(conn, versions)
     keys = [
-        (found[c].collection, found[c].licence or UNKNOWN_LICENCE) if c in found else None
-        for c in clip_ids
+        (found[v].collection, found[v].licence or UNKNOWN_LICENCE) if v in found else None
+        for v in versions
     ]
     counts = Counter(k for k in keys if k is not None)
     return StripSources(

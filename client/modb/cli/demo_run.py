@@ -126,7 +126,7 @@ def run_demo(
             out.parent.mkdir(parents=True, exist_ok=True)
             write_bvh_file(with_root_motion(result.strip), out)
             rep = report(conn, result)
-            sources = strip_sources(conn, [c.clip_id for c in result.chain])
+            sources = strip_sources(conn, [(c.clip_id, c.version) for c in result.chain])
             print(format_report(result, rep, clip_names(conn, result.chain), sources))
             unmet = [aim for aim, met in rep.aims.items() if met is False]
             if unmet:

@@ -53,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
         except ClipNotFound as e:
             print(f"modb export: {e}", file=sys.stderr)
             return 1
-        sources = as_meta(strip_sources(conn, [clip_id]))
+        sources = as_meta(strip_sources(conn, [(clip_id, motion.meta["version"])]))
     motion = dataclasses.replace(motion, meta={**motion.meta, "sources": sources})
     if args.root_motion:
         motion = with_root_motion(motion)

@@ -257,7 +257,7 @@ def run(args: argparse.Namespace) -> int:
         strip = result.strip if args.in_place else with_root_motion(result.strip)
         if args.fps:
             strip = at_fps(strip, args.fps)
-        sources = strip_sources(conn, [c.clip_id for c in result.chain])
+        sources = strip_sources(conn, [(c.clip_id, c.version) for c in result.chain])
         strip = dataclasses.replace(strip, meta={**strip.meta, "sources": as_meta(sources)})
         if not write_motion_file("synth", strip, args.out, motion_format(args.out)):
             return 1

@@ -21,7 +21,7 @@ from typing import Any
 import psycopg
 
 from modb.database.read_nodes import NoNode, Node, ReadNodes
-from modb.provenance import Origin, origins
+from modb.provenance import Origin, Version, origins
 from modb.synthesis.avatar import Avatar, Choice, Frame, NoContinuation, Settings, checked_goal
 from modb.synthesis.placement import Placement
 from modb.synthesis.root_motion import with_root_motion
@@ -61,7 +61,7 @@ class AvatarSession:
         self._skeleton_sent: int | None = None
         # (clip, version) -> skeleton
         self._skeleton_of: dict[tuple[int, int], tuple[int, dict, str]] = {}
-        self._origin_of: dict[int, Origin] = {}  # clip -> where its motion was captured
+        self._origin_of: dict[Version, Origin] = {}  # clip version -> where it was captured
         # The walk's frames, for downloads: the last KEEP_SECONDS of it (a deque drops the oldest).
         self._walk: deque[Frame] = deque()
 
@@ -214,7 +214,7 @@ class AvatarSession:
                             avatar.course,
                             avatar.choices,
                             self.node_name,
-                            self._origin(avatar, choice.clip_id),
+                            self._origin(avatar, (choice.clip_id, choice.version)),
                         )
                     )
                 self._keep(frame, choice.fps)
@@ -251,15 +251,17 @@ class AvatarSession:
         node = self._node
         return None if node is None else node.name
 
-    def _origin(self, avatar: Avatar, clip_id: int) -> Origin | None:
-        """The source the chosen snippet's clip came from (once per clip); None when the lookup
-        fails: the readout shows none, the avatar walks on."""
-        if clip_id not in self._origin_of:
+    def _origin(self, avatar: Avatar, version: Version) -> Origin | None:
+        """The source the chosen snippet's clip version came from (read once); None when the
+        lookup fails: the readout shows none, the avatar walks on."""
+        if version not in self._origin_of:
             try:
-                self._origin_of.update(origins(avatar.conn, [clip_id]))
+                self._origin_of.update(origins(avatar.conn, [version]))
             except psycopg.Error:
-                log.warning("the source of clip %s could not be read", clip_id, exc_info=True)
-        return self._origin_of.get(clip_id)
+                log.warning(
+                    "the source of clip version %s could not be read", version, exc_info=True
+                )
+        return self._origin_of.get(version)
 
     def _skeleton(self, avatar: Avatar, choice: Choice) -> None:
         """The skeleton the page poses, when it changes: once per avatar for one-skeleton data."""
