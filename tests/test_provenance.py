@@ -4,7 +4,9 @@ made from, and exports name every source with its terms (glTF inside the file, B
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import os
 import shutil
 
 import pygltflib
@@ -62,28 +64,53 @@ def test_sources_and_terms_follow_the_motion_into_exports(fresh_db, db, tmp_path
     (source,) = asset.extras["sources"]
     assert (source["source"], source["licence"]) == ("cmu16", CMU_TERMS)
 
-    # a strip over both: the BVH's sidecar counts every snippet once, by its source
+    # a strip over both: the report counts every snippet once, by its source, and the seams between
     r = run_modb(fresh_db, "collection", "move", "bandai", "mixed")
     assert r.returncode == 0, r.stderr
-    out = tmp_path / "strip.bvh"
-    report = tmp_path / "strip.json"
+    out, report = tmp_path / "strip.bvh", tmp_path / "strip.json"
     r = run_modb(fresh_db, "synth", "--to", "0,4", "--seconds", "6", "--collection", "mixed",
                  "--out", out, "--report-json", report, "-q")  # fmt: skip
     assert r.returncode == 0, r.stderr
-    sources = json.loads((tmp_path / "strip.bvh.sources.json").read_text())["sources"]
     written = json.loads(report.read_text())
-    chain = written["chain"]
     origin = {"bandai": first_line(bandai_licence), "cmu16": CMU_TERMS}
     names = []
-    for c in chain:  # the test's own origin of each chosen snippet: its clip's collection
+    for c in written["chain"]:  # the test's own origin of each snippet: its clip's collection
         (path,) = db.execute(
             "SELECT modb.collection_path(collection_id) FROM modb.clips WHERE id = %s",
             [c["clip_id"]],
         ).fetchone()
         names.append("cmu16" if path == "mixed/cmu16" else "mixed/bandai")
-    got = {s["source"]: s["snippets"] for s in sources}
-    assert got == {n: names.count(n) for n in set(names)}
-    assert written["sources"]["shares"] == sources
-    assert written["sources"]["crossings"] == sum(a != b for a, b in zip(names, names[1:]))
-    for s in sources:
+    shares = written["sources"]["shares"]
+    assert {s["source"]: s["snippets"] for s in shares} == {n: names.count(n) for n in set(names)}
+    for s in shares:
         assert s["licence"] == origin[s["source"].split("/")[-1]]
+    assert written["sources"]["crossings"] == sum(a != b for a, b in zip(names, names[1:]))
+    beside = tmp_path / "strip.bvh.sources.json"  # only for several sources
+    assert beside.exists() == (len(shares) > 1)
+
+
+def test_a_bvh_of_several_sources_gets_them_beside_it_and_elsewhere_says_them(tmp_path, capsys):
+    from modb.cli.common import write_motion_file
+    from modb.gltf_export import rest_motion
+    from modb.loader.bvh import parse_bvh
+
+    walk = mocap("bandai-2-dev", "data", "dataset-2_walk_active_001.bvh")
+    motion = rest_motion(parse_bvh(walk.read_bytes(), str(walk), "auto").skeleton)
+    sources = [
+        {
+            "source": "mixed/bandai",
+            "licence": "Attribution-NonCommercial 4.0 International",
+            "snippets": 9,
+        },
+        {"source": "cmu16", "licence": CMU_TERMS, "snippets": 3},
+    ]
+    two = dataclasses.replace(motion, meta={"sources": sources})
+    assert write_motion_file("synth", two, str(tmp_path / "a.bvh"))
+    assert json.loads((tmp_path / "a.bvh.sources.json").read_text()) == {"sources": sources}
+    one = dataclasses.replace(motion, meta={"sources": sources[:1]})
+    assert write_motion_file("synth", one, str(tmp_path / "b.bvh"))
+    assert sorted(os.listdir(tmp_path)) == ["a.bvh", "a.bvh.sources.json", "b.bvh"]
+    capsys.readouterr()
+    assert write_motion_file("synth", two, "/dev/null")  # a device: nothing put beside it
+    assert not os.path.exists("/dev/null.sources.json")
+    assert f"cmu16: {CMU_TERMS}" in capsys.readouterr().err

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 
 import psycopg
@@ -100,18 +101,20 @@ def writable(command: str, path: str | None) -> bool:
     return True
 
 
-SOURCES_SUFFIX = ".sources.json"  # beside a BVH file: its sources and their terms
+SOURCES_SUFFIX = ".sources.json"  # beside a BVH file of several sources: each with its terms
 
 
 def write_bvh_file(command: str, motion, path: str) -> bool:
     """Writes `motion` to `path` (`-`: standard output); if it cannot, False, with the reason on
-    stderr."""
+    stderr. A motion of several sources (meta["sources"]) gets FILE.sources.json beside a regular
+    file (BVH has no place for them); written elsewhere, they are said on stderr."""
     from modb.bvh_export import write_bvh_file  # numpy (70 ms): not for `modb --help`
 
-    sources = motion.meta.get("sources")
+    sources = motion.meta.get("sources") or []
     try:
         write_bvh_file(motion, path, allow_stdout=True)
-        if sources and path != "-":  # BVH has no place for them: a file beside it
+        beside = len(sources) > 1 and path != "-" and os.path.isfile(path)
+        if beside:
             with open(path + SOURCES_SUFFIX, "w", encoding="utf-8") as f:
                 json.dump({"sources": sources}, f, indent=2)
     except BrokenPipeError:
@@ -119,11 +122,9 @@ def write_bvh_file(command: str, motion, path: str) -> bool:
     except OSError as e:
         print(f"modb {command}: cannot write {path}: {e.strerror or e}", file=sys.stderr)
         return False
-    if sources and path == "-":
-        print(
-            f"modb {command}: the motion's sources and their terms: {credits(sources)}",
-            file=sys.stderr,
-        )
+    if len(sources) > 1 and not beside:
+        print(f"modb {command}: the motion's sources and their terms: {credits(sources)}",
+              file=sys.stderr)  # fmt: skip
     return True
 
 
