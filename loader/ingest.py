@@ -246,9 +246,13 @@ def _new_version_meta(
     given = dict(given or {})
     terms = {k: given.pop(k) for k in LICENCE_KEYS if k in given}
     meta, note = _carried_meta(conn, clip_id, n_frames, given)
-    if terms:
-        meta = {**{k: v for k, v in meta.items() if k not in LICENCE_KEYS}, **terms}
-    return meta, note
+    if not terms:  # the previous version's, even where a sidecar gives the rest anew
+        (previous,) = conn.execute(
+            "SELECT meta FROM modb.clip_versions WHERE clip_id = %s ORDER BY version DESC LIMIT 1",
+            [clip_id],
+        ).fetchone() or ({},)
+        terms = {k: previous[k] for k in LICENCE_KEYS if k in (previous or {})}
+    return {**{k: v for k, v in meta.items() if k not in LICENCE_KEYS}, **terms}, note
 
 
 def _carried_meta(

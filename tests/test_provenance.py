@@ -8,6 +8,7 @@ import dataclasses
 import json
 import os
 import shutil
+from pathlib import Path
 
 import pygltflib
 
@@ -57,6 +58,17 @@ def test_sources_and_terms_follow_the_motion_into_exports(fresh_db, db, tmp_path
                  "--collection", "mixed/cmu16", "-q")  # fmt: skip
     assert r.returncode == 0, r.stderr
     glb = tmp_path / "cmu_on_bandai.glb"
+    r = run_modb(fresh_db, "export", "mixed/cmu16/16_15", "--out", glb)
+    assert r.returncode == 0, r.stderr
+    asset = pygltflib.GLTF2().load(str(glb)).asset
+    assert asset.copyright == f"cmu16: {CMU_TERMS}"
+    # edited after retargeting: a new version of the retargeted clip, still CMU's motion
+    r = run_modb(
+        fresh_db, "edit", "save", "soft", "--commands", '[{"op": "smooth", "seconds": 0.05}]'
+    )
+    assert r.returncode == 0, r.stderr
+    r = run_modb(fresh_db, "edit", "apply", "soft", "mixed/cmu16/16_15")
+    assert r.returncode == 0, r.stderr
     r = run_modb(fresh_db, "export", "mixed/cmu16/16_15", "--out", glb)
     assert r.returncode == 0, r.stderr
     asset = pygltflib.GLTF2().load(str(glb)).asset
@@ -114,3 +126,47 @@ def test_a_bvh_of_several_sources_gets_them_beside_it_and_elsewhere_says_them(tm
     assert write_motion_file("synth", two, "/dev/null")  # a device: nothing put beside it
     assert not os.path.exists("/dev/null.sources.json")
     assert f"cmu16: {CMU_TERMS}" in capsys.readouterr().err
+
+
+def test_a_licence_file_is_found_from_a_relative_path_and_a_binary_one_passed_over(
+    tmp_path, monkeypatch
+):
+    from modb.loader.folders import DISK
+    from modb.loader.licences import licence_of
+
+    data = tmp_path / "dataset" / "data"
+    data.mkdir(parents=True)
+    (tmp_path / "dataset" / "LICENSE").write_text("\n  My Terms 1.0  \nmore\n")
+    (data / "LICENSE").write_bytes(b"\x00\x01binary")  # not a licence text: passed over
+    monkeypatch.chdir(data)
+    found = licence_of(Path("walk.bvh"), DISK)
+    assert found == {
+        "licence": "My Terms 1.0",
+        "licence_file": str(tmp_path / "dataset" / "LICENSE"),
+    }
+    assert licence_of(Path("walk.bvh"), DISK, "stated") == {"licence": "stated"}
+
+
+def test_a_new_version_keeps_the_licence_when_a_sidecar_gives_the_rest(fresh_db, db, tmp_path):
+    walk = tmp_path / "walk.bvh"
+    text = mocap("bandai-2-dev", "data", "dataset-2_walk_active_001.bvh").read_text()
+    walk.write_text(text)
+    r = run_modb(
+        fresh_db, "load", walk, "--collection", "w", "--licence", "Mine", "--no-snippets", "-q"
+    )
+    assert r.returncode == 0, r.stderr
+    # one frame less, and a sidecar: a new version whose meta comes from the sidecar
+    head, frames = text.split("MOTION", 1)
+    lines = frames.strip("\n").splitlines()
+    n = int(lines[0].split(":")[1])
+    lines[0] = f"Frames: {n - 1}"
+    walk.write_text(head + "MOTION\n" + "\n".join(lines[:-1]) + "\n")
+    (tmp_path / "walk.annotations.json").write_text(json.dumps({"tags": ["mine"]}))
+    r = run_modb(fresh_db, "load", walk, "--collection", "w", "--no-snippets", "-q")
+    assert r.returncode == 0, r.stderr
+    metas = db.execute(
+        "SELECT v.meta FROM modb.clip_versions v JOIN modb.clips c ON c.id = v.clip_id "
+        "WHERE c.name = 'walk' ORDER BY v.version"
+    ).fetchall()
+    assert [m["licence"] for (m,) in metas] == ["Mine", "Mine"]
+    assert metas[-1][0]["tags"] == ["mine"]

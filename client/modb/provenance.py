@@ -11,19 +11,25 @@ from dataclasses import asdict, dataclass
 
 import psycopg
 
-# Each clip version, followed through its retargeted_from links (a version each) to the first; the
-# deepest row per version is its origin.
+# Each clip version (one that exists), followed back to where its motion was loaded: through its
+# retargeted_from link (another clip's version) or the version an edit script started from (the same
+# clip's); the deepest row per version is its origin.
 ORIGINS = """
 WITH RECURSIVE chain(clip_id, version, at_clip, at_version, depth) AS (
     SELECT k.clip_id, k.version, k.clip_id, k.version, 0
       FROM unnest(%s::bigint[], %s::int[]) AS k(clip_id, version)
+      JOIN modb.clip_versions v ON v.clip_id = k.clip_id AND v.version = k.version
     UNION ALL
-    SELECT chain.clip_id, chain.version, (link->>'clip_id')::bigint, (link->>'version')::int,
+    SELECT chain.clip_id, chain.version,
+           coalesce((v.load_params->'retargeted_from'->>'clip_id')::bigint, chain.at_clip),
+           coalesce((v.load_params->'retargeted_from'->>'version')::int,
+                    (v.load_params->'edit_script'->>'from_version')::int),
            chain.depth + 1
       FROM chain
       JOIN modb.clip_versions v ON v.clip_id = chain.at_clip AND v.version = chain.at_version
-     CROSS JOIN LATERAL (SELECT v.load_params->'retargeted_from' AS link) l
-     WHERE jsonb_typeof(link) = 'object' AND chain.depth < 32
+     WHERE (jsonb_typeof(v.load_params->'retargeted_from') = 'object'
+            OR jsonb_typeof(v.load_params->'edit_script'->'from_version') = 'number')
+       AND chain.depth < 64
 )
 SELECT DISTINCT ON (chain.clip_id, chain.version) chain.clip_id, chain.version,
        modb.collection_path(c.collection_id), c.name, v.meta->>'licence'

@@ -113,14 +113,24 @@ def write_bvh_file(command: str, motion, path: str) -> bool:
     sources = motion.meta.get("sources") or []
     try:
         write_bvh_file(motion, path, allow_stdout=True)
-        beside = len(sources) > 1 and path != "-" and os.path.isfile(path)
-        if beside:
-            with open(path + SOURCES_SUFFIX, "w", encoding="utf-8") as f:
-                json.dump({"sources": sources}, f, indent=2)
     except BrokenPipeError:
         raise  # the reader left early (`modb export X | head`): main() exits 0
     except OSError as e:
         print(f"modb {command}: cannot write {path}: {e.strerror or e}", file=sys.stderr)
+        return False
+    beside = path != "-" and os.path.isfile(path)
+    try:
+        if beside and len(sources) > 1:
+            with open(path + SOURCES_SUFFIX, "w", encoding="utf-8") as f:
+                json.dump({"sources": sources}, f, indent=2)
+        elif beside and os.path.isfile(path + SOURCES_SUFFIX):
+            os.remove(path + SOURCES_SUFFIX)  # an earlier strip's: not this one's sources
+    except OSError as e:
+        print(
+            f"modb {command}: wrote {path}, but not its sources in {path}{SOURCES_SUFFIX}: "
+            f"{e.strerror or e}",
+            file=sys.stderr,
+        )
         return False
     if len(sources) > 1 and not beside:
         print(f"modb {command}: the motion's sources and their terms: {credits(sources)}",

@@ -53,7 +53,10 @@ def run(args: argparse.Namespace) -> int:
         except ClipNotFound as e:
             print(f"modb export: {e}", file=sys.stderr)
             return 1
-        sources = as_meta(strip_sources(conn, [(clip_id, motion.meta["version"])]))
+        # a clip cut at a segment has its source version's frames: that version's origin
+        cut = motion.meta.get("cut_from")
+        version = (cut["clip_id"], cut["version"]) if cut else (clip_id, motion.meta["version"])
+        sources = as_meta(strip_sources(conn, [version]))
     motion = dataclasses.replace(motion, meta={**motion.meta, "sources": sources})
     if args.root_motion:
         motion = with_root_motion(motion)

@@ -61,7 +61,7 @@ class AvatarSession:
         self._skeleton_sent: int | None = None
         # (clip, version) -> skeleton
         self._skeleton_of: dict[tuple[int, int], tuple[int, dict, str]] = {}
-        self._origin_of: dict[Version, Origin] = {}  # clip version -> where it was captured
+        self._origin_of: dict[Version, Origin | None] = {}  # clip version -> where captured
         # The walk's frames, for downloads: the last KEEP_SECONDS of it (a deque drops the oldest).
         self._walk: deque[Frame] = deque()
 
@@ -255,13 +255,14 @@ class AvatarSession:
         """The source the chosen snippet's clip version came from (read once); None when the
         lookup fails: the readout shows none, the avatar walks on."""
         if version not in self._origin_of:
+            self._origin_of[version] = None  # asked once, whatever the answer
             try:
                 self._origin_of.update(origins(avatar.conn, [version]))
             except psycopg.Error:
                 log.warning(
                     "the source of clip version %s could not be read", version, exc_info=True
                 )
-        return self._origin_of.get(version)
+        return self._origin_of[version]
 
     def _skeleton(self, avatar: Avatar, choice: Choice) -> None:
         """The skeleton the page poses, when it changes: once per avatar for one-skeleton data."""
