@@ -245,24 +245,19 @@ def _new_version_meta(
     licence the new file states or finds replaces the previous version's, which stays otherwise."""
     given = dict(given or {})
     terms = {k: given.pop(k) for k in LICENCE_KEYS if k in given}
-    meta, note = _carried_meta(conn, clip_id, n_frames, given)
-    if not terms:  # the previous version's, even where a sidecar gives the rest anew
-        (previous,) = conn.execute(
-            "SELECT meta FROM modb.clip_versions WHERE clip_id = %s ORDER BY version DESC LIMIT 1",
-            [clip_id],
-        ).fetchone() or ({},)
-        terms = {k: previous[k] for k in LICENCE_KEYS if k in (previous or {})}
-    return {**{k: v for k, v in meta.items() if k not in LICENCE_KEYS}, **terms}, note
-
-
-def _carried_meta(
-    conn: psycopg.Connection, clip_id: int, n_frames: int, given: dict
-) -> tuple[dict, str]:
     previous = conn.execute(
         "SELECT version, n_frames, meta FROM modb.clip_versions WHERE clip_id = %s "
         "ORDER BY version DESC LIMIT 1",
         [clip_id],
     ).fetchone()
+    meta, note = _carried_meta(previous, n_frames, given)
+    if not terms and previous:  # the previous version's, even where a sidecar gives the rest anew
+        terms = {k: previous[2][k] for k in LICENCE_KEYS if k in (previous[2] or {})}
+    return {**{k: v for k, v in meta.items() if k not in LICENCE_KEYS}, **terms}, note
+
+
+def _carried_meta(previous: tuple | None, n_frames: int, given: dict) -> tuple[dict, str]:
+    """What of the previous version's (version, n_frames, meta) the new one keeps, and the note."""
     if given:
         return given, ""
     if previous is None or not previous[2]:
