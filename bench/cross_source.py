@@ -4,7 +4,9 @@
 60 s courses synthesized over the pool on the user's path (`modb synth --collection POOL`: the
 default profile and graph, the graph built first when there is none): each source's share of the
 snippets against its share of the pool, the seams between the sources and their levels, and the
-quality aims.
+quality aims. First, each source's posture and pace read from joint positions
+(modb.posture: the same on any rig, kept by retargeting), and the measures whose ranges do not
+overlap: what keeps the sources apart whatever the profile.
 
     .venv/bin/python bench/cross_source.py "host=/var/lib/modb/run dbname=mix16 user=postgres" \
         mixa mixa/cmu16 mixa/bandai 60 1,2,3
@@ -14,8 +16,10 @@ import sys
 from collections import Counter
 
 from modb.bench.synth import seeded_course
+from modb.clips import collection_clips, read_motion
 from modb.cli.synth import prepare_default_graph
 from modb.database.connection import connect
+from modb.posture import apart, posture
 from modb.synthesis.avatar import Settings
 from modb.synthesis.synth import report, synthesize
 
@@ -41,10 +45,22 @@ def continuations(conn, one: str, other: str, profile: str) -> dict[int, int]:
         )
 
 
+def compare_postures(conn, one: str, other: str) -> None:
+    measures = {
+        name: posture(read_motion(conn, c) for c in collection_clips(conn, name))
+        for name in (one, other)
+    }
+    print(f"| measure: median (p10-p90) | {one} | {other} |\n|---|---|---|")
+    for a, b in zip(measures[one], measures[other], strict=True):
+        print(f"| {a.name} | {a.text()} | {b.text()} |")
+    print(f"ranges apart: {', '.join(apart(measures[one], measures[other])) or 'none'}")
+
+
 def main(
     dsn: str, pool: str, one: str, other: str, seconds: float, seeds: list[int], profile: str
 ) -> None:
     with connect(dsn) as conn:
+        compare_postures(conn, one, other)
         for a, b in ((one, other), (other, one)):
             levels = continuations(conn, a, b, profile)
             print(f"{a} -> {b}: snippets by the level of their first continuation in {b}: {levels}")
