@@ -18,6 +18,8 @@ from support.snippet_oracle import resolve_profile
 
 from modb_kernel.joints import STANDARD_JOINTS
 
+from modb.provenance import UNKNOWN_LICENCE
+
 ARRIVAL_RADIUS = 0.5  # the page's default, metres
 ARTIFACTS = REPO / "tests" / "artifacts"
 
@@ -595,6 +597,7 @@ def test_the_avatar_is_a_skinned_character_and_its_walk_downloads_as_bvh_and_glt
 ):
     import base64
 
+    import pygltflib
     from selenium.webdriver.common.by import By
     from support.commands import run_modb
     from support.gltf_validator import validate
@@ -632,6 +635,15 @@ def test_the_avatar_is_a_skinned_character_and_its_walk_downloads_as_bvh_and_glt
         assert message["seconds"] > 1.0
         if fmt == "glb":
             assert validate(path)["numErrors"] == 0
+            # the sources played, with their terms, inside the file and on the page
+            asset = pygltflib.GLTF2().load_binary(str(path)).asset
+            played = {
+                (c["source"]["collection"], c["source"]["licence"] or UNKNOWN_LICENCE)
+                for c in state["choices"]
+            }
+            named = {(x["source"], x["licence"]) for x in asset.extras["sources"]}
+            assert named and named <= played
+            assert asset.copyright == message["sources"]
         else:  # the loader reads it back: one clip of the walk's length
             r = run_modb(dsn, "load", path, "--collection", "downloaded", "--no-snippets")
             assert r.returncode == 0, r.stderr

@@ -6,7 +6,7 @@ they draw from this way, and the avatar shows each chosen snippet's."""
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass
 
 import psycopg
@@ -83,9 +83,15 @@ class StripSources:
 def strip_sources(conn: psycopg.Connection, versions: Sequence[Version]) -> StripSources:
     """The sources of a strip whose snippets came from these clip versions (one per snippet, in
     order)."""
-    found = origins(conn, versions)
+    return sources_among(origins(conn, versions), versions)
+
+
+def sources_among(
+    found: Mapping[Version, Origin | None], versions: Sequence[Version]
+) -> StripSources:
+    """strip_sources with the origins already known (a version without one is left out)."""
     keys = [
-        (found[v].collection, found[v].licence or UNKNOWN_LICENCE) if v in found else None
+        (o.collection, o.licence or UNKNOWN_LICENCE) if (o := found.get(v)) else None
         for v in versions
     ]
     counts = Counter(k for k in keys if k is not None)

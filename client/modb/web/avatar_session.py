@@ -21,7 +21,7 @@ from typing import Any
 import psycopg
 
 from modb.database.read_nodes import NoNode, Node, ReadNodes
-from modb.provenance import Origin, Version, origins
+from modb.provenance import Origin, Version, as_meta, credits, origins, sources_among
 from modb.synthesis.avatar import Avatar, Choice, Frame, NoContinuation, Settings, checked_goal
 from modb.synthesis.placement import Placement
 from modb.synthesis.root_motion import with_root_motion
@@ -303,6 +303,9 @@ class AvatarSession:
         first = avatar.choices[0]
         template = avatar.library.get(first.clip_id, first.version, first.mirrored).motion
         walk = with_root_motion(strip_motion(frames, template, "walk"))
+        sources = self._sources(avatar, frames)
+        if sources:  # a glTF file names them inside (asset.copyright); the page says them too
+            walk.meta["sources"] = sources
         media, extension = FORMATS[fmt]
         self._send(
             {
@@ -311,8 +314,16 @@ class AvatarSession:
                 "media_type": media,
                 "data": base64.b64encode(motion_bytes(walk, fmt)).decode(),
                 "seconds": (len(frames) - 1) / first.fps,
+                "sources": credits(sources),
             }
         )
+
+    def _sources(self, avatar: Avatar, frames: list[Frame]) -> list[dict]:
+        """The sources of the kept walk's snippets and their terms, from the origins the readout
+        already looked up for each choice (no query: the walk keeps the connection busy)."""
+        by_step = {c.step: (c.clip_id, c.version) for c in avatar.choices}
+        versions = [by_step[s] for s in dict.fromkeys(f.step for f in frames) if s in by_step]
+        return as_meta(sources_among(self._origin_of, versions))
 
     def close(self) -> None:
         self._stopping.set()

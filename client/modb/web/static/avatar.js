@@ -62,7 +62,10 @@ const handlers = {
     }).catch(() => {});
   },
   note(m) { status(m.message); },
-  file(m) { saveFile(m.name, m.media_type, m.data); status(`saved ${m.name}`); },
+  file(m) {
+    saveFile(m.name, m.media_type, m.data);
+    status(m.sources ? `saved ${m.name}: ${m.sources}` : `saved ${m.name}`);
+  },
   frame(m) {
     if (!state.rig) return;
     state.rig.pose(m.rotations, m.translations);
