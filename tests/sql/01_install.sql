@@ -17,7 +17,7 @@ SELECT functions_are('modb', ARRAY[
     'skeleton_pose_key', 'standard_joints', 'feature_names', 'quat_angle', 'max_joint_angle', 'weighted_joint_angle',
     'match_knobs', 'session_settings', 'match_plan', '_thresholds', 'continuity_ratio', 'continuity_ratio_native', 'match_box', 'target_cost', 'aim_point', 'approach_cost', 'collection_subtree',
     'check_request', 'build_snippets', 'select_next_snippets', 'select_next_snippet', 'world_to_local', 'select_next_snippet_world',
-    'local_to_world', 'synthesis_goal', 'synthesis_step_end', 'check_synthesis', 'synthesize', 'fill_futures', 'build_transition_graph', 'transition_key', 'cost_to_go', 'candidates_examined',
+    'local_to_world', 'synthesis_goal', 'synthesis_step_end', 'check_synthesis', 'synthesize', 'fill_futures', 'build_transition_graph', 'transition_graph_inputs', 'transition_graph_terminators', 'store_transition_graph', 'transition_key', 'cost_to_go', 'candidates_examined',
     'feature_cube_penalty', 'feature_cube_picksplit', 'match_profiles_guard', '_knob_boolean', '_knob_number',
     'check_world_request', 'frame_key', 'select_next_snippets_reference', 'explain_selection',
     'add_snippet_blocks', 'next_generation', 'snippets_inserted', 'snippets_updated', 'pack_snippet_blocks',
