@@ -114,7 +114,7 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
         graphs = [
             db.execute(
                 "SELECT g.data - 'collection', "
-                "       array_agg((t.from_snippet, t.to_snippets, t.cost_to_go) ORDER BY 1)"
+                "array_agg((t.from_snippet, t.to_snippets, t.cost_to_go) ORDER BY t.from_snippet)"
                 "  FROM modb.graphs g JOIN modb.graph_transitions t ON t.graph_id = g.id "
                 " WHERE g.name = %s GROUP BY g.id",
                 [name],
