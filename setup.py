@@ -30,6 +30,7 @@ DATA = {
     "modb": ["py.typed"],
     "modb_kernel": ["py.typed"],
     "modb.bench": ["*.pgbench"],  # the pgbench script `modb bench scale` runs
+    "modb.jobs": ["*.sql"],  # the job tables and the view modb.jobs (`modb worker --init`)
     "modb.web.static": ["*"],  # the pages, scripts and style of `modb serve`
 }
 THREE = Path(__file__).parent / "client" / "modb" / "web" / "node_modules" / "three"

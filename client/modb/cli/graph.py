@@ -6,6 +6,7 @@ import argparse
 import sys
 
 import psycopg
+from tqdm import tqdm
 
 from modb.synthesis.graphs import build_graph, describe, list_graphs
 
@@ -34,6 +35,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="build: keep the largest component whose snippets turn at least this much each way "
         f"({MIN_TURN.span}; default 45)",
     )
+    graph.add_argument(
+        "--background",
+        action="store_true",
+        help="build: queue it as a job, print the job's id and return (`modb jobs show ID`)",
+    )
     graph.add_argument("-q", "--quiet", action="store_true", help="no progress")
     graph.set_defaults(func=run)
 
@@ -51,7 +57,62 @@ def run(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
             return 2
+        from modb.jobs import schema
+
+        if schema.installed(conn):
+            return build_as_job(conn, args)
+        if args.background:
+            print(
+                "modb graph build --background: this database has no job tables: "
+                "`modb worker --init` (as its owner) makes them",
+                file=sys.stderr,
+            )
+            return 2
         return build(conn, args.name, args.profile, args.collection, args.min_turn, args.quiet)
+
+
+def build_as_job(conn: psycopg.Connection, args: argparse.Namespace) -> int:
+    """The build as a job: queued (--background: its id printed), else waited for with its progress,
+    run by a worker when one is alive, else in this process."""
+    from modb.database.dsn import resolve
+    from modb.jobs.submit import JobState, submit, submitter, wait
+
+    conninfo = resolve(args.dsn)[0]
+    job_id = submit(
+        conninfo, "build_graph", submitter(conn), name=args.name, profile=args.profile,
+        collection=args.collection, min_turn_degrees=float(args.min_turn),
+    )  # fmt: skip
+    if args.background:
+        print(job_id)
+        return 0
+    bar, lines_shown = None, 0
+
+    def shown(state: JobState) -> None:
+        nonlocal bar, lines_shown
+        if args.quiet:
+            return
+        for line in state.log[lines_shown:]:
+            (bar.write if bar else print)(f"job {job_id}: {line}", file=sys.stderr)
+        lines_shown = len(state.log)
+        if state.total and bar is None:
+            bar = tqdm(total=state.total, unit=f" {state.unit}", file=sys.stderr, leave=False)
+        if bar is not None:
+            bar.update((state.done or 0) - bar.n)
+
+    try:
+        state = wait(conn, conninfo, job_id, shown)
+    finally:
+        if bar is not None:
+            bar.close()
+    if state.state != "done":
+        print(
+            f"modb graph build: job {job_id} {state.state}"
+            + (f": {state.error}" if state.error else ""),
+            file=sys.stderr,
+        )
+        return 1
+    print(describe(next(g for g in list_graphs(conn) if g.name == args.name)))
+    return 0
 
 
 def build(

@@ -18,12 +18,14 @@ from . import (
     edit,
     export,
     graph,
+    jobs,
     load,
     retarget,
     serve,
     split,
     synth,
     token,
+    worker,
 )
 from . import list as list_clips
 from .errors import reporting_errors
@@ -42,6 +44,8 @@ COMMANDS = (
     demo,
     bench,
     graph,
+    worker,
+    jobs,
     serve,
     token,
     db,

@@ -35,8 +35,9 @@ class Built:
 
 
 def build(name, snippets, terminators, plan, plan_shown, transition_key, profile, collection,
-          min_turn_degrees, notice=lambda text: None):
-    """snippets: rows (dicts) ordered by id with id, begin_terminator, end_terminator, grp, future_heading,
+          min_turn_degrees, notice=lambda text: None, advance=None):
+    """notice(text): what the build is at; advance(done, total): the snippets whose edges are found
+    so far (else a notice says it). snippets: rows (dicts) ordered by id with id, begin_terminator, end_terminator, grp, future_heading,
     clip, first_frame, n_frames, net_x, net_z, net_heading, duration; terminators: rows with id,
     positions, rotations, velocities, angular_velocities, features; plan: a modb.match_plan row."""
     n = len(snippets)
@@ -59,7 +60,8 @@ def build(name, snippets, terminators, plan, plan_shown, transition_key, profile
     spec = dict(thresholds, joints=list(plan["joints"]), norm=plan["norm"],
                 velocity_terms=plan["velocity_terms"], box_half_width=plan["box_half_width"])
     src, dst, ratio = T.edges(term, begin, end, group, clip, first_frame, n_frames, spec,
-                              progress=lambda done: notice(f'transition graph "{name}": {done}/{n} snippets'))
+                              progress=lambda done: advance(done, n) if advance else
+                              notice(f'transition graph "{name}": {done}/{n} snippets'))
     turn = np.array([np.nan if t is None else t for t in column("future_heading")], dtype=np.float64)
     keep = T.steerable(n, src, dst, group, np.nan_to_num(turn), np.radians(min_turn_degrees))
     ids = np.array(column("id"), dtype=np.int64)

@@ -1,0 +1,98 @@
+"""`modb jobs`: list, show, cancel and retry the database's jobs (modb.jobs)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from .common import connect
+
+LIST = """
+SELECT id, kind, state, submitter, done, total, unit, started_at, finished_at, arguments
+  FROM modb.jobs ORDER BY id DESC LIMIT %s
+"""
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("jobs", help="queued, running and finished jobs: list, show, cancel, retry")
+    p.add_argument("action", choices=["list", "show", "cancel", "retry"])
+    p.add_argument("job", nargs="?", type=int, help="show, cancel, retry: the job's id")
+    p.add_argument("--limit", type=int, default=20, help="list: the newest this many (default 20)")
+    p.set_defaults(func=run)
+
+
+def progress_text(done, total, unit) -> str:
+    if total is None:
+        return ""
+    return f"{done:,}/{total:,} {unit or ''}".rstrip()
+
+
+def run(args: argparse.Namespace) -> int:
+    from modb.jobs import schema
+
+    with connect(args) as conn:
+        if not schema.installed(conn):
+            print("modb jobs: no job tables: `modb worker --init` makes them", file=sys.stderr)
+            return 2
+        if args.action == "list":
+            rows = conn.execute(LIST, [args.limit]).fetchall()
+            print("id\tkind\tstate\tsubmitter\tprogress\tstarted\tfinished\targuments")
+            for id_, kind, state, who, done, total, unit, started, finished, arguments in rows:
+                times = [t.isoformat(timespec="seconds") if t else "-" for t in (started, finished)]
+                print(
+                    f"{id_}\t{kind}\t{state}\t{who}\t{progress_text(done, total, unit) or '-'}\t"
+                    f"{times[0]}\t{times[1]}\t{json.dumps(arguments)}"
+                )
+            return 0
+        if args.job is None:
+            print(f"modb jobs {args.action}: name the job (modb jobs list)", file=sys.stderr)
+            return 2
+        row = conn.execute(
+            "SELECT to_jsonb(j) FROM modb.jobs j WHERE id = %s", [args.job]
+        ).fetchone()
+        if row is None:
+            print(f"modb jobs: no job {args.job}", file=sys.stderr)
+            return 2
+        if args.action == "show":
+            print(json.dumps(row[0], indent=2))
+            return 0
+        return change(args, row[0])
+
+
+def change(args: argparse.Namespace, job: dict) -> int:
+    from modb.database.dsn import resolve
+    from modb.jobs.engine import job_app
+
+    app = job_app(resolve(args.dsn)[0])
+    with app.open():
+        if args.action == "cancel":
+            if job["state"] not in ("queued", "running"):
+                print(f"modb jobs cancel: job {job['id']} is {job['state']}", file=sys.stderr)
+                return 2
+            app.job_manager.cancel_job_by_id(job["id"], abort=True)
+            print(
+                f"job {job['id']}: "
+                + ("cancelled" if job["state"] == "queued" else "stops at its next item")
+            )
+            return 0
+        if job["state"] == "failed":
+            app.job_manager.retry_job_by_id(job["id"], retry_at=None)
+            print(f"job {job['id']}: queued again")
+            return 0
+        if job["state"] == "cancelled":  # the engine retries failed jobs only: a new one
+            from modb.jobs.submit import submit, submitter
+
+            with connect(args) as conn:
+                who = submitter(conn)
+            new = submit(
+                resolve(args.dsn)[0], job["kind"].removeprefix("modb."), who, **job["arguments"]
+            )
+            print(f"job {job['id']}: queued again as job {new}")
+            return 0
+        print(
+            f"modb jobs retry: job {job['id']} is {job['state']} (a failed or cancelled job is "
+            "retried)",
+            file=sys.stderr,
+        )
+        return 2

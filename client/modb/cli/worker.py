@@ -1,0 +1,67 @@
+"""`modb worker`: run queued jobs (graph builds, ...) in this machine's processes, for the database
+--dsn names (this machine's embedded one, or another's)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from .common import Number, connect
+
+CONCURRENCY = Number(1, 64, whole=True, unit="processes")
+STALLED = Number(1, 86400, unit="seconds")
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "worker",
+        help="run queued jobs here (graph builds, ...): any machine that reaches the database",
+    )
+    p.add_argument(
+        "--concurrency",
+        type=CONCURRENCY,
+        default=1,
+        metavar="N",
+        help=f"processes, one job each at a time ({CONCURRENCY.span}; default 1)",
+    )
+    p.add_argument(
+        "--queues", nargs="+", metavar="QUEUE", help="only these queues (default: all; graphs, ...)"
+    )
+    p.add_argument(
+        "--stalled-after",
+        type=STALLED,
+        default=30.0,
+        metavar="SECONDS",
+        help="a worker silent this long is gone: its running jobs are queued again (default 30)",
+    )
+    p.add_argument(
+        "--init",
+        action="store_true",
+        help="make the job tables in the database first (its owner's role) and exit",
+    )
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from modb.database.dsn import resolve
+    from modb.jobs import schema, worker
+
+    conninfo = resolve(args.dsn)[0]  # with its password, which conn.info.dsn leaves out
+    with connect(args) as conn:
+        if args.init:
+            made = schema.install(conn)
+            print("modb worker: job tables " + ("made" if made else "already there"))
+            return 0
+        if not schema.installed(conn):
+            print(
+                "modb worker: this database has no job tables: `modb worker --init` (as its owner) "
+                "makes them",
+                file=sys.stderr,
+            )
+            return 2
+    print(
+        f"modb worker: {args.concurrency} process(es) taking jobs from "
+        f"{', '.join(args.queues) if args.queues else 'every queue'}; Ctrl-C stops",
+        file=sys.stderr,
+    )
+    return worker.run(conninfo, int(args.concurrency), args.queues, float(args.stalled_after))

@@ -1,0 +1,77 @@
+"""A transition graph built in this process (a job worker's, on any machine): its inputs read by the
+database's functions, computed by the kernel as modb.build_transition_graph would in the server
+(modb_kernel.graph_build), stored in one transaction by modb.store_transition_graph."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import psycopg
+from psycopg.rows import dict_row
+from psycopg.types.json import Jsonb
+
+from modb_kernel import graph_build
+
+PLAN = """
+SELECT to_jsonb(p) - 'box_half_width' AS shown, modb.transition_key(p) AS transition_key, p.*
+  FROM modb.match_plan(%s) p
+"""
+
+
+class GraphJobError(ValueError):
+    pass
+
+
+def build_here(
+    conn: psycopg.Connection,
+    name: str,
+    profile: str = "default",
+    collection: str | None = None,
+    min_turn_degrees: float = 45.0,
+    notice: Callable[[str], None] = lambda text: None,
+    advance: Callable[[int, int], None] | None = None,
+) -> int:
+    """Builds (or rebuilds) the graph `name`; returns its modb.graphs id."""
+    with conn.cursor(row_factory=dict_row) as cur:
+        try:
+            snippets = cur.execute(
+                "SELECT * FROM modb.transition_graph_inputs(%s, %s, %s)",
+                [name, collection, min_turn_degrees],
+            ).fetchall()
+            plan = cur.execute(PLAN, [profile]).fetchone()
+        except psycopg.Error as e:
+            conn.rollback()
+            hint = e.diag.message_hint
+            raise GraphJobError(
+                f"{e.diag.message_primary}" + (f" ({hint})" if hint else "")
+            ) from None
+        notice(f'transition graph "{name}": reading the terminators of {len(snippets)} snippets')
+        ids = sorted(
+            {r["begin_terminator"] for r in snippets} | {r["end_terminator"] for r in snippets}
+        )
+        terminators = cur.execute(
+            "SELECT * FROM modb.transition_graph_terminators(%s)", [ids]
+        ).fetchall()
+    conn.rollback()  # nothing held open while the kernel computes
+    try:
+        built = graph_build.build(
+            name, snippets, terminators, plan, plan["shown"], plan["transition_key"], profile,
+            collection, min_turn_degrees, notice=notice, advance=advance,
+        )  # fmt: skip
+    except graph_build.GraphBuildError as e:
+        raise GraphJobError(f"{e} ({e.hint})") from None
+    del snippets, terminators
+    with conn.transaction():
+        return conn.execute(
+            "SELECT modb.store_transition_graph(%s, %s, %s::bigint[], %s::bigint[], %s::bigint[], "
+            "%s::real[], %s)",
+            [
+                name,
+                Jsonb(built.data),
+                built.kept,
+                built.from_ids,
+                built.to_ids,
+                built.costs.ravel().tolist(),
+                built.width,
+            ],  # fmt: skip
+        ).fetchone()[0]

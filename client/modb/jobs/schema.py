@@ -1,0 +1,31 @@
+"""The job engine's tables in a modb database: Procrastinate's own schema (applied once, by its own
+code), modb_jobs.progress (what a running job has done, its log and result) and the view modb.jobs
+over both. Not part of the extension (the engine's migrations are its own); pg_dump keeps them."""
+
+from __future__ import annotations
+
+from importlib import resources
+
+import psycopg
+from procrastinate.schema import SchemaManager
+
+# modb_jobs.progress and the view modb.jobs, with their grants (a script that can run again)
+JOB_TABLES = resources.files(__package__).joinpath("job_tables.sql").read_text(encoding="utf-8")
+
+
+def installed(conn: psycopg.Connection) -> bool:
+    return conn.execute("SELECT to_regclass('modb.jobs') IS NOT NULL").fetchone()[0]
+
+
+def install(conn: psycopg.Connection) -> bool:
+    """The engine's schema and modb's job tables, when missing (a role that may create them: the
+    database's owner). Returns whether anything was made."""
+    with conn.transaction():
+        conn.execute("SELECT pg_advisory_xact_lock(hashtext('modb jobs schema'))")
+        engine = conn.execute("SELECT to_regclass('procrastinate_jobs') IS NOT NULL").fetchone()[0]
+        if engine and installed(conn):
+            return False
+        if not engine:
+            conn.execute(SchemaManager.get_schema())  # no parameters: sent as written
+        conn.execute(JOB_TABLES)
+    return True

@@ -1,0 +1,93 @@
+"""Submitting a job and waiting for it: the job row first (who, what), then either a worker runs it
+(when one is alive) or, with none, this process does, said once; either way `modb jobs` lists it."""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import psycopg
+
+from .engine import job_app
+from .tasks import QUEUES
+from .worker import STALLED_AFTER_S, run_one
+
+FINISHED = ("done", "failed", "cancelled")
+POLL_S = 0.5
+
+
+@dataclass(frozen=True)
+class JobState:
+    id: int
+    kind: str
+    state: str
+    done: int | None
+    total: int | None
+    unit: str | None
+    log: list[str]
+    result: dict | None
+    error: str | None
+
+
+def submitter(conn: psycopg.Connection) -> str:
+    return conn.execute("SELECT session_user").fetchone()[0]
+
+
+def submit(conninfo: str, kind: str, who: str, **arguments: Any) -> int:
+    """Queues a job of `kind` (a modb task: build_graph, ...) and returns its id."""
+    app = job_app(conninfo)
+    with app.open():
+        return app.configure_task(f"modb.{kind}", queue=QUEUES[kind]).defer(
+            submitter=who, **arguments
+        )
+
+
+def workers_alive(conn: psycopg.Connection, within_s: float = STALLED_AFTER_S) -> int:
+    return conn.execute(
+        "SELECT count(*) FROM procrastinate_workers "
+        "WHERE last_heartbeat > now() - make_interval(secs => %s)",
+        [within_s],
+    ).fetchone()[0]
+
+
+def job_state(conn: psycopg.Connection, job_id: int) -> JobState | None:
+    row = conn.execute(
+        "SELECT id, kind, state, done, total, unit, coalesce(log, '{}'), result, error "
+        "FROM modb.jobs WHERE id = %s",
+        [job_id],
+    ).fetchone()
+    return JobState(*row) if row else None
+
+
+def wait(
+    conn: psycopg.Connection,
+    conninfo: str,
+    job_id: int,
+    shown: Callable[[JobState], None],
+) -> JobState:
+    """Until the job ends: run by a worker when one is alive, else in this process. `shown` gets
+    each state seen (a progress bar, log lines)."""
+    runner = None
+    if not workers_alive(conn):
+        print(
+            f"modb: job {job_id}: no worker is running (`modb worker` starts one); running it in "
+            "this process",
+            file=sys.stderr,
+        )
+        queue = QUEUES[job_state(conn, job_id).kind.removeprefix("modb.")]
+        runner = threading.Thread(
+            target=run_one, args=(conninfo, [queue], STALLED_AFTER_S, False), daemon=True
+        )
+        runner.start()
+    while True:
+        state = job_state(conn, job_id)
+        shown(state)
+        if state.state in FINISHED:
+            if runner is not None:
+                runner.join()  # the queue's other jobs too, if any were waiting
+            return state
+        time.sleep(POLL_S)
