@@ -75,11 +75,16 @@ def build_as_job(conn: psycopg.Connection, args: argparse.Namespace) -> int:
     """The build as a job: queued (--background: its id printed), else waited for with its progress,
     run by a worker when one is alive, else in this process."""
     from modb.database.dsn import resolve
-    from modb.jobs.submit import JobState, submit, submitter, wait
+    from modb.jobs.submit import JobState, NotALoader, submit, submitter, wait
 
     conninfo = resolve(args.dsn)[0]
+    try:
+        who = submitter(conn)
+    except NotALoader as e:
+        print(f"modb graph build: {e}", file=sys.stderr)
+        return 2
     job_id = submit(
-        conninfo, "build_graph", submitter(conn), name=args.name, profile=args.profile,
+        conninfo, "build_graph", who, name=args.name, profile=args.profile,
         collection=args.collection, min_turn_degrees=float(args.min_turn),
     )  # fmt: skip
     if args.background:

@@ -63,7 +63,14 @@ def run(args: argparse.Namespace) -> int:
 def change(args: argparse.Namespace, job: dict) -> int:
     from modb.database.dsn import resolve
     from modb.jobs.engine import job_app
+    from modb.jobs.submit import NotALoader, submit, submitter
 
+    with connect(args) as conn:
+        try:
+            who = submitter(conn)
+        except NotALoader as e:
+            print(f"modb jobs {args.action}: {e}", file=sys.stderr)
+            return 2
     app = job_app(resolve(args.dsn)[0])
     with app.open():
         if args.action == "cancel":
@@ -81,10 +88,6 @@ def change(args: argparse.Namespace, job: dict) -> int:
             print(f"job {job['id']}: queued again")
             return 0
         if job["state"] == "cancelled":  # the engine retries failed jobs only: a new one
-            from modb.jobs.submit import submit, submitter
-
-            with connect(args) as conn:
-                who = submitter(conn)
             new = submit(
                 resolve(args.dsn)[0], job["kind"].removeprefix("modb."), who, **job["arguments"]
             )

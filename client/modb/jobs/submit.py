@@ -12,7 +12,7 @@ from typing import Any
 
 import psycopg
 
-from .engine import job_app
+from .engine import LOADER_ROLE, job_app
 from .tasks import QUEUES
 from .worker import STALLED_AFTER_S, run_one
 
@@ -33,12 +33,26 @@ class JobState:
     error: str | None
 
 
+class NotALoader(PermissionError):
+    pass
+
+
 def submitter(conn: psycopg.Connection) -> str:
-    return conn.execute("SELECT session_user").fetchone()[0]
+    """Who submits (the login role), when it may: a member of the loader role."""
+    who, loader = conn.execute(
+        "SELECT session_user, pg_has_role(session_user, %s, 'MEMBER')", [LOADER_ROLE]
+    ).fetchone()
+    if not loader:
+        raise NotALoader(
+            f"{who} may list and read jobs but not submit, cancel or retry them: that needs the "
+            f"{LOADER_ROLE} role (GRANT {LOADER_ROLE} TO {who})"
+        )
+    return who
 
 
 def submit(conninfo: str, kind: str, who: str, **arguments: Any) -> int:
-    """Queues a job of `kind` (a modb task: build_graph, ...) and returns its id."""
+    """Queues a job of `kind` (a modb task: build_graph, ...) for `who` (see submitter) and
+    returns its id."""
     app = job_app(conninfo)
     with app.open():
         return app.configure_task(f"modb.{kind}", queue=QUEUES[kind]).defer(

@@ -42,6 +42,7 @@ def run_one(
                     name=f"modb worker {os.uname().nodename}:{os.getpid()}",
                     additional_context={"conninfo": conninfo},
                     update_heartbeat_interval=max(0.5, stalled_after / 6),
+                    abort_job_polling_interval=1.0,  # a cancel reaches a running job within 1 s
                     stalled_worker_timeout=stalled_after,
                     install_signal_handlers=wait,
                 )
