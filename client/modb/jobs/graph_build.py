@@ -32,7 +32,9 @@ def build_here(
     advance: Callable[[int, int], None] | None = None,
 ) -> int:
     """Builds (or rebuilds) the graph `name`; returns its modb.graphs id."""
-    with conn.cursor(row_factory=dict_row) as cur:
+    # One snapshot for the snippets and their terminators; nothing held open while the kernel works.
+    with conn.transaction(), conn.cursor(row_factory=dict_row) as cur:
+        conn.execute("SET TRANSACTION ISOLATION LEVEL REPEATABLE READ, READ ONLY")
         try:
             snippets = cur.execute(
                 "SELECT * FROM modb.transition_graph_inputs(%s, %s, %s)",
@@ -40,11 +42,11 @@ def build_here(
             ).fetchall()
             plan = cur.execute(PLAN, [profile]).fetchone()
         except psycopg.Error as e:
-            conn.rollback()
             hint = e.diag.message_hint
             raise GraphJobError(
                 f"{e.diag.message_primary}" + (f" ({hint})" if hint else "")
             ) from None
+        plan = cur.execute(PLAN, [profile]).fetchone()
         notice(f'transition graph "{name}": reading the terminators of {len(snippets)} snippets')
         ids = sorted(
             {r["begin_terminator"] for r in snippets} | {r["end_terminator"] for r in snippets}
@@ -52,7 +54,6 @@ def build_here(
         terminators = cur.execute(
             "SELECT * FROM modb.transition_graph_terminators(%s)", [ids]
         ).fetchall()
-    conn.rollback()  # nothing held open while the kernel computes
     try:
         built = graph_build.build(
             name, snippets, terminators, plan, plan["shown"], plan["transition_key"], profile,

@@ -37,20 +37,21 @@ def build_graph(
         progress.log(f"building transition graph {name!r} (profile {profile}, "
                      f"collection {collection or 'all'}) for {submitter}")  # fmt: skip
 
-        def advance(done: int, total: int) -> None:
+        def stop_when_asked() -> None:  # at each step: a cancel stops the job there
             if context.should_abort():
                 raise JobAborted("cancelled: nothing stored")
+
+        def advance(done: int, total: int) -> None:
+            stop_when_asked()
             progress.advance(done, total, "snippets")
+
+        def notice(text: str) -> None:
+            stop_when_asked()
+            progress.log(text)
 
         with connect(as_loader(conninfo)) as conn:
             graph_id = build_here(
-                conn,
-                name,
-                profile,
-                collection,
-                min_turn_degrees,
-                notice=progress.log,
-                advance=advance,
+                conn, name, profile, collection, min_turn_degrees, notice=notice, advance=advance
             )
         result = {"graph_id": graph_id, "graph": name}
         progress.finish(result)

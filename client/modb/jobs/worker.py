@@ -11,16 +11,20 @@ import multiprocessing
 import os
 import signal
 
+from procrastinate.worker import Worker
+
 from .engine import job_app
 
 log = logging.getLogger("modb.worker")
 STALLED_AFTER_S = 30.0  # a worker silent this long has stopped: its running jobs are queued again
 
 
-async def _retry_stalled(app, stalled_after: float) -> None:
+async def _retry_stalled(app, me: Worker, stalled_after: float) -> None:
     while True:
         await asyncio.sleep(max(1.0, stalled_after / 3))
         for job in await app.job_manager.get_stalled_jobs(seconds_since_heartbeat=stalled_after):
+            if job.worker_id == me.worker_id:  # this worker is alive, however late its heartbeat
+                continue
             log.warning("job %s: its worker stopped answering; queued again", job.id)
             await app.job_manager.retry_job(job)
 
@@ -33,19 +37,21 @@ def run_one(
 
     async def main() -> None:
         async with app.open_async():
-            retrying = asyncio.create_task(_retry_stalled(app, stalled_after))
+            me = Worker(
+                app,
+                queues=queues,
+                wait=wait,
+                concurrency=1,
+                name=f"modb worker {os.uname().nodename}:{os.getpid()}",
+                additional_context={"conninfo": conninfo},
+                update_heartbeat_interval=max(0.5, stalled_after / 6),
+                stalled_worker_timeout=stalled_after,
+                abort_job_polling_interval=1.0,  # a cancel reaches a running job within 1 s
+                install_signal_handlers=wait,
+            )
+            retrying = asyncio.create_task(_retry_stalled(app, me, stalled_after))
             try:
-                await app.run_worker_async(
-                    queues=queues,
-                    wait=wait,
-                    concurrency=1,
-                    name=f"modb worker {os.uname().nodename}:{os.getpid()}",
-                    additional_context={"conninfo": conninfo},
-                    update_heartbeat_interval=max(0.5, stalled_after / 6),
-                    abort_job_polling_interval=1.0,  # a cancel reaches a running job within 1 s
-                    stalled_worker_timeout=stalled_after,
-                    install_signal_handlers=wait,
-                )
+                await me.run()
             finally:
                 retrying.cancel()
 

@@ -1,0 +1,199 @@
+"""Long work as jobs (issue 42) on real capture: six CMU 131 trials and their mirror images
+(3,262 snippets), transition graphs built by `modb graph build` as jobs computed in the worker's
+process. Checked against the graph the server's own modb.build_transition_graph stores; a worker
+killed mid-job (the job finishes once, on another), a cancel (nothing stored), a reader refused,
+two workers sharing a batch (no job run twice)."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import psycopg
+import pytest
+from support.commands import run_modb
+from support.data import mocap
+from support.databases import scratch_database
+
+from modb.database.connection import connect
+
+GRAPH = ["--collection", "cmu", "--profile", "locomotion", "--min-turn", "0"]
+STALLED_AFTER = "4"  # seconds: a killed worker's job is queued again soon after
+
+
+@pytest.fixture(scope="module")
+def dsn(cluster):
+    with scratch_database(cluster, f"jobs_{os.getpid()}") as dsn:
+        trials = [mocap("cmu", "131", f"131_0{i}.amc") for i in range(1, 7)]
+        r = run_modb(dsn, "load", *trials, "--collection", "cmu", "--mirror", "-q")
+        assert r.returncode == 0, r.stderr
+        r = run_modb(dsn, "worker", "--init")
+        assert r.returncode == 0 and "made" in r.stdout, r.stderr
+        with connect(dsn) as conn:  # the oracle: the graph the server builds in one call
+            conn.execute("SELECT modb.build_transition_graph('server', 'locomotion', 'cmu', 0)")
+        yield dsn
+
+
+def graph_rows(conn: psycopg.Connection, name: str):
+    return conn.execute(
+        "SELECT g.data - 'collection', array_agg((t.from_snippet, t.to_snippets, t.cost_to_go) "
+        "ORDER BY t.from_snippet) FROM modb.graphs g JOIN modb.graph_transitions t "
+        "ON t.graph_id = g.id WHERE g.name = %s GROUP BY g.id",
+        [name],
+    ).fetchall()
+
+
+def job(conn: psycopg.Connection, job_id: int) -> dict:
+    return conn.execute("SELECT to_jsonb(j) FROM modb.jobs j WHERE id = %s", [job_id]).fetchone()[0]
+
+
+def events(conn: psycopg.Connection, job_id: int, kind: str) -> int:
+    return conn.execute(
+        "SELECT count(*) FROM procrastinate_events WHERE job_id = %s AND type = %s", [job_id, kind]
+    ).fetchone()[0]
+
+
+def worker(dsn: str) -> subprocess.Popen:
+    return subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "modb.cli",
+            "--dsn",
+            dsn,
+            "worker",
+            "--stalled-after",
+            STALLED_AFTER,
+        ],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
+
+def stop(*workers: subprocess.Popen) -> None:
+    for w in workers:
+        if w.poll() is None:
+            w.send_signal(signal.SIGTERM)
+    for w in workers:
+        w.wait(timeout=60)
+
+
+def until(conn: psycopg.Connection, job_id: int, ready, seconds: float, what: str) -> dict:
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        state = job(conn, job_id)
+        if ready(state):
+            return state
+        time.sleep(0.1)
+    raise AssertionError(f"job {job_id}: not {what} within {seconds} s: {job(conn, job_id)}")
+
+
+def background(dsn: str, name: str) -> int:
+    r = run_modb(dsn, "graph", "build", name, *GRAPH, "--background")
+    assert r.returncode == 0, r.stderr
+    return int(r.stdout)
+
+
+def test_a_graph_build_job_builds_what_the_server_builds(dsn):
+    r = run_modb(dsn, "graph", "build", "here", *GRAPH)
+    assert r.returncode == 0, r.stderr
+    assert "no worker is running" in r.stderr and "running it in this process" in r.stderr
+    assert "here: 3,246 of 3,262 snippets kept" in r.stdout
+    with connect(dsn) as conn:
+        (state,) = [j for (j,) in conn.execute("SELECT to_jsonb(j) FROM modb.jobs j")]
+        assert (state["kind"], state["state"], state["submitter"]) == (
+            "modb.build_graph",
+            "done",
+            conn.info.user,
+        )
+        assert state["done"] == state["total"] == 3262 and state["unit"] == "snippets"
+        assert state["started_at"] and state["finished_at"] >= state["started_at"]
+        graph_id = conn.execute("SELECT id FROM modb.graphs WHERE name = 'here'").fetchone()[0]
+        assert state["result"] == {"graph_id": graph_id, "graph": "here"}
+        assert any("kept 3246 of 3262" in line for line in state["log"])
+        assert graph_rows(conn, "here") == graph_rows(conn, "server") != []
+
+
+def test_a_worker_killed_mid_job_is_replaced_and_the_job_finishes_once(dsn):
+    first = worker(dsn)
+    try:
+        with connect(dsn) as conn:
+            job_id = background(dsn, "killed")
+            until(conn, job_id, lambda j: (j["done"] or 0) >= 2000, 60, "half way")
+            first.kill()  # SIGKILL: no goodbye, its heartbeats just stop
+            first.wait(timeout=30)
+            assert job(conn, job_id)["state"] == "running"
+            second = worker(dsn)
+            try:
+                state = until(conn, job_id, lambda j: j["state"] == "done", 90, "done")
+            finally:
+                stop(second)
+            assert state["attempts"] == 2  # the engine counts the retry and the run that ended
+            assert (events(conn, job_id, "started"), events(conn, job_id, "succeeded")) == (2, 1)
+            assert graph_rows(conn, "killed") == graph_rows(conn, "server")
+            assert conn.execute(
+                "SELECT count(*) FROM modb.graph_names WHERE name = 'killed'"
+            ).fetchone() == (1,)
+    finally:
+        stop(first)
+
+
+def test_a_cancelled_job_stops_and_stores_nothing(dsn):
+    w = worker(dsn)
+    try:
+        with connect(dsn) as conn:
+            job_id = background(dsn, "cancelled")
+            until(conn, job_id, lambda j: (j["done"] or 0) >= 2000, 60, "half way")
+            r = run_modb(dsn, "jobs", "cancel", str(job_id))
+            assert r.returncode == 0 and "stops at its next item" in r.stdout, r.stderr
+            state = until(conn, job_id, lambda j: j["state"] != "running", 30, "stopped")
+            assert state["state"] == "cancelled"
+            assert any("nothing was written" in line for line in state["log"])
+            assert not conn.execute(
+                "SELECT count(*) FROM modb.graph_names WHERE name = 'cancelled'"
+            ).fetchone()[0]
+            r = run_modb(dsn, "jobs", "retry", str(job_id))  # a new job, which finishes
+            assert r.returncode == 0 and "queued again as job" in r.stdout, r.stderr
+            again = int(r.stdout.rsplit(" ", 1)[1])
+            until(conn, again, lambda j: j["state"] == "done", 60, "done")
+            assert graph_rows(conn, "cancelled") == graph_rows(conn, "server")
+    finally:
+        stop(w)
+
+
+def test_a_reader_lists_jobs_but_cannot_submit_and_a_loader_can(dsn):
+    with connect(dsn) as conn:
+        for name, role in (("jobs_reader", "modb_reader"), ("jobs_loader", "modb_loader")):
+            conn.execute(f"DROP ROLE IF EXISTS {name}")
+            conn.execute(f"CREATE ROLE {name} LOGIN IN ROLE {role}")
+    reader = psycopg.conninfo.make_conninfo(dsn, user="jobs_reader")
+    loader = psycopg.conninfo.make_conninfo(dsn, user="jobs_loader")
+    listed = run_modb(reader, "jobs", "list")
+    assert listed.returncode == 0 and "modb.build_graph" in listed.stdout, listed.stderr
+    refused = run_modb(reader, "graph", "build", "no", *GRAPH, "--background")
+    assert refused.returncode == 2 and "needs the modb_loader role" in refused.stderr
+    assert run_modb(reader, "jobs", "cancel", "1").returncode == 2
+    job_id = background(loader, "by the loader")
+    with connect(dsn) as conn:
+        assert job(conn, job_id)["submitter"] == "jobs_loader"
+        assert job(conn, job_id)["state"] == "queued"
+    r = run_modb(loader, "jobs", "cancel", str(job_id))
+    assert r.returncode == 0 and "cancelled" in r.stdout, r.stderr
+
+
+def test_two_workers_share_a_batch_and_no_job_runs_twice(dsn):
+    with connect(dsn) as conn:
+        jobs = [background(dsn, f"batch {i}") for i in range(4)]
+        workers = [worker(dsn), worker(dsn)]
+        try:
+            for job_id in jobs:
+                until(conn, job_id, lambda j: j["state"] == "done", 120, "done")
+        finally:
+            stop(*workers)
+        once = [(events(conn, j, "started"), job(conn, j)["attempts"]) for j in jobs]
+        assert once == [(1, 1)] * 4  # started once; the engine counts the run that ended
+        assert all(graph_rows(conn, f"batch {i}") == graph_rows(conn, "server") for i in range(4))
