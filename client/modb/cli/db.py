@@ -9,8 +9,13 @@ import sys
 
 import psycopg
 
+from modb.database import workers
 from modb.database.cluster import Cluster, ClusterError
 from modb.database.replicas import Replicas
+
+from .common import Number
+
+WORKERS = Number(1, 64, whole=True, unit="processes")
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -18,11 +23,21 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     actions = db.add_subparsers(dest="action", required=True, metavar="ACTION")
     for action, text in (
         ("start", "create the cluster if needed, start it and its standbys, update the extension"),
-        ("stop", "stop the primary"),
+        ("stop", "stop the primary (and the job workers it started)"),
         ("status", "whether the primary runs (exit 3 when not)"),
         ("url", "the primary's conninfo"),
     ):
-        actions.add_parser(action, help=text).set_defaults(func=run)
+        parser = actions.add_parser(action, help=text)
+        parser.set_defaults(func=run)
+        if action == "start":
+            parser.add_argument(
+                "--workers",
+                type=WORKERS,
+                default=0,
+                metavar="N",
+                help="also start N job worker processes (`modb worker`; default none: jobs then "
+                "run in the command that waits for them)",
+            )
     replica = actions.add_parser(
         "replica", help="hot standbys of the embedded database (streaming replication)"
     )
@@ -51,7 +66,12 @@ def run(args: argparse.Namespace) -> int:
             for r in Replicas(cluster).all():
                 r.node.run_server()
                 print(f"standby {r.name} running: {r.node.dsn()}")
+            if args.workers:
+                pid = workers.start(cluster, int(args.workers))
+                print(f"job workers running (process {pid}, log {cluster.home / 'workers.log'})")
         elif args.action == "stop":
+            if workers.stop(cluster):
+                print("job workers stopped")
             cluster.stop()
             print(cluster.status())
         elif args.action == "status":

@@ -211,6 +211,9 @@ class Cluster:
                 conn.execute("VACUUM ANALYZE modb.snippets, modb.terminators")
                 conn.execute("REINDEX INDEX modb.snippets_begin_features_idx")
             ensure_writer_role(conn)
+            from modb.jobs.schema import install as install_job_tables  # procrastinate: 0.16 s
+
+            install_job_tables(conn)
             after = conn.execute(version).fetchone()[0]
             if before < [0, 11, 0] <= after or before < [0, 18, 0] <= after:
                 # 0.11.0 packs the blocks of consecutive snippets that loads left (a few seconds);
