@@ -197,3 +197,26 @@ def test_two_workers_share_a_batch_and_no_job_runs_twice(dsn):
         once = [(events(conn, j, "started"), job(conn, j)["attempts"]) for j in jobs]
         assert once == [(1, 1)] * 4  # started once; the engine counts the run that ended
         assert all(graph_rows(conn, f"batch {i}") == graph_rows(conn, "server") for i in range(4))
+
+
+def test_finished_jobs_are_deleted_after_their_age(dsn):
+    with connect(dsn) as conn:
+        finished = conn.execute(
+            "SELECT count(*) FROM modb.jobs WHERE state IN ('done', 'failed', 'cancelled')"
+        ).fetchone()[0]
+        assert (
+            finished >= 5 and conn.execute("SELECT count(*) FROM modb_jobs.progress").fetchone()[0]
+        )
+        w = subprocess.Popen(  # under an hour: every finished job is old enough
+            [sys.executable, "-m", "modb.cli", "--dsn", dsn, "worker", "--keep-days", "0.01"],
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        try:
+            deadline = time.monotonic() + 30
+            while conn.execute("SELECT count(*) FROM modb.jobs").fetchone()[0]:
+                assert time.monotonic() < deadline, "finished jobs still there after 30 s"
+                time.sleep(0.2)
+        finally:
+            stop(w)
+        assert conn.execute("SELECT count(*) FROM modb_jobs.progress").fetchone() == (0,)

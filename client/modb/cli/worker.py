@@ -10,6 +10,7 @@ from .common import Number, connect
 
 CONCURRENCY = Number(1, 64, whole=True, unit="processes")
 STALLED = Number(1, 86400, unit="seconds")
+KEEP = Number(0, 3650, above=True, unit="days")
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -33,6 +34,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         default=30.0,
         metavar="SECONDS",
         help="a worker silent this long is gone: its running jobs are queued again (default 30)",
+    )
+    p.add_argument(
+        "--keep-days",
+        type=KEEP,
+        default=30.0,
+        metavar="DAYS",
+        help="finished jobs (their progress and log too) are deleted after this long (default 30)",
     )
     p.add_argument(
         "--init",
@@ -64,4 +72,10 @@ def run(args: argparse.Namespace) -> int:
         f"{', '.join(args.queues) if args.queues else 'every queue'}; Ctrl-C stops",
         file=sys.stderr,
     )
-    return worker.run(conninfo, int(args.concurrency), args.queues, float(args.stalled_after))
+    return worker.run(
+        conninfo,
+        int(args.concurrency),
+        args.queues,
+        float(args.stalled_after),
+        float(args.keep_days),
+    )

@@ -10,6 +10,7 @@ import logging
 import multiprocessing
 import os
 import signal
+import time
 
 from procrastinate.worker import Worker
 
@@ -17,9 +18,14 @@ from .engine import job_app
 
 log = logging.getLogger("modb.worker")
 STALLED_AFTER_S = 30.0  # a worker silent this long has stopped: its running jobs are queued again
+KEEP_DAYS = 30.0  # finished jobs are deleted after this long
+PRUNE_EVERY_S = 3600.0
 
 
-async def _retry_stalled(app, me: Worker, stalled_after: float) -> None:
+async def _housekeeping(app, me: Worker, stalled_after: float, keep_days: float) -> None:
+    """Jobs of silent workers queued again; finished jobs deleted after keep_days, in whole hours
+    (with their progress and log)."""
+    pruned = None
     while True:
         await asyncio.sleep(max(1.0, stalled_after / 3))
         for job in await app.job_manager.get_stalled_jobs(seconds_since_heartbeat=stalled_after):
@@ -27,10 +33,20 @@ async def _retry_stalled(app, me: Worker, stalled_after: float) -> None:
                 continue
             log.warning("job %s: its worker stopped answering; queued again", job.id)
             await app.job_manager.retry_job(job)
+        if pruned is None or time.monotonic() - pruned > PRUNE_EVERY_S:
+            pruned = time.monotonic()
+            await app.job_manager.delete_old_jobs(
+                nb_hours=int(keep_days * 24), include_failed=True, include_cancelled=True,
+                include_aborted=True,
+            )  # fmt: skip
 
 
 def run_one(
-    conninfo: str, queues: list[str] | None, stalled_after: float, wait: bool = True
+    conninfo: str,
+    queues: list[str] | None,
+    stalled_after: float,
+    wait: bool = True,
+    keep_days: float = KEEP_DAYS,
 ) -> None:
     """One worker in this process (returns when stopped, or with wait=False when no job is left)."""
     app = job_app(conninfo)
@@ -49,7 +65,7 @@ def run_one(
                 abort_job_polling_interval=1.0,  # a cancel reaches a running job within 1 s
                 install_signal_handlers=wait,
             )
-            retrying = asyncio.create_task(_retry_stalled(app, me, stalled_after))
+            retrying = asyncio.create_task(_housekeeping(app, me, stalled_after, keep_days))
             try:
                 await me.run()
             finally:
@@ -58,14 +74,22 @@ def run_one(
     asyncio.run(main())
 
 
-def run(conninfo: str, concurrency: int, queues: list[str] | None, stalled_after: float) -> int:
+def run(
+    conninfo: str,
+    concurrency: int,
+    queues: list[str] | None,
+    stalled_after: float,
+    keep_days: float = KEEP_DAYS,
+) -> int:
     """--concurrency N: N processes of run_one, stopped together by SIGINT or SIGTERM."""
     if concurrency == 1:
-        run_one(conninfo, queues, stalled_after)
+        run_one(conninfo, queues, stalled_after, True, keep_days)
         return 0
     context = multiprocessing.get_context("spawn")  # no inherited connections or threads
     children = [
-        context.Process(target=run_one, args=(conninfo, queues, stalled_after), daemon=False)
+        context.Process(
+            target=run_one, args=(conninfo, queues, stalled_after, True, keep_days), daemon=False
+        )
         for _ in range(concurrency)
     ]
     for child in children:
