@@ -34,6 +34,7 @@ IN_ORDER = (
     "performance.md",
     "synthesis.md",
     "retargeting.md",
+    "jobs.md",
     "web.md",
     "rest.md",
     "roles.md",

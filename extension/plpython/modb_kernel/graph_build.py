@@ -36,10 +36,11 @@ class Built:
 
 def build(name, snippets, terminators, plan, plan_shown, transition_key, profile, collection,
           min_turn_degrees, notice=lambda text: None, advance=None):
-    """notice(text): what the build is at; advance(done, total): the snippets whose edges are found
-    so far (else a notice says it). snippets: rows (dicts) ordered by id with id, begin_terminator, end_terminator, grp, future_heading,
-    clip, first_frame, n_frames, net_x, net_z, net_heading, duration; terminators: rows with id,
-    positions, rotations, velocities, angular_velocities, features; plan: a modb.match_plan row."""
+    """snippets: rows (dicts) ordered by id with id, begin_terminator, end_terminator, grp,
+    future_heading, clip, first_frame, n_frames, net_x, net_z, net_heading, duration (as
+    modb.transition_graph_inputs gives them); terminators: rows with id, positions, rotations,
+    velocities, angular_velocities, features; plan: a modb.match_plan row. notice(text): what the
+    build is at; advance(done, total): the snippets whose edges are found so far (else a notice)."""
     n = len(snippets)
 
     def column(key):

@@ -1,5 +1,0 @@
--- 0.19.0: building a transition graph as three steps a job worker on any machine can run too: read its
--- inputs (modb.transition_graph_inputs, modb.transition_graph_terminators), compute with the kernel
--- (modb_kernel/graph_build.py), store the result (modb.store_transition_graph). modb.build_transition_graph
--- runs the same steps in the server and builds the same graph as before.
---@include 84_graph_build_io.sql
