@@ -149,7 +149,7 @@ def test_a_cancelled_job_stops_and_stores_nothing(dsn):
             job_id = background(dsn, "cancelled")
             until(conn, job_id, lambda j: (j["done"] or 0) >= 2000, 60, "half way")
             r = run_modb(dsn, "jobs", "cancel", str(job_id))
-            assert r.returncode == 0 and "stops at its next item" in r.stdout, r.stderr
+            assert r.returncode == 0 and "stops at its next step" in r.stdout, r.stderr
             state = until(conn, job_id, lambda j: j["state"] != "running", 30, "stopped")
             assert state["state"] == "cancelled"
             assert any("nothing was written" in line for line in state["log"])

@@ -84,7 +84,7 @@ def build_as_job(conn: psycopg.Connection, args: argparse.Namespace) -> int:
         print(f"modb graph build: {e}", file=sys.stderr)
         return 2
     job_id = submit(
-        conninfo, "build_graph", who, name=args.name, profile=args.profile,
+        conn, "build_graph", who, name=args.name, profile=args.profile,
         collection=args.collection, min_turn_degrees=float(args.min_turn),
     )  # fmt: skip
     if args.background:

@@ -61,9 +61,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def change(args: argparse.Namespace, job: dict) -> int:
-    from modb.database.dsn import resolve
-    from modb.jobs.engine import job_app
-    from modb.jobs.submit import NotALoader, submit, submitter
+    from modb.jobs.submit import NotALoader, cancel, retry, submitter
 
     with connect(args) as conn:
         try:
@@ -71,31 +69,22 @@ def change(args: argparse.Namespace, job: dict) -> int:
         except NotALoader as e:
             print(f"modb jobs {args.action}: {e}", file=sys.stderr)
             return 2
-    app = job_app(resolve(args.dsn)[0])
-    with app.open():
         if args.action == "cancel":
-            if job["state"] not in ("queued", "running"):
+            if not cancel(conn, job["id"]):
                 print(f"modb jobs cancel: job {job['id']} is {job['state']}", file=sys.stderr)
                 return 2
-            app.job_manager.cancel_job_by_id(job["id"], abort=True)
             print(
                 f"job {job['id']}: "
-                + ("cancelled" if job["state"] == "queued" else "stops at its next item")
+                + ("cancelled" if job["state"] == "queued" else "stops at its next step")
             )
             return 0
-        if job["state"] == "failed":
-            app.job_manager.retry_job_by_id(job["id"], retry_at=None)
-            print(f"job {job['id']}: queued again")
-            return 0
-        if job["state"] == "cancelled":  # the engine retries failed jobs only: a new one
-            new = submit(
-                resolve(args.dsn)[0], job["kind"].removeprefix("modb."), who, **job["arguments"]
+        if job["state"] not in ("failed", "cancelled"):
+            print(
+                f"modb jobs retry: job {job['id']} is {job['state']} (a failed or cancelled job is "
+                "retried)",
+                file=sys.stderr,
             )
-            print(f"job {job['id']}: queued again as job {new}")
-            return 0
-        print(
-            f"modb jobs retry: job {job['id']} is {job['state']} (a failed or cancelled job is "
-            "retried)",
-            file=sys.stderr,
-        )
-        return 2
+            return 2
+        again = retry(conn, job, who)
+        print(f"job {job['id']}: queued again" + (f" as job {again}" if again != job["id"] else ""))
+        return 0

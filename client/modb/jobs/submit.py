@@ -11,8 +11,9 @@ from dataclasses import dataclass
 from typing import Any
 
 import psycopg
+from psycopg.types.json import Jsonb
 
-from .engine import LOADER_ROLE, job_app
+from .engine import LOADER_ROLE
 from .tasks import QUEUES
 from .worker import STALLED_AFTER_S, run_one
 
@@ -50,14 +51,31 @@ def submitter(conn: psycopg.Connection) -> str:
     return who
 
 
-def submit(conninfo: str, kind: str, who: str, **arguments: Any) -> int:
-    """Queues a job of `kind` (a modb task: build_graph, ...) for `who` (see submitter) and
-    returns its id."""
-    app = job_app(conninfo)
-    with app.open():
-        return app.configure_task(f"modb.{kind}", queue=QUEUES[kind]).defer(
-            submitter=who, **arguments
-        )
+def submit(conn: psycopg.Connection, kind: str, who: str, **arguments: Any) -> int:
+    """Queues a job of `kind` (a modb task: build_graph, ...) for `who` (see submitter) in the
+    connection's transaction, through the engine's own SQL function; returns its id."""
+    return conn.execute(
+        "SELECT (procrastinate_defer_jobs_v1(ARRAY[ROW(%s, %s, 0, NULL, NULL, %s, NULL)"
+        "::procrastinate_job_to_defer_v1]))[1]",
+        [QUEUES[kind], f"modb.{kind}", Jsonb({"submitter": who, **arguments})],
+    ).fetchone()[0]
+
+
+def cancel(conn: psycopg.Connection, job_id: int) -> bool:
+    """A queued job cancelled, a running one asked to stop at its next step; False when it had
+    already ended."""
+    return (
+        conn.execute("SELECT procrastinate_cancel_job_v1(%s, true, false)", [job_id]).fetchone()[0]
+        is not None
+    )
+
+
+def retry(conn: psycopg.Connection, job: dict, who: str) -> int:
+    """A failed job queued again (its id), or a cancelled one as a new job (the new id)."""
+    if job["state"] == "failed":
+        conn.execute("SELECT procrastinate_retry_job_v2(%s, now(), NULL, NULL, NULL)", [job["id"]])
+        return job["id"]
+    return submit(conn, job["kind"].removeprefix("modb."), who, **job["arguments"])
 
 
 def workers_alive(conn: psycopg.Connection, within_s: float = STALLED_AFTER_S) -> int:
