@@ -220,3 +220,53 @@ def test_finished_jobs_are_deleted_after_their_age(dsn):
         finally:
             stop(w)
         assert conn.execute("SELECT count(*) FROM modb_jobs.progress").fetchone() == (0,)
+
+
+def test_rest_submits_with_a_loader_token_and_a_reader_token_only_reads(dsn):
+    import httpx
+    from support.browser import serving
+
+    from modb.database.cluster import ensure_writer_role
+
+    with psycopg.connect(dsn, autocommit=True) as conn:
+        ensure_writer_role(conn)
+    tokens = {}
+    for name, role in (("rest-loader", "loader"), ("rest-reader", "reader")):
+        r = run_modb(dsn, "token", "create", name, "--role", role)
+        assert r.returncode == 0, r.stderr
+        tokens[role] = {"Authorization": f"Bearer {r.stdout.strip()}"}
+    arguments = {
+        "name": "rest",
+        "collection": "cmu",
+        "profile": "locomotion",
+        "min_turn_degrees": 0,
+    }
+    body = {"kind": "build_graph", "arguments": arguments}
+    with serving(dsn) as address, httpx.Client(base_url=f"http://{address}", timeout=60) as client:
+        assert client.post("/api/jobs", json=body, headers=tokens["reader"]).status_code == 403
+        bad = client.post("/api/jobs", json={**body, "kind": "nap"}, headers=tokens["loader"])
+        assert bad.status_code == 400 and "build_graph" in bad.json()["error"]
+        r = client.post("/api/jobs", json=body, headers=tokens["loader"])
+        assert r.status_code == 202, r.text
+        job_id = r.json()["id"]
+        assert r.headers["location"] == f"/api/jobs/{job_id}"
+        assert (r.json()["state"], r.json()["submitter"]) == ("queued", "rest-loader")
+        w = worker(dsn)
+        try:
+            deadline = time.monotonic() + 60
+            while (state := client.get(f"/api/jobs/{job_id}").json())["state"] != "done":
+                assert time.monotonic() < deadline, state
+                time.sleep(0.2)
+        finally:
+            stop(w)
+        graph_id = state["result"]["graph_id"]
+        assert client.get(f"/api/graphs/{graph_id}").json()["name"] == "rest"
+        assert job_id in [j["id"] for j in client.get("/api/jobs").json()]
+        ended = client.post(f"/api/jobs/{job_id}/cancel", headers=tokens["loader"])
+        assert ended.status_code == 409, ended.text
+    with connect(dsn) as conn:
+        audited = conn.execute(
+            "SELECT token_name, action FROM modb.audit_log WHERE object = %s", [f"job {job_id}"]
+        ).fetchall()
+        assert audited == [("rest-loader", "submit job")]
+        assert graph_rows(conn, "rest") == graph_rows(conn, "server")

@@ -420,6 +420,8 @@ def test_openapi_names_every_route(rest):
         ("/api/uploads", "POST"),
         ("/api/clips/{clip_id}/versions/{version}/meta", "GET"),
         ("/api/clips/{clip_id}/versions/{version}/meta", "PUT"),
+        ("/api/jobs", "POST"),
+        ("/api/jobs/{ident}/cancel", "POST"),
     }
     routes |= {(r.path, m) for r in write_routes(None, None, None) for m in r.methods - {"HEAD"}}
     assert routes <= described_ops, routes - described_ops

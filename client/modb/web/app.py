@@ -34,7 +34,7 @@ from starlette.staticfiles import StaticFiles
 from modb.database import pgarray
 from modb.database.connection import connect
 from modb.database.read_nodes import ReadNodes
-from . import api, catalog_writes, database_errors, downloads, openapi
+from . import api, catalog_writes, database_errors, downloads, job_routes, openapi
 from .avatar_socket import avatar_endpoint, default_max_avatars
 from .auth import Tokens
 from .body_rules import Invalid
@@ -216,6 +216,8 @@ VIEWS: dict[str, View] = {
     "/api/graphs/{ident}": _by_id(api.graph, "graph"),
     "/api/profiles": _listing(api.profiles),
     "/api/edit-scripts": _listing(api.edit_scripts),
+    "/api/jobs": _listing(job_routes.jobs),
+    "/api/jobs/{ident}": _by_id(job_routes.job, "job"),
 }
 # path: (view, check of its arguments before it waits for a turn)
 HEAVY_VIEWS: dict[str, tuple[View, Callable[[Request], Any]]] = {
@@ -369,6 +371,16 @@ def create_app(
         ),
         Route("/api/uploads", upload_endpoint(tokens, writer, max_upload_mb), methods=["POST"]),
         *catalog_writes.routes(pool, tokens, writer),
+        Route(
+            "/api/jobs",
+            catalog_writes.write_endpoint(tokens, writer, job_routes.submit_job),
+            methods=["POST"],
+        ),
+        Route(
+            "/api/jobs/{ident}/cancel",
+            catalog_writes.write_endpoint(tokens, writer, job_routes.cancel_job, with_body=False),
+            methods=["POST"],
+        ),
         Route("/api/openapi.json", lambda request: JSONResponse(openapi.schema())),
         Route("/avatar", lambda request: FileResponse(STATIC / "avatar.html")),
         WebSocketRoute("/ws/avatar", avatar_endpoint(nodes, pool, tokens, max_avatars)),

@@ -110,6 +110,7 @@ def write_endpoint(
 
     def run(request: Request, grant, body: Any) -> JSONResponse:
         # A database error leaves the transaction rolled back; the app answers it (database_errors)
+        request.state.grant = grant  # whose token: a job's submitter
         with writer.pool().connection() as conn:
             try:
                 with conn.transaction():

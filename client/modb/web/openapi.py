@@ -277,6 +277,27 @@ def schema() -> dict[str, Any]:
         "/api/graphs/{ident}": _read("one graph", _id("ident", "graph id")),
         "/api/profiles": _read("the match profiles"),
         "/api/edit-scripts": _read("the stored edit scripts"),
+        "/api/jobs": {
+            **_read("the newest 200 jobs (modb.jobs): state, submitter, progress, log, result"),
+            "post": _write(
+                "queue a job (kind build_graph: arguments name, profile, collection, "
+                "min_turn_degrees, as `modb graph build`); a worker runs it",
+                body=_object(
+                    ["kind", "arguments"],
+                    kind={"enum": ["build_graph"]},
+                    arguments={"type": "object"},
+                ),
+                ok="the queued job (202, Location: /api/jobs/ID)",
+            ),  # fmt: skip
+        },
+        "/api/jobs/{ident}": _read("one job", _id("ident", "job id")),
+        "/api/jobs/{ident}/cancel": {
+            "post": _write(
+                "cancel a queued job; a running one stops at its next step, nothing half-made kept",
+                _id("ident", "job id"),
+                ok="the job",
+            )
+        },
         "/api/clips/{clip_id}/versions/{version}/meta": {
             "get": {
                 "summary": "a version's meta (annotations, tags) and its ETag",
