@@ -270,3 +270,42 @@ def test_rest_submits_with_a_loader_token_and_a_reader_token_only_reads(dsn):
         ).fetchall()
         assert audited == [("rest-loader", "submit job")]
         assert graph_rows(conn, "rest") == graph_rows(conn, "server")
+
+
+def test_the_web_page_lists_jobs_with_live_progress_and_what_they_made(dsn, chromium_driver):
+    from selenium.webdriver.common.by import By
+    from support.browser import module_page, serving, severe_console_entries
+    from support.data import REPO
+
+    with serving(dsn) as address, module_page(chromium_driver, "1280,800") as browser:
+        job_id = background(dsn, "seen")
+        browser.get(f"http://{address}/")
+        w = worker(dsn)
+        try:
+            seen, deadline = set(), time.monotonic() + 60
+            while "done" not in seen:
+                assert time.monotonic() < deadline, f"the page showed {seen}"
+                shown = browser.execute_script(  # one read: the panel is redrawn as it polls
+                    "const li = document.querySelector(`#jobs li[data-job='${arguments[0]}']`);"
+                    "return li && [li.className, !!li.querySelector('progress')];",
+                    job_id,
+                )
+                if shown:
+                    seen.add(shown[0])
+                    if shown == ["running", True]:
+                        seen.add("progress")
+                time.sleep(0.1)
+        finally:
+            stop(w)
+        assert {"running", "progress", "done"} <= seen, seen
+        row = browser.find_element(By.CSS_SELECTOR, f'#jobs li[data-job="{job_id}"]')
+        with connect(dsn) as conn:
+            graph_id = conn.execute("SELECT id FROM modb.graphs WHERE name = 'seen'").fetchone()[0]
+        link = row.find_element(By.TAG_NAME, "a")
+        assert link.get_attribute("href").endswith(f"/api/graphs/{graph_id}")
+        assert link.text == "graph seen"
+        artifacts = REPO / "tests" / "artifacts"
+        artifacts.mkdir(exist_ok=True)
+        browser.execute_script("document.getElementById('jobs-panel').scrollIntoView()")
+        browser.save_screenshot(str(artifacts / "jobs-panel.png"))
+        assert severe_console_entries(browser) == []

@@ -8,6 +8,7 @@ import { getJSON, markSelected, showClips, showCollections, showSkeleton } from 
 import { AnnotationEditor } from './annotations.js';
 import { token, tokenPanel } from './token.js';
 import { uploadPanel } from './uploads.js';
+import { jobsPanel } from './jobs.js';
 
 const $ = (id) => document.getElementById(id);
 const stage = new Stage($('view'));
@@ -207,6 +208,7 @@ for (const link of [$('download-bvh'), $('download-glb')]) {
 
 tokenPanel($('token'), $('token-use'), $('token-forget'), $('token-state'));
 uploadPanel($('drop'), $('upload-files'), $('upload-collection'), $('uploads'), showUploaded);
+jobsPanel($('jobs-panel'), $('jobs'));
 
 window.modbViewer = {
   stage,
