@@ -29,6 +29,7 @@ FIRST = (
     "test_readme.py",
     "test_replicas.py",
     "test_upgrade.py",
+    "test_jobs.py",
     "test_export_roundtrip.py",
     "test_nothing_lost.py",
     "test_catalog_edits.py",

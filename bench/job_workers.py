@@ -1,0 +1,110 @@
+"""The same batch of jobs with 1 worker and with 2 (separate processes, as two machines would run
+them): wall time and the ratio, each worker's CPU and the database's CPU per job (BENCHMARKS.md
+"Jobs on 1 and 2 workers"). The batch: N transition graph builds over one collection (`modb graph
+build --background`), queued before the workers start.
+
+    .venv/bin/python bench/job_workers.py "host=/var/lib/modb/run dbname=mix16 user=postgres" mixc 4
+"""
+
+import os
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from modb.database.connection import connect
+
+TICK = os.sysconf("SC_CLK_TCK")
+
+
+def postgres_cpu() -> dict[int, float]:
+    """CPU seconds so far of every postgres process (server and backends), by pid."""
+    out = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)
+            if "postgres" not in fields[0]:
+                continue
+            values = fields[1].split()
+            out[int(stat.parent.name)] = (int(values[11]) + int(values[12])) / TICK
+        except (OSError, IndexError, ValueError):
+            continue
+    return out
+
+
+def run(dsn: str, collection: str, jobs: int, workers: int, round_: int) -> dict:
+    names = [f"bench {workers}w {round_} {i}" for i in range(jobs)]
+    ids = []
+    for name in names:
+        r = subprocess.run(
+            [sys.executable, "-m", "modb.cli", "--dsn", dsn, "graph", "build", name,
+             "--collection", collection, "--background"],
+            capture_output=True, text=True, check=True,
+        )  # fmt: skip
+        ids.append(int(r.stdout))
+    seen: dict[int, float] = {}
+    base = postgres_cpu()
+    start = time.monotonic()
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-m", "modb.cli", "--dsn", dsn, "worker"], stderr=subprocess.DEVNULL
+        )  # fmt: skip
+        for _ in range(workers)
+    ]
+    with connect(dsn) as conn:
+        while True:
+            for pid, cpu in postgres_cpu().items():
+                seen[pid] = max(seen.get(pid, 0.0), cpu)
+            left = conn.execute(
+                "SELECT count(*) FROM modb.jobs WHERE id = ANY(%s) AND state <> 'done'", [ids]
+            ).fetchone()[0]
+            if not left:
+                break
+            time.sleep(0.2)
+        wall = time.monotonic() - start
+        per_job = conn.execute(
+            "SELECT extract(epoch FROM finished_at - started_at) FROM modb.jobs WHERE id = ANY(%s)",
+            [ids],
+        ).fetchall()
+    worker_cpu = 0.0
+    for p in procs:
+        p.terminate()
+        _, _, usage = os.wait4(p.pid, 0)  # the worker's CPU (a killed child's is not counted)
+        worker_cpu += usage.ru_utime + usage.ru_stime
+    db_cpu = sum(cpu - base.get(pid, 0.0) for pid, cpu in seen.items())
+    return {
+        "wall": wall,
+        "job_seconds": [float(s) for (s,) in per_job],
+        "worker_cpu_per_job": worker_cpu / jobs,
+        "db_cpu_per_job": db_cpu / jobs,
+    }
+
+
+def main(dsn: str, collection: str, jobs: int, rounds: int = 2) -> None:
+    results = {1: [], 2: []}
+    for r in range(rounds):
+        for workers in (1, 2):  # alternated: the machine's noise falls on both
+            results[workers].append(run(dsn, collection, jobs, workers, r))
+            print(
+                f"round {r} {workers} worker(s): {results[workers][-1]['wall']:.1f} s", flush=True
+            )
+    print(
+        "| workers | wall, median of rounds | job, median | worker CPU / job | database CPU / job |"
+    )
+    print("|---|---|---|---|---|")
+    for workers, rs in results.items():
+        jobs_s = [s for r in rs for s in r["job_seconds"]]
+        print(
+            f"| {workers} | {statistics.median(r['wall'] for r in rs):.1f} s | "
+            f"{statistics.median(jobs_s):.1f} s | "
+            f"{statistics.median(r['worker_cpu_per_job'] for r in rs):.1f} s | "
+            f"{statistics.median(r['db_cpu_per_job'] for r in rs):.1f} s |"
+        )
+    one = statistics.median(r["wall"] for r in results[1])
+    two = statistics.median(r["wall"] for r in results[2])
+    print(f"ratio, 1 worker's wall time over 2 workers': {one / two:.2f}")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4]) if len(sys.argv) > 4 else 2)
