@@ -75,7 +75,7 @@ def build_as_job(conn: psycopg.Connection, args: argparse.Namespace) -> int:
     """The build as a job: queued (--background: its id printed), else waited for with its progress,
     run by a worker when one is alive, else in this process."""
     from modb.database.dsn import resolve
-    from modb.jobs.submit import JobState, NotALoader, submit, submitter, wait
+    from modb.jobs.submit import JobState, NotALoader, run_and_wait, submit, submitter
 
     conninfo = resolve(args.dsn)[0]
     try:
@@ -83,12 +83,10 @@ def build_as_job(conn: psycopg.Connection, args: argparse.Namespace) -> int:
     except NotALoader as e:
         print(f"modb graph build: {e}", file=sys.stderr)
         return 2
-    job_id = submit(
-        conn, "build_graph", who, name=args.name, profile=args.profile,
-        collection=args.collection, min_turn_degrees=float(args.min_turn),
-    )  # fmt: skip
+    arguments = {"name": args.name, "profile": args.profile, "collection": args.collection,
+                 "min_turn_degrees": float(args.min_turn)}  # fmt: skip
     if args.background:
-        print(job_id)
+        print(submit(conn, "build_graph", who, **arguments))
         return 0
     bar, lines_shown = None, 0
 
@@ -97,7 +95,7 @@ def build_as_job(conn: psycopg.Connection, args: argparse.Namespace) -> int:
         if args.quiet:
             return
         for line in state.log[lines_shown:]:
-            (bar.write if bar else print)(f"job {job_id}: {line}", file=sys.stderr)
+            (bar.write if bar else print)(f"job {state.id}: {line}", file=sys.stderr)
         lines_shown = len(state.log)
         if state.total and bar is None:
             bar = tqdm(total=state.total, unit=f" {state.unit}", file=sys.stderr, leave=False)
@@ -105,13 +103,13 @@ def build_as_job(conn: psycopg.Connection, args: argparse.Namespace) -> int:
             bar.update((state.done or 0) - bar.n)
 
     try:
-        state = wait(conn, conninfo, job_id, shown)
+        state = run_and_wait(conn, conninfo, "build_graph", who, shown, **arguments)
     finally:
         if bar is not None:
             bar.close()
     if state.state != "done":
         print(
-            f"modb graph build: job {job_id} {state.state}"
+            f"modb graph build: job {state.id} {state.state}"
             + (f": {state.error}" if state.error else ""),
             file=sys.stderr,
         )

@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import os
+import socket
 import sys
 import threading
 import time
@@ -51,13 +53,16 @@ def submitter(conn: psycopg.Connection) -> str:
     return who
 
 
-def submit(conn: psycopg.Connection, kind: str, who: str, **arguments: Any) -> int:
+def submit(
+    conn: psycopg.Connection, kind: str, who: str, queue: str | None = None, **arguments: Any
+) -> int:
     """Queues a job of `kind` (a modb task: build_graph, ...) for `who` (see submitter) in the
-    connection's transaction, through the engine's own SQL function; returns its id."""
+    connection's transaction, through the engine's own SQL function, on its kind's queue unless
+    `queue` names another; returns its id."""
     return conn.execute(
         "SELECT (procrastinate_defer_jobs_v1(ARRAY[ROW(%s, %s, 0, NULL, NULL, %s, NULL)"
         "::procrastinate_job_to_defer_v1]))[1]",
-        [QUEUES[kind], f"modb.{kind}", Jsonb({"submitter": who, **arguments})],
+        [queue or QUEUES[kind], f"modb.{kind}", Jsonb({"submitter": who, **arguments})],
     ).fetchone()[0]
 
 
@@ -95,22 +100,27 @@ def job_state(conn: psycopg.Connection, job_id: int) -> JobState | None:
     return JobState(*row) if row else None
 
 
-def wait(
+def run_and_wait(
     conn: psycopg.Connection,
     conninfo: str,
-    job_id: int,
+    kind: str,
+    who: str,
     shown: Callable[[JobState], None],
+    **arguments: Any,
 ) -> JobState:
-    """Until the job ends: run by a worker when one is alive, else in this process. `shown` gets
-    each state seen (a progress bar, log lines)."""
-    runner = None
+    """Submits a job and waits until it ends: run by a worker when one is alive, else in this
+    process (said once), on a queue of its own so that this process runs this job only. `shown`
+    gets each state seen (a progress bar, log lines)."""
+    runner, queue = None, None
     if not workers_alive(conn):
+        queue = f"{QUEUES[kind]}.{socket.gethostname()}.{os.getpid()}"[:128]  # the column's width
+    job_id = submit(conn, kind, who, queue, **arguments)
+    if queue is not None:
         print(
             f"modb: job {job_id}: no worker is running (`modb worker` starts one); running it in "
             "this process",
             file=sys.stderr,
         )
-        queue = QUEUES[job_state(conn, job_id).kind.removeprefix("modb.")]
         runner = threading.Thread(
             target=run_one, args=(conninfo, [queue], STALLED_AFTER_S, False), daemon=True
         )
@@ -120,6 +130,6 @@ def wait(
         shown(state)
         if state.state in FINISHED:
             if runner is not None:
-                runner.join()  # the queue's other jobs too, if any were waiting
+                runner.join()
             return state
         time.sleep(POLL_S)
