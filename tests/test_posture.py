@@ -10,9 +10,9 @@ import pytest
 from support.data import mocap
 from support.snippet_oracle import motion_world
 
-from loader.asf import read_amc, read_asf
-from loader.bvh import read_bvh
 from modb.editing.retarget import retarget_motion
+from modb.loader.asf import read_amc, read_asf
+from modb.loader.bvh import read_bvh
 from modb.posture import PERCENTILES, apart, posture
 
 

@@ -64,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
         if args.background:
             print(
                 "modb graph build --background: this database has no job tables: "
-                "`modb worker --init` (as its owner) makes them",
+                "`modb worker --init` (as a superuser) makes them",
                 file=sys.stderr,
             )
             return 2
@@ -75,7 +75,14 @@ def build_as_job(conn: psycopg.Connection, args: argparse.Namespace) -> int:
     """The build as a job: queued (--background: its id printed), else waited for with its progress,
     run by a worker when one is alive, else in this process."""
     from modb.database.dsn import resolve
-    from modb.jobs.submit import JobState, NotALoader, run_and_wait, submit, submitter
+    from modb.jobs.submit import (
+        JobState,
+        NotALoader,
+        run_and_wait,
+        submit,
+        submitter,
+        workers_alive,
+    )
 
     conninfo = resolve(args.dsn)[0]
     try:
@@ -87,6 +94,12 @@ def build_as_job(conn: psycopg.Connection, args: argparse.Namespace) -> int:
                  "min_turn_degrees": float(args.min_turn)}  # fmt: skip
     if args.background:
         print(submit(conn, "build_graph", who, **arguments))
+        if not workers_alive(conn):
+            print(
+                "modb graph build: no worker is running: the job waits for one (`modb worker`, "
+                "or `modb db start --workers 1`)",
+                file=sys.stderr,
+            )
         return 0
     bar, lines_shown = None, 0
 

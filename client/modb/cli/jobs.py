@@ -6,7 +6,10 @@ import argparse
 import json
 import sys
 
-from .common import connect
+from .common import Number, connect
+
+JOB_ID = Number(1, 2**63 - 1, whole=True)
+LIMIT = Number(1, 10000, whole=True, unit="jobs")
 
 LIST = """
 SELECT id, kind, state, submitter, done, total, unit, started_at, finished_at, arguments
@@ -17,8 +20,13 @@ SELECT id, kind, state, submitter, done, total, unit, started_at, finished_at, a
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("jobs", help="queued, running and finished jobs: list, show, cancel, retry")
     p.add_argument("action", choices=["list", "show", "cancel", "retry"])
-    p.add_argument("job", nargs="?", type=int, help="show, cancel, retry: the job's id")
-    p.add_argument("--limit", type=int, default=20, help="list: the newest this many (default 20)")
+    p.add_argument("job", nargs="?", type=JOB_ID, help="show, cancel, retry: the job's id")
+    p.add_argument(
+        "--limit",
+        type=LIMIT,
+        default=20,
+        help=f"list: the newest this many ({LIMIT.span}; default 20)",
+    )
     p.set_defaults(func=run)
 
 

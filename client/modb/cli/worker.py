@@ -45,7 +45,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--init",
         action="store_true",
-        help="make the job tables in the database first (its owner's role) and exit",
+        help="make the job tables in the database (as a superuser, once) and exit",
     )
     p.set_defaults(func=run)
 
@@ -54,6 +54,16 @@ def run(args: argparse.Namespace) -> int:
     from modb.database.dsn import resolve
     from modb.jobs import schema, worker
 
+    from modb.jobs.tasks import QUEUES
+
+    unknown = sorted(set(args.queues or ()) - set(QUEUES.values()))
+    if unknown:
+        print(
+            f"modb worker: no queue {unknown[0]!r}: the queues are "
+            f"{', '.join(sorted(set(QUEUES.values())))}",
+            file=sys.stderr,
+        )
+        return 2
     conninfo = resolve(args.dsn)[0]  # with its password, which conn.info.dsn leaves out
     with connect(args) as conn:
         if args.init:
@@ -62,8 +72,8 @@ def run(args: argparse.Namespace) -> int:
             return 0
         if not schema.installed(conn):
             print(
-                "modb worker: this database has no job tables: `modb worker --init` (as its owner) "
-                "makes them",
+                "modb worker: this database has no job tables: `modb worker --init` (as a "
+                "superuser) makes them",
                 file=sys.stderr,
             )
             return 2

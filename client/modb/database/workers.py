@@ -4,11 +4,14 @@ role (a member of modb_loader, not a superuser)."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
 import sys
 import time
+
+from pathlib import Path
 
 from psycopg.conninfo import make_conninfo
 
@@ -25,10 +28,11 @@ def running(cluster: Cluster) -> int | None:
     """The workers' process id, when they run."""
     try:
         pid = int(_pidfile(cluster).read_text())
-        os.kill(pid, 0)
-    except (FileNotFoundError, ValueError, ProcessLookupError):
+        command = (Path("/proc") / str(pid) / "cmdline").read_bytes()
+    except (OSError, ValueError):
         return None
-    return pid
+    # after a reboot the number may be another process's
+    return pid if b"modb.cli" in command and b"worker" in command else None
 
 
 def start(cluster: Cluster, concurrency: int) -> int:
@@ -59,16 +63,33 @@ def start(cluster: Cluster, concurrency: int) -> int:
 
 
 def stop(cluster: Cluster) -> bool:
-    """Stops the workers (SIGTERM: each finishes or gives up its job); whether any ran."""
+    """Stops the workers (SIGTERM: each finishes its job; after STOP_WAIT_S they are killed and
+    their jobs run again on the next worker); whether any ran."""
     pid = running(cluster)
     if pid is None:
         _pidfile(cluster).unlink(missing_ok=True)
         return False
-    os.killpg(pid, signal.SIGTERM)
+    os.kill(pid, signal.SIGTERM)  # the parent stops its processes
     deadline = time.monotonic() + STOP_WAIT_S
     while running(cluster) is not None and time.monotonic() < deadline:
         time.sleep(0.2)
     if running(cluster) is not None:
-        os.killpg(pid, signal.SIGKILL)  # their jobs are queued again by the next worker
+        children = _children(pid)  # each in a process group of its own
+        os.killpg(pid, signal.SIGKILL)
+        for child in children:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(child, signal.SIGKILL)
     _pidfile(cluster).unlink(missing_ok=True)
     return True
+
+
+def _children(pid: int) -> list[int]:
+    """The worker processes a `modb worker --concurrency N` started (each its own process group)."""
+    found = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            if int(stat.read_text().rsplit(")", 1)[1].split()[1]) == pid:
+                found.append(int(stat.parent.name))
+        except (OSError, IndexError, ValueError):
+            continue
+    return found

@@ -46,7 +46,6 @@ def build_here(
             raise GraphJobError(
                 f"{e.diag.message_primary}" + (f" ({hint})" if hint else "")
             ) from None
-        plan = cur.execute(PLAN, [profile]).fetchone()
         notice(f'transition graph "{name}": reading the terminators of {len(snippets)} snippets')
         ids = sorted(
             {r["begin_terminator"] for r in snippets} | {r["end_terminator"] for r in snippets}

@@ -28,7 +28,13 @@ class JobProgress:
         self._conn = psycopg.connect(conninfo, autocommit=True)
         self._written = 0.0
         self.done, self.total = 0, None
-        self._write(done=0, error=None)  # a retried job starts its count again
+        # A retried job starts again: its count, result and error; its log keeps the earlier lines.
+        self._conn.execute(
+            "INSERT INTO modb_jobs.progress (job_id) VALUES (%s) ON CONFLICT (job_id) DO UPDATE "
+            "SET done = 0, total = NULL, unit = NULL, result = NULL, error = NULL, "
+            "updated_at = now()",
+            [job_id],
+        )
 
     def _write(self, **values) -> None:
         row = {"job": self.job_id, "done": None, "total": None, "unit": None, "log": None,

@@ -15,11 +15,13 @@ from typing import Any
 import psycopg
 from psycopg.types.json import Jsonb
 
-from .engine import LOADER_ROLE
+from .connection import LOADER_ROLE
 from .tasks import QUEUES
 from .worker import STALLED_AFTER_S, run_one
 
 FINISHED = ("done", "failed", "cancelled")
+# Jobs that must not run at once (the engine runs one job of a lock at a time): builds of one graph.
+LOCKS = {"build_graph": lambda arguments: f"graph {arguments['name']}"}
 POLL_S = 0.5
 
 
@@ -43,7 +45,7 @@ class NotALoader(PermissionError):
 def submitter(conn: psycopg.Connection) -> str:
     """Who submits (the login role), when it may: a member of the loader role."""
     who, loader = conn.execute(
-        "SELECT session_user, pg_has_role(session_user, %s, 'MEMBER')", [LOADER_ROLE]
+        "SELECT session_user, pg_has_role(session_user, %s, 'USAGE')", [LOADER_ROLE]
     ).fetchone()
     if not loader:
         raise NotALoader(
@@ -60,9 +62,14 @@ def submit(
     connection's transaction, through the engine's own SQL function, on its kind's queue unless
     `queue` names another; returns its id."""
     return conn.execute(
-        "SELECT (procrastinate_defer_jobs_v1(ARRAY[ROW(%s, %s, 0, NULL, NULL, %s, NULL)"
+        "SELECT (procrastinate_defer_jobs_v1(ARRAY[ROW(%s, %s, 0, %s, NULL, %s, NULL)"
         "::procrastinate_job_to_defer_v1]))[1]",
-        [queue or QUEUES[kind], f"modb.{kind}", Jsonb({"submitter": who, **arguments})],
+        [
+            queue or QUEUES[kind],
+            f"modb.{kind}",
+            LOCKS[kind](arguments),
+            Jsonb({"submitter": who, **arguments}),
+        ],  # fmt: skip
     ).fetchone()[0]
 
 
@@ -76,8 +83,9 @@ def cancel(conn: psycopg.Connection, job_id: int) -> bool:
 
 
 def retry(conn: psycopg.Connection, job: dict, who: str) -> int:
-    """A failed job queued again (its id), or a cancelled one as a new job (the new id)."""
-    if job["state"] == "failed":
+    """A failed job queued again (its id), or a cancelled one as a new job (the new id); so too a
+    failed job whose cancel was asked (the engine keeps it marked)."""
+    if job["state"] == "failed" and not job["cancel_requested"]:
         conn.execute("SELECT procrastinate_retry_job_v2(%s, now(), NULL, NULL, NULL)", [job["id"]])
         return job["id"]
     return submit(conn, job["kind"].removeprefix("modb."), who, **job["arguments"])
@@ -115,21 +123,30 @@ def run_and_wait(
     if not workers_alive(conn):
         queue = f"{QUEUES[kind]}.{socket.gethostname()}.{os.getpid()}"[:128]  # the column's width
     job_id = submit(conn, kind, who, queue, **arguments)
+
+    def run_here(on: str, why: str) -> threading.Thread:
+        print(f"modb: job {job_id}: {why}; running it in this process", file=sys.stderr)
+        thread = threading.Thread(
+            target=run_one, args=(conninfo, [on], STALLED_AFTER_S, False), daemon=True
+        )
+        thread.start()
+        return thread
+
     if queue is not None:
-        print(
-            f"modb: job {job_id}: no worker is running (`modb worker` starts one); running it in "
-            "this process",
-            file=sys.stderr,
-        )
-        runner = threading.Thread(
-            target=run_one, args=(conninfo, [queue], STALLED_AFTER_S, False), daemon=True
-        )
-        runner.start()
-    while True:
-        state = job_state(conn, job_id)
-        shown(state)
-        if state.state in FINISHED:
-            if runner is not None:
-                runner.join()
-            return state
-        time.sleep(POLL_S)
+        runner = run_here(queue, "no worker is running (`modb worker` starts one)")
+    try:
+        while True:
+            state = job_state(conn, job_id)
+            shown(state)
+            if state.state in FINISHED:
+                if runner is not None:
+                    runner.join()
+                return state
+            if runner is None and state.state == "queued" and not workers_alive(conn):
+                # the workers stopped since: their queue's jobs, this one among them, run here
+                runner = run_here(QUEUES[kind], "the workers stopped")
+            time.sleep(POLL_S)
+    except KeyboardInterrupt:
+        cancel(conn, job_id)
+        print(f"modb: job {job_id} cancelled (nothing half-made is kept)", file=sys.stderr)
+        raise

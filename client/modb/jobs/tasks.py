@@ -11,7 +11,7 @@ from procrastinate.exceptions import JobAborted
 
 from modb.database.connection import connect
 
-from .engine import as_loader
+from .connection import as_loader
 from .graph_build import build_here
 from .progress import JobProgress
 

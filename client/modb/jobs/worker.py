@@ -22,23 +22,40 @@ KEEP_DAYS = 30.0  # finished jobs are deleted after this long
 PRUNE_EVERY_S = 3600.0
 
 
+# A stalled job queued again only if it is still the silent worker's: one statement with the row
+# locked, so two workers seeing the same stalled job (or a worker that fetched it meanwhile) never
+# make it run twice.
+REQUEUE = """
+SELECT procrastinate_retry_job_v2(j.id, now(), NULL, NULL, NULL)
+  FROM (SELECT id FROM procrastinate_jobs
+         WHERE id = %(id)s AND status = 'doing' AND worker_id IS NOT DISTINCT FROM %(worker)s
+           FOR UPDATE) j
+"""
+
+
 async def _housekeeping(app, me: Worker, stalled_after: float, keep_days: float) -> None:
     """Jobs of silent workers queued again; finished jobs deleted after keep_days, in whole hours
-    (with their progress and log)."""
+    (with their progress and log). A failed pass is logged and the next one runs."""
     pruned = None
     while True:
         await asyncio.sleep(max(1.0, stalled_after / 3))
-        for job in await app.job_manager.get_stalled_jobs(seconds_since_heartbeat=stalled_after):
-            if job.worker_id == me.worker_id:  # this worker is alive, however late its heartbeat
-                continue
-            log.warning("job %s: its worker stopped answering; queued again", job.id)
-            await app.job_manager.retry_job(job)
-        if pruned is None or time.monotonic() - pruned > PRUNE_EVERY_S:
-            pruned = time.monotonic()
-            await app.job_manager.delete_old_jobs(
-                nb_hours=int(keep_days * 24), include_failed=True, include_cancelled=True,
-                include_aborted=True,
-            )  # fmt: skip
+        try:
+            stalled = await app.job_manager.get_stalled_jobs(seconds_since_heartbeat=stalled_after)
+            for job in stalled:
+                if job.worker_id == me.worker_id:  # this worker is alive, however late its beat
+                    continue
+                await app.connector.execute_query_async(
+                    query=REQUEUE, id=job.id, worker=job.worker_id
+                )
+                log.warning("job %s: its worker stopped answering; queued again", job.id)
+            if pruned is None or time.monotonic() - pruned > PRUNE_EVERY_S:
+                pruned = time.monotonic()
+                await app.job_manager.delete_old_jobs(
+                    nb_hours=int(keep_days * 24), include_failed=True, include_cancelled=True,
+                    include_aborted=True,
+                )  # fmt: skip
+        except Exception:
+            log.exception("job housekeeping failed; trying again in %.0f s", stalled_after / 3)
 
 
 def run_one(
@@ -65,13 +82,22 @@ def run_one(
                 abort_job_polling_interval=1.0,  # a cancel reaches a running job within 1 s
                 install_signal_handlers=wait,
             )
-            retrying = asyncio.create_task(_housekeeping(app, me, stalled_after, keep_days))
+            # A command running its own job (wait=False) leaves the others' jobs to the workers.
+            chores = wait and asyncio.create_task(_housekeeping(app, me, stalled_after, keep_days))
             try:
                 await me.run()
             finally:
-                retrying.cancel()
+                if chores:
+                    chores.cancel()
 
     asyncio.run(main())
+
+
+def _child(conninfo: str, queues: list[str] | None, stalled_after: float, keep_days: float) -> None:
+    # Its own process group: a Ctrl-C or a stop signal reaches it once, from the parent (a second
+    # SIGTERM would end it at once, mid-job, where the first lets it finish the job).
+    os.setpgrp()
+    run_one(conninfo, queues, stalled_after, True, keep_days)
 
 
 def run(
@@ -88,7 +114,7 @@ def run(
     context = multiprocessing.get_context("spawn")  # no inherited connections or threads
     children = [
         context.Process(
-            target=run_one, args=(conninfo, queues, stalled_after, True, keep_days), daemon=False
+            target=_child, args=(conninfo, queues, stalled_after, keep_days), daemon=False
         )
         for _ in range(concurrency)
     ]

@@ -11,7 +11,7 @@ from starlette.exceptions import HTTPException
 from starlette.requests import Request
 
 from modb.jobs import schema
-from modb.jobs.submit import cancel, submit
+from modb.jobs.submit import cancel, submit, workers_alive
 
 from .api import BadRequest, NotFound
 from .body_rules import CollectionPath, JsonObject, Nullable, Number, Shape, Text
@@ -36,7 +36,7 @@ SUBMITTED = Shape({"kind": Text(), "arguments": JsonObject()}, ("kind", "argumen
 
 def _tables(conn: psycopg.Connection) -> None:
     if not schema.installed(conn):
-        raise NotFound("this database has no job tables: `modb worker --init` (as its owner)")
+        raise NotFound("this database has no job tables: `modb worker --init` (as a superuser)")
 
 
 def jobs(conn: psycopg.Connection) -> list[dict[str, Any]]:
@@ -65,8 +65,9 @@ def submit_job(conn: psycopg.Connection, request: Request, body: Any) -> Done:
     arguments = ARGUMENTS[kind](None, fields["arguments"])
     _tables(conn)
     job_id = submit(conn, kind, request.state.grant.name, **arguments)
+    answer = {**job(conn, job_id), "workers_alive": workers_alive(conn)}  # 0: it waits for one
     return Done(
-        job(conn, job_id), "submit job", f"job {job_id}", {"kind": kind, **arguments}, status=202,
+        answer, "submit job", f"job {job_id}", {"kind": kind, **arguments}, status=202,
         headers={"Location": f"/api/jobs/{job_id}"},
     )  # fmt: skip
 
