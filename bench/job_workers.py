@@ -56,9 +56,16 @@ def run(dsn: str, collection: str, jobs: int, workers: int, round_: int) -> dict
         while True:
             for pid, cpu in postgres_cpu().items():
                 seen[pid] = max(seen.get(pid, 0.0), cpu)
-            left = conn.execute(
-                "SELECT count(*) FROM modb.jobs WHERE id = ANY(%s) AND state <> 'done'", [ids]
-            ).fetchone()[0]
+            left, failed = conn.execute(
+                "SELECT count(*) FILTER (WHERE state IN ('queued', 'running')), "
+                "       string_agg(error, '; ') FILTER (WHERE state <> 'done') "
+                "  FROM modb.jobs WHERE id = ANY(%s)",
+                [ids],
+            ).fetchone()
+            if failed:
+                for p in procs:
+                    p.terminate()
+                raise SystemExit(f"a job failed: {failed}")
             if not left:
                 break
             time.sleep(0.2)

@@ -58,8 +58,9 @@ def run(args: argparse.Namespace) -> int:
             )
             return 2
         from modb.jobs import schema
+        from modb.jobs.graph_build import can_build_here
 
-        if schema.installed(conn):
+        if schema.installed(conn) and can_build_here(conn):
             return build_as_job(conn, args)
         if args.background:
             print(

@@ -22,6 +22,13 @@ class GraphJobError(ValueError):
     pass
 
 
+def can_build_here(conn: psycopg.Connection) -> bool:
+    """Whether the extension has the functions a build outside the server needs (0.19.0 on)."""
+    return conn.execute(
+        "SELECT to_regprocedure('modb.transition_graph_inputs(text, text, float8)') IS NOT NULL"
+    ).fetchone()[0]
+
+
 def build_here(
     conn: psycopg.Connection,
     name: str,
@@ -32,6 +39,11 @@ def build_here(
     advance: Callable[[int, int], None] | None = None,
 ) -> int:
     """Builds (or rebuilds) the graph `name`; returns its modb.graphs id."""
+    if not can_build_here(conn):
+        raise GraphJobError(
+            "the database's modb extension is older than 0.19.0, which a worker needs: run "
+            "ALTER EXTENSION modb UPDATE there (`modb db start` does it on the embedded database)"
+        )
     # One snapshot for the snippets and their terminators; nothing held open while the kernel works.
     with conn.transaction(), conn.cursor(row_factory=dict_row) as cur:
         conn.execute("SET TRANSACTION ISOLATION LEVEL REPEATABLE READ, READ ONLY")
