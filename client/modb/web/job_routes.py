@@ -40,8 +40,9 @@ def _tables(conn: psycopg.Connection) -> None:
 
 
 def jobs(conn: psycopg.Connection) -> list[dict[str, Any]]:
-    """The newest MAX_LISTED jobs, newest first (modb.jobs)."""
-    _tables(conn)
+    """The newest MAX_LISTED jobs, newest first (modb.jobs); none where there are no job tables."""
+    if not schema.installed(conn):
+        return []
     rows = conn.execute(
         "SELECT to_jsonb(j) FROM modb.jobs j ORDER BY id DESC LIMIT %s", [MAX_LISTED]
     )

@@ -1,6 +1,6 @@
 // The Jobs panel: the newest jobs (graph builds, ...) with their progress, polled every 1.5 s while one
-// is queued or running, a link to what each made, and cancel (with a loader token). Hidden where the
-// database has no job tables.
+// is queued or running, a link to what each made, and cancel (with a loader token). Shown once there is
+// a job (the database may have no job tables: then there is none).
 import { token } from './token.js';
 
 const SHOWN = 8;
@@ -58,13 +58,11 @@ export function jobsPanel(section, list) {
     let jobs;
     try {
       const r = await fetch('/api/jobs', { headers: token.headers() });
-      if (r.status === 404) { section.hidden = true; return; }
       jobs = r.ok ? await r.json() : null;
     } catch { jobs = null; }
     if (jobs) {
-      section.hidden = false;
+      section.hidden = !jobs.length;
       list.replaceChildren(...jobs.slice(0, SHOWN).map((j) => item(j, cancel)));
-      if (!jobs.length) list.textContent = 'none yet: `modb graph build NAME` queues one';
     }
     const busy = jobs && jobs.some((j) => ACTIVE.includes(j.state));
     timer = setTimeout(refresh, busy ? BUSY_MS : IDLE_MS);
