@@ -315,3 +315,24 @@ def test_the_web_page_lists_jobs_with_live_progress_and_what_they_made(dsn, chro
         browser.execute_script("document.getElementById('jobs-panel').scrollIntoView()")
         browser.save_screenshot(str(artifacts / "jobs-panel.png"))
         assert severe_console_entries(browser) == []
+
+
+def test_one_submitter_may_have_only_so_many_jobs_waiting(dsn):
+    from modb.jobs.submit import MAX_QUEUED, cancel, submit
+
+    with connect(dsn) as conn:
+        conn.execute("DROP ROLE IF EXISTS jobs_flood")
+        conn.execute("CREATE ROLE jobs_flood LOGIN IN ROLE modb_loader")
+        waiting = [
+            submit(conn, "build_graph", "jobs_flood", name=f"flood {i}", collection="cmu")
+            for i in range(MAX_QUEUED)
+        ]
+        flood = psycopg.conninfo.make_conninfo(dsn, user="jobs_flood")
+        refused = run_modb(flood, "graph", "build", "one more", *GRAPH, "--background")
+        assert refused.returncode == 2 and f"{MAX_QUEUED} jobs waiting already" in refused.stderr
+        assert run_modb(dsn, "graph", "build", "another's", *GRAPH, "--background").returncode == 0
+        cancel(conn, waiting[0])  # one fewer waiting: one more may come
+        r = run_modb(flood, "graph", "build", "one more", *GRAPH, "--background")
+        assert r.returncode == 0, r.stderr
+        for job_id in conn.execute("SELECT id FROM modb.jobs WHERE state = 'queued'"):
+            cancel(conn, job_id[0])

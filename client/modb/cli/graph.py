@@ -79,6 +79,7 @@ def build_as_job(conn: psycopg.Connection, args: argparse.Namespace) -> int:
     from modb.jobs.submit import (
         JobState,
         NotALoader,
+        TooManyQueued,
         run_and_wait,
         submit,
         submitter,
@@ -94,7 +95,11 @@ def build_as_job(conn: psycopg.Connection, args: argparse.Namespace) -> int:
     arguments = {"name": args.name, "profile": args.profile, "collection": args.collection,
                  "min_turn_degrees": float(args.min_turn)}  # fmt: skip
     if args.background:
-        print(submit(conn, "build_graph", who, **arguments))
+        try:
+            print(submit(conn, "build_graph", who, **arguments))
+        except TooManyQueued as e:
+            print(f"modb graph build: {e}", file=sys.stderr)
+            return 2
         if not workers_alive(conn):
             print(
                 "modb graph build: no worker is running: the job waits for one (`modb worker`, "
@@ -118,6 +123,9 @@ def build_as_job(conn: psycopg.Connection, args: argparse.Namespace) -> int:
 
     try:
         state = run_and_wait(conn, conninfo, "build_graph", who, shown, **arguments)
+    except TooManyQueued as e:
+        print(f"modb graph build: {e}", file=sys.stderr)
+        return 2
     finally:
         if bar is not None:
             bar.close()

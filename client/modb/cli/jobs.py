@@ -69,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def change(args: argparse.Namespace, job: dict) -> int:
-    from modb.jobs.submit import NotALoader, cancel, retry, submitter
+    from modb.jobs.submit import NotALoader, TooManyQueued, cancel, retry, submitter
 
     with connect(args) as conn:
         try:
@@ -93,6 +93,10 @@ def change(args: argparse.Namespace, job: dict) -> int:
                 file=sys.stderr,
             )
             return 2
-        again = retry(conn, job, who)
+        try:
+            again = retry(conn, job, who)
+        except TooManyQueued as e:
+            print(f"modb jobs retry: {e}", file=sys.stderr)
+            return 2
         print(f"job {job['id']}: queued again" + (f" as job {again}" if again != job["id"] else ""))
         return 0

@@ -42,6 +42,13 @@ class NotALoader(PermissionError):
     pass
 
 
+class TooManyQueued(RuntimeError):
+    """The submitter's cap on queued jobs is reached."""
+
+
+MAX_QUEUED = 20  # queued (not yet running) jobs one submitter may have: one cannot flood the queue
+
+
 def submitter(conn: psycopg.Connection) -> str:
     """Who submits (the login role), when it may: a member of the loader role."""
     who, loader = conn.execute(
@@ -60,17 +67,31 @@ def submit(
 ) -> int:
     """Queues a job of `kind` (a modb task: build_graph, ...) for `who` (see submitter) in the
     connection's transaction, through the engine's own SQL function, on its kind's queue unless
-    `queue` names another; returns its id."""
-    return conn.execute(
-        "SELECT (procrastinate_defer_jobs_v1(ARRAY[ROW(%s, %s, 0, %s, NULL, %s, NULL)"
-        "::procrastinate_job_to_defer_v1]))[1]",
-        [
-            queue or QUEUES[kind],
-            f"modb.{kind}",
-            LOCKS[kind](arguments),
-            Jsonb({"submitter": who, **arguments}),
-        ],  # fmt: skip
-    ).fetchone()[0]
+    `queue` names another; returns its id. Refused (TooManyQueued) when `who` has MAX_QUEUED jobs
+    waiting already."""
+    with conn.transaction():
+        # one submitter's submits queue here, so two at once cannot both pass the count
+        conn.execute("SELECT pg_advisory_xact_lock(hashtext('modb jobs of'), hashtext(%s))", [who])
+        waiting = conn.execute(
+            "SELECT count(*) FROM procrastinate_jobs "
+            "WHERE status = 'todo' AND args->>'submitter' = %s",
+            [who],
+        ).fetchone()[0]
+        if waiting >= MAX_QUEUED:
+            raise TooManyQueued(
+                f"{who} has {waiting} jobs waiting already (at most {MAX_QUEUED}): wait for them, "
+                "or cancel some (`modb jobs list`, `modb jobs cancel ID`)"
+            )
+        return conn.execute(
+            "SELECT (procrastinate_defer_jobs_v1(ARRAY[ROW(%s, %s, 0, %s, NULL, %s, NULL)"
+            "::procrastinate_job_to_defer_v1]))[1]",
+            [
+                queue or QUEUES[kind],
+                f"modb.{kind}",
+                LOCKS[kind](arguments),
+                Jsonb({"submitter": who, **arguments}),
+            ],  # fmt: skip
+        ).fetchone()[0]
 
 
 def cancel(conn: psycopg.Connection, job_id: int) -> bool:

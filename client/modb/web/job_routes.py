@@ -11,7 +11,7 @@ from starlette.exceptions import HTTPException
 from starlette.requests import Request
 
 from modb.jobs import schema
-from modb.jobs.submit import cancel, submit, workers_alive
+from modb.jobs.submit import TooManyQueued, cancel, submit, workers_alive
 
 from .api import BadRequest, NotFound
 from .body_rules import CollectionPath, JsonObject, Nullable, Number, Shape, Text
@@ -65,7 +65,10 @@ def submit_job(conn: psycopg.Connection, request: Request, body: Any) -> Done:
         raise BadRequest(f'"kind": one of {", ".join(ARGUMENTS)}, got {kind!r:.60}')
     arguments = ARGUMENTS[kind](None, fields["arguments"])
     _tables(conn)
-    job_id = submit(conn, kind, request.state.grant.name, **arguments)
+    try:
+        job_id = submit(conn, kind, request.state.grant.name, **arguments)
+    except TooManyQueued as e:
+        raise HTTPException(429, str(e)) from None
     answer = {**job(conn, job_id), "workers_alive": workers_alive(conn)}  # 0: it waits for one
     return Done(
         answer, "submit job", f"job {job_id}", {"kind": kind, **arguments}, status=202,
