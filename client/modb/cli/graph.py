@@ -64,10 +64,11 @@ def run(args: argparse.Namespace) -> int:
             return build_as_job(conn, args)
         if args.background:
             print(
-                "modb graph build --background: this database has no job tables: "
-                "`modb worker --init` (as a superuser) makes them",
+                "modb graph build --background: "
+                + (schema.NO_TABLES if not schema.installed(conn) else "the database's modb "
+                   "extension is older than 0.19.0: ALTER EXTENSION modb UPDATE there"),
                 file=sys.stderr,
-            )
+            )  # fmt: skip
             return 2
         return build(conn, args.name, args.profile, args.collection, args.min_turn, args.quiet)
 

@@ -38,10 +38,11 @@ def progress_text(done, total, unit) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from modb.jobs import schema
+    from modb.jobs.submit import job_document
 
     with connect(args) as conn:
         if not schema.installed(conn):
-            print("modb jobs: no job tables: `modb worker --init` makes them", file=sys.stderr)
+            print(f"modb jobs: {schema.NO_TABLES}", file=sys.stderr)
             return 2
         if args.action == "list":
             rows = conn.execute(LIST, [args.limit]).fetchall()
@@ -56,16 +57,14 @@ def run(args: argparse.Namespace) -> int:
         if args.job is None:
             print(f"modb jobs {args.action}: name the job (modb jobs list)", file=sys.stderr)
             return 2
-        row = conn.execute(
-            "SELECT to_jsonb(j) FROM modb.jobs j WHERE id = %s", [args.job]
-        ).fetchone()
-        if row is None:
+        job = job_document(conn, args.job)
+        if job is None:
             print(f"modb jobs: no job {args.job}", file=sys.stderr)
             return 2
         if args.action == "show":
-            print(json.dumps(row[0], indent=2))
+            print(json.dumps(job, indent=2))
             return 0
-        return change(args, row[0])
+        return change(args, job)
 
 
 def change(args: argparse.Namespace, job: dict) -> int:

@@ -71,11 +71,7 @@ def run(args: argparse.Namespace) -> int:
             print("modb worker: job tables " + ("made" if made else "already there"))
             return 0
         if not schema.installed(conn):
-            print(
-                "modb worker: this database has no job tables: `modb worker --init` (as a "
-                "superuser) makes them",
-                file=sys.stderr,
-            )
+            print(f"modb worker: {schema.NO_TABLES}", file=sys.stderr)
             return 2
     print(
         f"modb worker: {args.concurrency} process(es) taking jobs from "

@@ -13,6 +13,9 @@ from procrastinate.schema import SchemaManager
 JOB_TABLES = resources.files(__package__).joinpath("job_tables.sql").read_text(encoding="utf-8")
 
 
+NO_TABLES = "this database has no job tables: `modb worker --init` (as a superuser) makes them"
+
+
 def installed(conn: psycopg.Connection) -> bool:
     return conn.execute("SELECT to_regclass('modb.jobs') IS NOT NULL").fetchone()[0]
 

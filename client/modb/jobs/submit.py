@@ -120,6 +120,12 @@ def workers_alive(conn: psycopg.Connection, within_s: float = STALLED_AFTER_S) -
     ).fetchone()[0]
 
 
+def job_document(conn: psycopg.Connection, job_id: int) -> dict[str, Any] | None:
+    """Everything modb.jobs says of the job, as `modb jobs show` and GET /api/jobs/ID give it."""
+    row = conn.execute("SELECT to_jsonb(j) FROM modb.jobs j WHERE id = %s", [job_id]).fetchone()
+    return row[0] if row else None
+
+
 def job_state(conn: psycopg.Connection, job_id: int) -> JobState | None:
     row = conn.execute(
         "SELECT id, kind, state, done, total, unit, coalesce(log, '{}'), result, error "

@@ -11,7 +11,7 @@ from starlette.exceptions import HTTPException
 from starlette.requests import Request
 
 from modb.jobs import schema
-from modb.jobs.submit import TooManyQueued, cancel, submit, workers_alive
+from modb.jobs.submit import TooManyQueued, cancel, job_document, submit, workers_alive
 
 from .api import BadRequest, NotFound
 from .body_rules import CollectionPath, JsonObject, Nullable, Number, Shape, Text
@@ -36,7 +36,7 @@ SUBMITTED = Shape({"kind": Text(), "arguments": JsonObject()}, ("kind", "argumen
 
 def _tables(conn: psycopg.Connection) -> None:
     if not schema.installed(conn):
-        raise NotFound("this database has no job tables: `modb worker --init` (as a superuser)")
+        raise NotFound(schema.NO_TABLES)
 
 
 def jobs(conn: psycopg.Connection) -> list[dict[str, Any]]:
@@ -51,10 +51,10 @@ def jobs(conn: psycopg.Connection) -> list[dict[str, Any]]:
 
 def job(conn: psycopg.Connection, job_id: int) -> dict[str, Any]:
     _tables(conn)
-    row = conn.execute("SELECT to_jsonb(j) FROM modb.jobs j WHERE id = %s", [job_id]).fetchone()
-    if row is None:
+    found = job_document(conn, job_id)
+    if found is None:
         raise NotFound(f"no job with id {job_id}")
-    return row[0]
+    return found
 
 
 def submit_job(conn: psycopg.Connection, request: Request, body: Any) -> Done:
