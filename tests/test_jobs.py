@@ -158,7 +158,7 @@ def test_a_cancelled_job_stops_and_stores_nothing(dsn):
             assert r.returncode == 0 and "stops at its next step" in r.stdout, r.stderr
             state = until(conn, job_id, lambda j: j["state"] != "running", 30, "stopped")
             assert state["state"] == "cancelled"
-            assert any("nothing was written" in line for line in state["log"])
+            assert any("nothing is half-made" in line for line in state["log"])
             assert not conn.execute(
                 "SELECT count(*) FROM modb.graph_names WHERE name = 'cancelled'"
             ).fetchone()[0]

@@ -57,7 +57,52 @@ OLD_VERSIONS = [
     "0.16.0",
     "0.17.0",
     "0.18.0",
+    "0.19.0",
 ]
+
+# What a retargeting, an edit script and a cut store, without ids (sequences differ between runs):
+# each version's own columns, and its frames, terminators and snippets as numbers (numpy's sums may
+# differ in the last bit from run to run, with the arrays' alignment in memory).
+STORED = """
+SELECT v.clip_id, v.version, v.fps, v.n_frames, v.load_params, v.meta,
+       (SELECT array_agg(x) FROM unnest(v.rotations) x),
+       (SELECT array_agg(x) FROM unnest(v.translations) x),
+       (SELECT array_agg(array_cat(ARRAY[t.heading, t.pelvis_height, t.frame, t.mirrored::int],
+                                  t.positions || t.rotations || t.velocities || t.angular_velocities
+                                  || (SELECT array_agg(x) FROM unnest(t.configuration) x))::float8[]
+                         || (SELECT array_agg(cube_ll_coord(t.features, i) ORDER BY i)
+                               FROM generate_series(1, cube_dim(t.features)) i)
+                         ORDER BY t.mirrored, t.frame)
+          FROM modb.terminators t WHERE t.clip_id = v.clip_id AND t.version = v.version),
+       (SELECT array_agg(ARRAY[s.mirrored::int, s.first_frame, s.n_frames, s.net_heading,
+                               s.future_heading] || s.net_translation || s.net_rotation
+                         || s.future_translation ORDER BY s.mirrored, s.first_frame)
+          FROM modb.snippets s WHERE s.clip_id = v.clip_id AND s.version = v.version)
+  FROM modb.clip_versions v
+ WHERE (v.clip_id, v.version) NOT IN (SELECT clip_id, version FROM kept)
+ ORDER BY v.clip_id <> (SELECT min(clip_id) FROM kept), v.version
+"""
+
+
+def _retarget_and_edit(db) -> list:
+    """A retargeting (at another rate, mirrored too) and an edit script, rolled back: what they
+    stored. Clip ids are the caller's to compare (a rolled-back clip's id is not used again)."""
+    with db.transaction(force_rollback=True):
+        db.execute(
+            "CREATE TEMP TABLE kept ON COMMIT DROP AS "
+            "SELECT clip_id, version FROM modb.clip_versions"
+        )
+        first, second = [r[0] for r in db.execute("SELECT id FROM modb.clips ORDER BY id LIMIT 2")]
+        skeleton = db.execute("SELECT min(id) FROM modb.skeletons").fetchone()[0]
+        db.execute("SELECT modb.retarget(%s, %s, 'retargeted', 60, true)", [second, skeleton])
+        db.execute(
+            "INSERT INTO modb.edit_scripts (name, commands) VALUES ('t', "
+            '\'[{"op": "mirror"}, {"op": "smooth", "seconds": 0.1}, '
+            '{"op": "trim", "start": 10, "end": 200}]\')'
+        )
+        db.execute("SELECT * FROM modb.apply_edit_script('t', ARRAY[%s]::bigint[])", [first])
+        rows = db.execute(STORED).fetchall()
+    return [(row[0] == first, *row[1:]) for row in rows]
 
 
 def test_old_versions_install_through_the_chain(db):
@@ -108,7 +153,16 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
         old == "0.18.0"
     ):  # the last in-server build: the oracle for the build in three steps (0.19.0)
         db.execute("SELECT modb.build_transition_graph('before', 'locomotion', NULL, 0)")
+    if old == "0.19.0":  # the last in-server code: the oracle for the kernel's that workers run too
+        stored_before = _retarget_and_edit(db)
     db.execute("ALTER EXTENSION modb UPDATE")
+    if old == "0.19.0":
+        stored_after = _retarget_and_edit(db)
+        assert len(stored_before) == 2 and all(row[-1] for row in stored_before)
+        for made, oracle_row in zip(stored_after, stored_before, strict=True):
+            assert made[:6] == oracle_row[:6]
+            for numbers, oracle in zip(made[6:], oracle_row[6:], strict=True):
+                assert np.allclose(np.asarray(numbers), np.asarray(oracle), rtol=1e-9, atol=1e-12)
     if old == "0.18.0":
         db.execute("SELECT modb.build_transition_graph('after', 'locomotion', NULL, 0)")
         graphs = [
@@ -172,7 +226,7 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
         # 0.18.0: the update leaves the blocks as they were (no term codes) and builds the
         # directory's index; they count as unpacked, so a load's packing derives them again
         uncoded = "SELECT count(*) FILTER (WHERE term_codes IS NULL) FROM modb.snippet_blocks"
-        assert (db.execute(uncoded).fetchone()[0] > 0) == (old != "0.18.0")  # 0.18.0 coded them
+        assert (db.execute(uncoded).fetchone()[0] > 0) == (old not in ("0.18.0", "0.19.0"))  # coded
         assert db.execute("SELECT to_regclass('modb.snippet_blocks_directory_idx')").fetchone()[0]
         db.execute("SELECT * FROM modb.pack_snippet_blocks(0.2)")
         assert (

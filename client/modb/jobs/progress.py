@@ -55,6 +55,10 @@ class JobProgress:
     def log(self, line: str) -> None:
         self._write(log=[line])
 
+    def partial(self, result: dict) -> None:
+        """What the job made so far (a cancelled or failed job keeps it)."""
+        self._write(result=Jsonb(result))
+
     def finish(self, result: dict) -> None:
         self._write(done=self.total if self.total is not None else self.done, result=Jsonb(result))
 

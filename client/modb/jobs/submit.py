@@ -22,6 +22,7 @@ from .worker import STALLED_AFTER_S, run_one
 FINISHED = ("done", "failed", "cancelled")
 # Jobs that must not run at once (the engine runs one job of a lock at a time): builds of one graph.
 LOCKS = {"build_graph": lambda arguments: f"graph {arguments['name']}"}
+ENDED_BADLY = {"failed": "failed", "cancelled": "was cancelled", "aborted": "was cancelled"}
 POLL_S = 0.5
 
 
@@ -46,6 +47,10 @@ class TooManyQueued(RuntimeError):
     """The submitter's cap on queued jobs is reached."""
 
 
+class CannotWait(ValueError):
+    """A job to wait for does not exist, or ended without being done."""
+
+
 MAX_QUEUED = 20  # queued (not yet running) jobs one submitter may have: one cannot flood the queue
 
 
@@ -62,13 +67,40 @@ def submitter(conn: psycopg.Connection) -> str:
     return who
 
 
+def _still_to_run(conn: psycopg.Connection, after: list[int]) -> list[int]:
+    """Of the jobs to wait for, those not done yet; their rows held until the submit commits, so
+    none ends unseen by the trigger that releases the jobs waiting for it."""
+    rows = dict(
+        conn.execute(
+            "SELECT id, status::text FROM procrastinate_jobs WHERE id = ANY (%s) FOR SHARE",
+            [after],
+        ).fetchall()
+    )
+    missing = sorted(set(after) - set(rows))
+    if missing:
+        raise CannotWait(f"no job {missing[0]} to wait for (`modb jobs list` lists them)")
+    for job_id, status in sorted(rows.items()):
+        if status in ENDED_BADLY:
+            raise CannotWait(
+                f"job {job_id} {ENDED_BADLY[status]}, so a job waiting for it would never run: "
+                f"retry it first (`modb jobs retry {job_id}`)"
+            )
+    return sorted(job_id for job_id, status in rows.items() if status != "succeeded")
+
+
 def submit(
-    conn: psycopg.Connection, kind: str, who: str, queue: str | None = None, **arguments: Any
+    conn: psycopg.Connection,
+    kind: str,
+    who: str,
+    queue: str | None = None,
+    after: list[int] | None = None,
+    **arguments: Any,
 ) -> int:
-    """Queues a job of `kind` (a modb task: build_graph, ...) for `who` (see submitter) in the
-    connection's transaction, through the engine's own SQL function, on its kind's queue unless
-    `queue` names another; returns its id. Refused (TooManyQueued) when `who` has MAX_QUEUED jobs
-    waiting already."""
+    """Queues a job of `kind` (a modb task: build_graph, retarget, ...) for `who` (see submitter)
+    in the connection's transaction, through the engine's own SQL function, on its kind's queue
+    unless `queue` names another, to run once the jobs `after` are done; returns its id. Refused
+    (TooManyQueued) when `who` has MAX_QUEUED jobs waiting already, (CannotWait) when a job of
+    `after` does not exist or failed."""
     with conn.transaction():
         # one submitter's submits queue here, so two at once cannot both pass the count
         conn.execute("SELECT pg_advisory_xact_lock(hashtext('modb jobs of'), hashtext(%s))", [who])
@@ -82,16 +114,25 @@ def submit(
                 f"{who} has {waiting} jobs waiting already (at most {MAX_QUEUED}): wait for them, "
                 "or cancel some (`modb jobs list`, `modb jobs cancel ID`)"
             )
-        return conn.execute(
-            "SELECT (procrastinate_defer_jobs_v1(ARRAY[ROW(%s, %s, 0, %s, NULL, %s, NULL)"
+        waits = _still_to_run(conn, after) if after else []
+        job_id = conn.execute(
+            "SELECT (procrastinate_defer_jobs_v1(ARRAY["
+            "ROW(%s, %s, 0, %s, NULL, %s, %s::timestamptz)"
             "::procrastinate_job_to_defer_v1]))[1]",
             [
                 queue or QUEUES[kind],
                 f"modb.{kind}",
-                LOCKS[kind](arguments),
+                LOCKS[kind](arguments) if kind in LOCKS else None,
                 Jsonb({"submitter": who, **arguments}),
+                "infinity" if waits else None,  # never fetched until released (job_tables.sql)
             ],  # fmt: skip
         ).fetchone()[0]
+        if waits:
+            conn.execute(
+                "INSERT INTO modb_jobs.waits (job_id, after_id) SELECT %s, unnest(%s::bigint[])",
+                [job_id, waits],
+            )
+        return job_id
 
 
 def cancel(conn: psycopg.Connection, job_id: int) -> bool:
@@ -109,7 +150,9 @@ def retry(conn: psycopg.Connection, job: dict, who: str) -> int:
     if job["state"] == "failed" and not job["cancel_requested"]:
         conn.execute("SELECT procrastinate_retry_job_v2(%s, now(), NULL, NULL, NULL)", [job["id"]])
         return job["id"]
-    return submit(conn, job["kind"].removeprefix("modb."), who, **job["arguments"])
+    return submit(
+        conn, job["kind"].removeprefix("modb."), who, after=job.get("waits_for"), **job["arguments"]
+    )
 
 
 def workers_alive(conn: psycopg.Connection, within_s: float = STALLED_AFTER_S) -> int:

@@ -1,9 +1,10 @@
 """modb's job kinds, each run in the worker's process: it reads the inputs, computes with the
-kernel and numpy here, and writes the result in one transaction (a retry after a killed worker
+kernel and numpy here, and writes each item in one transaction (a retry after a killed worker
 replaces or finds it, never doubles it). Progress, log lines and the result: modb_jobs.progress."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import procrastinate
@@ -11,53 +12,40 @@ from procrastinate.exceptions import JobAborted
 
 from modb.database.connection import connect
 
+from . import clip_jobs
 from .connection import as_loader
 from .graph_build import build_here
 from .progress import JobProgress
 
-QUEUES = {"build_graph": "graphs"}  # a queue per kind: a long build does not hold back the others
+# A queue per kind: a long graph build does not hold back a retargeting.
+QUEUES = {
+    "build_graph": "graphs",
+    "retarget": "clips",
+    "apply_edit_script": "clips",
+    "split_by_annotation": "clips",
+}
+
+Work = Callable[..., dict[str, Any]]
 
 
-def _conninfo(context: procrastinate.JobContext) -> str:
-    return context.additional_context["conninfo"]
-
-
-def build_graph(
-    context: procrastinate.JobContext,
-    submitter: str,
-    name: str,
-    profile: str = "default",
-    collection: str | None = None,
-    min_turn_degrees: float = 45.0,
-) -> dict[str, Any]:
-    conninfo = _conninfo(context)
-    job_id = context.job.id
-    progress = JobProgress(as_loader(conninfo), job_id)
+def _run(context: procrastinate.JobContext, what: str, work: Work) -> dict[str, Any]:
+    """work(conn, progress, stop_when_asked) in a loader's connection, its progress, log, result or
+    error kept with the job; a cancel stops it at its next item (what it finished stays)."""
+    conninfo = context.additional_context["conninfo"]
+    progress = JobProgress(as_loader(conninfo), context.job.id)
     try:
-        progress.log(f"building transition graph {name!r} (profile {profile}, "
-                     f"collection {collection or 'all'}) for {submitter}")  # fmt: skip
+        progress.log(what)
 
-        def stop_when_asked() -> None:  # at each step: a cancel stops the job there
+        def stop_when_asked() -> None:
             if context.should_abort():
-                raise JobAborted("cancelled: nothing stored")
-
-        def advance(done: int, total: int) -> None:
-            stop_when_asked()
-            progress.advance(done, total, "snippets")
-
-        def notice(text: str) -> None:
-            stop_when_asked()
-            progress.log(text)
+                raise JobAborted("cancelled")
 
         with connect(as_loader(conninfo)) as conn:
-            graph_id = build_here(
-                conn, name, profile, collection, min_turn_degrees, notice=notice, advance=advance
-            )
-        result = {"graph_id": graph_id, "graph": name}
+            result = work(conn, progress, stop_when_asked)
         progress.finish(result)
         return result
     except JobAborted:
-        progress.log("cancelled before the graph was stored: nothing was written")
+        progress.log("cancelled: what it finished is whole and listed; nothing is half-made")
         raise
     except Exception as e:
         progress.fail(str(e))
@@ -66,7 +54,94 @@ def build_graph(
         progress.close()
 
 
-KINDS = {"build_graph": build_graph}
+def build_graph(
+    context,
+    submitter: str,
+    name: str,
+    profile: str = "default",
+    collection: str | None = None,
+    min_turn_degrees: float = 45.0,
+) -> dict[str, Any]:
+    def work(conn, progress, stop_when_asked):
+        def advance(done: int, total: int) -> None:
+            stop_when_asked()
+            progress.advance(done, total, "snippets")
+
+        def notice(text: str) -> None:
+            stop_when_asked()
+            progress.log(text)
+
+        graph_id = build_here(
+            conn, name, profile, collection, min_turn_degrees, notice=notice, advance=advance
+        )
+        return {"graph_id": graph_id, "graph": name}
+
+    return _run(
+        context,
+        f"building transition graph {name!r} (profile {profile}, collection "
+        f"{collection or 'all'}) for {submitter}",
+        work,
+    )
+
+
+def retarget(
+    context,
+    submitter: str,
+    clips: list[int],
+    skeleton: int,
+    collection: str | None = None,
+    fps: float | None = None,
+    mirrored: bool = False,
+) -> dict[str, Any]:
+    def work(conn, progress, stop_when_asked):
+        made = clip_jobs.retarget(
+            conn, progress, clips, stop_when_asked, skeleton, collection, fps, mirrored
+        )
+        return {"clips": made}
+
+    return _run(
+        context, f"retargeting {len(clips)} clips onto skeleton {skeleton} for {submitter}", work
+    )
+
+
+def apply_edit_script(context, submitter: str, script: str, clips: list[int]) -> dict[str, Any]:
+    def work(conn, progress, stop_when_asked):
+        made = clip_jobs.apply_edit_script(
+            conn, progress, clips, stop_when_asked, script, context.job.id
+        )
+        return {"clips": made}
+
+    return _run(
+        context, f"applying edit script {script!r} to {len(clips)} clips for {submitter}", work
+    )
+
+
+def split_by_annotation(
+    context,
+    submitter: str,
+    clips: list[int],
+    annotation: str | None = None,
+    collection: str | None = None,
+) -> dict[str, Any]:
+    def work(conn, progress, stop_when_asked):
+        made = clip_jobs.split_by_annotation(
+            conn, progress, clips, stop_when_asked, annotation, collection
+        )
+        return {"clips": made}
+
+    return _run(
+        context,
+        f"splitting {len(clips)} clips by annotation {annotation or '(every one)'} for {submitter}",
+        work,
+    )
+
+
+KINDS = {
+    "build_graph": build_graph,
+    "retarget": retarget,
+    "apply_edit_script": apply_edit_script,
+    "split_by_annotation": split_by_annotation,
+}
 
 
 def register(app: procrastinate.App) -> None:

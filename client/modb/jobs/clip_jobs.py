@@ -1,0 +1,109 @@
+"""Jobs over clips, computed in the worker's process with the kernel (modb_kernel.retarget_clip,
+edit_clips), each clip written in one transaction: a cancel stops before the next clip, a killed
+worker loses only the clip it was writing, and a retry redoes nothing that was stored (a retargeting
+finds its link, an edit its job's mark, a split its cuts)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import psycopg
+from psycopg.rows import dict_row
+
+from modb_kernel import edit_clips, retarget_clip
+from modb_kernel.database import StoreError
+
+from .kernel_database import WorkerDatabase
+from .progress import JobProgress
+
+
+class ClipJobError(ValueError):
+    pass
+
+
+def _words(error: StoreError) -> str:
+    return f"{error} ({error.hint})" if error.hint else str(error)
+
+
+def each_clip(
+    conn: psycopg.Connection,
+    progress: JobProgress,
+    clips: list[int],
+    stop_when_asked: Callable[[], None],
+    one: Callable[[WorkerDatabase, int], dict[str, Any] | None],
+) -> list[dict[str, Any]]:
+    """one(db, clip) for each clip in a transaction of its own; what each made listed in the job's
+    result as it goes, so a cancelled or failed job still says which clips it finished."""
+    db, done = WorkerDatabase(conn), []
+    progress.advance(0, len(clips), "clips")
+    for k, clip in enumerate(clips):
+        stop_when_asked()
+        try:
+            with conn.transaction():
+                made = one(db, clip)
+        except StoreError as e:
+            raise ClipJobError(_words(e)) from None
+        if made is not None:
+            done.append(made)
+            progress.partial({"clips": done})
+        progress.advance(k + 1, len(clips), "clips")
+    return done
+
+
+def _current(conn: psycopg.Connection, clip: int) -> dict[str, Any]:
+    with conn.cursor(row_factory=dict_row) as cur:
+        return cur.execute(
+            "SELECT clip_id, collection || '/' || name AS clip, version, n_frames, fps, "
+            "(SELECT count(*) FROM modb.snippets s WHERE s.clip_id = c.clip_id) AS snippets "
+            "FROM modb.current_clips c WHERE clip_id = %s",
+            [clip],
+        ).fetchone()
+
+
+def retarget(
+    conn, progress, clips, stop_when_asked, skeleton, collection=None, fps=None, mirrored=False
+) -> list[dict[str, Any]]:
+    def one(db: WorkerDatabase, clip: int) -> dict[str, Any]:
+        made = retarget_clip.retarget_clip(db, clip, skeleton, collection, fps, mirrored)
+        return {"source": clip, **_current(conn, made)}
+
+    return each_clip(conn, progress, clips, stop_when_asked, one)
+
+
+def apply_edit_script(
+    conn, progress, clips, stop_when_asked, script, job_id
+) -> list[dict[str, Any]]:
+    targets = list(dict.fromkeys(clips))
+    try:  # every clip's result checked against the caps before any is edited, as in the server
+        with conn.transaction():
+            edits = edit_clips.Script(WorkerDatabase(conn), script)
+            for clip in targets:
+                edits.check_size(clip)
+    except StoreError as e:
+        raise ClipJobError(_words(e)) from None
+
+    def one(db: WorkerDatabase, clip: int) -> dict[str, Any]:
+        db.run(edit_clips.LOCK_CLIPS, [[clip]])
+        edits.apply(clip, job=job_id)  # None: this job edited it before it was retried
+        return _current(conn, clip)
+
+    return each_clip(conn, progress, targets, stop_when_asked, one)
+
+
+def split_by_annotation(
+    conn, progress, clips, stop_when_asked, annotation=None, collection=None
+) -> list[dict[str, Any]]:
+    def one(db: WorkerDatabase, clip: int) -> dict[str, Any]:
+        try:
+            with conn.cursor(row_factory=dict_row) as cur:
+                cuts = cur.execute(
+                    "SELECT clip_id, name, segment, first_frame, last_frame, created "
+                    "FROM modb.split_by_annotation(%s, %s, %s)",
+                    [clip, annotation, collection],
+                ).fetchall()
+        except psycopg.Error as e:
+            raise StoreError(e.diag.message_primary or str(e), e.diag.message_hint) from None
+        return {"source": clip, "cuts": cuts}
+
+    return each_clip(conn, progress, clips, stop_when_asked, one)
