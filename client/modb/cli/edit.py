@@ -10,6 +10,7 @@ from pathlib import Path
 
 from psycopg.types.json import Jsonb
 
+from . import as_job
 from .common import connect
 
 
@@ -33,6 +34,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         metavar="TARGET",
         help="a clip (id, name, collection/name) or a collection",
     )
+    as_job.add_options(apply, "apply")
     edit.set_defaults(func=run)
 
 
@@ -84,10 +86,21 @@ def run(args: argparse.Namespace) -> int:
         except ClipNotFound as e:
             print(f"modb edit: {e}", file=sys.stderr)
             return 2
-        with conn.transaction():
-            rows = conn.execute(
-                "SELECT * FROM modb.apply_edit_script(%s, %s)", [args.name, clips]
-            ).fetchall()
+        as_a_job = as_job.usable(conn, args, "edit apply", "0.20.0")
+        if as_a_job is None:
+            return 2
+        if as_a_job:
+            arguments = {"script": args.name, "clips": clips}
+            done = as_job.run(conn, args, "edit apply", "apply_edit_script", arguments)
+            if done is None or isinstance(done, int):
+                return done or 0
+            rows = [(c["clip_id"], c["version"], c["n_frames"], c["snippets"])
+                    for c in done.result["clips"]]  # fmt: skip
+        else:
+            with conn.transaction():
+                rows = conn.execute(
+                    "SELECT * FROM modb.apply_edit_script(%s, %s)", [args.name, clips]
+                ).fetchall()
     for clip_id, version, frames, snippets in rows:
         print(f"clip {clip_id}: version {version} ({frames} frames, {snippets} snippets)")
     return 0

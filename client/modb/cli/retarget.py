@@ -1,5 +1,6 @@
-"""`modb retarget SOURCE... --to SKELETON`: clips onto another skeleton, as new clips
-(modb.retarget, one transaction per clip)."""
+"""`modb retarget SOURCE... --to SKELETON`: clips onto another skeleton, as new clips, one
+transaction per clip: a job (computed by a worker, or by this process when none runs) where the
+database has job tables, else modb.retarget in the server."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import sys
 
 from tqdm import tqdm
 
+from . import as_job
 from .common import FPS, connect
 
 
@@ -36,6 +38,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     retarget.add_argument("--mirror", action="store_true", help="cut mirrored snippets too")
     retarget.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    as_job.add_options(retarget, "retarget")
     retarget.set_defaults(func=run)
 
 
@@ -53,8 +56,16 @@ def _skeleton(conn, spec: str) -> int:
     ).fetchone()[0]
 
 
+def _made(source: int, made: dict) -> str:
+    return (
+        f"clip {source} -> {made['clip']} (clip {made['clip_id']} version {made['version']}, "
+        f"{made['n_frames']} frames at {made['fps']:g} fps, {made['snippets']} snippets)"
+    )
+
+
 def run(args: argparse.Namespace) -> int:
     from modb.clips import ClipNotFound, clips_in  # numpy (60 ms): not for `modb --help`
+    from modb.jobs.clip_jobs import clip_now
 
     with connect(args) as conn:
         try:
@@ -64,6 +75,20 @@ def run(args: argparse.Namespace) -> int:
         except ClipNotFound as e:
             print(f"modb retarget: {e}", file=sys.stderr)
             return 2
+        as_a_job = as_job.usable(conn, args, "retarget", "0.20.0")
+        if as_a_job is None:
+            return 2
+        if as_a_job:
+            arguments = {"clips": clips, "skeleton": skeleton, "collection": args.collection,
+                         "fps": args.fps, "mirrored": args.mirror}  # fmt: skip
+            done = as_job.run(conn, args, "retarget", "retarget", arguments)
+            if done is None or isinstance(done, int):
+                return done or 0
+            if not args.quiet:
+                for made in done.result["clips"]:
+                    print(_made(made["source"], made))
+                print(f"{len(clips)} clips retargeted onto skeleton {skeleton}")
+            return 0
         with tqdm(clips, unit="clip", disable=args.quiet or len(clips) < 2, file=sys.stderr) as bar:
             for clip in bar:
                 with conn.transaction():
@@ -71,18 +96,8 @@ def run(args: argparse.Namespace) -> int:
                         "SELECT modb.retarget(%s, %s, %s, %s, %s)",
                         [clip, skeleton, args.collection, args.fps, args.mirror],
                     ).fetchone()
-                    row = conn.execute(
-                        "SELECT collection || '/' || name, version, n_frames, fps, "
-                        "(SELECT count(*) FROM modb.snippets s WHERE s.clip_id = c.clip_id) "
-                        "FROM modb.current_clips c WHERE clip_id = %s",
-                        [made],
-                    ).fetchone()
                 if not args.quiet:
-                    path, version, frames, fps, snippets = row
-                    bar.write(
-                        f"clip {clip} -> {path} (clip {made} version {version}, {frames} frames "
-                        f"at {fps:g} fps, {snippets} snippets)"
-                    )
+                    bar.write(_made(clip, clip_now(conn, made)))
     if not args.quiet:
         print(f"{len(clips)} clips retargeted onto skeleton {skeleton}")
     return 0

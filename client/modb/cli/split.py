@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from . import as_job
 from .common import connect
 
 
@@ -25,6 +26,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     split.add_argument(
         "--collection", metavar="PATH", help="where the new clips go (default: the source's)"
     )
+    as_job.add_options(split, "split")  # a split itself is quick: it waits for nothing else
     split.set_defaults(func=run)
 
 
@@ -39,6 +41,11 @@ def run(args: argparse.Namespace) -> int:
         except ClipNotFound as e:
             print(f"modb split: {e}", file=sys.stderr)
             return 2
+        if args.background or args.after:
+            if not as_job.usable(conn, args, "split", "0.20.0"):
+                return 2
+            arguments = {"clips": [clip_id], "annotation": args.only, "collection": args.collection}
+            return as_job.run(conn, args, "split", "split_by_annotation", arguments) or 0
         with conn.transaction():
             segments = split_by_annotation(conn, clip_id, args.only, args.collection)
     if not segments:

@@ -51,7 +51,8 @@ def each_clip(
     return done
 
 
-def _current(conn: psycopg.Connection, clip: int) -> dict[str, Any]:
+def clip_now(conn: psycopg.Connection, clip: int) -> dict[str, Any]:
+    """The clip's current version as a job's result lists it."""
     with conn.cursor(row_factory=dict_row) as cur:
         return cur.execute(
             "SELECT clip_id, collection || '/' || name AS clip, version, n_frames, fps, "
@@ -66,7 +67,7 @@ def retarget(
 ) -> list[dict[str, Any]]:
     def one(db: WorkerDatabase, clip: int) -> dict[str, Any]:
         made = retarget_clip.retarget_clip(db, clip, skeleton, collection, fps, mirrored)
-        return {"source": clip, **_current(conn, made)}
+        return {"source": clip, **clip_now(conn, made)}
 
     return each_clip(conn, progress, clips, stop_when_asked, one)
 
@@ -86,7 +87,7 @@ def apply_edit_script(
     def one(db: WorkerDatabase, clip: int) -> dict[str, Any]:
         db.run(edit_clips.LOCK_CLIPS, [[clip]])
         edits.apply(clip, job=job_id)  # None: this job edited it before it was retried
-        return _current(conn, clip)
+        return clip_now(conn, clip)
 
     return each_clip(conn, progress, targets, stop_when_asked, one)
 

@@ -377,6 +377,11 @@ def create_app(
             methods=["POST"],
         ),
         Route(
+            "/api/collections/{path:path}/retarget",
+            catalog_writes.write_endpoint(tokens, writer, job_routes.retarget_collection),
+            methods=["POST"],
+        ),
+        Route(
             "/api/jobs/{ident}/cancel",
             catalog_writes.write_endpoint(tokens, writer, job_routes.cancel_job, with_body=False),
             methods=["POST"],

@@ -498,8 +498,16 @@ def _target_clips(conn, body) -> list[int]:
 
 
 def _apply_script(conn, request, body) -> Done:
+    """To clips, at once (one transaction); to a whole collection, as a job (202) where the database
+    has job tables."""
+    from modb.jobs import schema
+
+    from .job_routes import queue_job  # it builds on this module
+
     name = request.path_params["name"]
     clips = _target_clips(conn, body)
+    if "collection" in body and schema.installed(conn):
+        return queue_job(conn, request, "apply_edit_script", {"script": name, "clips": clips})
     if conn.execute("SELECT 1 FROM modb.edit_scripts WHERE name = %s", [name]).fetchone() is None:
         raise NotFound(f"no edit script {name!r}")
     rows = conn.execute("SELECT * FROM modb.apply_edit_script(%s, %s)", [name, clips]).fetchall()

@@ -11,14 +11,38 @@ from starlette.exceptions import HTTPException
 from starlette.requests import Request
 
 from modb.jobs import schema
-from modb.jobs.submit import TooManyQueued, cancel, job_document, submit, workers_alive
+from modb.jobs.submit import (
+    CannotWait,
+    TooManyQueued,
+    cancel,
+    job_document,
+    submit,
+    workers_alive,
+)
 
 from .api import BadRequest, NotFound
-from .body_rules import CollectionPath, JsonObject, Nullable, Number, Shape, Text
-from .catalog_writes import Done, _int
+from .body_rules import (
+    FPS,
+    CollectionPath,
+    Flag,
+    JsonObject,
+    ListOf,
+    Nullable,
+    Number,
+    Shape,
+    Text,
+    Whole,
+)
+from .catalog_writes import Done, _existing, _int, _target_clips
 
 MAX_LISTED = 200
-# What each kind of job takes: the same arguments as its command (`modb graph build`).
+# The clips a job works on: ids, or every clip of a collection (at the time it is queued).
+CLIPS = {
+    "clips": ListOf(Whole(what="a clip id"), 1, distinct=True),
+    "from_collection": CollectionPath(),
+}
+# What each kind of job takes: the arguments of its command (`modb graph build`, `modb retarget`,
+# `modb edit apply`, `modb split`).
 ARGUMENTS = {
     "build_graph": Shape(
         {
@@ -30,8 +54,27 @@ ARGUMENTS = {
         ("name",),
         name="arguments",
     ),
+    "retarget": Shape(
+        {
+            **CLIPS,
+            "skeleton": Whole(what="a skeleton id"),
+            "collection": Nullable(CollectionPath()),
+            "fps": Nullable(FPS),
+            "mirrored": Flag(),
+        },
+        ("skeleton",),
+        name="arguments",
+    ),  # fmt: skip
+    "apply_edit_script": Shape({**CLIPS, "script": Text()}, ("script",), name="arguments"),
+    "split_by_annotation": Shape(
+        {**CLIPS, "annotation": Nullable(Text()), "collection": Nullable(CollectionPath())},
+        name="arguments",
+    ),
 }
-SUBMITTED = Shape({"kind": Text(), "arguments": JsonObject()}, ("kind", "arguments"))
+SUBMITTED = Shape(
+    {"kind": Text(), "arguments": JsonObject(), "after": ListOf(Whole(what="a job id"), 1)},
+    ("kind", "arguments"),
+)
 
 
 def _tables(conn: psycopg.Connection) -> None:
@@ -57,23 +100,74 @@ def job(conn: psycopg.Connection, job_id: int) -> dict[str, Any]:
     return found
 
 
+def _clips(conn: psycopg.Connection, arguments: dict[str, Any]) -> list[int]:
+    """The clips the arguments name (404 for one that is not there), taken out of them."""
+    named = {k: arguments.pop(k) for k in ("clips", "from_collection") if k in arguments}
+    if len(named) != 1:
+        raise BadRequest(
+            'the arguments name the clips: "clips": [ids] or "from_collection": "path"'
+        )
+    if "clips" in named:
+        return _target_clips(conn, {"clips": named["clips"]})
+    return _target_clips(conn, {"collection": named["from_collection"]})
+
+
+def queue_job(
+    conn: psycopg.Connection,
+    request: Request,
+    kind: str,
+    arguments: dict[str, Any],
+    after: list[int] | None = None,
+) -> Done:
+    """202 with the queued job (its Location); the token's name is its submitter."""
+    _tables(conn)
+    if kind == "retarget":
+        _existing(conn, "skeleton", arguments["skeleton"])
+    if (
+        kind == "apply_edit_script"
+        and conn.execute(
+            "SELECT 1 FROM modb.edit_scripts WHERE name = %s", [arguments["script"]]
+        ).fetchone()
+        is None
+    ):
+        raise NotFound(f"no edit script {arguments['script']!r}")
+    try:
+        job_id = submit(conn, kind, request.state.grant.name, after=after, **arguments)
+    except TooManyQueued as e:
+        raise HTTPException(429, str(e)) from None
+    except CannotWait as e:
+        raise HTTPException(409, str(e)) from None
+    answer = {**job(conn, job_id), "workers_alive": workers_alive(conn)}  # 0: it waits for one
+    return Done(
+        answer, "submit job", f"job {job_id}", {"kind": kind, **arguments, "after": after},
+        status=202, headers={"Location": f"/api/jobs/{job_id}"},
+    )  # fmt: skip
+
+
 def submit_job(conn: psycopg.Connection, request: Request, body: Any) -> Done:
-    """202 with the queued job; the token's name is its submitter."""
+    """POST /api/jobs: {"kind", "arguments", "after": [job ids] (optional)}."""
     fields = SUBMITTED(None, body)
     kind = fields["kind"]
     if kind not in ARGUMENTS:
         raise BadRequest(f'"kind": one of {", ".join(ARGUMENTS)}, got {kind!r:.60}')
     arguments = ARGUMENTS[kind](None, fields["arguments"])
     _tables(conn)
-    try:
-        job_id = submit(conn, kind, request.state.grant.name, **arguments)
-    except TooManyQueued as e:
-        raise HTTPException(429, str(e)) from None
-    answer = {**job(conn, job_id), "workers_alive": workers_alive(conn)}  # 0: it waits for one
-    return Done(
-        answer, "submit job", f"job {job_id}", {"kind": kind, **arguments}, status=202,
-        headers={"Location": f"/api/jobs/{job_id}"},
-    )  # fmt: skip
+    if kind != "build_graph":
+        arguments = {"clips": _clips(conn, arguments), **arguments}
+    return queue_job(conn, request, kind, arguments, fields.get("after"))
+
+
+def retarget_collection(conn: psycopg.Connection, request: Request, body: Any) -> Done:
+    """POST /api/collections/PATH/retarget: every clip of it, as a job."""
+    path = CollectionPath()("collection path", request.path_params["path"])
+    arguments = ARGUMENTS["retarget"](None, body)
+    if "clips" in arguments or "from_collection" in arguments:
+        raise BadRequest(
+            "the path names the clips: the body gives skeleton, collection, fps, mirrored"
+        )
+    _tables(conn)
+    arguments = {"clips": _target_clips(conn, {"collection": path}), **arguments}
+    return queue_job(conn, request, "retarget", arguments)
 
 
 def cancel_job(conn: psycopg.Connection, request: Request, body: Any) -> Done:

@@ -214,9 +214,18 @@ def catalog_writes() -> dict[str, dict[str, Any]]:
         "delete": _write("delete an edit script", script, ok="its name"),
     }  # fmt: skip
     out["/api/edit-scripts/{name}/apply"] = {"post": _write(
-        "apply an edit script: a new version of each clip (one transaction)", script,
+        "apply an edit script: a new version of each clip named (one transaction); to a whole "
+        "collection, a job (202) where the database has job tables", script,
         body=_object([], clips={"type": "array", "items": ID, "minItems": 1}, collection=PATH),
-        ok="each clip's new version")}  # fmt: skip
+        ok="each clip's new version, or the queued job (202, Location: /api/jobs/ID)")}  # fmt: skip
+    out["/api/collections/{path}/retarget"] = {"post": _write(
+        "retarget every clip of the collection onto another skeleton, as a job",
+        {"name": "path", "in": "path", "required": True, "schema": {"type": "string"},
+         "description": "the collection's path"},
+        body=_object(["skeleton"], skeleton=ID, collection=PATH,
+                     fps={"type": "number", "minimum": 1, "maximum": 1000},
+                     mirrored={"type": "boolean"}),
+        ok="the queued job (202, Location: /api/jobs/ID)")}  # fmt: skip
     for table in ("models", "graphs"):
         one = _id("ident", f"{table[:-1]} id")
         note = " (not transition graphs: `modb graph build`)" if table == "graphs" else ""
@@ -281,11 +290,22 @@ def schema() -> dict[str, Any]:
             **_read("the newest 200 jobs (modb.jobs): state, submitter, progress, log, result"),
             "post": _write(
                 "queue a job (kind build_graph: arguments name, profile, collection, "
-                "min_turn_degrees, as `modb graph build`); a worker runs it",
+                "min_turn_degrees, as `modb graph build`; retarget: clips or from_collection, "
+                "skeleton, collection, fps, mirrored; apply_edit_script: clips or from_collection, "
+                "script; split_by_annotation: clips or from_collection, annotation, collection), "
+                "after the jobs `after` are done; a worker runs it",
                 body=_object(
                     ["kind", "arguments"],
-                    kind={"enum": ["build_graph"]},
+                    kind={
+                        "enum": [
+                            "build_graph",
+                            "retarget",
+                            "apply_edit_script",
+                            "split_by_annotation",
+                        ]
+                    },
                     arguments={"type": "object"},
+                    after={"type": "array", "items": ID, "minItems": 1},
                 ),
                 ok="the queued job (202, Location: /api/jobs/ID)",
             ),  # fmt: skip

@@ -1,4 +1,4 @@
-// The Jobs panel: the newest jobs (graph builds, ...) with their progress, polled every 1.5 s while one
+// The Jobs panel: the newest jobs (graph builds, retargetings, edits, splits) with their progress, polled every 1.5 s while one
 // is queued or running, a link to what each made, and cancel (with a loader token). Shown once there is
 // a job (the database may have no job tables: then there is none).
 import { token } from './token.js';
@@ -6,19 +6,33 @@ import { token } from './token.js';
 const SHOWN = 8;
 const BUSY_MS = 1500;
 const IDLE_MS = 6000;
-const ACTIVE = ['queued', 'running'];
+const ACTIVE = ['waiting', 'queued', 'running'];
+const MADE_SHOWN = 6;
 
 function label(job) {
   const a = job.arguments || {};
-  return job.kind.replace(/^modb\./, '').replace('_', ' ') + (a.name ? ` "${a.name}"` : '');
+  const what = a.name || a.script;
+  const clips = a.clips ? `, ${a.clips.length} clip${a.clips.length === 1 ? '' : 's'}` : '';
+  const waits = job.state === 'waiting' && job.waits_for ? ` (after job ${job.waits_for.join(', ')})` : '';
+  return job.kind.replace(/^modb\./, '').replaceAll('_', ' ') + (what ? ` "${what}"` : '') + clips + waits;
 }
 
-function madeLink(job) {
-  if (!job.result || job.result.graph_id === undefined) return null;
-  const link = document.createElement('a');
-  link.href = `/api/graphs/${job.result.graph_id}`;
-  link.textContent = `graph ${job.result.graph}`;
-  return link;
+function link(href, text) {
+  const a = document.createElement('a');
+  a.href = href;
+  a.textContent = text;
+  return a;
+}
+
+// What the job made so far (a cancelled job keeps what it finished): its graph, or its clips.
+function madeLinks(job) {
+  const r = job.result;
+  if (!r) return [];
+  if (r.graph_id !== undefined) return [link(`/api/graphs/${r.graph_id}`, `graph ${r.graph}`)];
+  const clips = (r.clips || []).flatMap((c) => (c.cuts ? c.cuts : [c]));
+  const shown = clips.slice(0, MADE_SHOWN).map((c) => link(`/api/clips/${c.clip_id}`, `clip ${c.clip_id}`));
+  if (clips.length > MADE_SHOWN) shown.push(`+${clips.length - MADE_SHOWN} more`);
+  return shown;
 }
 
 function item(job, onCancel) {
@@ -38,8 +52,7 @@ function item(job, onCancel) {
   }
   const tail = document.createElement('div');
   tail.className = 'result';
-  const made = madeLink(job);
-  if (made) tail.append(made);
+  tail.append(...madeLinks(job));
   if (job.error) tail.append(job.error);
   if (ACTIVE.includes(job.state) && token.get()) {
     const cancel = document.createElement('button');
