@@ -7,7 +7,6 @@ two workers sharing a batch (no job run twice)."""
 from __future__ import annotations
 
 import os
-import signal
 import subprocess
 import sys
 import time
@@ -17,11 +16,11 @@ import pytest
 from support.commands import run_modb
 from support.data import mocap
 from support.databases import scratch_database
+from support.jobs import events, job, stop, until, worker
 
 from modb.database.connection import connect
 
 GRAPH = ["--collection", "cmu", "--profile", "locomotion", "--min-turn", "0"]
-STALLED_AFTER = "4"  # seconds: a killed worker's job is queued again soon after
 
 
 @pytest.fixture(scope="module")
@@ -44,52 +43,6 @@ def graph_rows(conn: psycopg.Connection, name: str):
         "ON t.graph_id = g.id WHERE g.name = %s GROUP BY g.id",
         [name],
     ).fetchall()
-
-
-def job(conn: psycopg.Connection, job_id: int) -> dict:
-    return conn.execute("SELECT to_jsonb(j) FROM modb.jobs j WHERE id = %s", [job_id]).fetchone()[0]
-
-
-def events(conn: psycopg.Connection, job_id: int, kind: str) -> int:
-    return conn.execute(
-        "SELECT count(*) FROM procrastinate_events WHERE job_id = %s AND type = %s", [job_id, kind]
-    ).fetchone()[0]
-
-
-def worker(dsn: str) -> subprocess.Popen:
-    return subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "modb.cli",
-            "--dsn",
-            dsn,
-            "worker",
-            "--stalled-after",
-            STALLED_AFTER,
-        ],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-
-
-def stop(*workers: subprocess.Popen) -> None:
-    for w in workers:
-        if w.poll() is None:
-            w.send_signal(signal.SIGTERM)
-    for w in workers:
-        w.wait(timeout=60)
-
-
-def until(conn: psycopg.Connection, job_id: int, ready, seconds: float, what: str) -> dict:
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        state = job(conn, job_id)
-        if ready(state):
-            return state
-        time.sleep(0.1)
-    raise AssertionError(f"job {job_id}: not {what} within {seconds} s: {job(conn, job_id)}")
 
 
 def background(dsn: str, name: str) -> int:

@@ -85,7 +85,8 @@ SELECT v.clip_id, v.version, v.fps, v.n_frames, v.load_params, v.meta,
 
 
 def _retarget_and_edit(db) -> list:
-    """A retargeting (at another rate, mirrored too) and an edit script, rolled back: what they
+    """A retargeting (at another rate) and an edit script (of a clip with mirror images), rolled
+    back: what they
     stored. Clip ids are the caller's to compare (a rolled-back clip's id is not used again)."""
     with db.transaction(force_rollback=True):
         db.execute(
@@ -94,7 +95,8 @@ def _retarget_and_edit(db) -> list:
         )
         first, second = [r[0] for r in db.execute("SELECT id FROM modb.clips ORDER BY id LIMIT 2")]
         skeleton = db.execute("SELECT min(id) FROM modb.skeletons").fetchone()[0]
-        db.execute("SELECT modb.retarget(%s, %s, 'retargeted', 60, true)", [second, skeleton])
+        # not mirrored: 0.19.0 cut a mirrored retargeting's mirror images only (0.20.0 cuts both)
+        db.execute("SELECT modb.retarget(%s, %s, 'retargeted', 60, false)", [second, skeleton])
         db.execute(
             "INSERT INTO modb.edit_scripts (name, commands) VALUES ('t', "
             '\'[{"op": "mirror"}, {"op": "smooth", "seconds": 0.1}, '

@@ -229,8 +229,11 @@ def cut(db, row, mirrored, window_seconds=0.5, stride_seconds=1.0 / 30):
 
 
 def cut_clip(db, clip_id, mirrored=False):
-    """Cuts the clip's current version as modb.build_snippets(clip => ...) does (its futures
-    filled); returns the snippets added."""
-    added = sum(cut(db, row, mirrored) for row in db.run(TO_CUT, [None, clip_id, bool(mirrored)]))
+    """Cuts the clip's current version, and its mirror image too when `mirrored` (or when an older
+    version had one), as `modb load --mirror` does; its futures filled. Returns the snippets
+    added."""
+    added = 0
+    for flag in (False, True) if mirrored else (False,):
+        added += sum(cut(db, row, flag) for row in db.run(TO_CUT, [None, clip_id, flag]))
     db.run(FILL_FUTURES)
     return added
