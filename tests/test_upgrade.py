@@ -86,8 +86,8 @@ SELECT v.clip_id, v.version, v.fps, v.n_frames, v.load_params, v.meta,
 
 def _retarget_and_edit(db) -> list:
     """A retargeting (at another rate) and an edit script (of a clip with mirror images), rolled
-    back: what they
-    stored. Clip ids are the caller's to compare (a rolled-back clip's id is not used again)."""
+    back: what they stored. Clip ids are the caller's to compare (a rolled-back clip's id is not
+    used again)."""
     with db.transaction(force_rollback=True):
         db.execute(
             "CREATE TEMP TABLE kept ON COMMIT DROP AS "
