@@ -1,4 +1,5 @@
-"""pg_dump / pg_restore keeps the motion, and loads after a restore get fresh ids."""
+"""pg_dump / pg_restore keeps the motion and the jobs (the engine's tables and modb's beside them),
+and loads after a restore get fresh ids."""
 
 from __future__ import annotations
 
@@ -25,6 +26,12 @@ def test_dump_restore_keeps_clips_and_loading_continues(cluster, fresh_db, db, t
         "modb.match_profiles "
         "WHERE name = 'strict'"
     )
+    assert run_modb(fresh_db, "worker", "--init").returncode == 0
+    queued = run_modb(fresh_db, "graph", "build", "later", "--background")
+    waiting = run_modb(fresh_db, "graph", "build", "after", "--background", "--after",
+                       queued.stdout.strip())  # fmt: skip
+    assert waiting.returncode == 0, waiting.stderr
+    jobs = "SELECT id, kind, state, submitter, arguments, waits_for FROM modb.jobs ORDER BY id"
     source_name = psycopg.conninfo.conninfo_to_dict(fresh_db)["dbname"]
     dump = tmp_path / "modb.dump"
     host = str(cluster.socket_dir)
@@ -85,6 +92,13 @@ def test_dump_restore_keeps_clips_and_loading_continues(cluster, fresh_db, db, t
                     a.translations, b.translations
                 )
             max_before = restored.execute("SELECT max(id) FROM modb.clips").fetchone()[0]
+            assert restored.execute(jobs).fetchall() == db.execute(jobs).fetchall()
+            assert [r[2] for r in db.execute(jobs)] == ["queued", "waiting"]
+        # the restored jobs still work: cancelling the first cancels the one waiting for it
+        r = run_modb(cluster.dsn(target), "jobs", "cancel", queued.stdout.strip())
+        assert r.returncode == 0, r.stderr
+        with connect(cluster.dsn(target)) as restored:
+            assert [r[2] for r in restored.execute(jobs)] == ["cancelled", "cancelled"]
         r = run_modb(
             cluster.dsn(target), "load", mocap("bandai-1", "data", "dataset-1_walk_active_001.bvh")
         )

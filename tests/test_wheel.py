@@ -10,6 +10,7 @@ import re
 import shutil
 import subprocess
 import sys
+import time
 import venv
 import zipfile
 from pathlib import Path
@@ -159,3 +160,25 @@ def test_the_installed_command_loads_a_real_file(cluster, user):
                 " WHERE c.name = 'dataset-2_walk_active_001'"
             ).fetchone()
         assert stored == frames and snippets > 0
+        # the installed command's worker runs a job: the clip retargeted onto its own skeleton at
+        # another rate, computed in the worker's process
+        _run(modb, "--dsn", dsn, "worker", "--init", cwd=home)
+        job_id = _run(modb, "--dsn", dsn, "retarget", "wheel/dataset-2_walk_active_001", "--to",
+                      "wheel/dataset-2_walk_active_001", "--fps", "60", "--collection", "moved",
+                      "--background", cwd=home).stdout.strip()  # fmt: skip
+        worker = subprocess.Popen([modb, "--dsn", dsn, "worker"], cwd=home, stderr=subprocess.PIPE)
+        try:
+            with psycopg.connect(dsn) as conn:
+                deadline = time.monotonic() + 120
+                while (state := conn.execute(
+                    "SELECT state FROM modb.jobs WHERE id = %s", [int(job_id)]
+                ).fetchone()[0]) != "done":  # fmt: skip
+                    assert state in ("queued", "running") and time.monotonic() < deadline, state
+                    time.sleep(0.2)
+                moved = conn.execute(
+                    "SELECT n_frames, fps FROM modb.current_clips WHERE collection = 'moved'"
+                ).fetchone()
+        finally:
+            worker.terminate()
+            worker.wait(timeout=60)
+        assert moved == (2 * frames - 1, 60.0), moved
