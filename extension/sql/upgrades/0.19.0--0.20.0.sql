@@ -1,4 +1,0 @@
--- 0.20.0: cutting snippets, retargeting a clip and applying an edit script as kernel code a job worker on
--- any machine runs too (modb_kernel/snippet_cut.py, retarget_clip.py, edit_clips.py; the statements they
--- run in database.py). modb.build_snippets, modb.retarget and modb.apply_edit_script run the same code in
--- the server and store what they stored before; their PL/Python functions are re-created below.
