@@ -13,7 +13,12 @@ from tqdm import tqdm
 
 from .common import Number
 
-JOB_IDS = Number(1, 2**63 - 1, whole=True)
+JOB_ID = Number(1, 2**63 - 1, whole=True)
+
+
+def job_ids(text: str) -> list[int]:
+    """--after 12,13: the jobs' ids (one option value, so it never swallows a command's operands)."""
+    return [JOB_ID(part) for part in text.split(",")]
 
 
 def add_options(parser: argparse.ArgumentParser, what: str) -> None:
@@ -24,9 +29,8 @@ def add_options(parser: argparse.ArgumentParser, what: str) -> None:
     )
     parser.add_argument(
         "--after",
-        type=JOB_IDS,
-        nargs="+",
-        metavar="JOB",
+        type=job_ids,
+        metavar="JOB[,JOB...]",
         help="with --background: run once these jobs are done (cancelled if one fails)",
     )
 
