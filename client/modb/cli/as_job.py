@@ -17,7 +17,7 @@ JOB_ID = Number(1, 2**63 - 1, whole=True)
 
 
 def job_ids(text: str) -> list[int]:
-    """--after 12,13: the jobs' ids (one option value, so it never swallows a command's operands)."""
+    """--after 12,13: the jobs' ids (one value: it never swallows a command's operands)."""
     return [JOB_ID(part) for part in text.split(",")]
 
 
