@@ -1,9 +1,16 @@
 """The same batch of jobs with 1 worker and with 2 (separate processes, as two machines would run
 them): wall time and the ratio, each worker's CPU and the database's CPU per job (BENCHMARKS.md
-"Jobs on 1 and 2 workers"). The batch: N transition graph builds over one collection (`modb graph
-build --background`), queued before the workers start.
+"Jobs on 1 and 2 workers"), queued before the workers start. The batch, either:
+
+- N transition graph builds over one collection (`modb graph build --background`):
 
     .venv/bin/python bench/job_workers.py "host=/var/lib/modb/run dbname=mix16 user=postgres" mixc 4
+
+- every clip of a collection retargeted onto a skeleton (a job per clip, mirror images cut too), and
+  two graph builds over the clips made, each waiting for every retargeting (`--after`):
+
+    .venv/bin/python bench/job_workers.py "host=/var/lib/modb/run dbname=mix16 user=postgres" \
+        retarget:cmu16:1 2
 """
 
 import os
@@ -14,6 +21,7 @@ import time
 from pathlib import Path
 
 from modb.database.connection import connect
+from modb.jobs.submit import submit
 
 TICK = os.sysconf("SC_CLK_TCK")
 
@@ -33,16 +41,46 @@ def postgres_cpu() -> dict[int, float]:
     return out
 
 
-def run(dsn: str, collection: str, jobs: int, workers: int, round_: int) -> dict:
-    names = [f"bench {workers}w {round_} {i}" for i in range(jobs)]
+def queue_graphs(dsn: str, collection: str, jobs: int, tag: str) -> list[int]:
     ids = []
-    for name in names:
+    for i in range(jobs):
         r = subprocess.run(
-            [sys.executable, "-m", "modb.cli", "--dsn", dsn, "graph", "build", name,
+            [sys.executable, "-m", "modb.cli", "--dsn", dsn, "graph", "build", f"bench {tag} {i}",
              "--collection", collection, "--background"],
             capture_output=True, text=True, check=True,
         )  # fmt: skip
         ids.append(int(r.stdout))
+    return ids
+
+
+def queue_retargets(dsn: str, source: str, skeleton: int, tag: str) -> list[int]:
+    """A retargeting job per clip of `source` into a collection of this run's, then two graph
+    builds over it that wait for them all."""
+    made = f"bench/{tag}"
+    with connect(dsn) as conn:
+        who = conn.execute("SELECT current_user").fetchone()[0]
+        clips = [c for (c,) in conn.execute(
+            "SELECT clip_id FROM modb.current_clips WHERE collection = %s ORDER BY clip_id", [source]
+        )]  # fmt: skip
+        ids = [
+            submit(conn, "retarget", who, clips=[c], skeleton=skeleton, collection=made,
+                   fps=None, mirrored=True)
+            for c in clips
+        ]  # fmt: skip
+        return ids + [
+            submit(conn, "build_graph", who, after=ids, name=f"bench {tag} {i}", collection=made,
+                   min_turn_degrees=0.0)
+            for i in range(2)
+        ]  # fmt: skip
+
+
+def run(dsn: str, batch: str, jobs: int, workers: int, round_: int) -> dict:
+    tag = f"{workers}w {round_} {os.getpid()}"
+    if batch.startswith("retarget:"):
+        _, source, skeleton = batch.split(":")
+        ids = queue_retargets(dsn, source, int(skeleton), tag)
+    else:
+        ids = queue_graphs(dsn, batch, jobs, tag)
     seen: dict[int, float] = {}
     base = postgres_cpu()
     start = time.monotonic()
@@ -57,7 +95,7 @@ def run(dsn: str, collection: str, jobs: int, workers: int, round_: int) -> dict
             for pid, cpu in postgres_cpu().items():
                 seen[pid] = max(seen.get(pid, 0.0), cpu)
             left, failed = conn.execute(
-                "SELECT count(*) FILTER (WHERE state IN ('queued', 'running')), "
+                "SELECT count(*) FILTER (WHERE state IN ('waiting', 'queued', 'running')), "
                 "       string_agg(error, '; ') FILTER (WHERE state <> 'done') "
                 "  FROM modb.jobs WHERE id = ANY(%s)",
                 [ids],
@@ -71,7 +109,8 @@ def run(dsn: str, collection: str, jobs: int, workers: int, round_: int) -> dict
             time.sleep(0.2)
         wall = time.monotonic() - start
         per_job = conn.execute(
-            "SELECT extract(epoch FROM finished_at - started_at) FROM modb.jobs WHERE id = ANY(%s)",
+            "SELECT kind, extract(epoch FROM finished_at - started_at) FROM modb.jobs "
+            "WHERE id = ANY(%s)",
             [ids],
         ).fetchall()
     worker_cpu = 0.0
@@ -80,19 +119,20 @@ def run(dsn: str, collection: str, jobs: int, workers: int, round_: int) -> dict
         _, _, usage = os.wait4(p.pid, 0)  # the worker's CPU (a killed child's is not counted)
         worker_cpu += usage.ru_utime + usage.ru_stime
     db_cpu = sum(cpu - base.get(pid, 0.0) for pid, cpu in seen.items())
+    jobs = len(ids)
     return {
         "wall": wall,
-        "job_seconds": [float(s) for (s,) in per_job],
+        "job_seconds": [(kind, float(s)) for kind, s in per_job],
         "worker_cpu_per_job": worker_cpu / jobs,
         "db_cpu_per_job": db_cpu / jobs,
     }
 
 
-def main(dsn: str, collection: str, jobs: int, rounds: int = 2) -> None:
+def main(dsn: str, batch: str, jobs: int, rounds: int = 2) -> None:
     results = {1: [], 2: []}
     for r in range(rounds):
         for workers in (1, 2):  # alternated: the machine's noise falls on both
-            results[workers].append(run(dsn, collection, jobs, workers, r))
+            results[workers].append(run(dsn, batch, jobs, workers, r))
             print(
                 f"round {r} {workers} worker(s): {results[workers][-1]['wall']:.1f} s", flush=True
             )
@@ -101,10 +141,14 @@ def main(dsn: str, collection: str, jobs: int, rounds: int = 2) -> None:
     )
     print("|---|---|---|---|---|")
     for workers, rs in results.items():
-        jobs_s = [s for r in rs for s in r["job_seconds"]]
+        kinds = sorted({k for r in rs for k, _ in r["job_seconds"]})
+        jobs_s = ", ".join(
+            f"{k.removeprefix('modb.')} "
+            f"{statistics.median(s for r in rs for kk, s in r['job_seconds'] if kk == k):.1f} s"
+            for k in kinds
+        )
         print(
-            f"| {workers} | {statistics.median(r['wall'] for r in rs):.1f} s | "
-            f"{statistics.median(jobs_s):.1f} s | "
+            f"| {workers} | {statistics.median(r['wall'] for r in rs):.1f} s | {jobs_s} | "
             f"{statistics.median(r['worker_cpu_per_job'] for r in rs):.1f} s | "
             f"{statistics.median(r['db_cpu_per_job'] for r in rs):.1f} s |"
         )
@@ -114,4 +158,9 @@ def main(dsn: str, collection: str, jobs: int, rounds: int = 2) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4]) if len(sys.argv) > 4 else 2)
+    if sys.argv[2].startswith("retarget:"):  # its batch size is the collection's
+        main(sys.argv[1], sys.argv[2], 0, int(sys.argv[3]) if len(sys.argv) > 3 else 2)
+    else:
+        main(
+            sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4]) if len(sys.argv) > 4 else 2
+        )

@@ -70,8 +70,9 @@ def run(args: argparse.Namespace) -> int:
             made = schema.install(conn)
             print("modb worker: job tables " + ("made" if made else "already there"))
             return 0
-        if not schema.installed(conn):
-            print(f"modb worker: {schema.NO_TABLES}", file=sys.stderr)
+        if not schema.installed(conn) or not schema.current(conn):
+            why = schema.NO_TABLES if not schema.installed(conn) else schema.OLD_TABLES
+            print(f"modb worker: {why}", file=sys.stderr)
             return 2
     print(
         f"modb worker: {args.concurrency} process(es) taking jobs from "

@@ -16,17 +16,28 @@ JOB_TABLES = resources.files(__package__).joinpath("job_tables.sql").read_text(e
 NO_TABLES = "this database has no job tables: `modb worker --init` (as a superuser) makes them"
 
 
+OLD_TABLES = (
+    "this database's job tables are older than this modb (no waiting for other jobs): "
+    "`modb worker --init` (as a superuser) brings them up to date"
+)
+
+
 def installed(conn: psycopg.Connection) -> bool:
     return conn.execute("SELECT to_regclass('modb.jobs') IS NOT NULL").fetchone()[0]
 
 
+def current(conn: psycopg.Connection) -> bool:
+    """Whether the job tables are this modb's (modb_jobs.waits came with 0.20.0)."""
+    return conn.execute("SELECT to_regclass('modb_jobs.waits') IS NOT NULL").fetchone()[0]
+
+
 def install(conn: psycopg.Connection) -> bool:
-    """The engine's schema and modb's job tables, when missing (a role that may create them: the
-    database's owner). Returns whether anything was made."""
+    """The engine's schema and modb's job tables, when missing or older than this modb (a role
+    that may create them: the database's owner). Returns whether anything was made."""
     with conn.transaction():
         conn.execute("SELECT pg_advisory_xact_lock(hashtext('modb jobs schema'))")
         engine = conn.execute("SELECT to_regclass('procrastinate_jobs') IS NOT NULL").fetchone()[0]
-        if engine and installed(conn):
+        if engine and installed(conn) and current(conn):
             return False
         if not engine:
             conn.execute(SchemaManager.get_schema())  # no parameters: sent as written

@@ -70,6 +70,10 @@ def submitter(conn: psycopg.Connection) -> str:
 def _still_to_run(conn: psycopg.Connection, after: list[int]) -> list[int]:
     """Of the jobs to wait for, those not done yet; their rows held until the submit commits, so
     none ends unseen by the trigger that releases the jobs waiting for it."""
+    from .schema import OLD_TABLES, current
+
+    if not current(conn):
+        raise CannotWait(OLD_TABLES)
     rows = dict(
         conn.execute(
             "SELECT id, status::text FROM procrastinate_jobs WHERE id = ANY (%s) FOR SHARE",
