@@ -6,8 +6,8 @@ them): wall time and the ratio, each worker's CPU and the database's CPU per job
 
     .venv/bin/python bench/job_workers.py "host=/var/lib/modb/run dbname=mix16 user=postgres" mixc 4
 
-- every clip of a collection retargeted onto a skeleton (a job per clip, mirror images cut too), and
-  two graph builds over the clips made, each waiting for every retargeting (`--after`):
+- every clip of a collection retargeted onto a skeleton (a job per two clips, mirror images cut
+  too), and two graph builds over the clips made, each waiting for every retargeting (`--after`):
 
     .venv/bin/python bench/job_workers.py "host=/var/lib/modb/run dbname=mix16 user=postgres" \
         retarget:cmu16:1 2
@@ -59,13 +59,17 @@ def queue_retargets(dsn: str, source: str, skeleton: int, tag: str) -> list[int]
     made = f"bench/{tag}"
     with connect(dsn) as conn:
         who = conn.execute("SELECT current_user").fetchone()[0]
-        clips = [c for (c,) in conn.execute(
-            "SELECT clip_id FROM modb.current_clips WHERE collection = %s ORDER BY clip_id", [source]
-        )]  # fmt: skip
-        ids = [
-            submit(conn, "retarget", who, clips=[c], skeleton=skeleton, collection=made,
-                   fps=None, mirrored=True)
-            for c in clips
+        clips = [
+            c
+            for (c,) in conn.execute(
+                "SELECT clip_id FROM modb.current_clips WHERE collection = %s ORDER BY clip_id",
+                [source],
+            )
+        ]
+        ids = [  # two clips a job: the batch stays under a submitter's cap on queued jobs
+            submit(conn, "retarget", who, clips=clips[k : k + 2], skeleton=skeleton,
+                   collection=made, fps=None, mirrored=True)
+            for k in range(0, len(clips), 2)
         ]  # fmt: skip
         return ids + [
             submit(conn, "build_graph", who, after=ids, name=f"bench {tag} {i}", collection=made,

@@ -284,3 +284,18 @@ def test_rest_retargets_a_whole_collection_as_a_job(dsn):
             stop(w)
         assert sorted(c["clip_id"] for c in state["result"]["clips"]) == sorted(made)
         assert len(made) == len(TRIALS)
+        # an edit script over a whole collection: a job too
+        edit = {"collection": "over rest"}
+        r = client.post("/api/edit-scripts/again/apply", json=edit, headers=tokens["loader"])
+        assert r.status_code == 202 and r.json()["kind"] == "modb.apply_edit_script", r.text
+        w = worker(dsn)
+        try:
+            with connect(dsn) as conn:
+                state = until(conn, r.json()["id"], lambda j: j["state"] == "done", 120, "done")
+                versions = conn.execute(
+                    "SELECT array_agg(version) FROM modb.current_clips "
+                    "WHERE collection = 'over rest'"
+                ).fetchone()[0]
+        finally:
+            stop(w)
+        assert versions == [2] * len(TRIALS)
