@@ -68,10 +68,16 @@ BEGIN ATOMIC
                OR jsonb_typeof(a.seg->'start') IS DISTINCT FROM 'number'
                OR jsonb_typeof(a.seg->'end') IS DISTINCT FROM 'number'
                OR NOT ((a.seg->>'start')::numeric BETWEEN 0 AND (a.seg->>'end')::numeric)
-               OR (a.seg->>'end')::numeric >= n_frames)));
+               OR (a.seg->>'end')::numeric >= n_frames
+               OR (a.seg ? 'auto' AND jsonb_typeof(a.seg->'auto') <> 'boolean')
+               OR (a.seg ? 'keyframes' AND (jsonb_typeof(a.seg->'keyframes') <> 'array' OR EXISTS (
+                   SELECT FROM jsonb_array_elements(a.seg->'keyframes') AS k(frame)
+                    WHERE jsonb_typeof(k.frame) <> 'number'
+                       OR NOT (k.frame::text::numeric BETWEEN (a.seg->>'start')::numeric
+                                                          AND (a.seg->>'end')::numeric)))))));
 END;
 COMMENT ON FUNCTION modb.annotations_ok(jsonb, int) IS
-    'True when meta is an object whose optional "annotations" list holds {name, start, end} segments with 0 <= start <= end < n_frames (frames, 0-based)';
+    'True when meta is an object whose optional "annotations" list holds {name, start, end} segments with 0 <= start <= end < n_frames (frames, 0-based), each with optional "keyframes" (frames within it) and "auto" (true: found by modb.annotate_steps)';
 
 CREATE FUNCTION modb.skeleton_identity(hierarchy jsonb)
 RETURNS text

@@ -1,15 +1,18 @@
-"""Foot contacts and the steps between them, from forward-kinematics positions of the ankles and toes.
+"""Foot contacts and the steps between them, from forward-kinematics positions of ankles and toes.
 
-A foot is in contact where its slower point (ankle or toe: the heel lands first, the toes leave last)
+A foot is in contact where its slower point (ankle or toe: the heel lands first, the toes leave
+    last)
 moves slower than SPEED_LEGS_PER_S leg lengths a second and its lower point lies within HEIGHT_LEGS
 leg lengths of the clip's ground (the 5th percentile of both feet's lower points). Thresholds scale
 with the leg (hip to knee to ankle at rest), speeds are central differences over 1/60 s whatever the
-rate, and runs are cleaned in seconds: a contact broken for less than GAP_S is one contact, one shorter
+rate, and runs are cleaned in seconds: a contact broken for less than GAP_S is one contact, one
+    shorter
 than MIN_CONTACT_S is none. A touchdown is the first frame of a contact that starts inside the clip.
 
 A step is the swing between two touchdowns of alternate feet: a `left_step` runs from a touchdown of
 the right foot to the next touchdown of the left (the left foot swings), both frames its keyframes;
-at most MAX_STEP_S long (longer is a pause, not a step). A mirrored clip gives the mirrored steps."""
+at most MAX_STEP_S long (longer is a pause, not a step). A mirrored clip gives the mirrored
+steps."""
 
 import numpy as np
 
@@ -79,8 +82,10 @@ def _cleaned(contact, fps):
 
 def contacts(positions, index, leg, fps):
     """Per side, whether the foot is in contact at each frame (see the module's description)."""
-    low = {s: np.minimum(positions[:, index[f"{s}_ankle"], 1], positions[:, index[f"{s}_toe"], 1])
-           for s in SIDES}  # fmt: skip
+    low = {
+        s: np.minimum(positions[:, index[f"{s}_ankle"], 1], positions[:, index[f"{s}_toe"], 1])
+        for s in SIDES
+    }
     ground = np.percentile(np.concatenate([low[s] for s in SIDES]), 5)
     out = {}
     for s in SIDES:
