@@ -1,5 +1,7 @@
 """Annotation segments: named frame ranges of a clip version (meta "annotations": [{"name", "start",
-"end"}], frames 0-based and inclusive, as modb.annotations_ok checks them)."""
+"end", "keyframes", "auto"}], frames 0-based and inclusive, as modb.annotations_ok checks them).
+`keyframes` (frames inside the segment: a step's two contacts) and `auto` (true: found by
+modb.annotate_steps, which replaces such segments when it runs again) are optional."""
 
 from __future__ import annotations
 
@@ -20,9 +22,16 @@ class Segment:
     start: int
     end: int
     name: str
+    keyframes: tuple[int, ...] = ()
+    auto: bool = False
 
     def as_json(self) -> dict[str, Any]:
-        return {"name": self.name, "start": self.start, "end": self.end}
+        out: dict[str, Any] = {"name": self.name, "start": self.start, "end": self.end}
+        if self.keyframes:
+            out["keyframes"] = list(self.keyframes)
+        if self.auto:
+            out["auto"] = True
+        return out
 
 
 def parse_segment(text: str) -> Segment:
@@ -37,8 +46,10 @@ def parse_segment(text: str) -> Segment:
 
 def segments_of(meta: dict[str, Any]) -> list[Segment]:
     return sorted(
-        Segment(int(a["start"]), int(a["end"]), str(a["name"])) for a in meta.get("annotations", [])
-    )
+        Segment(int(a["start"]), int(a["end"]), str(a["name"]),
+                tuple(int(k) for k in a.get("keyframes", ())), a.get("auto") is True)
+        for a in meta.get("annotations", [])
+    )  # fmt: skip
 
 
 def checked(segments: list[Any], n_frames: int) -> list[Segment]:
@@ -50,9 +61,10 @@ def checked(segments: list[Any], n_frames: int) -> list[Segment]:
     for i, seg in enumerate(segments):
         if isinstance(seg, Segment):
             seg = asdict(seg)
-        if not isinstance(seg, dict) or set(seg) - {"name", "start", "end"}:
+        if not isinstance(seg, dict) or set(seg) - {"name", "start", "end", "keyframes", "auto"}:
             raise AnnotationError(
-                f"segment {i}: an object with name, start and end, got {seg!r:.80}"
+                f"segment {i}: an object with name, start and end (and keyframes, auto), "
+                f"got {seg!r:.80}"
             )
         name, start, end = seg.get("name"), seg.get("start"), seg.get("end")
         if not isinstance(name, str) or not NAME.match(name):
@@ -67,7 +79,18 @@ def checked(segments: list[Any], n_frames: int) -> list[Segment]:
                 f"segment {i} ({name}): frames {start}-{end} do not lie within 0-{n_frames - 1} "
                 f"with start <= end"
             )
-        out.append(Segment(start, end, name))
+        keyframes = seg.get("keyframes", ())
+        if not isinstance(keyframes, (list, tuple)) or not all(
+            isinstance(k, int) and not isinstance(k, bool) and start <= k <= end for k in keyframes
+        ):
+            raise AnnotationError(
+                f"segment {i} ({name}): keyframes are frames within {start}-{end}, "
+                f"got {keyframes!r:.80}"
+            )
+        auto = seg.get("auto", False)
+        if not isinstance(auto, bool):
+            raise AnnotationError(f"segment {i} ({name}): auto is true or false, got {auto!r:.20}")
+        out.append(Segment(start, end, name, tuple(keyframes), auto))
     return sorted(out)
 
 

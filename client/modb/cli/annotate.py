@@ -1,4 +1,6 @@
-"""`modb annotate`: a clip version's annotation segments (named frame ranges): list, add, remove."""
+"""`modb annotate`: a clip version's annotation segments (named frame ranges): list, add, remove;
+`--steps` finds the steps of clips and collections (modb.annotate_steps; a job where the database
+has job tables)."""
 
 from __future__ import annotations
 
@@ -14,6 +16,7 @@ from modb.loader.annotations import (
     with_segments,
 )
 
+from . import as_job
 from .common import VERSION, connect
 
 
@@ -21,7 +24,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     annotate = sub.add_parser(
         "annotate", help="list, add or remove a clip's annotation segments (named frame ranges)"
     )
-    annotate.add_argument("clip", metavar="CLIP", help="clip id, name, or collection/name")
+    annotate.add_argument(
+        "sources",
+        nargs="+",
+        metavar="CLIP",
+        help="clip id, name, or collection/name (with --steps: clips and collections)",
+    )
     annotate.add_argument("--version", type=VERSION, help="clip version (default: newest)")
     annotate.add_argument(
         "--segment",
@@ -37,19 +45,80 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         metavar="NAME",
         help="remove every segment named NAME (or NAME:START-END: that one); repeatable",
     )
+    annotate.add_argument(
+        "--steps",
+        action="store_true",
+        help="find the steps from the feet's contacts: left_step and right_step segments, marked "
+        "automatic (a run again replaces those, never a person's)",
+    )
+    annotate.add_argument("-q", "--quiet", action="store_true", help="with --steps: no progress")
+    as_job.add_options(annotate, "with --steps")
     annotate.set_defaults(func=run)
+
+
+def steps(args: argparse.Namespace) -> int:
+    from modb.clips import ClipNotFound, clips_in
+
+    with connect(args) as conn:
+        try:
+            clips = list(dict.fromkeys(c for spec in args.sources for c in clips_in(conn, spec)))
+        except ClipNotFound as e:
+            print(f"modb annotate: {e}", file=sys.stderr)
+            return 2
+        as_a_job = as_job.usable(conn, args, "annotate --steps", "0.21.0")
+        if as_a_job is None:
+            return 2
+        if as_a_job:
+            done = as_job.run(conn, args, "annotate --steps", "annotate_steps", {"clips": clips})
+            if done is None or isinstance(done, int):
+                return done or 0
+            found = [(c["clip_id"], c["version"], c["steps"]) for c in done.result["clips"]]
+        else:
+            found = []
+            for clip in clips:
+                with conn.transaction():
+                    rows = conn.execute(
+                        "SELECT version, name FROM modb.annotate_steps(%s)", [clip]
+                    ).fetchall()
+                version = rows[0][0] if rows else None
+                found.append((clip, version, {n: sum(r[1] == n for r in rows) for n in STEPS}))
+    for clip, version, counts in found:
+        print(
+            f"clip {clip}" + (f" version {version}" if version else "") + ": "
+            + ", ".join(f"{counts.get(n, 0)} {n}" for n in STEPS)
+        )  # fmt: skip
+    totals = {n: sum(c.get(n, 0) for _, _, c in found) for n in STEPS}
+    print(f"{len(found)} clips: " + ", ".join(f"{totals[n]} {n}" for n in STEPS))
+    return 0
+
+
+STEPS = ("left_step", "right_step")
 
 
 def run(args: argparse.Namespace) -> int:
     from modb.clips import ClipNotFound, resolve_clip  # numpy (60 ms): not for `modb --help`
 
+    if args.steps:
+        if args.segment or args.remove or args.version:
+            print("modb annotate: --steps goes alone (no --segment, --remove, --version)",
+                  file=sys.stderr)  # fmt: skip
+            return 2
+        return steps(args)
+    if len(args.sources) != 1:
+        print("modb annotate: name one clip (several go with --steps)", file=sys.stderr)
+        return 2
     with connect(args) as conn:
         try:
-            stored = read_meta(conn, resolve_clip(conn, args.clip), args.version)
+            stored = read_meta(conn, resolve_clip(conn, args.sources[0]), args.version)
             segments = segments_of(stored.meta)
             for spec in args.remove:
                 gone = parse_segment(spec) if ":" in spec else None
-                kept = [s for s in segments if (s != gone if gone else s.name != spec)]
+                kept = [
+                    s
+                    for s in segments
+                    if ((s.start, s.end, s.name) != (gone.start, gone.end, gone.name) if gone
+                        else s.name != spec)
+                ]  # fmt: skip
                 if len(kept) == len(segments):
                     raise AnnotationError(f"no segment {spec!r} to remove")
                 segments = kept
@@ -66,5 +135,7 @@ def run(args: argparse.Namespace) -> int:
         f"{len(segments)} segment{'' if len(segments) == 1 else 's'}"
     )
     for s in segments:
-        print(f"  {s.name}:{s.start}-{s.end}")
+        extra = (f"  keyframes {','.join(map(str, s.keyframes))}" if s.keyframes else "") + (
+            "  (found by --steps)" if s.auto else "")  # fmt: skip
+        print(f"  {s.name}:{s.start}-{s.end}{extra}")
     return 0

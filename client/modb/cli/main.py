@@ -10,6 +10,7 @@ from collections.abc import Sequence
 from modb.version import __version__
 
 from . import (
+    align,
     annotate,
     bench,
     catalog,
@@ -38,6 +39,7 @@ COMMANDS = (
     synth,
     list_clips,
     annotate,
+    align,
     split,
     catalog,
     edit,

@@ -26,7 +26,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help=f"processes, one job each at a time ({CONCURRENCY.span}; default 1)",
     )
     p.add_argument(
-        "--queues", nargs="+", metavar="QUEUE", help="only these queues (default: all; graphs, ...)"
+        "--queues",
+        nargs="+",
+        metavar="QUEUE",
+        help="only these queues (default: all; graphs, clips, primitives)",
     )
     p.add_argument(
         "--stalled-after",

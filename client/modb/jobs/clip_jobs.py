@@ -11,7 +11,7 @@ from typing import Any
 import psycopg
 from psycopg.rows import dict_row
 
-from modb_kernel import edit_clips, retarget_clip
+from modb_kernel import edit_clips, processed, retarget_clip, step_annotations
 from modb_kernel.database import StoreError
 
 from .kernel_database import WorkerDatabase
@@ -108,3 +108,31 @@ def split_by_annotation(
         return {"source": clip, "cuts": cuts}
 
     return each_clip(conn, progress, clips, stop_when_asked, one)
+
+
+def annotate_steps(conn, progress, clips, stop_when_asked) -> list[dict[str, Any]]:
+    def one(db: WorkerDatabase, clip: int) -> dict[str, Any]:
+        version, made = step_annotations.annotate(db, clip)
+        counts = {n: sum(s["name"] == n for s in made) for n in ("left_step", "right_step")}
+        return {"clip_id": clip, "version": version, "steps": counts}
+
+    return each_clip(conn, progress, clips, stop_when_asked, one)
+
+
+def align(conn, progress, stop_when_asked, primitive, collection) -> dict[str, Any]:
+    """The primitive's examples aligned in one transaction (a cancel leaves the rows as they
+    were)."""
+
+    def advance(done: int, total: int) -> None:
+        stop_when_asked()
+        progress.advance(done, total, "examples")
+
+    try:
+        with conn.transaction():
+            examples, aligned, deleted = processed.align_primitive(
+                WorkerDatabase(conn), primitive, collection, advance
+            )
+    except StoreError as e:
+        raise ClipJobError(_words(e)) from None
+    return {"primitive": primitive, "collection": collection, "examples": examples,
+            "aligned": aligned, "deleted": deleted}  # fmt: skip

@@ -23,6 +23,8 @@ QUEUES = {
     "retarget": "clips",
     "apply_edit_script": "clips",
     "split_by_annotation": "clips",
+    "annotate_steps": "clips",
+    "align": "primitives",
 }
 
 Work = Callable[..., dict[str, Any]]
@@ -136,11 +138,27 @@ def split_by_annotation(
     )
 
 
+def annotate_steps(context, submitter: str, clips: list[int]) -> dict[str, Any]:
+    def work(conn, progress, stop_when_asked):
+        return {"clips": clip_jobs.annotate_steps(conn, progress, clips, stop_when_asked)}
+
+    return _run(context, f"finding the steps of {len(clips)} clips for {submitter}", work)
+
+
+def align(context, submitter: str, primitive: str, collection: str) -> dict[str, Any]:
+    def work(conn, progress, stop_when_asked):
+        return clip_jobs.align(conn, progress, stop_when_asked, primitive, collection)
+
+    return _run(context, f"aligning {primitive!r} in {collection!r} for {submitter}", work)
+
+
 KINDS = {
     "build_graph": build_graph,
     "retarget": retarget,
     "apply_edit_script": apply_edit_script,
     "split_by_annotation": split_by_annotation,
+    "annotate_steps": annotate_steps,
+    "align": align,
 }
 
 
