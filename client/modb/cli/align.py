@@ -12,7 +12,8 @@ from .common import connect
 
 SUMMARY = """
 SELECT count(*), count(stale), max(n_frames) FILTER (WHERE reference),
-       max(format('clip %%s frames %%s-%%s', clip_id, start_frame, end_frame)) FILTER (WHERE reference)
+       max(format('clip %%s frames %%s-%%s', clip_id, start_frame, end_frame))
+           FILTER (WHERE reference)
   FROM modb.processed_data_status WHERE collection = %s AND primitive = %s
 """
 

@@ -158,6 +158,11 @@ def _clips(conn: psycopg.Connection, r: Request) -> Any:
     )
 
 
+def _processed(conn: psycopg.Connection, r: Request) -> Any:
+    q = _query(r, "collection", "primitive")
+    return api.processed_data(conn, q.get("collection"), q.get("primitive"))
+
+
 def _frames_args(r: Request) -> tuple[int, int | None, int, int | None]:
     q = _query(r, "version", "start", "count")
     clip_id, version = _path_id(r, "clip"), _int("version", q.get("version"))
@@ -216,6 +221,8 @@ VIEWS: dict[str, View] = {
     "/api/graphs/{ident}": _by_id(api.graph, "graph"),
     "/api/profiles": _listing(api.profiles),
     "/api/edit-scripts": _listing(api.edit_scripts),
+    "/api/processed-data": _processed,
+    "/api/processed-data/{ident}": _by_id(api.processed_row, "processed-data row"),
     "/api/jobs": _listing(job_routes.jobs),
     "/api/jobs/{ident}": _by_id(job_routes.job, "job"),
 }
@@ -379,6 +386,18 @@ def create_app(
         Route(
             "/api/collections/{path:path}/retarget",
             catalog_writes.write_endpoint(tokens, writer, job_routes.retarget_collection),
+            methods=["POST"],
+        ),
+        Route(
+            "/api/collections/{path:path}/steps",
+            catalog_writes.write_endpoint(
+                tokens, writer, job_routes.steps_collection, with_body=False
+            ),
+            methods=["POST"],
+        ),
+        Route(
+            "/api/processed-data",
+            catalog_writes.write_endpoint(tokens, writer, job_routes.align_primitive),
             methods=["POST"],
         ),
         Route(

@@ -543,6 +543,21 @@ def _retarget(conn, request, body) -> Done:
     )
 
 
+def _steps(conn, request, body) -> Done:
+    """The clip's steps found and written as automatic segments of its current version."""
+    clip_id = _int(request, "ident", "clip id")
+    _current_clips(conn, [clip_id])
+    rows = conn.execute(
+        "SELECT version, name, start_frame, end_frame, keyframes FROM modb.annotate_steps(%s)",
+        [clip_id],
+    ).fetchall()
+    steps = [{"name": n, "start": s, "end": e, "keyframes": k} for _, n, s, e, k in rows]
+    return Done(
+        {"clip_id": clip_id, "version": rows[0][0] if rows else None, "steps": steps},
+        "annotate steps", f"clip {clip_id}", {"steps": len(steps)},
+    )  # fmt: skip
+
+
 def routes(read_pool, tokens: Tokens, writer: Writer) -> list[Route]:
     def write(
         path: str, method: str, handler: Handler, with_body: bool = True, frames: bool = False
@@ -569,6 +584,7 @@ def routes(read_pool, tokens: Tokens, writer: Writer) -> list[Route]:
         ),
         write("/api/clips/{clip_id}/versions/{version}/current", "POST", _restore_version, False),
         write("/api/clips/{ident}/retarget", "POST", _retarget, frames=True),
+        write("/api/clips/{ident}/steps", "POST", _steps, with_body=False, frames=True),
         write("/api/edit-scripts/{name}", "PUT", _put_script),
         write("/api/edit-scripts/{name}", "DELETE", _delete_script, with_body=False),
         write("/api/edit-scripts/{name}/apply", "POST", _apply_script, frames=True),

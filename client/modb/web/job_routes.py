@@ -70,7 +70,14 @@ ARGUMENTS = {
         {**CLIPS, "annotation": Nullable(Text()), "collection": Nullable(CollectionPath())},
         name="arguments",
     ),
+    "annotate_steps": Shape(CLIPS, name="arguments"),
+    "align": Shape(
+        {"primitive": Text(), "collection": CollectionPath()},
+        ("primitive", "collection"),
+        name="arguments",
+    ),
 }
+ALIGN = ARGUMENTS["align"]
 SUBMITTED = Shape(
     {"kind": Text(), "arguments": JsonObject(), "after": ListOf(Whole(what="a job id"), 1)},
     ("kind", "arguments"),
@@ -152,7 +159,7 @@ def submit_job(conn: psycopg.Connection, request: Request, body: Any) -> Done:
         raise BadRequest(f'"kind": one of {", ".join(ARGUMENTS)}, got {kind!r:.60}')
     arguments = ARGUMENTS[kind](None, fields["arguments"])
     _tables(conn)
-    if kind != "build_graph":
+    if kind not in ("build_graph", "align"):
         arguments = {"clips": _clips(conn, arguments), **arguments}
     return queue_job(conn, request, kind, arguments, fields.get("after"))
 
@@ -179,3 +186,26 @@ def cancel_job(conn: psycopg.Connection, request: Request, body: Any) -> Done:
             409, f"job {job_id} is {before['state']}: only a queued or running job stops"
         )
     return Done(job(conn, job_id), "cancel job", f"job {job_id}", {"was": before["state"]})
+
+
+def steps_collection(conn: psycopg.Connection, request: Request, body: Any) -> Done:
+    """POST /api/collections/PATH/steps: the steps of every clip of it, as a job."""
+    path = CollectionPath()("collection path", request.path_params["path"])
+    _tables(conn)
+    return queue_job(
+        conn, request, "annotate_steps", {"clips": _target_clips(conn, {"collection": path})}
+    )
+
+
+def align_primitive(conn: psycopg.Connection, request: Request, body: Any) -> Done:
+    """POST /api/processed-data {"primitive", "collection"}: a job (202) where the database has job
+    tables, else aligned at once (200 with the counts)."""
+    arguments = ALIGN(None, body)
+    if schema.installed(conn):
+        return queue_job(conn, request, "align", arguments)
+    examples, aligned, deleted = conn.execute(
+        "SELECT * FROM modb.align_primitive(%s, %s)",
+        [arguments["primitive"], arguments["collection"]],
+    ).fetchone()
+    answer = {**arguments, "examples": examples, "aligned": aligned, "deleted": deleted}
+    return Done(answer, "align", f"{arguments['primitive']} in {arguments['collection']}", answer)

@@ -218,10 +218,40 @@ def catalog_writes() -> dict[str, dict[str, Any]]:
         "collection, a job (202) where the database has job tables", script,
         body=_object([], clips={"type": "array", "items": ID, "minItems": 1}, collection=PATH),
         ok="each clip's new version, or the queued job (202, Location: /api/jobs/ID)")}  # fmt: skip
+    out["/api/clips/{ident}/steps"] = {"post": _write(
+        "find the clip's steps from its feet's contacts: left_step and right_step segments of its "
+        "current version, marked automatic (replacing those of a run before)", CLIP,
+        ok="the steps written")}  # fmt: skip
+    collection_path = {"name": "path", "in": "path", "required": True, "schema": {"type": "string"},
+                       "description": "the collection's path"}  # fmt: skip
+    out["/api/collections/{path}/steps"] = {"post": _write(
+        "find the steps of every clip of the collection, as a job", collection_path,
+        ok="the queued job (202, Location: /api/jobs/ID)")}  # fmt: skip
+    out["/api/processed-data"] = {
+        "get": {
+            "summary": "processed-data rows (aligned examples of motion primitives) without their "
+            "frames; stale says why a row is stale",
+            "description": READ,
+            "parameters": [
+                {"name": n, "in": "query", "required": False, "schema": {"type": "string"}}
+                for n in ("collection", "primitive")
+            ],
+            "responses": _responses("the rows", 401),
+        },
+        "post": _write(
+            "align a primitive's examples in a collection in time (a job where the database has "
+            "job tables)",
+            body=_object(["primitive", "collection"], primitive=TEXT, collection=PATH),
+            ok="the queued job (202), or the counts (200)",
+        ),
+    }
+    out["/api/processed-data/{ident}"] = _read(
+        "one processed-data row whole: aligned frames, time function, sections, settings",
+        _id("ident", "processed-data row id"),
+    )
     out["/api/collections/{path}/retarget"] = {"post": _write(
         "retarget every clip of the collection onto another skeleton, as a job",
-        {"name": "path", "in": "path", "required": True, "schema": {"type": "string"},
-         "description": "the collection's path"},
+        collection_path,
         body=_object(["skeleton"], skeleton=ID, collection=PATH,
                      fps={"type": "number", "minimum": 1, "maximum": 1000},
                      mirrored={"type": "boolean"}),
@@ -292,7 +322,8 @@ def schema() -> dict[str, Any]:
                 "queue a job (kind build_graph: arguments name, profile, collection, "
                 "min_turn_degrees, as `modb graph build`; retarget: clips or from_collection, "
                 "skeleton, collection, fps, mirrored; apply_edit_script: clips or from_collection, "
-                "script; split_by_annotation: clips or from_collection, annotation, collection), "
+                "script; split_by_annotation: clips or from_collection, annotation, collection; "
+                "annotate_steps: clips or from_collection; align: primitive, collection), "
                 "after the jobs `after` are done; a worker runs it",
                 body=_object(
                     ["kind", "arguments"],
