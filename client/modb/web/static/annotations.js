@@ -7,6 +7,11 @@
 // with the next, Delete remove it, [ and ] move its start or end to the slider, Tab select the next, s save.
 import { token } from './token.js';
 
+// A segment as meta stores it: keyframes and the automatic mark only when it has them.
+function stored({ name, start, end, keyframes, auto }) {
+  return { name, start, end, ...(keyframes && keyframes.length ? { keyframes } : {}), ...(auto ? { auto } : {}) };
+}
+
 const SHORTCUTS = { n: 'create', c: 'cut', m: 'merge', Delete: 'remove', Backspace: 'remove', '[': 'setStart',
                     ']': 'setEnd', Tab: 'selectNext', s: 'save' };
 
@@ -62,7 +67,13 @@ export class AnnotationEditor {
     this.selected = this.segments.indexOf(chosen);
   }
 
-  changed() {
+  // A segment a person changed is theirs: it loses the automatic mark (so `modb annotate --steps`
+  // run again keeps it) and any keyframe it no longer holds.
+  changed(...touched) {
+    for (const s of touched) {
+      delete s.auto;
+      if (s.keyframes) s.keyframes = s.keyframes.filter((k) => s.start <= k && k <= s.end);
+    }
     this.dirty = true;
     this.sort();
     this.render();
@@ -89,9 +100,9 @@ export class AnnotationEditor {
     const f = this.viewer.frame();
     if (!s) return;
     if (!(s.start < f && f <= s.end)) return this.say(`the slider (${f}) is not inside ${s.name} ${s.start}-${s.end}`, true);
-    this.segments.push({ name: s.name, start: f, end: s.end });
+    this.segments.push({ name: s.name, start: f, end: s.end, keyframes: s.keyframes });
     s.end = f - 1;
-    this.changed();
+    this.changed(s, this.segments[this.segments.length - 1]);
   }
 
   merge() {
@@ -100,8 +111,9 @@ export class AnnotationEditor {
     const next = this.segments[this.selected + 1];
     if (!next) return this.say('no segment after this one to merge with', true);
     s.end = Math.max(s.end, next.end);
+    s.keyframes = [...(s.keyframes || []), ...(next.keyframes || [])];
     this.segments.splice(this.selected + 1, 1);
-    this.changed();
+    this.changed(s);
   }
 
   remove() {
@@ -115,21 +127,21 @@ export class AnnotationEditor {
     const s = this.need('rename');
     if (!s || !name.trim()) return;
     s.name = name.trim();
-    this.changed();
+    this.changed(s);
   }
 
   setStart() {
     const s = this.need('move');
     if (!s) return;
     s.start = Math.min(this.viewer.frame(), s.end);
-    this.changed();
+    this.changed(s);
   }
 
   setEnd() {
     const s = this.need('move');
     if (!s) return;
     s.end = Math.max(this.viewer.frame(), s.start);
-    this.changed();
+    this.changed(s);
   }
 
   selectNext() {
@@ -147,8 +159,7 @@ export class AnnotationEditor {
   async save() {
     if (!this.clip) return;
     if (!token.get()) return this.say('saving needs a loader token: paste one under "Access token"', true);
-    const meta = { ...this.meta, annotations: this.segments.map(({ name, start, end }) => ({ name, start, end })),
-                   tags: this.tags };
+    const meta = { ...this.meta, annotations: this.segments.map(stored), tags: this.tags };
     if (!meta.annotations.length) delete meta.annotations;
     if (!meta.tags.length) delete meta.tags;
     const response = await fetch(`/api/clips/${this.clip.id}/versions/${this.clip.version}/meta`, {
@@ -184,11 +195,13 @@ export class AnnotationEditor {
       if (lane < 0) { lane = lanes.length; lanes.push(0); }
       lanes[lane] = s.end;
       const div = document.createElement('div');
-      div.className = `segment${i === this.selected ? ' selected' : ''}`;
+      div.className = `segment${i === this.selected ? ' selected' : ''}${s.auto ? ' auto' : ''}`;
       Object.assign(div.style, { left: `${x(s.start)}px`, width: `${Math.max(x(s.end) - x(s.start), 4)}px`,
                                  top: `${lane * 22}px` });
       div.textContent = s.name;
-      div.title = `${s.name}: frames ${s.start}-${s.end}`;
+      div.title = `${s.name}: frames ${s.start}-${s.end}`
+        + (s.keyframes && s.keyframes.length ? `, keyframes ${s.keyframes.join(', ')}` : '')
+        + (s.auto ? ' (found from the feet; editing makes it yours)' : '');
       div.dataset.index = i;
       div.addEventListener('mousedown', (e) => { if (!e.target.classList.contains('handle')) this.select(i); });
       for (const end of ['start', 'end']) {
@@ -214,7 +227,7 @@ export class AnnotationEditor {
       const f = Math.max(0, Math.min(this.last(), frame));
       if (end === 'start') s.start = Math.min(f, s.end); else s.end = Math.max(f, s.start);
       this.viewer.setFrame(end === 'start' ? s.start : s.end);
-      this.changed();
+      this.changed(s);
     };
     const up = () => { window.removeEventListener('mousemove', move); window.removeEventListener('mouseup', up); };
     window.addEventListener('mousemove', move);
