@@ -8,7 +8,8 @@ first frame faces +Z and moved on the ground so that its first frame's pelvis is
 2-D alignment). A warp's path runs from the section's first frames to its last ones, each move one
 frame on, in one or both; its cost is the sum of the matched frames' costs. The time function gives,
 for each of the reference's frames, the example's (fractional) frame matched to it: the mean of the
-frames the path pairs with it, so it never runs backwards, and the keyframes map onto each other."""
+frames the path pairs with it (at a section's ends, its keyframe), so it never runs backwards, and
+the keyframes map onto each other."""
 
 import numpy as np
 
@@ -96,6 +97,7 @@ def align(example, reference, example_sections, reference_sections):
     for k, (a0, a1, b0, b1) in enumerate(bounds):
         cost, path = warp(frame_costs(example[a0 : a1 + 1], reference[b0 : b1 + 1]))
         t = a0 + time_function(path, b1 - b0 + 1)
+        t[0], t[-1] = a0, a1  # keyframe onto keyframe, whatever else the ends were paired with
         times.append(t if k == 0 else t[1:])  # a section's first frame is the last one's end
         costs.append(cost)
     return np.concatenate(times), costs

@@ -1,0 +1,304 @@
+"""Steps from foot contacts and their examples aligned in time (issue 43), on the shipped walks.
+
+Checked against the test's own computations: foot contacts found by its own forward kinematics
+(scipy's rotations) and its own run cleaning, on every shipped walk (Bandai dataset 1's and 2's
+walks and walk-turns, CMU 16's trials); the warp's cost against a brute-force search of every path
+on small cases; aligned frames against the source frames resampled by the time function with the
+test's own slerp (scipy's)."""
+
+from __future__ import annotations
+
+import itertools
+import json
+import os
+
+import numpy as np
+import psycopg
+import pytest
+from scipy.spatial.transform import Rotation, Slerp
+from support.commands import run_modb
+from support.data import mocap
+from support.databases import scratch_database
+
+from modb.clips import read_motion
+from modb.database.connection import connect
+from modb.loader.asf import read_amc, read_asf
+from modb.loader.bvh import read_bvh
+from modb_kernel import align as kernel_align
+from modb_kernel import steps as kernel_steps
+
+SIDES = ("left", "right")
+
+
+def shipped_walks():
+    bandai = sorted(mocap("bandai-2-dev", "data").glob("dataset-2_walk*.bvh"))
+    bandai += sorted(mocap("bandai-1", "data").glob("dataset-1_walk*.bvh"))
+    asf = read_asf(str(mocap("cmu", "16", "16.asf")))
+    cmu = [read_amc(str(p), asf) for p in sorted(mocap("cmu", "16").glob("16_*.amc"))]
+    return [read_bvh(str(p)) for p in bandai] + cmu
+
+
+# --- the test's own contact detection ------------------------------------------------------------
+
+
+def own_positions(motion, joints):
+    """World positions (frames, 3) of the named joints, by scipy's rotations."""
+    sk = motion.skeleton
+    parents, offsets, names = sk.parents, sk.offsets, sk.names
+    translated = {j: k for k, j in enumerate(sk.translated)}
+    n = motion.n_frames
+    world_rot, world_pos = [None] * len(parents), [None] * len(parents)
+    for j, p in enumerate(parents):
+        w, x, y, z = np.moveaxis(motion.rotations[:, j], -1, 0)
+        local = Rotation.from_quat(np.stack([x, y, z, w], axis=-1))
+        offset = (
+            motion.translations[:, translated[j]]
+            if j in translated
+            else np.tile(offsets[j], (n, 1))
+        )
+        if p < 0:
+            world_rot[j], world_pos[j] = local, offset
+        else:
+            world_rot[j] = world_rot[p] * local
+            world_pos[j] = world_pos[p] + world_rot[p].apply(offset)
+    return {name: world_pos[names.index(sk.joint_map[name])] for name in joints}
+
+
+def own_cleanup(flags, fps):
+    """Short gaps (under 0.1 s) filled, then short contacts (under 0.05 s) dropped, runs at the
+    clip's ends left as they are: on run lengths."""
+    runs = [(value, len(list(group))) for value, group in itertools.groupby(flags)]
+    for flipped, shortest in ((False, 0.1), (True, 0.05)):
+        out = [
+            (not value if value == flipped and 0 < k < len(runs) - 1 and n / fps < shortest
+             else value, n)
+            for k, (value, n) in enumerate(runs)
+        ]  # fmt: skip
+        runs = [(v, sum(n for _, n in g)) for v, g in itertools.groupby(out, key=lambda r: r[0])]
+    return np.concatenate([np.full(n, value) for value, n in runs])
+
+
+def own_contacts(motion):
+    sk = motion.skeleton
+    names = [f"{s}_{p}" for s in SIDES for p in ("ankle", "toe")]
+    positions = own_positions(motion, names)
+    offsets, index = sk.offsets, sk.names
+    leg = np.mean([
+        np.linalg.norm(offsets[index.index(sk.joint_map[f"{s}_knee"])])
+        + np.linalg.norm(offsets[index.index(sk.joint_map[f"{s}_ankle"])])
+        for s in SIDES
+    ])  # fmt: skip
+    low = {s: np.minimum(positions[f"{s}_ankle"][:, 1], positions[f"{s}_toe"][:, 1]) for s in SIDES}
+    ground = np.percentile(np.concatenate(list(low.values())), 5)
+    contacts = {}
+    for s in SIDES:
+        speed = np.minimum(
+            *(np.linalg.norm(np.gradient(positions[f"{s}_{p}"], 1 / motion.fps, axis=0), axis=1)
+              for p in ("ankle", "toe"))
+        )  # fmt: skip
+        raw = (speed < 0.5 * leg) & (low[s] < ground + 0.1 * leg)
+        contacts[s] = own_cleanup(raw.tolist(), motion.fps)
+    return contacts
+
+
+def own_touchdowns(contact):
+    return [f for f in range(1, len(contact)) if contact[f] and not contact[f - 1]]
+
+
+def own_steps(contacts, fps):
+    events = sorted((f, s) for s in SIDES for f in own_touchdowns(contacts[s]))
+    return [(f"{b[1]}_step", a[0], b[0]) for a, b in zip(events, events[1:])
+            if a[1] != b[1] and (b[0] - a[0]) / fps <= 1.5]  # fmt: skip
+
+
+def kernel_found(motion):
+    sk = motion.skeleton
+    return kernel_steps.find(sk.parents, sk.offsets, motion.rotations, motion.translations,
+                             sk.translated, sk.names, sk.joint_map, motion.fps)  # fmt: skip
+
+
+def test_steps_on_every_shipped_walk_match_an_independent_detection():
+    walks = shipped_walks()
+    assert len(walks) > 300
+    total = 0
+    for motion in walks:
+        found, _ = kernel_found(motion)
+        oracle_contacts = own_contacts(motion)
+        oracle = own_steps(oracle_contacts, motion.fps)
+        assert abs(len(found) - len(oracle)) <= 1, (motion.name, found, oracle)
+        touchdowns = {s: own_touchdowns(oracle_contacts[s]) for s in SIDES}
+        for name, start, end in found:
+            swing = name.split("_")[0]
+            planted = "right" if swing == "left" else "left"
+            for side, frame in ((planted, start), (swing, end)):
+                nearest = min((abs(frame - t) for t in touchdowns[side]), default=99)
+                assert nearest <= 2, (motion.name, name, start, end, side, touchdowns[side])
+        total += len(found)
+    assert total > 8 * len(walks)  # walks have steps: the detection is not silent
+
+
+# --- dynamic time warping against a brute-force search ------------------------------------------
+
+
+def brute_force_cost(costs):
+    """The least cost of any path from (0, 0) to the end with moves (1, 0), (0, 1), (1, 1)."""
+    n, m = costs.shape
+    best = np.inf
+
+    def walk(i, j, total):
+        nonlocal best
+        total += costs[i, j]
+        if (i, j) == (n - 1, m - 1):
+            best = min(best, total)
+            return
+        for di, dj in ((1, 0), (0, 1), (1, 1)):
+            if i + di < n and j + dj < m:
+                walk(i + di, j + dj, total)
+
+    walk(0, 0, 0.0)
+    return best
+
+
+def test_the_warp_is_the_cheapest_path_of_a_brute_force_search():
+    rng = np.random.default_rng(43)
+    for n, m in [(1, 1), (2, 3), (4, 4), (5, 3), (3, 6), (6, 5)]:
+        for _ in range(5):
+            costs = rng.random((n, m))
+            cost, path = kernel_align.warp(costs)
+            assert cost == pytest.approx(brute_force_cost(costs), abs=1e-12)
+            assert path[0] == (0, 0) and path[-1] == (n - 1, m - 1)
+            assert all(
+                (b[0] - a[0], b[1] - a[1]) in ((1, 0), (0, 1), (1, 1))
+                for a, b in zip(path, path[1:])
+            )
+            assert sum(costs[i, j] for i, j in path) == pytest.approx(cost, abs=1e-12)
+
+
+# --- in the database ------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def dsn(cluster):
+    with scratch_database(cluster, f"steps_{os.getpid()}") as dsn:
+        r = run_modb(dsn, "load", mocap("cmu", "16"), "--collection", "cmu16", "-q")
+        assert r.returncode == 0, r.stderr
+        walks = sorted(mocap("bandai-2-dev", "data").glob("dataset-2_walk_active_*.bvh"))[:6]
+        r = run_modb(dsn, "load", *map(str, walks), "--collection", "bandai", "-q")
+        assert r.returncode == 0, r.stderr
+        yield dsn
+
+
+def stored_segments(conn, clip):
+    return (
+        conn.execute(
+            "SELECT v.meta->'annotations' FROM modb.current_clips c "
+            "JOIN modb.clip_versions v USING (clip_id, version) WHERE c.clip_id = %s",
+            [clip],
+        ).fetchone()[0]
+        or []
+    )
+
+
+def test_annotate_steps_writes_automatic_segments_and_keeps_a_persons(dsn):
+    r = run_modb(dsn, "annotate", "--steps", "cmu16", "bandai")
+    assert r.returncode == 0, r.stderr
+    assert "34 clips: " in r.stdout, r.stdout
+    with connect(dsn) as conn:
+        clips = [
+            c for (c,) in conn.execute("SELECT clip_id FROM modb.current_clips ORDER BY clip_id")
+        ]
+        for clip in clips:  # what is stored is what the kernel finds on the stored frames
+            found, _ = kernel_found(read_motion(conn, clip))
+            stored = stored_segments(conn, clip)
+            assert [(a["name"], a["start"], a["end"]) for a in stored] == sorted(
+                found, key=lambda s: (s[1], s[2], s[0])
+            )
+            assert all(
+                a["auto"] is True and a["keyframes"] == [a["start"], a["end"]] for a in stored
+            )
+        clip = clips[0]
+        before = stored_segments(conn, clip)
+    # a person's segment, and an automatic one a person edited (the editor drops the mark)
+    edited = dict(before[0], end=before[0]["end"] - 1, keyframes=[before[0]["start"]])
+    del edited["auto"]
+    mine = {"name": "walk", "start": 0, "end": 40}
+    with connect(dsn) as conn:
+        conn.execute(
+            "UPDATE modb.clip_versions v SET meta = jsonb_set(v.meta, '{annotations}', %s) "
+            "FROM modb.current_clips c WHERE c.clip_id = v.clip_id AND c.version = v.version "
+            "AND c.clip_id = %s",
+            [psycopg.types.json.Jsonb([mine, edited, *before[1:]]), clip],
+        )
+    r = run_modb(dsn, "annotate", "--steps", f"id:{clip}")
+    assert r.returncode == 0, r.stderr
+    with connect(dsn) as conn:
+        after = stored_segments(conn, clip)
+    assert mine in after and edited in after
+    assert sorted(map(json.dumps, [a for a in after if a.get("auto")])) == sorted(
+        map(json.dumps, before)
+    )
+
+
+def test_alignment_lands_keyframes_and_resamples_the_source(dsn):
+    r = run_modb(dsn, "annotate", "--steps", "cmu16")
+    assert r.returncode == 0, r.stderr
+    r = run_modb(dsn, "align", "left_step", "--collection", "cmu16")
+    assert r.returncode == 0, r.stderr
+    assert "left_step in cmu16: " in r.stdout and " stale rows deleted" in r.stdout
+    with connect(dsn) as conn:
+        rows = conn.execute(
+            "SELECT clip_id, version, segment, reference, n_frames, time_function, sections, "
+            "rotations FROM modb.processed_data WHERE primitive = 'left_step' ORDER BY id"
+        ).fetchall()
+        lengths = [s["end"] - s["start"] + 1 for _, _, s, *_ in rows]
+        (reference,) = [k for k, row in enumerate(rows) if row[3]]
+        # the reference: the example whose length is closest to the mean
+        assert abs(lengths[reference] - np.mean(lengths)) == min(
+            abs(np.array(lengths) - np.mean(lengths))
+        )
+        motions = {}
+        for clip, version, segment, is_reference, n, times, sections, rotations in rows:
+            times = np.asarray(times)
+            span = segment["end"] - segment["start"]
+            assert n == lengths[reference] and len(times) == n
+            assert np.all(np.diff(times) >= 0) and times[0] >= 0 and times[-1] <= span
+            for reference_key, example_key in zip(sections, segment["keyframes"]):
+                assert abs(times[reference_key] - (example_key - segment["start"])) <= 1
+            if is_reference:
+                assert np.allclose(times, np.arange(n))
+            motion = motions.setdefault(clip, read_motion(conn, clip, version))
+            source = motion.rotations[segment["start"] : segment["end"] + 1]
+            for j in range(source.shape[1]):  # the test's own slerp of each joint's rotations
+                w, x, y, z = np.moveaxis(source[:, j], -1, 0)
+                slerp = Slerp(
+                    np.arange(len(source)), Rotation.from_quat(np.stack([x, y, z, w], -1))
+                )
+                own = slerp(times).as_quat()
+                theirs = np.asarray(rotations)[:, j]
+                theirs = np.stack([theirs[:, 1], theirs[:, 2], theirs[:, 3], theirs[:, 0]], -1)
+                dots = np.abs(np.sum(own * theirs, axis=-1))
+                assert np.all(dots > 1 - 1e-6), (clip, j, dots.min())
+        assert len(rows) >= 40
+
+
+def test_stale_rows_say_so_and_aligning_again_redoes_only_them(dsn):
+    with connect(dsn) as conn:
+        clip, start, end = conn.execute(
+            "SELECT clip_id, start_frame, end_frame FROM modb.processed_data_status "
+            "WHERE primitive = 'left_step' AND NOT reference ORDER BY id LIMIT 1"
+        ).fetchone()
+        n_rows = conn.execute(
+            "SELECT count(*) FROM modb.processed_data WHERE primitive = 'left_step'"
+        ).fetchone()[0]
+    r = run_modb(dsn, "annotate", f"id:{clip}", "--remove", f"left_step:{start}-{end}")
+    assert r.returncode == 0, r.stderr
+    with connect(dsn) as conn:
+        assert conn.execute(
+            "SELECT stale FROM modb.processed_data_status WHERE clip_id = %s AND start_frame = %s",
+            [clip, start],
+        ).fetchone() == ("its segment changed or is gone",)
+    r = run_modb(dsn, "align", "left_step", "--collection", "cmu16")
+    assert r.returncode == 0, r.stderr
+    assert f"{n_rows - 1} examples, 0 aligned now, 1 stale rows deleted" in r.stdout, r.stdout
+    r = run_modb(dsn, "align", "jump", "--collection", "cmu16")
+    assert r.returncode == 2 and 'has 0 "jump" segments: aligning needs at least 5' in r.stderr
