@@ -384,6 +384,11 @@ def create_app(
             methods=["POST"],
         ),
         Route(
+            "/api/edit-scripts/{name}/apply",
+            catalog_writes.write_endpoint(tokens, writer, job_routes.apply_script, frames=True),
+            methods=["POST"],
+        ),
+        Route(
             "/api/collections/{path:path}/retarget",
             catalog_writes.write_endpoint(tokens, writer, job_routes.retarget_collection),
             methods=["POST"],

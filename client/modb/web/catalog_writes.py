@@ -497,17 +497,10 @@ def _target_clips(conn, body) -> list[int]:
     return _current_clips(conn, body["clips"])
 
 
-def _apply_script(conn, request, body) -> Done:
-    """To clips, at once (one transaction); to a whole collection, as a job (202) where the database
-    has job tables."""
-    from modb.jobs import schema
-
-    from .job_routes import queue_job  # it builds on this module
-
+def apply_script(conn, request, body) -> Done:
+    """At once (one transaction); job_routes.apply_script makes a whole collection's a job."""
     name = request.path_params["name"]
     clips = _target_clips(conn, body)
-    if "collection" in body and schema.installed(conn):
-        return queue_job(conn, request, "apply_edit_script", {"script": name, "clips": clips})
     if conn.execute("SELECT 1 FROM modb.edit_scripts WHERE name = %s", [name]).fetchone() is None:
         raise NotFound(f"no edit script {name!r}")
     rows = conn.execute("SELECT * FROM modb.apply_edit_script(%s, %s)", [name, clips]).fetchall()
@@ -587,7 +580,6 @@ def routes(read_pool, tokens: Tokens, writer: Writer) -> list[Route]:
         write("/api/clips/{ident}/steps", "POST", _steps, with_body=False, frames=True),
         write("/api/edit-scripts/{name}", "PUT", _put_script),
         write("/api/edit-scripts/{name}", "DELETE", _delete_script, with_body=False),
-        write("/api/edit-scripts/{name}/apply", "POST", _apply_script, frames=True),
         Route(
             "/api/skeletons/{skeleton_id}/maps",
             maps_endpoint(read_pool, tokens, writer),

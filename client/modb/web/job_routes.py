@@ -34,6 +34,7 @@ from .body_rules import (
     Whole,
 )
 from .catalog_writes import Done, _existing, _int, _target_clips
+from .catalog_writes import apply_script as apply_script_at_once
 
 MAX_LISTED = 200
 # The clips a job works on: ids, or every clip of a collection (at the time it is queued).
@@ -209,3 +210,17 @@ def align_primitive(conn: psycopg.Connection, request: Request, body: Any) -> Do
     ).fetchone()
     answer = {**arguments, "examples": examples, "aligned": aligned, "deleted": deleted}
     return Done(answer, "align", f"{arguments['primitive']} in {arguments['collection']}", answer)
+
+
+def apply_script(conn: psycopg.Connection, request: Request, body: Any) -> Done:
+    """POST /api/edit-scripts/NAME/apply: to clips, at once; to a whole collection, a job (202)
+    where the database has job tables."""
+    if isinstance(body, dict) and "collection" in body and schema.installed(conn):
+        clips = _target_clips(conn, body)
+        return queue_job(
+            conn,
+            request,
+            "apply_edit_script",
+            {"script": request.path_params["name"], "clips": clips},
+        )
+    return apply_script_at_once(conn, request, body)
