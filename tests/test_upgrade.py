@@ -58,6 +58,7 @@ OLD_VERSIONS = [
     "0.17.0",
     "0.18.0",
     "0.19.0",
+    "0.20.0",
 ]
 
 # What a retargeting, an edit script and a cut store, without ids (sequences differ between runs):
@@ -165,6 +166,17 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
             assert made[:6] == oracle_row[:6]
             for numbers, oracle in zip(made[6:], oracle_row[6:], strict=True):
                 assert np.allclose(np.asarray(numbers), np.asarray(oracle), rtol=1e-9, atol=1e-12)
+    if old == "0.20.0":  # 0.21.0: steps written as segments with keyframes, which the check allows
+        with db.transaction(force_rollback=True):
+            steps = db.execute("SELECT name, keyframes FROM modb.annotate_steps(1)").fetchall()
+            assert steps and all(len(k) == 2 for _, k in steps)
+            marked = db.execute(
+                "SELECT count(*) FROM modb.current_clips c "
+                "JOIN modb.clip_versions v USING (clip_id, version), "
+                "jsonb_array_elements(v.meta->'annotations') a "
+                "WHERE c.clip_id = 1 AND (a->>'auto')::boolean"
+            ).fetchone()[0]
+            assert marked == len(steps)
     if old == "0.18.0":
         db.execute("SELECT modb.build_transition_graph('after', 'locomotion', NULL, 0)")
         graphs = [
@@ -228,7 +240,8 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
         # 0.18.0: the update leaves the blocks as they were (no term codes) and builds the
         # directory's index; they count as unpacked, so a load's packing derives them again
         uncoded = "SELECT count(*) FILTER (WHERE term_codes IS NULL) FROM modb.snippet_blocks"
-        assert (db.execute(uncoded).fetchone()[0] > 0) == (old not in ("0.18.0", "0.19.0"))  # coded
+        coded_before = ("0.18.0", "0.19.0", "0.20.0")  # 0.18.0 on coded them
+        assert (db.execute(uncoded).fetchone()[0] > 0) == (old not in coded_before)
         assert db.execute("SELECT to_regclass('modb.snippet_blocks_directory_idx')").fetchone()[0]
         db.execute("SELECT * FROM modb.pack_snippet_blocks(0.2)")
         assert (

@@ -67,7 +67,11 @@ CREATE INDEX processed_data_clip_idx ON modb.processed_data (clip_id, version);
 COMMENT ON TABLE modb.processed_data IS
     'A motion primitive''s examples (annotation segments named primitive in a collection''s clips) aligned in time to one of them, the reference: per example its frames resampled onto the reference''s (n_frames of them), time_function (the example''s frame, from the segment''s start, for each), sections (the reference''s keyframes, from its start), the warp''s cost, and the version and segment it came from (modb.align_primitive writes it; modb.processed_data_status says which rows are stale)';
 SELECT pg_catalog.pg_extension_config_dump('modb.processed_data', '');
+-- Granted here, not only by 90_privileges.sql, so that an update (which cannot run that again: it would
+-- open tables made after it) grants the same.
+GRANT SELECT ON modb.processed_data TO modb_reader;
 GRANT INSERT, DELETE ON modb.processed_data TO modb_loader;
+GRANT USAGE ON SEQUENCE modb.processed_data_id_seq TO modb_loader;
 SELECT pg_catalog.pg_extension_config_dump('modb.processed_data_id_seq', '');
 
 CREATE VIEW modb.processed_data_status AS
@@ -81,6 +85,7 @@ SELECT p.id, modb.collection_path(p.collection_id) AS collection, p.primitive, p
   FROM modb.processed_data p
   LEFT JOIN modb.current_clips c ON c.clip_id = p.clip_id
   LEFT JOIN modb.clip_versions v ON v.clip_id = p.clip_id AND v.version = p.version;
+GRANT SELECT ON modb.processed_data_status TO modb_reader;
 COMMENT ON VIEW modb.processed_data_status IS
     'Each processed-data row without its frames, and why it is stale (NULL: it is current): its clip has a newer version, or its segment changed';
 

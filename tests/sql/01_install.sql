@@ -8,8 +8,8 @@ SELECT has_schema('modb');
 SELECT tables_are('modb', ARRAY['collections', 'skeletons', 'clips', 'clip_versions', 'models', 'graphs',
                                'snippet_sources', 'terminators', 'snippets', 'match_profiles', 'graph_snippets',
                                'graph_transitions', 'graph_names', 'snippet_blocks', 'generations', 'access_tokens',
-                               'audit_log', 'clip_segments', 'edit_scripts', 'repaired_rows']);
-SELECT views_are('modb', ARRAY['current_clips']);
+                               'audit_log', 'clip_segments', 'edit_scripts', 'repaired_rows', 'processed_data']);
+SELECT views_are('modb', ARRAY['current_clips', 'processed_data_status']);
 SELECT functions_are('modb', ARRAY[
     'skeleton_identity', 'unit_quaternions_ok', 'finite_ok', 'skeleton_joint_names', 'joint_map_ok', 'mirror_pairs_ok',
     'annotations_ok', 'clip_versions_before_insert', 'clip_versions_before_update', 'skeletons_before_update',
@@ -29,7 +29,7 @@ SELECT functions_are('modb', ARRAY[
     'joint_axes_ok', 'retarget', 'apply_edit_script', 'raise_in_words', '_build_snippets', '_retarget',
     '_apply_edit_script', 'joint_axes_problem', 'skeletons_check_documents', 'edit_script_problems',
     'edit_scripts_check_commands', 'collections_check_name', 'terminators_updated',
-    'select_snippet_ending_reference']);
+    'select_snippet_ending_reference', 'annotate_steps', '_annotate_steps', 'align_primitive', '_align_primitive']);
 SELECT is((SELECT o.opcname::text FROM pg_index i JOIN pg_opclass o ON o.oid = i.indclass[0]
             WHERE i.indexrelid = 'modb.snippets_begin_features_idx'::regclass), 'cube_feature_ops',
           'the feature index uses modb''s operator class');
@@ -73,7 +73,8 @@ SELECT set_eq(
           'modb.graphs', 'modb.graphs_id_seq', 'modb.clip_segments', 'modb.edit_scripts', 'modb.snippet_sources', 'modb.terminators', 'modb.terminators_id_seq',
           'modb.snippets', 'modb.snippets_id_seq', 'modb.match_profiles', 'modb.graph_snippets', 'modb.graph_transitions',
           'modb.graph_names', 'modb.access_tokens', 'modb.access_tokens_id_seq', 'modb.audit_log',
-          'modb.audit_log_id_seq', 'modb.repaired_rows', 'modb.repaired_rows_id_seq'],
+          'modb.audit_log_id_seq', 'modb.repaired_rows', 'modb.repaired_rows_id_seq', 'modb.processed_data',
+          'modb.processed_data_id_seq'],
     'every data table and id sequence is registered for pg_dump');
 
 DROP EXTENSION modb;

@@ -26,4 +26,3 @@ END;
 COMMENT ON FUNCTION modb.annotations_ok(jsonb, int) IS
     'True when meta is an object whose optional "annotations" list holds {name, start, end} segments with 0 <= start <= end < n_frames (frames, 0-based), each with optional "keyframes" (frames within it) and "auto" (true: found by modb.annotate_steps)';
 --@include 88_motion_primitives.sql
---@include 90_privileges.sql
