@@ -302,3 +302,57 @@ def test_stale_rows_say_so_and_aligning_again_redoes_only_them(dsn):
     assert f"{n_rows - 1} examples, 0 aligned now, 1 stale rows deleted" in r.stdout, r.stdout
     r = run_modb(dsn, "align", "jump", "--collection", "cmu16")
     assert r.returncode == 2 and 'has 0 "jump" segments: aligning needs at least 5' in r.stderr
+
+
+def test_rest_finds_steps_and_aligns_as_jobs_and_reads_processed_data(dsn):
+    import httpx
+    from support.browser import serving
+    from support.jobs import stop, until, worker
+
+    from modb.database.cluster import ensure_writer_role
+
+    with psycopg.connect(dsn, autocommit=True) as conn:
+        ensure_writer_role(conn)
+        clip = conn.execute(
+            "SELECT clip_id FROM modb.current_clips WHERE collection = 'bandai' ORDER BY clip_id"
+        ).fetchone()[0]
+    tokens = {}
+    for name, role in (("steps-loader", "loader"), ("steps-reader", "reader")):
+        r = run_modb(dsn, "token", "create", name, "--role", role)
+        assert r.returncode == 0, r.stderr
+        tokens[role] = {"Authorization": f"Bearer {r.stdout.strip()}"}
+    with serving(dsn) as address, httpx.Client(base_url=f"http://{address}", timeout=60) as client:
+        assert client.post(f"/api/clips/{clip}/steps", headers=tokens["reader"]).status_code == 403
+        r = client.post(f"/api/clips/{clip}/steps", headers=tokens["loader"])
+        assert r.status_code == 200, r.text
+        assert r.json()["steps"] and all(
+            s["keyframes"] == [s["start"], s["end"]] for s in r.json()["steps"]
+        )
+        r = run_modb(dsn, "worker", "--init")
+        assert r.returncode == 0, r.stderr
+        found = client.post("/api/collections/bandai/steps", headers=tokens["loader"])
+        assert found.status_code == 202 and found.json()["kind"] == "modb.annotate_steps", (
+            found.text
+        )
+        body = {"primitive": "right_step", "collection": "bandai"}
+        aligned = client.post("/api/processed-data", json=body, headers=tokens["loader"])
+        assert aligned.status_code == 202, aligned.text
+        assert client.post(
+            "/api/jobs", json={"kind": "align", "arguments": body, "after": [aligned.json()["id"]]},
+            headers=tokens["reader"],
+        ).status_code == 403  # fmt: skip
+        w = worker(dsn)
+        try:
+            with connect(dsn) as conn:
+                until(conn, found.json()["id"], lambda j: j["state"] == "done", 60, "done")
+                state = until(
+                    conn, aligned.json()["id"], lambda j: j["state"] == "done", 60, "done"
+                )
+        finally:
+            stop(w)
+        assert state["result"]["examples"] == state["result"]["aligned"] >= 5
+        rows = client.get("/api/processed-data", params=body).json()
+        assert len(rows) == state["result"]["examples"] and sum(r["reference"] for r in rows) == 1
+        assert all(r["stale"] is None for r in rows)
+        one = client.get(f"/api/processed-data/{rows[0]['id']}").json()
+        assert len(one["time_function"]) == one["n_frames"] == len(one["rotations"])

@@ -26,7 +26,7 @@ class BadRequest(ValueError):
 
 
 def _rows(
-    conn: psycopg.Connection, query: str, params: list[Any] | dict[str, Any] | None = None
+    conn: psycopg.Connection, query: str, params: list[Any] | None = None
 ) -> list[dict[str, Any]]:
     with conn.cursor(row_factory=psycopg.rows.dict_row) as cur:
         return cur.execute(query, params or []).fetchall()
@@ -267,22 +267,22 @@ def processed_data(
     is stale), of a collection and primitive when given; none before 0.21.0."""
     if not conn.execute("SELECT to_regclass('modb.processed_data_status')").fetchone()[0]:
         return []
-    return _rows(
-        conn,
-        "SELECT * FROM modb.processed_data_status "
+    rows = conn.execute(
+        "SELECT to_jsonb(s) FROM modb.processed_data_status s "
         "WHERE (%(c)s::text IS NULL OR collection = %(c)s) "
         "AND (%(p)s::text IS NULL OR primitive = %(p)s) ORDER BY collection, primitive, id",
         {"c": collection, "p": primitive},
     )
+    return [r for (r,) in rows]
 
 
 def processed_row(conn: psycopg.Connection, row_id: int) -> dict[str, Any]:
     """One processed-data row whole: its aligned frames, time function, sections and settings."""
-    return _one(
-        conn,
-        "processed-data row",
-        "SELECT s.*, p.segment, p.sections, p.time_function, p.rotations, p.translations, "
-        "p.settings FROM modb.processed_data p JOIN modb.processed_data_status s USING (id) "
-        "WHERE p.id = %s",
-        row_id,
-    )
+    row = conn.execute(
+        "SELECT to_jsonb(s) || to_jsonb(p) FROM modb.processed_data p "
+        "JOIN modb.processed_data_status s USING (id) WHERE p.id = %s",
+        [row_id],
+    ).fetchone()
+    if row is None:
+        raise NotFound(f"no processed-data row with id {row_id}")
+    return row[0]
