@@ -35,6 +35,7 @@ IN_ORDER = (
     "synthesis.md",
     "retargeting.md",
     "jobs.md",
+    "primitives.md",
     "web.md",
     "rest.md",
     "roles.md",
