@@ -85,7 +85,7 @@ def main(dsn: str, rounds: int) -> None:
             )
         print(
             "| collection | primitive | examples | reference frames | align, median of "
-            f"{rounds} (p99) | reading the examples' frames | ratio |"
+            f"{rounds} (p99) | reading the examples | ratio |"
         )
         print("|---|---|---|---|---|---|---|")
         for collection in ("bandai2", "bandai1", "cmu16"):
