@@ -60,6 +60,7 @@ def annotate(db, clip):
         ) from None
     made = [segment(name, start, end) for name, start, end in found]
     meta = json.loads(row["meta"])
+    before = json.dumps(meta, sort_keys=True)
     kept = [a for a in meta.get("annotations", []) if not a.get("auto")]
     annotations = sorted(kept + made, key=lambda a: (a["start"], a["end"], a["name"]))
     if annotations:
@@ -67,7 +68,8 @@ def annotate(db, clip):
     else:
         meta.pop("annotations", None)
     version = row["version"]
-    db.run(SET_META, [clip, version, json.dumps(meta)])
+    if json.dumps(meta, sort_keys=True) != before:  # the same steps again: meta and ETag kept
+        db.run(SET_META, [clip, version, json.dumps(meta)])
     del row, rows  # the frames: their memory goes back to the system
     memory.release()
     return version, made
