@@ -356,3 +356,16 @@ def test_rest_finds_steps_and_aligns_as_jobs_and_reads_processed_data(dsn):
         assert all(r["stale"] is None for r in rows)
         one = client.get(f"/api/processed-data/{rows[0]['id']}").json()
         assert len(one["time_function"]) == one["n_frames"] == len(one["rotations"])
+
+
+def test_a_rig_without_toes_stands_on_its_ankles():
+    from dataclasses import replace
+
+    for path in sorted(mocap("bandai-2-dev", "data").glob("dataset-2_walk_active_*.bvh"))[:5]:
+        motion = read_bvh(str(path))
+        toeless = {k: v for k, v in motion.skeleton.joint_map.items() if not k.endswith("_toe")}
+        found, _ = kernel_found(motion)
+        ankles, _ = kernel_found(
+            replace(motion, skeleton=replace(motion.skeleton, joint_map=toeless))
+        )
+        assert abs(len(ankles) - len(found)) <= 2 and len(ankles) >= 8, (path.name, found, ankles)

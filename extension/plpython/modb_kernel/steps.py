@@ -25,7 +25,7 @@ MIN_CONTACT_S = 0.05
 MAX_STEP_S = 1.5
 VELOCITY_SPAN_S = 1.0 / 60
 SIDES = ("left", "right")
-NEEDED = tuple(f"{side}_{part}" for side in SIDES for part in ("hip", "knee", "ankle", "toe"))
+NEEDED = tuple(f"{side}_{part}" for side in SIDES for part in ("hip", "knee", "ankle"))
 
 
 class StepError(ValueError):
@@ -33,11 +33,16 @@ class StepError(ValueError):
 
 
 def joint_indices(names, joint_map):
-    """Index of each joint the detection reads (hips, knees, ankles, toes), by standard name."""
+    """Index of each joint the detection reads (hips, knees, ankles, toes), by standard name; a rig
+    without toes in its joint map stands on its ankles."""
     missing = [s for s in NEEDED if joint_map.get(s) not in names]
     if missing:
         raise StepError("the joint map lacks " + ", ".join(missing))
-    return {s: names.index(joint_map[s]) for s in NEEDED}
+    index = {s: names.index(joint_map[s]) for s in NEEDED}
+    for side in SIDES:
+        toe = joint_map.get(f"{side}_toe")
+        index[f"{side}_toe"] = names.index(toe) if toe in names else index[f"{side}_ankle"]
+    return index
 
 
 def leg_length(parents, offsets, index):
