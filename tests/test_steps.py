@@ -379,7 +379,7 @@ def test_a_model_of_the_aligned_steps_reconstructs_held_out_examples(dsn):
     from dataclasses import replace
 
     from modb.models.build import Example, Rig, _pca, build, facing_forward, spatial_rows
-    from modb.models import motion_model
+    from modb_kernel import motion_model
 
     with connect(dsn) as conn:
         rows = conn.execute(

@@ -12,6 +12,7 @@ asks.
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 
 import numpy as np
 import pygltflib as gl
@@ -126,7 +127,44 @@ class _Buffer:
         return len(self.gltf.accessors) - 1
 
 
-def to_gltf(motion: Motion) -> gl.GLTF2:
+def _animation(buffer: _Buffer, motion: Motion) -> gl.Animation:
+    """The motion as an animation: a time per frame, a rotation per joint, moving translations."""
+    times = buffer.add(
+        (np.arange(motion.n_frames) / motion.fps).astype(np.float32)[:, None],
+        gl.SCALAR,
+        gl.FLOAT,
+        bounds=True,
+    )
+    translated = motion.skeleton.translated
+    samplers, channels = [], []
+
+    def channel(node: int, path: str, values: np.ndarray, kind: str) -> None:
+        samplers.append(
+            gl.AnimationSampler(
+                input=times,
+                output=buffer.add(values.astype(np.float32), kind, gl.FLOAT),
+                interpolation="LINEAR",
+            )
+        )
+        channels.append(
+            gl.AnimationChannel(
+                sampler=len(samplers) - 1, target=gl.AnimationChannelTarget(node=node, path=path)
+            )
+        )
+
+    for k in range(len(motion.skeleton.joints)):
+        wxyz = motion.rotations[:, k]
+        channel(k, "rotation", np.concatenate([wxyz[:, 1:], wxyz[:, :1]], axis=1), gl.VEC4)
+        if k in translated:
+            local = motion.translations[:, translated.index(k)]
+            if np.ptp(local, axis=0).max() > 1e-9:
+                channel(k, "translation", local, gl.VEC3)
+    return gl.Animation(name=motion.name or "motion", samplers=samplers, channels=channels)
+
+
+def to_gltf(motion: Motion, also: Sequence[Motion] = ()) -> gl.GLTF2:
+    """The motion on a skinned character of its skeleton; `also`, motions of the same skeleton
+    (a model's samples), as further animations of the same character."""
     sk = motion.skeleton
     n_joints = len(sk.joints)
     gltf = gl.GLTF2(asset=gl.Asset(version="2.0", generator="modb"), scene=0)
@@ -199,57 +237,27 @@ def to_gltf(motion: Motion) -> gl.GLTF2:
     ]
     gltf.nodes.append(gl.Node(name="character", mesh=0, skin=0))
     gltf.scenes = [gl.Scene(nodes=[0, n_joints])]
-    # The animation: a time per frame, a rotation per joint, translations that vary.
-    times = buffer.add(
-        (np.arange(motion.n_frames) / motion.fps).astype(np.float32)[:, None],
-        gl.SCALAR,
-        gl.FLOAT,
-        bounds=True,
-    )
-    samplers, channels = [], []
-
-    def channel(node: int, path: str, values: np.ndarray, kind: str) -> None:
-        samplers.append(
-            gl.AnimationSampler(
-                input=times,
-                output=buffer.add(values.astype(np.float32), kind, gl.FLOAT),
-                interpolation="LINEAR",
-            )
-        )
-        channels.append(
-            gl.AnimationChannel(
-                sampler=len(samplers) - 1, target=gl.AnimationChannelTarget(node=node, path=path)
-            )
-        )
-
-    for k in range(n_joints):
-        wxyz = motion.rotations[:, k]
-        channel(k, "rotation", np.concatenate([wxyz[:, 1:], wxyz[:, :1]], axis=1), gl.VEC4)
-        if k in translated:
-            local = motion.translations[:, translated.index(k)]
-            if np.ptp(local, axis=0).max() > 1e-9:
-                channel(k, "translation", local, gl.VEC3)
-    gltf.animations = [
-        gl.Animation(name=motion.name or "motion", samplers=samplers, channels=channels)
-    ]
+    gltf.animations = [_animation(buffer, m) for m in (motion, *also)]
     gltf.buffers = [gl.Buffer(byteLength=len(buffer.data))]
     gltf.set_binary_blob(bytes(buffer.data))
     return gltf
 
 
-def gltf_bytes(motion: Motion, binary: bool = True) -> bytes:
+def gltf_bytes(motion: Motion, binary: bool = True, also: Sequence[Motion] = ()) -> bytes:
     """The file: `.glb` (binary) or `.gltf` JSON with its buffer embedded as a data URI."""
-    gltf = to_gltf(motion)
+    gltf = to_gltf(motion, also)
     if binary:
         return b"".join(gltf.save_to_bytes())
     gltf.convert_buffers(gl.BufferFormat.DATAURI)
     return gltf.gltf_to_json().encode("utf-8")
 
 
-def write_gltf_file(motion: Motion, path: str | os.PathLike, allow_stdout: bool = False) -> None:
-    """Writes `motion` to `path` through open_output: `.gltf` JSON, anything else (`.glb`, `-` for
-    standard output) binary."""
-    data = gltf_bytes(motion, binary=not os.fspath(path).lower().endswith(".gltf"))
+def write_gltf_file(
+    motion: Motion, path: str | os.PathLike, allow_stdout: bool = False, also: Sequence[Motion] = ()
+) -> None:
+    """Writes `motion` (and `also`, as further animations) to `path` through open_output: `.gltf`
+    JSON, anything else (`.glb`, `-` for standard output) binary."""
+    data = gltf_bytes(motion, not os.fspath(path).lower().endswith(".gltf"), also)
     with open_output(path, "wb", allow_stdout=allow_stdout) as f:
         f.write(data)
 

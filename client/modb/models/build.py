@@ -1,7 +1,7 @@
 """Building a motion primitive's model from its processed data (modb.processed_data): functional
 PCA of the aligned examples and of their time functions, and a Gaussian mixture on the joined
 scores with its number of components chosen by BIC (scikit-learn's PCA and GaussianMixture). The
-model's layout: motion_model.py."""
+model's layout: modb_kernel.motion_model."""
 
 from __future__ import annotations
 
@@ -9,19 +9,21 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from scipy.stats import chi2
 from sklearn.decomposition import PCA
 from sklearn.mixture import GaussianMixture
 
 from modb_kernel import kinematics, quaternion
 from modb_kernel import terminators as T
 
-from . import motion_model as M
+from modb_kernel import motion_model as M
 
 VARIANCE_KEPT = 0.95
-BASIS_PER_FRAME = 0.2  # spatial B-spline coefficients per canonical frame
+BASIS_PER_FRAME = 0.3
 TEMPORAL_BASIS = 6
 TEMPORAL_COMPONENTS = 3
 MAX_MIXTURE = 8
+SAMPLED_MASS = 0.9  # samples come from the part of each component that holds this much of it
 
 
 @dataclass
@@ -82,7 +84,7 @@ def continuous(rotations: np.ndarray) -> np.ndarray:
     return out
 
 
-def spatial_rows(examples: list[Example], scale: float, n_basis: int) -> np.ndarray:
+def spatial_rows(examples: list[Example], weights: np.ndarray, n_basis: int) -> np.ndarray:
     (reference,) = [e for e in examples if e.reference]
     track = continuous(reference.rotations)
     rows = []
@@ -90,7 +92,7 @@ def spatial_rows(examples: list[Example], scale: float, n_basis: int) -> np.ndar
         rotations = np.stack(
             [M.consistent_signs(e.rotations[f], track[f]) for f in range(len(track))]
         )
-        channels = M.spatial_channels(rotations, e.translations, scale)
+        channels = M.spatial_channels(rotations, e.translations, weights)
         rows.append(M.coefficients(channels, n_basis).ravel())
     return np.asarray(rows)
 
@@ -110,50 +112,72 @@ def _pca(rows: np.ndarray, keep: float | int) -> tuple[PCA, dict[str, Any]]:
     }
 
 
-def choose_mixture(scores: np.ndarray, seed: int) -> tuple[GaussianMixture, list[float]]:
-    """The mixture of 1..MAX_MIXTURE full-covariance components (fewer with few examples) whose BIC
-    is least; with its BIC for each count tried."""
-    most = max(1, min(MAX_MIXTURE, len(scores) // (2 * scores.shape[1] + 2)))
-    fits = [
-        GaussianMixture(k, covariance_type="full", reg_covar=1e-6, n_init=2, random_state=seed).fit(
-            scores
-        )
-        for k in range(1, most + 1)
-    ]
-    bic = [g.bic(scores) for g in fits]
-    return fits[int(np.argmin(bic))], bic
+def choose_mixture(scores: np.ndarray, seed: int) -> tuple[GaussianMixture, list[dict[str, Any]]]:
+    """The mixture of 1..MAX_MIXTURE components, with full or diagonal covariances, whose BIC is
+    least; with the BIC of each one tried. Full covariances only where each component would have
+    twice as many examples as dimensions (with fewer they collapse onto a few examples); diagonal
+    ones suit PCA scores, uncorrelated overall, and let clusters (straight and turning steps) be
+    components of their own."""
+    n, d = scores.shape
+    tried = []
+    for kind in ("full", "diag"):
+        most = n // (2 * (d + 1)) if kind == "full" else n // 4
+        for k in range(1, max(1, min(MAX_MIXTURE, most)) + 1):
+            fit = GaussianMixture(k, covariance_type=kind, reg_covar=1e-6, n_init=2,
+                                  random_state=seed).fit(scores)  # fmt: skip
+            tried.append((fit.bic(scores), kind, k, fit))
+    best = min(tried, key=lambda t: t[0])
+    return best[3], [{"covariance": kind, "components": k, "bic": bic} for bic, kind, k, _ in tried]
+
+
+def _full_covariances(mixture: GaussianMixture) -> np.ndarray:
+    c = mixture.covariances_
+    return np.stack([np.diag(v) for v in c]) if mixture.covariance_type == "diag" else c
 
 
 def build(examples: list[Example], rig: Rig, fps: float, keyframes: list[int], seed: int = 0,
           variance: float = VARIANCE_KEPT) -> dict[str, Any]:  # fmt: skip
-    """The model document (motion_model.py) of these examples, each first turned to face
+    """The model document (modb_kernel.motion_model) of these examples, each first turned to face
     +Z with its pelvis above the origin."""
     examples = [facing_forward(e, rig, fps) for e in examples]
     translated = rig.translated
     n_frames = len(examples[0].time_function)
     n_joints = examples[0].rotations.shape[1]
-    scale = max(1e-9, max(float(np.abs(e.translations).max(initial=0.0)) for e in examples))
+    weights = M.lever_arms(rig.parents, rig.offsets)
     n_basis = max(M.DEGREE + 1, int(round(BASIS_PER_FRAME * n_frames)))
-    spatial_pca, spatial = _pca(spatial_rows(examples, scale, n_basis), variance)
+    spatial_pca, spatial = _pca(spatial_rows(examples, weights, n_basis), variance)
     temporal_pca, temporal = _pca(
         temporal_rows(examples, TEMPORAL_BASIS), min(TEMPORAL_COMPONENTS, len(examples) - 1)
     )
     scores = np.hstack([
-        spatial_pca.transform(spatial_rows(examples, scale, n_basis)),
+        spatial_pca.transform(spatial_rows(examples, weights, n_basis)),
         temporal_pca.transform(temporal_rows(examples, TEMPORAL_BASIS)),
     ])  # fmt: skip
     mixture, bic = choose_mixture(scores, seed)
     return {
+        "fps": fps,
         "n_frames": n_frames,
         "n_joints": n_joints,
         "translated": list(translated),
         "keyframes": list(keyframes),
-        "spatial": {**spatial, "n_basis": n_basis, "scale": scale},
-        "temporal": {**temporal, "n_basis": TEMPORAL_BASIS},
+        "limits": M.joint_limits(np.concatenate([e.rotations for e in examples])),
+        "spatial": {
+            **spatial,
+            "n_basis": n_basis,
+            "weights": weights.tolist(),
+            "knots": M.knots(n_frames, n_basis).tolist(),
+        },
+        "temporal": {
+            **temporal,
+            "n_basis": TEMPORAL_BASIS,
+            "knots": M.knots(n_frames - 1, TEMPORAL_BASIS).tolist(),
+        },
         "mixture": {
             "weights": mixture.weights_.tolist(),
             "means": mixture.means_.tolist(),
-            "covariances": mixture.covariances_.tolist(),
+            "covariances": _full_covariances(mixture).tolist(),
+            "covariance_type": mixture.covariance_type,
+            "max_mahalanobis2": float(chi2.ppf(SAMPLED_MASS, scores.shape[1])),
             "bic": bic,
         },
         "settings": {"variance_kept": variance, "seed": seed, "examples": len(examples)},

@@ -6,14 +6,21 @@ its own process (database.py runs the statements on either side).
 Stale, never wrong: a row keeps the version and segment it was made from, so
 modb.processed_data_status says when the clip has a newer version or the segment changed. Aligning
 again keeps the rows that are still current when the reference is the same example with the same
-settings, deletes the stale ones and aligns what is new; a new reference realigns everything."""
+settings, deletes the stale ones and aligns what is new; a new reference realigns everything.
+
+Mirrored examples: where the skeleton has mirror pairs, the other side's segments (right_step for
+left_step: "left" and "right" swapped in the name) are examples too, mirrored (mirror.py), so that a
+model of either side learns from both feet."""
 
 import json
+import re
 
 import numpy as np
 
 from . import align as A
+from . import mirror as mirroring
 from . import resample
+from . import retarget as R
 from . import terminators as T
 from .database import Statement, StoreError
 
@@ -27,20 +34,22 @@ SETTINGS = {
 COLLECTION = Statement(
     "SELECT modb.collection_subtree($1) AS ids, modb.find_collection($1) AS id", ("text",)
 )
-# Every segment named $2 in the current versions of the collections' clips
+# Every segment named one of $2 in the current versions of the collections' clips
 EXAMPLES = Statement(
     """SELECT c.clip_id, c.version, c.fps, c.skeleton_id, a.seg::text AS segment,
-              (a.seg->>'start')::int AS start, (a.seg->>'end')::int AS "end"
+              (a.seg->>'start')::int AS start, (a.seg->>'end')::int AS "end",
+              a.seg->>'name' <> $2[1] AS mirrored
          FROM modb.current_clips c
          JOIN modb.clips k ON k.id = c.clip_id
          JOIN modb.clip_versions v USING (clip_id, version)
          CROSS JOIN LATERAL jsonb_array_elements(coalesce(v.meta->'annotations', '[]')) AS a(seg)
-        WHERE k.collection_id = ANY ($1) AND a.seg->>'name' = $2
-        ORDER BY c.clip_id, (a.seg->>'start')::int, (a.seg->>'end')::int""",
-    ("bigint[]", "text"),
+        WHERE k.collection_id = ANY ($1) AND a.seg->>'name' = ANY ($2)
+        ORDER BY mirrored, c.clip_id, (a.seg->>'start')::int, (a.seg->>'end')::int""",
+    ("bigint[]", "text[]"),
 )
 SKELETON = Statement(
-    "SELECT hierarchy::text AS hierarchy, joint_map::text AS joint_map "
+    "SELECT hierarchy::text AS hierarchy, joint_map::text AS joint_map, "
+    "mirror_pairs::text AS mirror_pairs "
     "FROM modb.skeletons WHERE id = $1",
     ("bigint",),
 )
@@ -55,7 +64,8 @@ LOCK = Statement(
     ("bigint", "text"),
 )
 STORED = Statement(
-    "SELECT id, clip_id, version, segment::text AS segment, reference, settings::text AS settings "
+    "SELECT id, clip_id, version, segment::text AS segment, mirrored, reference, "
+    "settings::text AS settings "
     "FROM modb.processed_data WHERE collection_id = $1 AND primitive = $2",
     ("bigint", "text"),
 )
@@ -64,8 +74,8 @@ INSERT = Statement(
     """INSERT INTO modb.processed_data (collection_id, primitive, clip_id, version, segment,
                                         reference,
                                         n_frames, rotations, translations, time_function, sections,
-                                        cost, settings)
-       VALUES ($1, $2, $3, $4, $5::jsonb, $6, $7, $8, $9, $10, $11, $12, $13::jsonb)
+                                        cost, settings, mirrored)
+       VALUES ($1, $2, $3, $4, $5::jsonb, $6, $7, $8, $9, $10, $11, $12, $13::jsonb, $14)
        RETURNING id""",
     (
         "bigint",
@@ -81,13 +91,27 @@ INSERT = Statement(
         "int[]",
         "float8",
         "text",
+        "boolean",
     ),
 )
 
 
 def _key(row):
-    """An example's identity: its clip version and its segment (as JSON with sorted keys)."""
-    return (row["clip_id"], row["version"], json.dumps(json.loads(row["segment"]), sort_keys=True))
+    """An example's identity: its clip version, its segment (as JSON with sorted keys), mirrored."""
+    segment = json.dumps(json.loads(row["segment"]), sort_keys=True)
+    return (row["clip_id"], row["version"], segment, bool(row["mirrored"]))
+
+
+SIDES = {"left": "right", "right": "left", "Left": "Right", "Right": "Left", "LEFT": "RIGHT",
+         "RIGHT": "LEFT"}  # fmt: skip
+
+
+def other_side(primitive):
+    """The name of the primitive's mirror image (left_step -> right_step), or None."""
+    words = re.split(r"(left|right|Left|Right|LEFT|RIGHT)", primitive)
+    if len(words) == 1:
+        return None
+    return "".join(SIDES.get(w, w) for w in words)
 
 
 class Alignment:
@@ -104,7 +128,12 @@ class Alignment:
                 sqlstate="P0002",
             )
         self.collection_id = found["id"]
-        self.examples = db.run(EXAMPLES, [found["ids"], primitive])
+        names = [primitive] + [n for n in [other_side(primitive)] if n]
+        self.examples = db.run(EXAMPLES, [found["ids"], names])
+        if self.examples:
+            self._read_skeleton(self.examples[0]["skeleton_id"])
+            if not self.skeleton["mirror_pairs"]:
+                self.examples = [e for e in self.examples if not e["mirrored"]]
         n = len(self.examples)
         if n < MIN_EXAMPLES:
             raise StoreError(
@@ -124,23 +153,10 @@ class Alignment:
                     hint="retarget them onto one skeleton at one rate first (modb retarget)",
                     sqlstate="22023",
                 )
-        row = db.run(SKELETON, [self.examples[0]["skeleton_id"]])[0]
-        h = json.loads(row["hierarchy"])
-        self.joints = h["joints"]
-        self.translated = h["translated"]
         self.fps = self.examples[0]["fps"]
-        try:
-            self.std = T.standard_indices(
-                [j["name"] for j in self.joints], json.loads(row["joint_map"])
-            )
-        except T.SkeletonMapError as e:
-            raise StoreError(
-                f"skeleton {self.examples[0]['skeleton_id']}: {e}",
-                hint="complete modb.skeletons.joint_map for it",
-            ) from None
-        self.reference = self.examples[
-            A.reference_index([e["end"] - e["start"] + 1 for e in self.examples])
-        ]
+        # the reference is a captured example, never a mirrored one
+        own = [e for e in self.examples if not e["mirrored"]] or self.examples
+        self.reference = own[A.reference_index([e["end"] - e["start"] + 1 for e in own])]
         self.reference_key = _key(self.reference)
         self.settings = {
             **SETTINGS,
@@ -151,6 +167,22 @@ class Alignment:
             },
         }
         self._reference = None
+
+    def _read_skeleton(self, skeleton_id):
+        row = self.db.run(SKELETON, [skeleton_id])[0]
+        h = json.loads(row["hierarchy"])
+        self.joints = h["joints"]
+        self.translated = h["translated"]
+        self.skeleton = R.skeleton(h, json.loads(row["joint_map"]), None,
+                                   json.loads(row["mirror_pairs"] or "[]"))  # fmt: skip
+        try:
+            self.std = T.standard_indices(
+                [j["name"] for j in self.joints], json.loads(row["joint_map"])
+            )
+        except T.SkeletonMapError as e:
+            raise StoreError(
+                f"skeleton {skeleton_id}: {e}", hint="complete modb.skeletons.joint_map for it"
+            ) from None
 
     def plan(self):
         """(examples to align, ids of stored rows to delete): only what changed when the reference
@@ -179,6 +211,13 @@ class Alignment:
             if got["translations"] is None
             else np.asarray(got["translations"], dtype=np.float64)
         )
+        if example["mirrored"]:
+            sk = self.skeleton
+            rotations, translations = mirroring.mirror(
+                sk["parents"], sk["offsets"], sk["end_sites"],
+                mirroring.partner_index(sk["names"], sk["mirror_pairs"]),
+                rotations, translations, sk["translated"],
+            )  # fmt: skip
         return rotations, translations
 
     def _positions(self, rotations, translations):
@@ -233,6 +272,7 @@ class Alignment:
                 reference_sections,
                 float(sum(costs)),
                 json.dumps(self.settings),
+                bool(example["mirrored"]),
             ],
         )[0]["id"]
 

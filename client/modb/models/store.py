@@ -1,0 +1,149 @@
+"""Motion models in modb.models (kind motion_primitive): built from a collection's processed data
+and stored as a new version, listed with why they are stale (modb.model_status), exported and
+imported as one JSON file."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from typing import Any
+
+import psycopg
+from modb_kernel.model_samples import KIND
+from psycopg.types.json import Jsonb
+
+from . import build as B
+from .examples import Inputs, rig_of
+from .tree import build_tree
+
+FILE_FORMAT = "modb motion model"
+LISTING = """
+SELECT s.id, s.name, s.version, s.latest, s.collection, s.primitive, s.skeleton_id,
+       s.created_at::text, s.stale, jsonb_array_length(m.data->'inputs') AS examples,
+       jsonb_array_length(m.data->'mixture'->'weights') AS components,
+       m.meta ? 'tree' AS has_tree
+  FROM modb.model_status s JOIN modb.models m USING (id)
+ WHERE s.kind = %s AND (%s::text IS NULL OR s.collection = %s)
+ ORDER BY s.name, s.version
+"""
+
+
+class ModelNotFound(LookupError):
+    pass
+
+
+def build_document(inputs: Inputs, collection: str, seed: int, variance: float) -> dict[str, Any]:
+    """The model of the inputs with what it was built from and how (a seeded build is the same)."""
+    document = B.build(inputs.examples, rig_of(inputs.skeleton), inputs.fps, inputs.keyframes,
+                       seed=seed, variance=variance)  # fmt: skip
+    return {
+        "primitive": inputs.primitive,
+        "collection": collection,
+        "joints": inputs.skeleton.names,
+        "skeleton": inputs.skeleton_row,
+        **document,
+        "inputs": inputs.rows,
+    }  # fmt: skip
+
+
+def save(conn: psycopg.Connection, name: str, inputs: Inputs, document: dict[str, Any],
+         tree_seed: int | None = 0) -> tuple[int, int]:  # fmt: skip
+    """Stores the document as the next version of `name` (with its acceleration tree unless
+    tree_seed is None); returns (id, version)."""
+    meta = {} if tree_seed is None else {"tree": build_tree(document, seed=tree_seed)}
+    return conn.execute(
+        "INSERT INTO modb.models (name, kind, skeleton_id, collection_id, data, meta) "
+        "VALUES (%s, %s, %s, %s, %s, %s) RETURNING id, version",
+        [name, KIND, inputs.skeleton_id, inputs.collection_id, Jsonb(document), Jsonb(meta)],
+    ).fetchone()
+
+
+def listing(conn: psycopg.Connection, collection: str | None = None) -> list[dict[str, Any]]:
+    with conn.cursor(row_factory=psycopg.rows.dict_row) as cur:
+        return cur.execute(LISTING, [KIND, collection, collection]).fetchall()
+
+
+def load(conn: psycopg.Connection, name: str, version: int | None = None) -> dict[str, Any]:
+    """The stored row (id, name, version, skeleton_id, collection, data, meta, stale)."""
+    with conn.cursor(row_factory=psycopg.rows.dict_row) as cur:
+        row = cur.execute(
+            "SELECT m.id, m.name, m.version, m.skeleton_id, s.collection, m.data, m.meta, s.stale, "
+            "       m.created_at::text AS created_at "
+            "FROM modb.models m JOIN modb.model_status s USING (id) "
+            "WHERE m.name = %s AND m.kind = %s AND (%s::int IS NULL OR m.version = %s) "
+            "ORDER BY m.version DESC LIMIT 1",
+            [name, KIND, version, version],
+        ).fetchone()
+    if row is None:
+        which = "" if version is None else f" version {version}"
+        raise ModelNotFound(f'no motion model "{name}"{which} (modb model list names them)')
+    return row
+
+
+def delete(conn: psycopg.Connection, name: str, version: int | None = None) -> int:
+    """Deletes the model's version (every version when None); returns how many."""
+    return conn.execute(
+        "DELETE FROM modb.models "
+        "WHERE name = %s AND kind = %s AND (%s::int IS NULL OR version = %s)",
+        [name, KIND, version, version],
+    ).rowcount
+
+
+def rebuild_tree(conn: psycopg.Connection, name: str, version: int | None, seed: int,
+                 progress: Callable[[str], None] | None = None) -> dict[str, Any]:  # fmt: skip
+    row = load(conn, name, version)
+    tree = build_tree(row["data"], seed=seed)
+    conn.execute(
+        "UPDATE modb.models SET meta = meta || jsonb_build_object('tree', %s::jsonb) WHERE id = %s",
+        [Jsonb(tree), row["id"]],
+    )
+    return tree
+
+
+def export_document(conn: psycopg.Connection, name: str, version: int | None) -> dict[str, Any]:
+    row = load(conn, name, version)
+    return {"format": FILE_FORMAT, "name": row["name"], "version": row["version"],
+            "collection": row["collection"], "data": row["data"], "meta": row["meta"]}  # fmt: skip
+
+
+class BadModelFile(ValueError):
+    pass
+
+
+def import_document(conn: psycopg.Connection, document: Any, name: str | None = None
+                    ) -> tuple[int, int, str]:  # fmt: skip
+    """Stores an exported model as the next version of its name (or `name`) on the stored skeleton
+    of the same hierarchy, in the collection of the same path when there is one (else none: the
+    model is then stale, as it was not built here). Returns (id, version, name)."""
+    if not isinstance(document, dict) or document.get("format") != FILE_FORMAT:
+        raise BadModelFile(f'not a model file: its "format" is not "{FILE_FORMAT}"')
+    data = document.get("data")
+    if not isinstance(data, dict) or not isinstance(data.get("skeleton"), dict):
+        raise BadModelFile('its "data" has no "skeleton"')
+    name = name or document.get("name")
+    if not isinstance(name, str) or not name:
+        raise BadModelFile('it has no "name" (give one)')
+    hierarchy = data["skeleton"].get("hierarchy")
+    found = conn.execute(
+        "SELECT id FROM modb.skeletons WHERE hierarchy = %s ORDER BY id LIMIT 1", [Jsonb(hierarchy)]
+    ).fetchone()
+    if found is None:
+        raise BadModelFile(
+            "no stored skeleton has its hierarchy: load a clip of that skeleton first "
+            f"(its skeleton is named {data['skeleton'].get('name')!r})"
+        )
+    collection = document.get("collection")
+    (collection_id,) = conn.execute(
+        "SELECT modb.find_collection(%s)", [collection if isinstance(collection, str) else None]
+    ).fetchone()
+    meta = document.get("meta") if isinstance(document.get("meta"), dict) else {}
+    ident, version = conn.execute(
+        "INSERT INTO modb.models (name, kind, skeleton_id, collection_id, data, meta) "
+        "VALUES (%s, %s, %s, %s, %s, %s) RETURNING id, version",
+        [name, KIND, found[0], collection_id, Jsonb(data), Jsonb(meta)],
+    ).fetchone()
+    return ident, version, name
+
+
+def dumps(document: dict[str, Any]) -> str:
+    return json.dumps(document, separators=(",", ":"))

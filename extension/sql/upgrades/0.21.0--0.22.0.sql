@@ -1,0 +1,3 @@
+-- 0.22.0: statistical motion models. modb.models in versions (a collection, a version, the rules of
+-- modb.models_version_rules), modb.model_status, modb.sample_motion; processed data with mirrored examples.
+--@include 95_motion_models.sql
