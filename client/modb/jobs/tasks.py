@@ -25,6 +25,7 @@ QUEUES = {
     "split_by_annotation": "clips",
     "annotate_steps": "clips",
     "align": "primitives",
+    "build_model": "primitives",
 }
 
 Work = Callable[..., dict[str, Any]]
@@ -152,6 +153,30 @@ def align(context, submitter: str, primitive: str, collection: str) -> dict[str,
     return _run(context, f"aligning {primitive!r} in {collection!r} for {submitter}", work)
 
 
+def build_model(
+    context,
+    submitter: str,
+    name: str,
+    collection: str,
+    primitive: str,
+    seed: int = 0,
+    variance: float = 0.95,
+    report: bool = False,
+) -> dict[str, Any]:
+    from modb.models.pipeline import build_model as build
+
+    def work(conn, progress, stop_when_asked):
+        def advance(done: int, total: int) -> None:
+            stop_when_asked()
+            progress.advance(done, total, "stages")
+
+        return build(conn, name, collection, primitive, seed, variance, report, progress.log,
+                     advance)  # fmt: skip
+
+    return _run(context, f"building model {name!r} of {primitive!r} in {collection!r} for "
+                f"{submitter}", work)  # fmt: skip
+
+
 KINDS = {
     "build_graph": build_graph,
     "retarget": retarget,
@@ -159,6 +184,7 @@ KINDS = {
     "split_by_annotation": split_by_annotation,
     "annotate_steps": annotate_steps,
     "align": align,
+    "build_model": build_model,
 }
 
 

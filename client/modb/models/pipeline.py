@@ -1,0 +1,72 @@
+"""`modb model build` from start to end, the same in the CLI's process and in a job worker: the
+primitive's processed data aligned first where it is missing or stale, the model built, stored as
+the next version with its acceleration tree, and (asked for) its quality report."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import psycopg
+
+from . import quality, store
+from .build import VARIANCE_KEPT
+from .examples import read_inputs, stale_or_missing
+
+STAGES = ("align", "read", "build", "store", "report")
+
+
+def build_model(
+    conn: psycopg.Connection,
+    name: str,
+    collection: str,
+    primitive: str,
+    seed: int = 0,
+    variance: float = VARIANCE_KEPT,
+    report: bool = False,
+    say: Callable[[str], None] = lambda line: None,
+    advance: Callable[[int, int], None] = lambda done, total: None,
+) -> dict[str, Any]:
+    """Builds and stores the model; returns what was made (with the report when asked)."""
+    total = len(STAGES) - (0 if report else 1)
+    why = stale_or_missing(conn, collection, primitive)
+    if why is not None:
+        say(f"aligning {primitive!r} in {collection!r} first: {why}")
+        with conn.transaction():
+            examples, aligned, deleted = conn.execute(
+                "SELECT * FROM modb.align_primitive(%s, %s)", [primitive, collection]
+            ).fetchone()
+        say(f"aligned {aligned} of {examples} examples, {deleted} stale rows deleted")
+    advance(1, total)
+    inputs = read_inputs(conn, collection, primitive)
+    advance(2, total)
+    document = store.build_document(inputs, collection, seed, variance)
+    mixture = document["mixture"]
+    say(
+        f"{len(inputs.examples)} examples ({sum(r['mirrored'] for r in inputs.rows)} mirrored): "
+        f"{len(document['spatial']['components'])} spatial and "
+        f"{len(document['temporal']['components'])} temporal components keep "
+        f"{variance:.0%} of the variance; a mixture of {len(mixture['weights'])} "
+        f"{mixture['covariance_type']}-covariance Gaussians (least BIC)"
+    )
+    advance(3, total)
+    with conn.transaction():
+        ident, version = store.save(conn, name, inputs, document, tree_seed=seed)
+    advance(4, total)
+    made: dict[str, Any] = {
+        "id": ident,
+        "name": name,
+        "version": version,
+        "collection": collection,
+        "primitive": primitive,
+        "examples": len(inputs.examples),
+        "spatial_components": len(document["spatial"]["components"]),
+        "temporal_components": len(document["temporal"]["components"]),
+        "mixture_components": len(mixture["weights"]),
+        "covariance": mixture["covariance_type"],
+    }
+    if report:
+        made["report"] = {"model": name, "version": version, "collection": collection,
+                          **quality.report(inputs, document, seed)}  # fmt: skip
+        advance(5, total)
+    return made
