@@ -10,7 +10,7 @@ import numpy as np
 import psycopg
 
 from modb.database import pgarray
-from modb.motion import Skeleton
+from modb.motion import Motion, Skeleton
 
 from .build import Example, Rig
 
@@ -86,3 +86,37 @@ def read_inputs(conn: psycopg.Connection, collection: str, primitive: str) -> In
            "mirror_pairs": mirror_pairs}  # fmt: skip
     return Inputs(collection_id, primitive, skeleton_id, skeleton, row, float(fps), keyframes,
                   examples, kept)  # fmt: skip
+
+
+def training_motions(conn: psycopg.Connection, document: dict[str, Any], n: int
+                     ) -> list[tuple[int, Motion]]:  # fmt: skip
+    """Up to n of the examples a model was built from (spread evenly over its inputs, those still
+    stored), each turned and placed as the model's samples are and played at its own time:
+    [(processed-data id, motion)]."""
+    from modb_kernel import motion_model
+
+    from .build import facing_forward
+
+    ids = [i["id"] for i in document.get("inputs", [])]
+    chosen = [ids[k] for k in np.unique(np.linspace(0, len(ids) - 1, min(n, len(ids))).round()
+                                       .astype(int))] if ids else []  # fmt: skip
+    pgarray.register(conn)
+    with conn.cursor(binary=True) as cur:
+        rows = cur.execute(
+            "SELECT id, rotations, translations, time_function, reference "
+            "FROM modb.processed_data WHERE id = ANY (%s) ORDER BY id",
+            [chosen],
+        ).fetchall()
+    sk = document["skeleton"]
+    skeleton = Skeleton.from_row(sk["hierarchy"], sk["joint_map"], sk["mirror_pairs"], sk["name"])
+    rig = rig_of(skeleton)
+    out = []
+    for ident, r, t, tf, reference in rows:
+        r = np.asarray(r, dtype=np.float64)
+        t = np.zeros((len(r), 0, 3)) if t is None else np.asarray(t, np.float64)
+        e = facing_forward(Example(r, t, np.asarray(tf, np.float64), reference), rig,
+                           document["fps"])  # fmt: skip
+        rotations, translations = motion_model.play(e.rotations, e.translations, e.time_function)
+        out.append((ident, Motion(skeleton, document["fps"], rotations, translations,
+                                  f"example_{ident}")))  # fmt: skip
+    return out

@@ -34,7 +34,7 @@ from starlette.staticfiles import StaticFiles
 from modb.database import pgarray
 from modb.database.connection import connect
 from modb.database.read_nodes import ReadNodes
-from . import api, catalog_writes, database_errors, downloads, job_routes, openapi
+from . import api, catalog_writes, database_errors, downloads, job_routes, model_routes, openapi
 from .avatar_socket import avatar_endpoint, default_max_avatars
 from .auth import Tokens
 from .body_rules import Invalid
@@ -223,6 +223,8 @@ VIEWS: dict[str, View] = {
     "/api/edit-scripts": _listing(api.edit_scripts),
     "/api/processed-data": _processed,
     "/api/processed-data/{ident}": _by_id(api.processed_row, "processed-data row"),
+    "/api/motion-models": model_routes.listing,
+    "/api/motion-models/{name}": model_routes.show,
     "/api/jobs": _listing(job_routes.jobs),
     "/api/jobs/{ident}": _by_id(job_routes.job, "job"),
 }
@@ -231,6 +233,8 @@ HEAVY_VIEWS: dict[str, tuple[View, Callable[[Request], Any]]] = {
     "/api/clips/{ident}/frames": (_frames, _frames_args),
     "/api/clips/{ident}/download": (_download, _download_args),
     "/api/skeletons/{ident}/character.glb": (_character, lambda r: _path_id(r, "skeleton")),
+    "/api/motion-models/{name}/samples": (model_routes.samples, model_routes.samples_args),
+    "/api/motion-models/{name}/examples": (model_routes.examples, model_routes.examples_args),
 }
 
 
@@ -403,6 +407,11 @@ def create_app(
         Route(
             "/api/processed-data",
             catalog_writes.write_endpoint(tokens, writer, job_routes.align_primitive),
+            methods=["POST"],
+        ),
+        Route(
+            "/api/motion-models/{name}/build",
+            catalog_writes.write_endpoint(tokens, writer, model_routes.build),
             methods=["POST"],
         ),
         Route(

@@ -77,6 +77,18 @@ ARGUMENTS = {
         ("primitive", "collection"),
         name="arguments",
     ),
+    "build_model": Shape(
+        {
+            "name": Text(),
+            "collection": CollectionPath(),
+            "primitive": Text(),
+            "seed": Whole(0, 2**31 - 1, what="a seed"),
+            "variance": Number(0.5, 0.999, unit="share of the variance"),
+            "report": Flag(),
+        },
+        ("name", "collection", "primitive"),
+        name="arguments",
+    ),
 }
 ALIGN = ARGUMENTS["align"]
 SUBMITTED = Shape(
@@ -160,7 +172,7 @@ def submit_job(conn: psycopg.Connection, request: Request, body: Any) -> Done:
         raise BadRequest(f'"kind": one of {", ".join(ARGUMENTS)}, got {kind!r:.60}')
     arguments = ARGUMENTS[kind](None, fields["arguments"])
     _tables(conn)
-    if kind not in ("build_graph", "align"):
+    if kind not in ("build_graph", "align", "build_model"):
         arguments = {"clips": _clips(conn, arguments), **arguments}
     return queue_job(conn, request, kind, arguments, fields.get("after"))
 

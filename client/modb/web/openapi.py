@@ -256,6 +256,7 @@ def catalog_writes() -> dict[str, dict[str, Any]]:
                      fps={"type": "number", "minimum": 1, "maximum": 1000},
                      mirrored={"type": "boolean"}),
         ok="the queued job (202, Location: /api/jobs/ID)")}  # fmt: skip
+    out.update(_motion_models())
     for table in ("models", "graphs"):
         one = _id("ident", f"{table[:-1]} id")
         note = " (not transition graphs: `modb graph build`)" if table == "graphs" else ""
@@ -276,6 +277,41 @@ def catalog_writes() -> dict[str, dict[str, Any]]:
             "delete": _write(f"delete a {table[:-1]} row", one, ok="its id"),
         }
     return out
+
+
+def _motion_models() -> dict[str, Any]:
+    name = {"name": "name", "in": "path", "required": True, "schema": {"type": "string"},
+            "description": "the model's name"}  # fmt: skip
+    version = _query("version", "the version (default: the latest)", {"type": "integer"})
+    n = _query("n", "how many (1 to 50; 10)", {"type": "integer", "minimum": 1, "maximum": 50})
+    return {
+        "/api/motion-models": _read(
+            "statistical motion models, every version, with why one is stale",
+            _query("collection", "built from this collection (path)", {"type": "string"}),
+        ),
+        "/api/motion-models/{name}": _read(
+            "one model's version in brief: examples, components, variance kept, mixture, tree",
+            name, version,
+        ),
+        "/api/motion-models/{name}/samples": _read(
+            "samples drawn from the model (modb.sample_motion): frames and world positions",
+            name, n, _query("seed", "the same seed, the same samples (0)", {"type": "integer"}),
+            version,
+        ),
+        "/api/motion-models/{name}/examples": _read(
+            "examples the model was built from, placed and played as its samples are",
+            name, n, version,
+        ),
+        "/api/motion-models/{name}/build": {"post": _write(
+            "build a model of a primitive's aligned examples as the next version of NAME (a job "
+            "where the database has job tables; aligns first when the processed data is missing "
+            "or stale)", name,
+            body=_object(["collection", "primitive"], collection=PATH, primitive=TEXT,
+                         seed={"type": "integer", "minimum": 0},
+                         variance={"type": "number", "minimum": 0.5, "maximum": 0.999},
+                         report={"type": "boolean"}),
+            ok="the queued job (202, Location: /api/jobs/ID), or the model made (201)")},
+    }  # fmt: skip
 
 
 def schema() -> dict[str, Any]:
