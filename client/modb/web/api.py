@@ -187,9 +187,11 @@ def skeleton(conn: psycopg.Connection, skeleton_id: int) -> dict[str, Any]:
 
 
 def _named_table(table: str) -> tuple[str, str]:
+    # a model's version (0.22.0 on), its meta without the acceleration tree (megabytes)
+    version = ", (to_jsonb(t)->>'version')::int AS version" if table == "models" else ""
     listing = (
-        f"SELECT id, name, kind, skeleton_id, meta, created_at::text FROM modb.{table} "
-        "ORDER BY name, kind"
+        f"SELECT id, name, kind, skeleton_id, meta - 'tree' AS meta, created_at::text{version} "
+        f"FROM modb.{table} t ORDER BY name, kind{version and ', version'}"
     )
     one = (
         f"SELECT id, name, kind, skeleton_id, data, meta, created_at::text FROM modb.{table} "

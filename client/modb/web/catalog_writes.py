@@ -393,6 +393,8 @@ def _replace_row(table: str):
                 "a graph's name and kind stay; a transition graph is rebuilt, not replaced "
                 "(`modb graph build NAME`)"
             )
+        if table == "models" and fields.keys() - {"meta"}:
+            return _new_model_version(conn, ident, name, kind, fields)
         if {"name", "kind"} & fields.keys():
             new = (fields.get("name", name), fields.get("kind", kind))
             if new != (name, kind):
@@ -414,6 +416,33 @@ def _replace_row(table: str):
         )
 
     return handler
+
+
+def _new_model_version(conn, ident: int, name: str, kind: str, fields: dict[str, Any]) -> Done:
+    """A model's data is never overwritten (modb.models_version_rules): a replace stores the row
+    with the fields changed as the model's next version, the old kept."""
+    if fields.get("name", name) != name or fields.get("kind", kind) != kind:
+        raise BadRequest("a model's name and kind stay: a new name is a new model (POST)")
+    changed = {k: v for k, v in fields.items() if k not in ("name", "kind")}
+    kept = [c for c in ("skeleton_id", "collection_id", "data", "meta") if c not in changed]
+    query = sql.SQL(
+        "INSERT INTO modb.models (name, kind, {columns}) SELECT name, kind, {values} "
+        "FROM modb.models WHERE id = %s RETURNING id, version"
+    ).format(
+        columns=sql.SQL(", ").join(map(sql.Identifier, [*changed, *kept])),
+        values=sql.SQL(", ").join(
+            [sql.Placeholder()] * len(changed) + [*map(sql.Identifier, kept)]
+        ),
+    )
+    made, version = conn.execute(query, [*changed.values(), ident]).fetchone()
+    return Done(
+        {"id": made, "version": version, "replaced": sorted(fields), "previous": ident},
+        "model new version",
+        f"model {made}",
+        {"fields": sorted(fields), "name": name, "kind": kind, "version": version},
+        201,
+        headers={"Location": f"/api/models/{made}"},
+    )
 
 
 def _delete_row(table: str):
