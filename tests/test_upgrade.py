@@ -59,6 +59,7 @@ OLD_VERSIONS = [
     "0.18.0",
     "0.19.0",
     "0.20.0",
+    "0.21.0",
 ]
 
 # What a retargeting, an edit script and a cut store, without ids (sequences differ between runs):
@@ -108,6 +109,42 @@ def _retarget_and_edit(db) -> list:
     return [(row[0] == first, *row[1:]) for row in rows]
 
 
+def _steps_aligned_and_a_model(db) -> list:
+    """0.21.0's processed data of the stored clips' left steps and a model row by hand."""
+    collection = db.execute(
+        "SELECT modb.collection_path(collection_id) FROM modb.clips WHERE id = 1"
+    )
+    collection = collection.fetchone()[0]
+    for (clip,) in db.execute("SELECT id FROM modb.clips ORDER BY id").fetchall():
+        db.execute("SELECT * FROM modb.annotate_steps(%s)", [clip])
+    db.execute("SELECT * FROM modb.align_primitive('left_step', %s)", [collection])
+    db.execute("INSERT INTO modb.models (name, kind, data) VALUES ('by hand', 'notes', '[1]')")
+    return db.execute(PROCESSED).fetchall()
+
+
+PROCESSED = "SELECT id, clip_id, version, segment, md5(rotations::text) FROM modb.processed_data"
+
+
+def _models_in_versions(db, dsn, processed_before) -> None:
+    assert len(processed_before) >= 5
+    assert db.execute(PROCESSED).fetchall() == processed_before
+    assert db.execute("SELECT count(*) FROM modb.processed_data WHERE mirrored").fetchone() == (0,)
+    assert db.execute(
+        "SELECT m.version, m.collection_id, s.stale FROM modb.models m "
+        "JOIN modb.model_status s USING (id)"
+    ).fetchall() == [(1, None, None)]
+    with db.transaction(force_rollback=True):
+        with pytest.raises(psycopg.errors.ObjectNotInPrerequisiteState):
+            db.execute("UPDATE modb.models SET data = '[2]'")
+    db.execute("INSERT INTO modb.models (name, kind, data) VALUES ('by hand', 'notes', '[2]')")
+    assert db.execute("SELECT max(version) FROM modb.models").fetchone() == (2,)
+    collection = db.execute("SELECT DISTINCT collection FROM modb.processed_data_status").fetchone()
+    r = run_modb(dsn, "model", "build", "kept", "--collection", collection[0], "--primitive",
+                 "left_step")  # fmt: skip
+    assert r.returncode == 0 and "model kept version 1" in r.stdout, r.stderr
+    assert db.execute("SELECT count(*) FROM modb.sample_motion('kept', 2, 0)").fetchone() == (2,)
+
+
 def test_old_versions_install_through_the_chain(db):
     # An install script left from an earlier install of the project would stand in for the chain.
     sharedir = db.execute("SELECT setting FROM pg_config WHERE name = 'SHAREDIR'").fetchone()[0]
@@ -130,6 +167,8 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
     r = run_modb(fresh_db, "load", *files, *(["--mirror"] if with_snippets else ["--no-snippets"]))
     assert r.returncode == 0, r.stderr
     db.execute('UPDATE modb.clip_versions SET meta = \'{"tags": ["kept"]}\'')
+    if old == "0.21.0":  # 0.22.0: models in versions; processed data may hold mirrored examples
+        processed_before = _steps_aligned_and_a_model(db)
     before = db.execute(
         "SELECT clip_id, version, n_frames, meta, md5(rotations::text) FROM modb.clip_versions "
         "ORDER BY 1"
@@ -159,6 +198,8 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
     if old == "0.19.0":  # the last in-server code: the oracle for the kernel's that workers run too
         stored_before = _retarget_and_edit(db)
     db.execute("ALTER EXTENSION modb UPDATE")
+    if old == "0.21.0":
+        _models_in_versions(db, fresh_db, processed_before)
     if old == "0.19.0":
         stored_after = _retarget_and_edit(db)
         assert len(stored_before) == 2 and all(row[-1] for row in stored_before)
@@ -240,7 +281,7 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
         # 0.18.0: the update leaves the blocks as they were (no term codes) and builds the
         # directory's index; they count as unpacked, so a load's packing derives them again
         uncoded = "SELECT count(*) FILTER (WHERE term_codes IS NULL) FROM modb.snippet_blocks"
-        coded_before = ("0.18.0", "0.19.0", "0.20.0")  # 0.18.0 on coded them
+        coded_before = ("0.18.0", "0.19.0", "0.20.0", "0.21.0")  # 0.18.0 on coded them
         assert (db.execute(uncoded).fetchone()[0] > 0) == (old not in coded_before)
         assert db.execute("SELECT to_regclass('modb.snippet_blocks_directory_idx')").fetchone()[0]
         db.execute("SELECT * FROM modb.pack_snippet_blocks(0.2)")

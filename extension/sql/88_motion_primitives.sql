@@ -55,17 +55,21 @@ CREATE TABLE modb.processed_data (
     cost          float8 NOT NULL,
     settings      jsonb NOT NULL,
     created_at    timestamptz NOT NULL DEFAULT now(),
+    mirrored      boolean NOT NULL DEFAULT false,
     FOREIGN KEY (clip_id, version) REFERENCES modb.clip_versions (clip_id, version) ON DELETE CASCADE,
     CONSTRAINT processed_data_shape_check CHECK (
         array_ndims(rotations) = 3 AND array_length(rotations, 1) = n_frames AND array_length(rotations, 3) = 4
         AND cardinality(time_function) = n_frames
         AND (translations IS NULL OR (array_ndims(translations) = 3 AND array_length(translations, 1) = n_frames)))
 );
-CREATE UNIQUE INDEX processed_data_example_idx ON modb.processed_data (collection_id, primitive, clip_id, version, segment);
+CREATE UNIQUE INDEX processed_data_example_idx
+    ON modb.processed_data (collection_id, primitive, clip_id, version, segment, mirrored);
 CREATE UNIQUE INDEX processed_data_reference_idx ON modb.processed_data (collection_id, primitive) WHERE reference;
 CREATE INDEX processed_data_clip_idx ON modb.processed_data (clip_id, version);
 COMMENT ON TABLE modb.processed_data IS
     'A motion primitive''s examples (annotation segments named primitive in a collection''s clips) aligned in time to one of them, the reference: per example its frames resampled onto the reference''s (n_frames of them), time_function (the example''s frame, from the segment''s start, for each), sections (the reference''s keyframes, from its start), the warp''s cost, and the version and segment it came from (modb.align_primitive writes it; modb.processed_data_status says which rows are stale)';
+COMMENT ON COLUMN modb.processed_data.mirrored IS
+    'True: the example is the other side''s segment (right_step for left_step), mirrored through the skeleton''s mirror pairs (0.22.0)';
 SELECT pg_catalog.pg_extension_config_dump('modb.processed_data', '');
 -- Granted here, not only by 90_privileges.sql, so that an update (which cannot run that again: it would
 -- open tables made after it) grants the same.
@@ -81,7 +85,8 @@ SELECT p.id, modb.collection_path(p.collection_id) AS collection, p.primitive, p
        CASE WHEN c.version IS DISTINCT FROM p.version THEN 'the clip has a newer version'
             WHEN NOT EXISTS (SELECT FROM jsonb_array_elements(coalesce(v.meta->'annotations', '[]')) a
                               WHERE a = p.segment) THEN 'its segment changed or is gone'
-       END AS stale
+       END AS stale,
+       p.mirrored
   FROM modb.processed_data p
   LEFT JOIN modb.current_clips c ON c.clip_id = p.clip_id
   LEFT JOIN modb.clip_versions v ON v.clip_id = p.clip_id AND v.version = p.version;

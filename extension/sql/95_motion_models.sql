@@ -1,26 +1,6 @@
 -- Statistical motion models (0.22.0): a primitive's processed data reduced by functional PCA with a
 -- Gaussian mixture on the scores (built by the client: modb model build), kept in versions in modb.models,
--- sampled here by the kernel (motion_model.py, model_samples.py) with Debian's numpy and scipy. The examples
--- of a primitive include its other side's, mirrored, where the skeleton has mirror pairs (processed.py).
-
-ALTER TABLE modb.processed_data ADD COLUMN mirrored boolean NOT NULL DEFAULT false;
-COMMENT ON COLUMN modb.processed_data.mirrored IS
-    'True: the example is the other side''s segment (right_step for left_step), mirrored through the skeleton''s mirror pairs';
-DROP INDEX modb.processed_data_example_idx;
-CREATE UNIQUE INDEX processed_data_example_idx
-    ON modb.processed_data (collection_id, primitive, clip_id, version, segment, mirrored);
-CREATE OR REPLACE VIEW modb.processed_data_status AS
-SELECT p.id, modb.collection_path(p.collection_id) AS collection, p.primitive, p.clip_id, p.version,
-       (p.segment->>'start')::int AS start_frame, (p.segment->>'end')::int AS end_frame, p.reference, p.n_frames,
-       p.cost, p.created_at,
-       CASE WHEN c.version IS DISTINCT FROM p.version THEN 'the clip has a newer version'
-            WHEN NOT EXISTS (SELECT FROM jsonb_array_elements(coalesce(v.meta->'annotations', '[]')) a
-                              WHERE a = p.segment) THEN 'its segment changed or is gone'
-       END AS stale,
-       p.mirrored
-  FROM modb.processed_data p
-  LEFT JOIN modb.current_clips c ON c.clip_id = p.clip_id
-  LEFT JOIN modb.clip_versions v ON v.clip_id = p.clip_id AND v.version = p.version;
+-- sampled here by the kernel (motion_model.py, model_samples.py) with Debian's numpy and scipy.
 
 -- A model belongs to a collection and a skeleton and has versions: a rebuild (or a replace by any writer)
 -- is a new row, the old kept; only meta (the acceleration tree, notes) changes in place.
@@ -114,5 +94,7 @@ END
 $$;
 COMMENT ON FUNCTION modb.sample_motion(text, int, int, int) IS
     'n motions (1 to 1000) drawn with the seed (>= 0) from the motion model named model (its latest version, or the one given): frames as clips keep them (rotations real[n_frames][n_joints][4], w first, relative to the parent; translations real[n_frames][n_translated][3] in metres, NULL when none), each starting with the pelvis above the origin, facing +Z. The same model, n and seed give the same motions';
+REVOKE EXECUTE ON FUNCTION modb._sample_motion(text, int, int, int) FROM PUBLIC;
+REVOKE EXECUTE ON FUNCTION modb.sample_motion(text, int, int, int) FROM PUBLIC;
 GRANT EXECUTE ON FUNCTION modb._sample_motion(text, int, int, int) TO modb_reader;
 GRANT EXECUTE ON FUNCTION modb.sample_motion(text, int, int, int) TO modb_reader;

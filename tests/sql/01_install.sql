@@ -9,7 +9,7 @@ SELECT tables_are('modb', ARRAY['collections', 'skeletons', 'clips', 'clip_versi
                                'snippet_sources', 'terminators', 'snippets', 'match_profiles', 'graph_snippets',
                                'graph_transitions', 'graph_names', 'snippet_blocks', 'generations', 'access_tokens',
                                'audit_log', 'clip_segments', 'edit_scripts', 'repaired_rows', 'processed_data']);
-SELECT views_are('modb', ARRAY['current_clips', 'processed_data_status']);
+SELECT views_are('modb', ARRAY['current_clips', 'processed_data_status', 'model_status']);
 SELECT functions_are('modb', ARRAY[
     'skeleton_identity', 'unit_quaternions_ok', 'finite_ok', 'skeleton_joint_names', 'joint_map_ok', 'mirror_pairs_ok',
     'annotations_ok', 'clip_versions_before_insert', 'clip_versions_before_update', 'skeletons_before_update',
@@ -29,7 +29,8 @@ SELECT functions_are('modb', ARRAY[
     'joint_axes_ok', 'retarget', 'apply_edit_script', 'raise_in_words', '_build_snippets', '_retarget',
     '_apply_edit_script', 'joint_axes_problem', 'skeletons_check_documents', 'edit_script_problems',
     'edit_scripts_check_commands', 'collections_check_name', 'terminators_updated',
-    'select_snippet_ending_reference', 'annotate_steps', '_annotate_steps', 'align_primitive', '_align_primitive']);
+    'select_snippet_ending_reference', 'annotate_steps', '_annotate_steps', 'align_primitive', '_align_primitive',
+    'models_version_rules', 'sample_motion', '_sample_motion']);
 SELECT is((SELECT o.opcname::text FROM pg_index i JOIN pg_opclass o ON o.oid = i.indclass[0]
             WHERE i.indexrelid = 'modb.snippets_begin_features_idx'::regclass), 'cube_feature_ops',
           'the feature index uses modb''s operator class');

@@ -8,7 +8,6 @@ import argparse
 import json
 import sys
 from pathlib import Path
-from typing import Any
 
 import psycopg
 
@@ -160,30 +159,8 @@ def _list(conn: psycopg.Connection, args: argparse.Namespace) -> int:
     return 0
 
 
-def describe(row: dict[str, Any]) -> dict[str, Any]:
-    """A model's version in brief (what `show` prints and the REST view returns)."""
-    from modb.models.tree import shape
-
-    data, meta = row["data"], row["meta"]
-    mixture = data["mixture"]
-    return {
-        "id": row["id"], "name": row["name"], "version": row["version"],
-        "collection": row["collection"], "primitive": data.get("primitive"),
-        "skeleton_id": row["skeleton_id"], "created_at": row["created_at"], "stale": row["stale"],
-        "fps": data["fps"], "n_frames": data["n_frames"], "keyframes": data["keyframes"],
-        "examples": len(data.get("inputs", [])),
-        "mirrored_examples": sum(bool(i.get("mirrored")) for i in data.get("inputs", [])),
-        "spatial_explained": data["spatial"]["explained"],
-        "temporal_explained": data["temporal"]["explained"],
-        "mixture": {"components": len(mixture["weights"]), "weights": mixture["weights"],
-                    "covariance": mixture.get("covariance_type", "full"), "bic": mixture["bic"]},
-        "tree": shape(meta["tree"]) if "tree" in meta else None,
-        "settings": data.get("settings", {}),
-    }  # fmt: skip
-
-
 def _show(conn: psycopg.Connection, args: argparse.Namespace) -> int:
-    from modb.models.store import load
+    from modb.models.store import describe, load
 
     print(json.dumps(describe(load(conn, args.name, args.version)), indent=2))
     return 0

@@ -14,7 +14,7 @@ from psycopg.types.json import Jsonb
 
 from . import build as B
 from .examples import Inputs, rig_of
-from .tree import build_tree
+from .tree import build_tree, shape
 
 FILE_FORMAT = "modb motion model"
 LISTING = """
@@ -78,6 +78,26 @@ def load(conn: psycopg.Connection, name: str, version: int | None = None) -> dic
         which = "" if version is None else f" version {version}"
         raise ModelNotFound(f'no motion model "{name}"{which} (modb model list names them)')
     return row
+
+
+def describe(row: dict[str, Any]) -> dict[str, Any]:
+    """A model's version in brief (what `show` prints and the REST view returns)."""
+    data, meta = row["data"], row["meta"]
+    mixture = data["mixture"]
+    return {
+        "id": row["id"], "name": row["name"], "version": row["version"],
+        "collection": row["collection"], "primitive": data.get("primitive"),
+        "skeleton_id": row["skeleton_id"], "created_at": row["created_at"], "stale": row["stale"],
+        "fps": data["fps"], "n_frames": data["n_frames"], "keyframes": data["keyframes"],
+        "examples": len(data.get("inputs", [])),
+        "mirrored_examples": sum(bool(i.get("mirrored")) for i in data.get("inputs", [])),
+        "spatial_explained": data["spatial"]["explained"],
+        "temporal_explained": data["temporal"]["explained"],
+        "mixture": {"components": len(mixture["weights"]), "weights": mixture["weights"],
+                    "covariance": mixture.get("covariance_type", "full"), "bic": mixture["bic"]},
+        "tree": shape(meta["tree"]) if "tree" in meta else None,
+        "settings": data.get("settings", {}),
+    }  # fmt: skip
 
 
 def delete(conn: psycopg.Connection, name: str, version: int | None = None) -> int:

@@ -68,7 +68,7 @@ def listing(conn: psycopg.Connection, request: Request) -> list[dict[str, Any]]:
 
 def show(conn: psycopg.Connection, request: Request) -> dict[str, Any]:
     """GET /api/motion-models/NAME[?version=N]: the version in brief (`modb model show`)."""
-    from modb.cli.model import describe
+    from modb.models.store import describe
 
     q = _query(request, "version")
     version = _whole(q.get("version"), "version", 1, 2**31 - 1, None)
