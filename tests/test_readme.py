@@ -36,6 +36,7 @@ IN_ORDER = (
     "retargeting.md",
     "jobs.md",
     "primitives.md",
+    "models.md",
     "web.md",
     "rest.md",
     "roles.md",
