@@ -312,6 +312,7 @@ def test_versions_reproducible_builds_staleness_export_and_import(dsn, report, t
 def test_rest_lists_shows_samples_and_builds_with_a_loader_token(dsn, report):
     import httpx
     from support.browser import serving
+    from support.jobs import stop, until, worker
 
     tokens = {}
     for name, role in (("models-loader", "loader"), ("models-reader", "reader")):
@@ -352,8 +353,21 @@ def test_rest_lists_shows_samples_and_builds_with_a_loader_token(dsn, report):
         assert client.post(path, json=body, headers=tokens["reader"]).status_code == 403
         bad = client.post(path, json={**body, "variance": 2}, headers=tokens["loader"])
         assert bad.status_code == 400 and "variance" in bad.text
-        made = client.post(path, json=body, headers=tokens["loader"])
-        assert made.status_code in (201, 202), made.text
+        made = client.post(path, json=body, headers=tokens["loader"])  # no job tables: at once
+        assert made.status_code == 201 and made.json()["version"] == 1, made.text
+        r = run_modb(dsn, "worker", "--init")
+        assert r.returncode == 0, r.stderr
+        queued = client.post(path, json={**body, "report": True}, headers=tokens["loader"])
+        assert queued.status_code == 202, queued.text
+        assert queued.json()["kind"] == "modb.build_model"
+        w = worker(dsn)
+        try:
+            with connect(dsn) as conn:
+                job_id = queued.json()["id"]
+                state = until(conn, job_id, lambda j: j["state"] == "done", 120, "done")
+        finally:
+            stop(w)
+        assert state["result"]["version"] == 2 and state["result"]["report"]["pass"], state
         # a generic replace of a model row is its next version, the old kept
         ident = listed[0]["id"]
         replaced = client.put(f"/api/models/{ident}", json={"data": {"note": "by hand"}},
