@@ -253,6 +253,14 @@ def test_sample_motion_in_sql_glb_and_bvh_files(dsn, report, tmp_path):
 
 
 def test_versions_reproducible_builds_staleness_export_and_import(dsn, report, tmp_path, cluster):
+    for collection, primitive, message in (
+        ("cmu16", "jump", 'collection "cmu16" has 0 "jump" segments: aligning needs at least 5'),
+        ("nope", "left_step", 'no collection "nope"'),
+    ):
+        r = run_modb(
+            dsn, "model", "build", "x", "--collection", collection, "--primitive", primitive
+        )
+        assert r.returncode == 2 and message in r.stderr, r.stderr
     r = run_modb(dsn, "model", "build", MODEL, "--collection", "cmu16", "--primitive", "left_step")
     assert r.returncode == 0 and f"model {MODEL} version 2 " in r.stdout, r.stderr
     with connect(dsn) as conn:

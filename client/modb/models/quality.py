@@ -9,7 +9,8 @@
 - samples (SAMPLES of them): foot sliding, the horizontal speed of a foot near the ground (within a
   tenth of a leg of the training examples' ground, as steps.py finds contacts) against the
   training examples' played at their own time; each joint's largest angle from its training mean
-  rotation against the training examples' (joints that turn under a degree are not animated);
+  rotation against the training examples' (joints that turn under a degree are not animated; the
+  model's joint limits keep samples within them: how often they pulled one back is reported too);
   novelty, the median distance (root mean square over joints and canonical frames, cm) from a
   sample to its nearest training example against the training examples' own leave-one-out
   nearest-neighbour distance.
@@ -153,18 +154,23 @@ def foot_sliding(inputs: Inputs, played: list[np.ndarray], samples: list[np.ndar
             "pass": ratio <= TARGETS["sliding"]}  # fmt: skip
 
 
-def rotation_range(inputs: Inputs, training: list[np.ndarray], samples: list[np.ndarray]) -> dict:
-    """Each joint's farthest turn from its mean rotation in the samples against the training's."""
+def rotation_range(inputs: Inputs, training: list[np.ndarray], samples: list[np.ndarray],
+                   unlimited: list[np.ndarray]) -> dict:  # fmt: skip
+    """Each joint's farthest turn from its mean rotation in the samples against the training's;
+    and how often the model's joint limits pulled a sample's joint back (unlimited: the samples
+    before that)."""
     limits = motion_model.joint_limits(np.concatenate(training))
     mean, reach = np.asarray(limits["mean"]), np.asarray(limits["degrees"])
     frames = np.concatenate(samples)
     sampled = np.degrees(quaternion.angle_between(frames, mean[None]).max(axis=0))
+    beyond = np.degrees(quaternion.angle_between(np.concatenate(unlimited), mean[None])) > reach
     animated = np.flatnonzero(reach >= ANIMATED_DEGREES)
     excess = sampled[animated] / reach[animated] - 1.0
     worst = int(animated[np.argmax(excess)])
     return {"animated_joints": int(len(animated)), "worst_joint": inputs.skeleton.names[worst],
             "worst_excess": float(excess.max()),
             "training_degrees": float(reach[worst]), "samples_degrees": float(sampled[worst]),
+            "limited_share": float(beyond.mean()),
             "pass": float(excess.max()) <= TARGETS["rotation_excess"]}  # fmt: skip
 
 
@@ -201,12 +207,22 @@ def report(inputs: Inputs, model: dict[str, Any], seed: int = 0) -> dict[str, An
     sample_rotations = [
         quaternion.canonical(motion_model.canonical_frames(model, d[:split])[0]) for d in draws
     ]
+    unlimited = [
+        motion_model.frames_from_coefficients(
+            model, np.asarray(model["spatial"]["mean"]) + d[:split] @ np.asarray(
+                model["spatial"]["components"])
+        )[0]
+        for d in draws
+    ]  # fmt: skip
     parts = {
         "reconstruction": reconstruction(inputs, model, forward),
         "likelihood": likelihood(model, scores_of(model, forward), seed),
         "foot_sliding": foot_sliding(inputs, played, sampled),
         "rotation_range": rotation_range(
-            inputs, [quaternion.canonical(e.rotations) for e in forward], sample_rotations
+            inputs,
+            [quaternion.canonical(e.rotations) for e in forward],
+            sample_rotations,
+            unlimited,
         ),
         "novelty": novelty(canonical, sample_canonical),
     }
