@@ -26,6 +26,7 @@ from modb.database.connection import connect
 from modb.loader.asf import read_amc, read_asf
 from modb.loader.bvh import read_bvh
 from modb_kernel import align as kernel_align
+from modb_kernel import mirror as kernel_mirror
 from modb_kernel import steps as kernel_steps
 
 SIDES = ("left", "right")
@@ -235,16 +236,20 @@ def test_alignment_lands_keyframes_and_resamples_the_source(dsn):
     with connect(dsn) as conn:
         rows = conn.execute(
             "SELECT clip_id, version, segment, reference, n_frames, time_function, sections, "
-            "rotations FROM modb.processed_data WHERE primitive = 'left_step' ORDER BY id"
+            "rotations, mirrored FROM modb.processed_data WHERE primitive = 'left_step' ORDER BY id"
         ).fetchall()
         lengths = [s["end"] - s["start"] + 1 for _, _, s, *_ in rows]
+        captured = [n for n, row in zip(lengths, rows) if not row[-1]]
         (reference,) = [k for k, row in enumerate(rows) if row[3]]
-        # the reference: the example whose length is closest to the mean
-        assert abs(lengths[reference] - np.mean(lengths)) == min(
-            abs(np.array(lengths) - np.mean(lengths))
+        # the reference: the captured example whose length is closest to the mean
+        assert not rows[reference][-1] and abs(lengths[reference] - np.mean(captured)) == min(
+            abs(np.array(captured) - np.mean(captured))
         )
+        # the right steps, mirrored, are left steps too (CMU 16's skeleton has mirror pairs)
+        assert {row[2]["name"] for row in rows if row[-1]} == {"right_step"}
+        assert {row[2]["name"] for row in rows if not row[-1]} == {"left_step"}
         motions = {}
-        for clip, version, segment, is_reference, n, times, sections, rotations in rows:
+        for clip, version, segment, is_reference, n, times, sections, rotations, mirrored in rows:
             times = np.asarray(times)
             span = segment["end"] - segment["start"]
             assert n == lengths[reference] and len(times) == n
@@ -254,7 +259,15 @@ def test_alignment_lands_keyframes_and_resamples_the_source(dsn):
             if is_reference:
                 assert np.allclose(times, np.arange(n))
             motion = motions.setdefault(clip, read_motion(conn, clip, version))
-            source = motion.rotations[segment["start"] : segment["end"] + 1]
+            cut = slice(segment["start"], segment["end"] + 1)
+            source = motion.rotations[cut]
+            if mirrored:  # the kernel's mirror (tests/test_mirror.py checks it) of the segment
+                sk = motion.skeleton
+                source, _ = kernel_mirror.mirror(
+                    sk.parents, sk.offsets, [j.end_site for j in sk.joints],
+                    kernel_mirror.partner_index(sk.names, sk.mirror_pairs), source,
+                    motion.translations[cut], sk.translated,
+                )  # fmt: skip
             for j in range(source.shape[1]):  # the test's own slerp of each joint's rotations
                 w, x, y, z = np.moveaxis(source[:, j], -1, 0)
                 slerp = Slerp(
