@@ -4,7 +4,10 @@
 -- 0.22.0: statistical motion models. modb.models in versions (a collection, a version, the rules of
 -- modb.models_version_rules), modb.model_status, modb.sample_motion; processed data with mirrored examples.
 -- The other side's examples, mirrored (88_motion_primitives.sql)
-ALTER TABLE modb.processed_data ADD COLUMN mirrored boolean NOT NULL DEFAULT false;
+-- no stored default for the old rows (a fresh install has none): filled, then the default and NOT NULL
+ALTER TABLE modb.processed_data ADD COLUMN mirrored boolean;
+UPDATE modb.processed_data SET mirrored = false;
+ALTER TABLE modb.processed_data ALTER COLUMN mirrored SET DEFAULT false, ALTER COLUMN mirrored SET NOT NULL;
 COMMENT ON COLUMN modb.processed_data.mirrored IS
     'True: the example is the other side''s segment (right_step for left_step), mirrored through the skeleton''s mirror pairs (0.22.0)';
 DROP INDEX modb.processed_data_example_idx;
