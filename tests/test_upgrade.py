@@ -122,7 +122,10 @@ def _steps_aligned_and_a_model(db) -> list:
     return db.execute(PROCESSED).fetchall()
 
 
-PROCESSED = "SELECT id, clip_id, version, segment, md5(rotations::text) FROM modb.processed_data"
+PROCESSED = (
+    "SELECT id, clip_id, version, segment, md5(rotations::text) FROM modb.processed_data "
+    "ORDER BY id"
+)
 
 
 def _models_in_versions(db, dsn, processed_before) -> None:
