@@ -378,16 +378,25 @@ def test_models_and_graphs_rows_are_created_replaced_and_deleted(edits):
     assert client.get(f"/api/models/{model}").json()["data"] == data
     again = client.post("/api/models", json={"name": HOSTILE, "kind": "gmm", "data": {}}, headers=h)
     assert again.status_code == 409
+    # a replace of the data is the model's next version; the first is kept as it was
     r = client.put(f"/api/models/{model}", json={"data": [1, 2], "meta": {"note": "n"}}, headers=h)
-    assert r.status_code == 200 and r.json()["replaced"] == ["data", "meta"]
-    assert scalar(dsn, "SELECT data FROM modb.models WHERE id = %s", [model]) == [1, 2]
+    assert r.status_code == 201 and r.json()["replaced"] == ["data", "meta"], r.text
+    second = r.json()["id"]
+    assert r.json()["version"] == 2 and r.headers["location"] == f"/api/models/{second}"
+    assert scalar(dsn, "SELECT data FROM modb.models WHERE id = %s", [second]) == [1, 2]
+    assert scalar(dsn, "SELECT data FROM modb.models WHERE id = %s", [model]) == data
+    # the meta alone is replaced in place
+    r = client.put(f"/api/models/{second}", json={"meta": {"note": "m"}}, headers=h)
+    assert r.status_code == 200 and r.json()["id"] == second
+    assert scalar(dsn, "SELECT meta FROM modb.models WHERE id = %s", [second]) == {"note": "m"}
     assert client.put(f"/api/models/{model}", json={"meta": 3}, headers=h).status_code == 400
     assert (
         client.put(f"/api/models/{model}", json={"skeleton_id": 10**9}, headers=h).status_code
         == 404
     )
-    assert client.delete(f"/api/models/{model}", headers=h).status_code == 200
-    assert client.get(f"/api/models/{model}").status_code == 404
+    for ident in (second, model):
+        assert client.delete(f"/api/models/{ident}", headers=h).status_code == 200
+        assert client.get(f"/api/models/{ident}").status_code == 404
 
     r = client.post(
         "/api/graphs", json={"name": "hand", "kind": "transitions", "data": {}}, headers=h
