@@ -183,7 +183,7 @@ class Avatar:
                     if seams is None:  # a chain has one skeleton
                         source = self.library.get(choice.clip_id, choice.version, choice.mirrored)
                         seams = Seams(source.skeleton)
-                    rotations, translations = seams.inertialize(
+                    rotations, translations = seams.inertialize_after(
                         (played[0], played[1]), rotations, translations, choice.fps
                     )
                 elif treatment == "blend" and played:

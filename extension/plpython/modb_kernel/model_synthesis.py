@@ -1,0 +1,288 @@
+"""Synthesis from a graph of motion models (after the DFKI pipeline): step after step, the next
+primitive from the graph's transitions, its scores from the tree search and a refinement toward the
+step's constraints (step_search), its motion rebuilt, placed where the last step left the body and
+joined to it. Plain numpy and scipy: modb.synthesize_from_models runs it in the server, and the
+client's `modb synth --models` calls that function, so both give the same motion for a seed.
+
+The world: metres, Y up; the character starts with its pelvis above the origin facing +Z. Each step
+is placed so that its stance foot stands where the last step's swing foot landed and its first
+heading is the last step's last; the pose's jump at the seam (the step's first frame stands in for
+the last one played) decays over the new frames (inertialization), and meanwhile the pelvis is moved
+on the ground so that the stance foot keeps to the step's own path: the contact foot stays planted.
+
+Each step's constraints: the swing foot lands where the step, turned toward the current goal by up
+to what the model's steps turn, would put it; the body ends facing that way. A goal is reached when
+the pelvis comes within the arrival radius on the ground. After the last goal the graph's end node
+(type "end") plays once where the current one leads to one, then its idle node (type "idle") over
+and over; without those, the character finishes its step and stands in that pose.
+"""
+
+import numpy as np
+
+from . import inertialization, motion_model, quaternion
+from .step_search import StepModel, hip_heading, rotate_y, wrap
+
+MAX_SECONDS = 600.0
+ARRIVAL_RADIUS_M = 0.5
+TURN_REACH = 1.5  # a step asks at most this many times the turn 95% of the model's steps make
+
+
+class SynthesisError(ValueError):
+    pass
+
+
+def node_types(graph):
+    return {name: node.get("type", "standard") for name, node in graph["nodes"].items()}
+
+
+def successors(graph, name):
+    return [t["to"] for t in graph.get("transitions", []) if t["from"] == name]
+
+
+def start_node(graph, rng):
+    """A start node (one drawn with rng when several), else the first standard node."""
+    types = node_types(graph)
+    starts = [n for n, t in types.items() if t == "start"]
+    if starts:
+        return starts[rng.integers(len(starts))]
+    standard = [n for n, t in types.items() if t == "standard"]
+    if not standard:
+        raise SynthesisError("the graph has no start or standard node to walk from")
+    return standard[0]
+
+
+class Body:
+    """The motion so far: frames, and where the body stands at the end of the last step."""
+
+    def __init__(self, rig):
+        self.rig = rig
+        self.rotations, self.translations = [], []
+        self.stance = None  # (x, z) where the next step's stance foot stands
+        self.heading = 0.0  # the last frame's hip heading
+
+    @property
+    def n_frames(self):
+        return sum(len(r) for r in self.rotations)
+
+    def last_two(self):
+        r = np.concatenate(self.rotations[-2:])[-2:]
+        t = np.concatenate(self.translations[-2:])[-2:]
+        return r, t
+
+    def pelvis(self):
+        r, t = self.last_two()
+        return self.rig.positions(r[-1:], t[-1:])[0, self.rig.pelvis][[0, 2]]
+
+
+def placed(rig, rotations, translations, yaw, shift):
+    """The frames turned by yaw about +Y and moved by shift (x, z) on the ground: the top joints
+    carry it (a skeleton whose top joint has no translation cannot travel)."""
+    turn = quaternion.about_axis("Y", yaw)
+    rotations, translations = rotations.copy(), translations.copy()
+    for j, parent in enumerate(rig.parents):
+        if parent >= 0:
+            continue
+        if j not in rig.translated:
+            raise SynthesisError(f"top joint {rig.names[j]} has no translation: it cannot travel")
+        k = rig.translated.index(j)
+        rotations[:, j] = quaternion.multiply(turn[None], rotations[:, j])
+        moved = quaternion.rotate(np.broadcast_to(turn, (len(translations), 4)), translations[:, k])
+        translations[:, k] = moved + np.array([shift[0], 0.0, shift[1]])
+    return quaternion.canonical(rotations), translations
+
+
+class Synthesis:
+    def __init__(self, graph, models, rig, goals, seconds, seed, radius=ARRIVAL_RADIUS_M):
+        """graph: the graph document; models: node name -> StepModel; goals: [(x, z)]."""
+        if not 0 < seconds <= MAX_SECONDS:
+            raise SynthesisError(f"seconds is {seconds}: give more than 0, at most {MAX_SECONDS:g}")
+        rates = {m.model["fps"] for m in models.values()}
+        if len(rates) != 1:
+            raise SynthesisError(f"the graph's models are at {len(rates)} frame rates: retarget "
+                                 "their examples to one first")  # fmt: skip
+        self.graph, self.models, self.rig = graph, models, rig
+        self.fps = rates.pop()
+        self.goals = [np.asarray(g, dtype=np.float64) for g in goals]
+        self.seconds, self.radius = float(seconds), float(radius)
+        self.rng = np.random.default_rng(seed)
+        self.seams = inertialization.Seams(rig.parents, rig.offsets, rig.translated, rig.pelvis)
+        self.body = Body(rig)
+        self.steps, self.notes = [], []
+        self.goal = 0  # index of the current goal
+        self.reached = {}  # goal index -> frame reached
+        self.stood_from = None
+
+    @property
+    def wanted_frames(self):
+        return int(round(self.seconds * self.fps)) + 1
+
+    def run(self):
+        node = start_node(self.graph, self.rng)
+        while self.body.n_frames < self.wanted_frames and self.goal < len(self.goals):
+            self.step(node)
+            node = self.next_node(node)
+        if self.body.n_frames < self.wanted_frames:
+            self.finish(node)
+        return self
+
+    def next_node(self, node):
+        """The successor whose tree search meets the next step's constraints best."""
+        types = node_types(self.graph)
+        choices = [n for n in successors(self.graph, node) if types[n] in ("standard", "start")]
+        choices = [n for n in choices if types[n] == "standard"] or choices
+        if not choices:
+            raise SynthesisError(f'node "{node}" leads to no standard node: the walk cannot go on')
+        if len(choices) == 1:
+            return choices[0]
+        errors = []
+        for n in choices:
+            model = self.models[n]
+            target = self.target(model)
+            errors.append(model.errors(model.search(target, self.rng), target)[0])
+        return choices[int(np.argmin(errors))]
+
+    def target(self, model, toward=None):
+        """(landing x, z, turn) in the step's frame: the model's usual step turned toward the
+        current goal, by at most TURN_REACH times what its steps turn."""
+        if toward is None and self.goal < len(self.goals):
+            toward = self.goals[self.goal]
+        turn = 0.0
+        if toward is not None:
+            where = self.body.pelvis() if self.body.rotations else np.zeros(2)
+            to_goal = toward - where
+            travel = self.body.heading + np.arctan2(*model.usual_travel)
+            wanted = wrap(np.arctan2(to_goal[0], to_goal[1]) - travel)
+            reach = TURN_REACH * model.turn_reach
+            turn = float(np.clip(wanted, -reach, reach))
+        landing = rotate_y(model.usual_landing, turn / 2)
+        return np.array([landing[0], landing[1], model.usual_turn + turn])
+
+    def step(self, node, toward=None):
+        model = self.models[node]
+        target = self.target(model, toward)
+        found = model.search(target, self.rng)
+        refined = model.refine(found, target)
+        record = {
+            "node": node,
+            "model": model.model.get("name"),
+            "goal": self.goal + 1 if self.goal < len(self.goals) else None,
+            "first_frame": self.body.n_frames,
+            "target": target.round(4).tolist(),
+            "tree_error_m": float(model.errors(found, target)[0]),
+            "error_m": float(model.errors(refined, target)[0]),
+            "random_error_m": model.best_random(target, self.rng),
+            "mahalanobis": float(model.mahalanobis(refined)[0][0]),
+        }
+        self.add(model, refined)
+        record["n_frames"] = self.body.n_frames - record["first_frame"]
+        self.steps.append(record)
+
+    def add(self, model, scores):
+        """The motion of the scores placed after the body's last frame and joined to it."""
+        rig, body = self.rig, self.body
+        split = model.split
+        rotations, translations, _ = motion_model.frames_from_scores(model.model, scores[:split],
+                                                                     scores[split:])  # fmt: skip
+        positions = rig.positions(rotations[:1], translations[:1])[0]
+        first = float(hip_heading(positions, rig.left_hip, rig.right_hip))
+        stance = None if model.swing is None else ("right" if model.swing == "left" else "left")
+        if not body.rotations:  # the first step: its pelvis above the origin, facing +Z
+            anchor, at = positions[rig.pelvis][[0, 2]], np.zeros(2)
+        elif stance is None:
+            anchor, at = positions[rig.pelvis][[0, 2]], body.pelvis()
+        else:
+            anchor, at = positions[rig.ankle[stance]][[0, 2]], body.stance
+        yaw = body.heading - first
+        shift = at - rotate_y(anchor, yaw)
+        rotations, translations = placed(rig, rotations, translations, yaw, shift)
+        if body.rotations:
+            old_r, old_t = body.last_two()
+            planted = rig.positions(rotations, translations)
+            rotations, translations = self.seams.inertialize(old_r, old_t, rotations,
+                                                             translations, self.fps)  # fmt: skip
+            if stance is not None:
+                foot = rig.ankle[stance]
+                self.keep_planted(rotations, translations, foot, planted[:, foot])
+            rotations, translations = rotations[1:], translations[1:]
+        body.rotations.append(rotations)
+        body.translations.append(translations)
+        end = rig.positions(rotations[-1:], translations[-1:])[0]
+        body.heading = float(hip_heading(end, rig.left_hip, rig.right_hip))
+        if model.swing is not None:
+            body.stance = end[rig.ankle[model.swing]][[0, 2]]
+        self.mark_goals(rotations, translations)
+
+    def keep_planted(self, rotations, translations, foot, path):
+        """Moves the frames on the ground so that the foot joint follows `path` (its positions
+        before the seam's offsets): the offsets bend the legs, not the foot's contact."""
+        rig = self.rig
+        slip = (path - rig.positions(rotations, translations)[:, foot]) * np.array([1.0, 0.0, 1.0])
+        for j, parent in enumerate(rig.parents):
+            if parent < 0:
+                translations[:, rig.translated.index(j)] += slip
+
+    def mark_goals(self, rotations, translations):
+        """Goals the new frames reach (the pelvis within the radius on the ground), in order."""
+        if self.goal >= len(self.goals):
+            return
+        pelvis = self.rig.positions(rotations, translations)[:, self.rig.pelvis][:, [0, 2]]
+        start = self.body.n_frames - len(rotations)
+        for k, p in enumerate(pelvis):
+            current = self.goals[self.goal] if self.goal < len(self.goals) else None
+            if current is not None and np.linalg.norm(p - current) <= self.radius:
+                self.reached[self.goal] = start + k
+                self.goal += 1
+
+    def finish(self, node):
+        """After the last goal: the end node and then the idle node where the graph has them,
+        else the last pose held."""
+        types = node_types(self.graph)
+        ends = [n for n in successors(self.graph, node) if types[n] == "end"]
+        if ends:
+            self.step(ends[0], toward=None)
+            self.notes.append(f'the end node "{ends[0]}" played after the last goal')
+            idles = [n for n in successors(self.graph, ends[0]) if types[n] == "idle"]
+        else:
+            idles = [n for n in successors(self.graph, node) if types[n] == "idle"]
+        while idles and self.body.n_frames < self.wanted_frames:
+            self.step(idles[0], toward=None)
+        if idles:
+            self.notes.append(f'the idle node "{idles[0]}" played until the end')
+        if self.body.n_frames < self.wanted_frames:
+            self.stood_from = self.body.n_frames - 1
+            r, t = self.body.last_two()
+            hold = self.wanted_frames - self.body.n_frames
+            self.body.rotations.append(np.repeat(r[-1:], hold, axis=0))
+            self.body.translations.append(np.repeat(t[-1:], hold, axis=0))
+            self.notes.append(
+                f'the graph has no end or idle node after "{node}": the character finished its '
+                f"step and stands in that pose from {self.stood_from / self.fps:.2f} s"
+            )
+
+    def frames(self):
+        """(rotations, translations) of the strip, cut to the seconds asked for."""
+        n = self.wanted_frames
+        return np.concatenate(self.body.rotations)[:n], np.concatenate(self.body.translations)[:n]
+
+    def report(self):
+        return {
+            "fps": self.fps,
+            "seconds": self.seconds,
+            "goals": [g.tolist() for g in self.goals],
+            "reached": {str(k + 1): v for k, v in self.reached.items()},
+            "steps": self.steps,
+            "stood_from_frame": self.stood_from,
+            "notes": self.notes,
+        }
+
+
+def step_models(graph, documents, rig):
+    """node name -> StepModel, from documents: model id -> (model document, its tree)."""
+    out = {}
+    for name, node in graph["nodes"].items():
+        doc, tree = documents[node["model_id"]]
+        if not tree:
+            raise SynthesisError(f'the model of node "{name}" has no acceleration tree: '
+                                 "rebuild it (modb model tree NAME)")  # fmt: skip
+        out[name] = StepModel(doc, tree, rig)
+    return out
