@@ -17,10 +17,13 @@ the pelvis comes within the arrival radius on the ground. After the last goal th
 and over; without those, the character finishes its step and stands in that pose.
 """
 
+import json
+
 import numpy as np
 
 from . import inertialization, motion_model, quaternion
-from .step_search import StepModel, hip_heading, rotate_y, wrap
+from .database import Statement, StoreError
+from .step_search import Rig, StepModel, hip_heading, rotate_y, wrap
 
 MAX_SECONDS = 600.0
 ARRIVAL_RADIUS_M = 0.5
@@ -165,6 +168,7 @@ class Synthesis:
         record = {
             "node": node,
             "model": model.model.get("name"),
+            "version": model.model.get("version"),
             "goal": self.goal + 1 if self.goal < len(self.goals) else None,
             "first_frame": self.body.n_frames,
             "target": target.round(4).tolist(),
@@ -286,3 +290,63 @@ def step_models(graph, documents, rig):
                                  "rebuild it (modb model tree NAME)")  # fmt: skip
         out[name] = StepModel(doc, tree, rig)
     return out
+
+
+GRAPH = Statement(
+    "SELECT data::text AS data, skeleton_id FROM modb.graphs WHERE name = $1 AND kind = 'models'",
+    ("text",),
+)
+MODELS = Statement(
+    """SELECT m.id, m.name, m.version, m.data::text AS data, (m.meta->'tree')::text AS tree,
+              s.hierarchy::text AS hierarchy, s.joint_map::text AS joint_map
+         FROM modb.models m JOIN modb.skeletons s ON s.id = m.skeleton_id
+        WHERE m.id = ANY ($1)""",
+    ("bigint[]",),
+)
+
+
+def synthesize_stored(db, graph_name, goals, seconds, seed, radius=ARRIVAL_RADIUS_M):
+    """[(fps, n_frames, rotations, translations, report)]: what modb.synthesize_from_models
+    returns (its COMMENT says what)."""
+    found = db.run(GRAPH, [graph_name])
+    if not found:
+        raise StoreError(f'no graph of models "{graph_name}"', sqlstate="P0002",
+                         hint="modb model graph list names them; modb model graph NAME "
+                         "--collection C builds one")  # fmt: skip
+    if seed is None or seed < 0:
+        raise StoreError(f"seed is {seed}: give a whole number >= 0", sqlstate="22023")
+    if not goals or any(g is None or len(g) != 2 or None in g for g in goals):
+        raise StoreError("goals must be a non-empty float8[][2] of world X and Z in metres, e.g. "
+                         "ARRAY[[0, 6], [5, 8]]", sqlstate="22023")  # fmt: skip
+    if radius is None or not 0 < radius <= 10:
+        raise StoreError(f"arrival_radius is {radius}: give metres above 0, at most 10",
+                         sqlstate="22023")  # fmt: skip
+    graph = json.loads(found[0]["data"])
+    ids = sorted({int(n["model_id"]) for n in graph["nodes"].values()})
+    rows = {r["id"]: r for r in db.run(MODELS, [ids])}
+    missing = [i for i in ids if i not in rows]
+    if missing:
+        raise StoreError(f'graph "{graph_name}" names motion model {missing[0]}, which is gone',
+                         hint="build the graph again (modb model graph NAME --collection C)",
+                         sqlstate="P0002")  # fmt: skip
+    documents = {}
+    for i, r in rows.items():
+        doc = json.loads(r["data"])
+        doc["name"], doc["version"] = r["name"], r["version"]
+        documents[i] = (doc, json.loads(r["tree"]) if r["tree"] else None)
+    first = rows[ids[0]]
+    try:
+        rig = Rig({"hierarchy": json.loads(first["hierarchy"]),
+                   "joint_map": json.loads(first["joint_map"])})  # fmt: skip
+        synthesis = Synthesis(graph, step_models(graph, documents, rig), rig, goals, seconds, seed,
+                              radius).run()  # fmt: skip
+    except ValueError as e:
+        raise StoreError(f'graph "{graph_name}": {e}', sqlstate="22023") from None
+    rotations, translations = synthesis.frames()
+    return [(
+        synthesis.fps,
+        len(rotations),
+        rotations.astype(np.float32).tolist(),
+        translations.astype(np.float32).tolist() if translations.shape[1] else None,
+        json.dumps(synthesis.report()),
+    )]  # fmt: skip

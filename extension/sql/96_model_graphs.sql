@@ -1,0 +1,124 @@
+-- Graphs of motion models (0.23.0; after the DFKI pipeline): a modb.graphs row of kind 'models' whose data
+-- names motion models (modb.models ids) as nodes and the transitions allowed between them:
+--   {"nodes": {"left_step": {"model_id": 8, "type": "standard", "action": "walk"}, ...},
+--    "transitions": [{"from": "left_step", "to": "right_step"}, ...]}
+-- A node's type is start (a walk may begin there), end (played once after the last goal), idle (played
+-- over and over after that) or standard. The database checks each graph it is given, so every writer
+-- (SQL, REST, the command line, the web view's editor) meets the same check, in words.
+
+CREATE FUNCTION modb.model_graph_problem(data jsonb, skeleton_id bigint)
+RETURNS text
+LANGUAGE plpgsql STABLE PARALLEL SAFE
+AS $$
+DECLARE
+    node record;
+    model record;
+    edge record;
+    names text[];
+BEGIN
+    IF jsonb_typeof(data) <> 'object' OR jsonb_typeof(data->'nodes') IS DISTINCT FROM 'object'
+       OR data->'nodes' = '{}' THEN
+        RETURN '"nodes" must be an object naming at least one node: {"name": {"model_id": id, "type": ...}}';
+    END IF;
+    IF skeleton_id IS NULL THEN
+        RETURN 'a graph of models names its skeleton (skeleton_id): every model must be of it';
+    END IF;
+    names := ARRAY(SELECT jsonb_object_keys(data->'nodes'));
+    FOR node IN SELECT key AS name, value AS spec FROM jsonb_each(data->'nodes') ORDER BY key LOOP
+        IF jsonb_typeof(node.spec) <> 'object' OR jsonb_typeof(node.spec->'model_id') IS DISTINCT FROM 'number' THEN
+            RETURN format('node "%s" must be {"model_id": a modb.models id, "type": ...}', node.name);
+        END IF;
+        IF coalesce(node.spec->>'type', 'standard') NOT IN ('start', 'end', 'idle', 'standard') THEN
+            RETURN format('node "%s": type "%s" is none of start, end, idle, standard', node.name, node.spec->>'type');
+        END IF;
+        SELECT m.id, m.name, m.kind, m.skeleton_id INTO model
+          FROM modb.models m WHERE m.id = (node.spec->>'model_id')::numeric;
+        IF NOT FOUND OR model.kind <> 'motion_primitive' THEN
+            RETURN format('node "%s": there is no motion model with id %s (modb model list names them)',
+                          node.name, node.spec->>'model_id');
+        END IF;
+        IF model.skeleton_id IS DISTINCT FROM model_graph_problem.skeleton_id THEN
+            RETURN format('node "%s": model %s ("%s") is of skeleton %s, the graph of skeleton %s', node.name,
+                          model.id, model.name, model.skeleton_id, model_graph_problem.skeleton_id);
+        END IF;
+    END LOOP;
+    IF data ? 'transitions' AND jsonb_typeof(data->'transitions') <> 'array' THEN
+        RETURN '"transitions" must be a list of {"from": node, "to": node}';
+    END IF;
+    FOR edge IN SELECT ordinality AS k, value AS spec
+                  FROM jsonb_array_elements(coalesce(data->'transitions', '[]')) WITH ORDINALITY LOOP
+        IF jsonb_typeof(edge.spec) <> 'object' OR NOT (edge.spec->>'from') = ANY (names)
+           OR NOT (edge.spec->>'to') = ANY (names) THEN
+            RETURN format('transition %s (%s) must be {"from": node, "to": node} between nodes of the graph',
+                          edge.k, edge.spec);
+        END IF;
+    END LOOP;
+    SELECT n.key INTO node FROM jsonb_each(data->'nodes') AS n
+     WHERE coalesce(n.value->>'type', 'standard') <> 'start'
+       AND NOT EXISTS (SELECT FROM jsonb_array_elements(coalesce(data->'transitions', '[]')) t
+                        WHERE t->>'to' = n.key)
+     ORDER BY n.key LIMIT 1;
+    IF FOUND THEN
+        RETURN format('node "%s" is reached by no transition: add one to it, or mark it a start node', node.key);
+    END IF;
+    RETURN NULL;
+END
+$$;
+COMMENT ON FUNCTION modb.model_graph_problem(jsonb, bigint) IS
+    'Why a graph of models (modb.graphs kind ''models'') is broken: a malformed document, a node naming no motion model or one of another skeleton, a transition between unknown nodes, a node other than a start node that no transition reaches; NULL when it is sound';
+
+CREATE FUNCTION modb.model_graphs_check()
+RETURNS trigger
+LANGUAGE plpgsql VOLATILE PARALLEL UNSAFE
+AS $$
+DECLARE
+    problem text := modb.model_graph_problem(NEW.data, NEW.skeleton_id);
+BEGIN
+    IF problem IS NOT NULL THEN
+        RAISE EXCEPTION 'graph of models "%" is broken: %', NEW.name, problem
+            USING ERRCODE = 'check_violation',
+                  HINT = '`modb model graph NAME --collection C` builds a sound one for the step models of a collection';
+    END IF;
+    RETURN NEW;
+END
+$$;
+COMMENT ON FUNCTION modb.model_graphs_check() IS
+    'Trigger of modb.graphs: refuses a graph of models that modb.model_graph_problem finds broken, with the reason';
+CREATE TRIGGER model_graphs_check BEFORE INSERT OR UPDATE ON modb.graphs
+    FOR EACH ROW WHEN (NEW.kind = 'models') EXECUTE FUNCTION modb.model_graphs_check();
+
+CREATE FUNCTION modb._synthesize_from_models(graph text, goals float8[], seconds float8, seed int,
+                                             arrival_radius float8)
+RETURNS TABLE (fps float8, n_frames int, rotations real[], translations real[], report jsonb)
+LANGUAGE plpython3u STABLE PARALLEL SAFE
+AS $py$
+#@modb_kernel
+D = kernel.database
+try:
+    return kernel.model_synthesis.synthesize_stored(D.Server(plpy), graph, goals, seconds, seed, arrival_radius)
+except D.StoreError as e:
+    D.raise_in_plpy(plpy, e)
+$py$;
+COMMENT ON FUNCTION modb._synthesize_from_models(text, float8[], float8, int, float8) IS
+    'Internal: what modb.synthesize_from_models runs (PL/Python); call that one, whose errors read without Python''s exception names';
+CREATE FUNCTION modb.synthesize_from_models(graph text, goals float8[], seconds float8, seed int DEFAULT 0,
+                                            arrival_radius float8 DEFAULT 0.5)
+RETURNS TABLE (fps float8, n_frames int, rotations real[], translations real[], report jsonb)
+LANGUAGE plpgsql STABLE PARALLEL SAFE
+AS $$
+DECLARE
+    message text; error_state text; detail text; hint text;
+BEGIN
+    RETURN QUERY SELECT * FROM modb._synthesize_from_models(graph, goals, seconds, seed, arrival_radius);
+EXCEPTION WHEN OTHERS THEN  -- the error again, in words (15_errors_in_words.sql)
+    GET STACKED DIAGNOSTICS message = MESSAGE_TEXT, error_state = RETURNED_SQLSTATE, detail = PG_EXCEPTION_DETAIL,
+                            hint = PG_EXCEPTION_HINT;
+    PERFORM modb.raise_in_words(message, error_state, detail, hint);
+END
+$$;
+COMMENT ON FUNCTION modb.synthesize_from_models(text, float8[], float8, int, float8) IS
+    'A strip of `seconds` (at most 600) walked by the graph of models named graph (modb.graphs kind ''models'') through goals (float8[][2], world X and Z in metres, followed in order; the character starts with its pelvis above the origin facing +Z): step after step, the next model from the graph''s transitions, its scores found in its k-means tree and refined toward the step''s constraints, placed on the stance foot and joined by inertialization. One row: the frames as clips keep them (rotations real[n_frames][n_joints][4], translations real[n_frames][n_translated][3]) and a report (per step its node, constraint targets and errors against the best of 300 random samples; goals reached; notes). The same arguments give the same strip';
+REVOKE EXECUTE ON FUNCTION modb._synthesize_from_models(text, float8[], float8, int, float8) FROM PUBLIC;
+REVOKE EXECUTE ON FUNCTION modb.synthesize_from_models(text, float8[], float8, int, float8) FROM PUBLIC;
+GRANT EXECUTE ON FUNCTION modb._synthesize_from_models(text, float8[], float8, int, float8) TO modb_reader;
+GRANT EXECUTE ON FUNCTION modb.synthesize_from_models(text, float8[], float8, int, float8) TO modb_reader;
