@@ -34,7 +34,16 @@ from starlette.staticfiles import StaticFiles
 from modb.database import pgarray
 from modb.database.connection import connect
 from modb.database.read_nodes import ReadNodes
-from . import api, catalog_writes, database_errors, downloads, job_routes, model_routes, openapi
+from . import (
+    api,
+    catalog_writes,
+    database_errors,
+    downloads,
+    job_routes,
+    model_graph_routes,
+    model_routes,
+    openapi,
+)
 from .avatar_socket import avatar_endpoint, default_max_avatars
 from .auth import Tokens
 from .body_rules import Invalid
@@ -217,8 +226,8 @@ VIEWS: dict[str, View] = {
     "/api/skeletons/{ident}": _by_id(api.skeleton, "skeleton"),
     "/api/models": _listing(api.models),
     "/api/models/{ident}": _by_id(api.model, "model"),
-    "/api/graphs": _listing(api.graphs),
-    "/api/graphs/{ident}": _by_id(api.graph, "graph"),
+    "/api/graphs": model_graph_routes.listing,  # ?kind=models: the graphs of models
+    "/api/graphs/{ident}": model_graph_routes.one,  # a graph of models with its ETag
     "/api/profiles": _listing(api.profiles),
     "/api/edit-scripts": _listing(api.edit_scripts),
     "/api/processed-data": _processed,

@@ -1,8 +1,9 @@
 """The REST interface's catalogue writes: collections (create, rename, move, delete), clips and
 versions (delete, make an older version current), a skeleton's joint map and mirror pairs (with an
-ETag), and `models` and `graphs` rows (create, replace, delete). Like every write: a loader token,
-the writer role's connection, one transaction with its modb.audit_log row, and errors as
-400/404/409 with the database's message."""
+ETag), and `models` and `graphs` rows (create, replace, delete; a graph of models is replaced only
+with the ETag it was read with, model_graph_routes). Like every write: a loader token, the writer
+role's connection, one transaction with its modb.audit_log row, and errors as 400/404/409 with the
+database's message."""
 
 from __future__ import annotations
 
@@ -23,6 +24,7 @@ from modb.access import audit
 from modb.clips import collection_clips
 from modb.editing import catalog
 
+from . import model_graph_routes
 from .api import BadRequest, NotFound
 from .auth import Tokens
 from .bodies import authorized_json
@@ -360,12 +362,16 @@ def _create_row(table: str):
             ),
             list(fields.values()),
         ).fetchone()
+        headers = None
+        if table == "graphs" and fields["kind"] == model_graph_routes.KIND:  # checked, kept
+            headers = {"ETag": model_graph_routes.current_etag(conn, made)}
         return Done(
             {"id": made, "name": fields["name"], "kind": fields["kind"]},
             f"{table[:-1]} create",
             f"{table[:-1]} {made}",
             {"name": fields["name"], "kind": fields["kind"]},
             201,
+            headers,
         )
 
     return handler
@@ -393,6 +399,9 @@ def _replace_row(table: str):
                 "a graph's name and kind stay; a transition graph is rebuilt, not replaced "
                 "(`modb graph build NAME`)"
             )
+        models_graph = table == "graphs" and kind == model_graph_routes.KIND
+        if models_graph:  # 428 or 409 unless it is the graph the editor read
+            model_graph_routes.check_if_match(conn, request, ident)
         if table == "models" and fields.keys() - {"meta"}:
             return _new_model_version(conn, ident, name, kind, fields)
         if {"name", "kind"} & fields.keys():
@@ -407,12 +416,18 @@ def _replace_row(table: str):
                 sql.Identifier("modb", table), assignments
             ),
             [*fields.values(), ident],
-        )
+        )  # a graph of models the database finds broken is refused here (check_violation: 400)
+        body: dict[str, Any] = {"id": ident, "replaced": sorted(fields)}
+        headers = None
+        if models_graph:
+            body["etag"] = model_graph_routes.current_etag(conn, ident)
+            headers = {"ETag": body["etag"]}
         return Done(
-            {"id": ident, "replaced": sorted(fields)},
+            body,
             f"{table[:-1]} replace",
             f"{table[:-1]} {ident}",
             {"fields": sorted(fields), "name": name, "kind": kind},
+            headers=headers,
         )
 
     return handler

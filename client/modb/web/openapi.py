@@ -83,12 +83,15 @@ def _read(summary: str, *params: dict[str, Any], media: str = "application/json"
     return {"get": op}
 
 
+_WRITE_ERRORS = (400, 401, 403, 404, 409, 503)
+
+
 def _write(
     summary: str,
     *params: dict[str, Any],
     body: dict | None = None,
     ok: str = "done",
-    errors: tuple[int, ...] = (400, 401, 403, 404, 409, 503),
+    errors: tuple[int, ...] = _WRITE_ERRORS,
     about: str = "",
 ) -> dict:
     op: dict[str, Any] = {
@@ -125,6 +128,16 @@ COMMANDS = {
 ROW = {"name": TEXT, "kind": TEXT, "data": {}, "meta": {"type": "object"},
        "skeleton_id": {"type": ["integer", "null"], "minimum": 1}}  # fmt: skip
 IF_MATCH = {"name": "If-Match", "in": "header", "required": True, "schema": {"type": "string"}}
+GRAPH_IF_MATCH = {
+    **IF_MATCH,
+    "required": False,
+    "description": "a graph of models: the ETag its GET gave (required for one)",
+}
+MODEL_GRAPHS = (
+    "A graph of models (kind models) is replaced only with If-Match naming the ETag of the graph "
+    "read (428 without; 409 with the current ETag when it changed since). The database checks it "
+    "(modb.model_graph_problem): a broken one is refused, 400 with its reason."
+)
 COLLECTION_PATH = {"name": "path", "in": "path", "required": True, "schema": {"type": "string"},
                    "description": 'a path like "bandai/walks", URL-encoded'}  # fmt: skip
 
@@ -264,15 +277,21 @@ def catalog_writes() -> dict[str, dict[str, Any]]:
             "post": _write(
                 f"create a {table[:-1]} row{note}",
                 body=_object(["name", "kind", "data"], **ROW),
-                ok="its id (201)",
+                ok="its id (201)" + ("; a graph of models' ETag" if table == "graphs" else ""),
+                about="The database checks a graph of models (400 with why it is broken)."
+                if table == "graphs"
+                else "",
             )
         }
+        graph = table == "graphs"
         out[f"/api/{table}/{{ident}}"] = {
             "put": _write(
                 f"replace fields of a {table[:-1]} row{note}",
-                one,
+                *((one, GRAPH_IF_MATCH) if graph else (one,)),
                 body=_object([], **ROW),
-                ok="the fields replaced",
+                ok="the fields replaced" + ("; a graph of models' new ETag" if graph else ""),
+                errors=(400, 401, 403, 404, 409, 428, 503) if graph else _WRITE_ERRORS,
+                about=MODEL_GRAPHS if graph else "",
             ),
             "delete": _write(f"delete a {table[:-1]} row", one, ok="its id"),
         }
@@ -348,8 +367,14 @@ def schema() -> dict[str, Any]:
         ),
         "/api/models": _read("every model"),
         "/api/models/{ident}": _read("one model", _id("ident", "model id")),
-        "/api/graphs": _read("every graph"),
-        "/api/graphs/{ident}": _read("one graph", _id("ident", "graph id")),
+        "/api/graphs": _read(
+            "every graph; graphs of models with how many nodes and transitions they have",
+            _query("kind", "only graphs of this kind (models, transitions...)", {"type": "string"}),
+        ),
+        "/api/graphs/{ident}": _read(
+            "one graph; a graph of models (kind models) with its ETag (If-Match of a PUT)",
+            _id("ident", "graph id"),
+        ),
         "/api/profiles": _read("the match profiles"),
         "/api/edit-scripts": _read("the stored edit scripts"),
         "/api/jobs": {
