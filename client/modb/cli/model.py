@@ -67,10 +67,21 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     tree.add_argument("name", metavar="NAME")
     tree.add_argument("--version", type=VERSION, help="the version (default: the latest)")
     tree.add_argument("--seed", type=SEED, default=0, help="the samples' seed (0)")
+    graph = actions.add_parser(
+        "graph",
+        help="graphs of models: NAME --collection C builds one for the collection's step models; "
+        "list, show NAME, export NAME --out FILE, import FILE, delete NAME",
+    )
+    graph.add_argument("target", metavar="NAME|list|show|export|import|delete")
+    graph.add_argument("argument", nargs="?", metavar="NAME|FILE")
+    graph.add_argument("--collection", help="NAME: the collection whose step models it joins")
+    graph.add_argument("--out", metavar="FILE", help="export: the JSON file ('-': stdout)")
+    graph.add_argument("--name", help="import: store it under this name (default: its own)")
     model.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    from modb.models.graphs import GraphError
     from modb.models.store import BadModelFile, ModelNotFound
 
     with connect(args) as conn:
@@ -78,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
             return 2
         try:
             return ACTIONS[args.action](conn, args)
-        except (ModelNotFound, BadModelFile) as e:
+        except (ModelNotFound, BadModelFile, GraphError) as e:
             print(f"modb model {args.action}: {e}", file=sys.stderr)
             return 2
 
@@ -235,5 +246,63 @@ def _tree(conn: psycopg.Connection, args: argparse.Namespace) -> int:
     return 0
 
 
+def _graph(conn: psycopg.Connection, args: argparse.Namespace) -> int:
+    from modb.models import graphs as G
+    from modb.output import open_output
+
+    action, argument = args.target, args.argument
+    if action == "list":
+        for g in G.listing(conn):
+            print(g.describe())
+        return 0
+    if action in ("show", "export", "import", "delete") and argument is None:
+        what = "FILE" if action == "import" else "NAME"
+        raise G.GraphError(f"say which: modb model graph {action} {what}")
+    if action == "show":
+        g = G.load(conn, argument)
+        print(g.describe())
+        print(json.dumps(g.data, indent=2))
+    elif action == "export":
+        if not args.out:
+            raise G.GraphError("export: say where with --out FILE ('-': standard output)")
+        document = G.export_document(conn, argument)
+        with open_output(args.out, "w", allow_stdout=True) as f:
+            f.write(json.dumps(document, indent=2) + "\n")
+        if args.out != "-":
+            print(f"graph of models {argument}: {args.out}")
+    elif action == "import":
+        try:
+            document = json.loads(Path(argument).read_text())
+        except (OSError, UnicodeDecodeError) as e:
+            raise G.GraphError(f"{argument}: {e}") from None
+        except json.JSONDecodeError as e:
+            raise G.GraphError(f"{argument}: line {e.lineno}: not JSON ({e.msg})") from None
+        print(G.import_document(conn, document, args.name).describe())
+    elif action == "delete":
+        G.delete(conn, argument)
+        print(f"deleted graph of models {argument}")
+    else:
+        if argument is not None or not args.collection:
+            raise G.GraphError("build a graph with: modb model graph NAME --collection C")
+        print(G.build(conn, action, args.collection).describe())
+    return 0
+
+
+def _graph_refused(run_graph):
+    """The database's refusal of a broken graph, in its words."""
+
+    def wrapped(conn: psycopg.Connection, args: argparse.Namespace) -> int:
+        try:
+            return run_graph(conn, args)
+        except psycopg.Error as e:
+            hint = e.diag.message_hint
+            print(f"modb model graph: {e.diag.message_primary}" + (f" ({hint})" if hint else ""),
+                  file=sys.stderr)  # fmt: skip
+            return 2
+
+    return wrapped
+
+
 ACTIONS = {"build": _build, "list": _list, "show": _show, "delete": _delete, "export": _export,
-           "import": _import, "sample": _sample, "tree": _tree}  # fmt: skip
+           "import": _import, "sample": _sample, "tree": _tree,
+           "graph": _graph_refused(_graph)}  # fmt: skip

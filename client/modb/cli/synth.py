@@ -39,6 +39,10 @@ EXCLUDE_SECONDS = Number(0.0, MAX_EXCLUDE_SECONDS, unit="seconds")
 LEAD_TIME = Number(0.0, MAX_LEAD_TIME, unit="seconds")
 BLEND = whole(0, MAX_BLEND_FRAMES, "frames")
 SNIPPET = whole(1, MAX_ID)
+SEED = whole(0, 2**31 - 1)
+# options of snippet selection, which a walk on a graph of models has no use for
+SELECTION_ONLY = ("collection", "start", "profile", "graph", "no_graph", "exclude_seconds",
+                  "lead_time", "seam", "blend", "annotation")  # fmt: skip
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -73,7 +77,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         type=SNIPPET,
         help="the first snippet, a modb.snippets id (default: the best one for the first goal)",
     )
-    synth.add_argument("--profile", default="default", help="match profile (modb.match_profiles)")
+    synth.add_argument(
+        "--models",
+        metavar="GRAPH",
+        help="walk a graph of motion models (modb model graph) instead of selecting snippets: "
+        "the server's modb.synthesize_from_models, the same seed the same walk",
+    )
+    synth.add_argument(
+        "--seed", type=SEED, help="with --models: the seed of the walk's choices (default 0)"
+    )
+    synth.add_argument("--profile", help="match profile (modb.match_profiles; default: default)")
     graph = synth.add_mutually_exclusive_group()
     graph.add_argument(
         "--graph",
@@ -94,13 +107,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     synth.add_argument(
         "--exclude-seconds",
         type=EXCLUDE_SECONDS,
-        default=2.0,
         help=f"do not replay frames played this recently ({EXCLUDE_SECONDS.span}; default 2)",
     )
     synth.add_argument(
         "--lead-time",
         type=LEAD_TIME,
-        default=0.0,
         help="issue each query this many seconds before the current snippet ends "
         f"({LEAD_TIME.span}; default 0)",
     )
@@ -113,7 +124,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     synth.add_argument(
         "--blend",
         type=BLEND,
-        default=0,
         metavar="FRAMES",
         help=f"with --seam blend: over this many frames ({BLEND.span}; given alone, it means "
         "--seam blend)",
@@ -217,15 +227,21 @@ def run(args: argparse.Namespace) -> int:
         return 2
     if not (writable("synth", args.out) and writable("synth", args.report_json)):
         return 1
+    if args.models is not None:
+        return run_models(args, goals)
+    if args.seed is not None:
+        print("modb synth: --seed goes with --models (snippet selection draws nothing at random)",
+              file=sys.stderr)  # fmt: skip
+        return 2
     try:
         settings = Settings(
-            profile=args.profile,
+            profile=args.profile or "default",
             collection=args.collection,
             graph=args.graph,
             arrival_radius=args.arrival_radius,
-            exclude_seconds=args.exclude_seconds,
-            lead_time=args.lead_time,
-            blend_frames=args.blend,
+            exclude_seconds=2.0 if args.exclude_seconds is None else args.exclude_seconds,
+            lead_time=args.lead_time or 0.0,
+            blend_frames=args.blend or 0,
             seam=args.seam or ("blend" if args.blend else "inertialize"),
         )
     except ValueError as e:  # named by the setting: --lead-time is lead_time
@@ -289,3 +305,56 @@ def run(args: argparse.Namespace) -> int:
                 )
                 return 1
     return 1 if result.stopped else 0
+
+
+def run_models(args: argparse.Namespace, goals: list[Goal]) -> int:
+    """`modb synth --models GRAPH`: the walk modb.synthesize_from_models makes, written out."""
+    import psycopg
+
+    from modb.resample import at_fps
+    from modb.synthesis.foot_lock import lock_feet
+    from modb.synthesis.from_models import Source, measure, synthesize
+    from modb.synthesis.root_motion import with_root_motion
+
+    from .synth_report import format_model_report, write_model_report_json
+
+    used = [o for o in SELECTION_ONLY if getattr(args, o) not in (None, [], False)]
+    given = [f"--{o.replace('_', '-')}" for o in used]
+    if given:
+        print(f"modb synth: {', '.join(given)} select{'s' if len(given) == 1 else ''} snippets: "
+              "a walk on a graph of models (--models) has no use for "
+              f"{'it' if len(given) == 1 else 'them'}", file=sys.stderr)  # fmt: skip
+        return 2
+    seed = args.seed or 0
+    with connect(args) as conn:
+        try:
+            strip = synthesize(conn, args.models, [(g[0], g[-1]) for g in goals], args.seconds,
+                               seed, args.arrival_radius)  # fmt: skip
+        except psycopg.Error as e:
+            hint = e.diag.message_hint
+            print(f"modb synth: {e.diag.message_primary}" + (f" ({hint})" if hint else ""),
+                  file=sys.stderr)  # fmt: skip
+            return 1
+        for note in strip.report["notes"]:
+            print(f"modb synth: {note}", file=sys.stderr)
+        motion = lock_feet(strip.motion) if args.foot_lock else strip.motion
+        out = motion if args.in_place else with_root_motion(motion)
+        if args.fps:
+            out = at_fps(out, args.fps)
+        if not write_motion_file("synth", out, args.out, motion_format(args.out)):
+            return 1
+        print(f"wrote {'the strip to standard output' if args.out == '-' else args.out}: "
+              f"{out.n_frames} frames at {out.fps:g} fps ({(out.n_frames - 1) / out.fps:.1f} s), "
+              f"{len(strip.report['steps'])} steps of graph {args.models} (seed {seed})",
+              file=sys.stderr)  # fmt: skip
+        if args.report or args.report_json:
+            try:
+                figures = measure(strip, Source.of(conn, args.models))
+            except ValueError as e:
+                print(f"modb synth: no quality report: {e}", file=sys.stderr)
+                return 1
+            if args.report:
+                print(format_model_report(figures, strip.report))
+            if args.report_json:
+                write_model_report_json(args.report_json, figures, strip.report)
+    return 0

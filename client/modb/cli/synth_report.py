@@ -189,3 +189,41 @@ def print_progress(total: float) -> Callable[[float], None]:
             bar.close()
 
     return update
+
+
+def format_model_report(figures: dict, server_report: dict) -> str:
+    """`modb synth --models --report`: the steps and the figures against the source's."""
+    lines = [f"graph of models {figures['graph']} (seed {figures['seed']}): "
+             f"{figures['steps']} steps, {figures['seconds']:.1f} s"]  # fmt: skip
+    for s in server_report["steps"]:
+        lines.append(
+            f"  frame {s['first_frame']:>6}  {s['node']:<14} goal {s['goal'] or '-'}  constraint "
+            f"error {100 * s['error_m']:5.1f} cm (tree {100 * s['tree_error_m']:5.1f}, best of 300 "
+            f"random {100 * s['random_error_m']:5.1f})"
+        )
+    for g in figures["goals"]:
+        when = (f"reached in {g['seconds']:.1f} s ({g['ratio']:.2f}x the straight line)"
+                if g["reached"] else f"not reached (closest {g['closest_m']:.2f} m)")  # fmt: skip
+        lines.append(f"goal {g['goal']} ({g['target'][0]:g}, {g['target'][1]:g}), "
+                     f"{g['distance_m']:.1f} m away: {when}")  # fmt: skip
+    c = figures["constraint_error_median"]
+    lines += [
+        f"constraint error, median: {100 * c['refined_m']:.1f} cm (tree alone "
+        f"{100 * c['tree_m']:.1f}, best of 300 random draws {100 * c['best_of_300_random_m']:.1f})",
+        f"worst pose jump {100 * figures['pose_jump_max']:.1f} cm per frame (source p99.9 "
+        f"{100 * figures['source_pose_jump_p999']:.1f})",
+        f"stance-foot sliding {100 * figures['stance_sliding']:.1f} cm/s (source "
+        f"{100 * figures['source_stance_sliding']:.1f}); foot skating while low "
+        f"{100 * figures['foot_skating']:.1f} cm/s "
+        f"(source {100 * figures['source_foot_skating']:.1f})",
+    ]
+    if figures["stood_from_seconds"] is not None:
+        lines.append(f"stands in its last pose from {figures['stood_from_seconds']:.1f} s")
+    lines += [f"aim {'met' if ok else 'MISSED' if ok is False else 'not judged'}: {aim}"
+              for aim, ok in figures["aims"].items()]  # fmt: skip
+    return "\n".join(lines)
+
+
+def write_model_report_json(path: str, figures: dict, server_report: dict) -> None:
+    with open_output(path, "w", allow_stdout=True) as f:
+        f.write(json.dumps({"report": figures, "steps": server_report["steps"]}, indent=2) + "\n")

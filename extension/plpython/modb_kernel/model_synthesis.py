@@ -168,6 +168,7 @@ class Synthesis:
         record = {
             "node": node,
             "model": model.model.get("name"),
+            "swing": model.swing,
             "version": model.model.get("version"),
             "goal": self.goal + 1 if self.goal < len(self.goals) else None,
             "first_frame": self.body.n_frames,

@@ -60,9 +60,30 @@ class Rig:
         self.legs = [tuple(index[f"{side}_{part}"] for part in ("hip", "knee", "ankle", "toe"))
                      for side in ("left", "right")]  # fmt: skip
 
+        # the constraints read these joints only: forward kinematics of them and their ancestors
+        chain = set()
+        for j in (self.pelvis, self.left_hip, self.right_hip, *self.ankle.values()):
+            while j >= 0 and j not in chain:
+                chain.add(j)
+                j = self.parents[j]
+        self.chain = sorted(chain)
+        at = {j: k for k, j in enumerate(self.chain)}
+        self.chain_parents = [at.get(self.parents[j], -1) for j in self.chain]
+        self.chain_translated = [k for k, j in enumerate(self.chain) if j in self.translated]
+        self.chain_translation_columns = [self.translated.index(j) for j in self.chain
+                                          if j in self.translated]  # fmt: skip
+        self.at = at
+
     def positions(self, rotations, translations):
         return kinematics.world_positions(self.parents, self.offsets, rotations, translations,
                                           self.translated)  # fmt: skip
+
+    def chain_positions(self, rotations, translations):
+        """World positions of the chain's joints only (index them through self.at)."""
+        return kinematics.world_positions(
+            self.chain_parents, self.offsets[self.chain], rotations[..., self.chain, :],
+            translations[..., self.chain_translation_columns, :], self.chain_translated,
+        )  # fmt: skip
 
 
 def swing_side(primitive):
@@ -123,21 +144,22 @@ class StepModel:
         pelvis's travel."""
         rotations, translations = self.end_frames(scores)
         m = len(rotations)
-        positions = self.rig.positions(
+        rig, at = self.rig, self.rig.at
+        positions = rig.chain_positions(
             rotations.reshape(2 * m, *rotations.shape[2:]),
             translations.reshape(2 * m, *translations.shape[2:]),
         )
         positions = positions.reshape(m, 2, -1, 3)
-        headings = hip_heading(positions, self.rig.left_hip, self.rig.right_hip)
+        headings = hip_heading(positions, at[rig.left_hip], at[rig.right_hip])
         first = headings[:, 0]
-        pelvis = positions[:, :, self.rig.pelvis][..., [0, 2]]
+        pelvis = positions[:, :, at[rig.pelvis]][..., [0, 2]]
         travel = rotate_y(pelvis[:, 1] - pelvis[:, 0], -first)
         if self.swing is None:
             landing = travel
         else:
             stance = "right" if self.swing == "left" else "left"
             feet = positions[..., [0, 2]]
-            moved = feet[:, 1, self.rig.ankle[self.swing]] - feet[:, 0, self.rig.ankle[stance]]
+            moved = feet[:, 1, at[rig.ankle[self.swing]]] - feet[:, 0, at[rig.ankle[stance]]]
             landing = rotate_y(moved, -first)
         return landing, wrap(headings[:, 1] - first), travel
 
@@ -179,14 +201,23 @@ class StepModel:
         mu, whiten = self.mixture_means[component[0]], self.whiteners[component[0]]
 
         def residuals(x):
+            """Rows of residuals, one per row of x."""
+            x = np.atleast_2d(x)
             landing, turn, _ = self.features(x)
             return np.concatenate([
-                landing[0] - target[:2],
-                [HEADING_WEIGHT_M * wrap(turn[0] - target[2])],
-                PRIOR_WEIGHT_M * (whiten @ (x - mu)),
-            ])  # fmt: skip
+                landing - target[:2],
+                HEADING_WEIGHT_M * wrap(turn - target[2])[:, None],
+                PRIOR_WEIGHT_M * ((x - mu) @ whiten.T),
+            ], axis=1)  # fmt: skip
 
-        return least_squares(residuals, start, method="lm", max_nfev=40 * len(start)).x
+        def jacobian(x):
+            """Forward differences, every column from one batch of features."""
+            step = 1e-4 * np.maximum(1.0, np.abs(x))
+            rows = residuals(np.vstack([x, x + np.diag(step)]))
+            return ((rows[1:] - rows[0]) / step[:, None]).T
+
+        return least_squares(lambda x: residuals(x)[0], start, jac=jacobian, method="lm",
+                             max_nfev=50).x  # fmt: skip
 
     def best_random(self, target, rng, n=RANDOM_BASELINE):
         """The least constraint error among n draws of the mixture (the baseline the search must

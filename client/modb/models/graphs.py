@@ -1,0 +1,177 @@
+"""Graphs of motion models (modb.graphs kind 'models'): nodes naming models, the transitions allowed
+between them, each node's type (start, end, idle, standard) and action. Built for the step models
+of a collection, listed, exported and imported as JSON; the database checks every graph written
+(modb.model_graph_problem), so a broken one is refused with its reason whoever writes it."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import Any
+
+import psycopg
+from psycopg.types.json import Jsonb
+
+from .store import KIND as MODEL_KIND
+
+KIND = "models"
+FORMAT = "modb graph of models"
+STEPS = ("left_step", "right_step")
+# other primitives a walk graph takes in, by what their name says they are
+ROLES = (("start", re.compile(r"start|begin", re.I)), ("end", re.compile(r"stop|end", re.I)),
+         ("idle", re.compile(r"idle|stand", re.I)))  # fmt: skip
+
+LATEST_MODELS = """
+SELECT DISTINCT ON (s.primitive) s.primitive, s.id, s.name, s.version, s.skeleton_id
+  FROM modb.model_status s
+ WHERE s.kind = %s AND s.collection = %s AND s.latest
+ ORDER BY s.primitive, s.created_at DESC, s.id DESC
+"""
+
+
+class GraphError(ValueError):
+    pass
+
+
+@dataclass(frozen=True)
+class ModelGraph:
+    id: int
+    name: str
+    skeleton_id: int
+    data: dict[str, Any]
+    created_at: str
+
+    def describe(self) -> str:
+        nodes = self.data["nodes"]
+        kinds = {}
+        for node in nodes.values():
+            kinds.setdefault(node.get("type", "standard"), []).append(node)
+        types = ", ".join(f"{len(v)} {k}" for k, v in sorted(kinds.items()))
+        return (f"{self.name} (graph of models): {len(nodes)} nodes ({types}), "
+                f"{len(self.data.get('transitions', []))} transitions, skeleton "
+                f"{self.skeleton_id}" + (f", collection {self.data['collection']}"
+                                         if self.data.get("collection") else ""))  # fmt: skip
+
+
+def step_graph(models: list[dict[str, Any]], collection: str) -> dict[str, Any]:
+    """The document of a walk: left_step <-> right_step, a start node leading to both, both to an
+    end node, the end node to an idle node that repeats, where models of such primitives exist."""
+    by_primitive = {m["primitive"]: m for m in models}
+    missing = [p for p in STEPS if p not in by_primitive]
+    if missing:
+        raise GraphError(f'collection "{collection}" has no current model of '
+                         f"{' or '.join(missing)}: build them first (modb model build NAME "
+                         f"--collection {collection} --primitive {missing[0]})")  # fmt: skip
+    nodes = {p: _node(by_primitive[p], "standard") for p in STEPS}
+    transitions = [{"from": "left_step", "to": "right_step"},
+                   {"from": "right_step", "to": "left_step"}]  # fmt: skip
+    for role, pattern in ROLES:
+        for primitive, m in sorted(by_primitive.items()):
+            if primitive in nodes or not pattern.search(primitive):
+                continue
+            nodes[primitive] = _node(m, role)
+            if role == "start":
+                transitions += [{"from": primitive, "to": s} for s in STEPS]
+            elif role == "end":
+                transitions += [{"from": s, "to": primitive} for s in STEPS]
+            break
+    ends = [n for n, v in nodes.items() if v["type"] == "end"]
+    idles = [n for n, v in nodes.items() if v["type"] == "idle"]
+    for idle in idles:
+        transitions += [{"from": e, "to": idle} for e in ends or STEPS]
+        transitions.append({"from": idle, "to": idle})
+    return {"nodes": nodes, "transitions": transitions, "collection": collection}
+
+
+def _node(model: dict[str, Any], role: str) -> dict[str, Any]:
+    return {"model_id": model["id"], "model": model["name"], "version": model["version"],
+            "type": role, "action": "walk"}  # fmt: skip
+
+
+def build(conn: psycopg.Connection, name: str, collection: str) -> ModelGraph:
+    """Stores (or replaces) the graph `name` of the collection's latest current step models."""
+    with conn.cursor(row_factory=psycopg.rows.dict_row) as cur:
+        models = cur.execute(LATEST_MODELS, [MODEL_KIND, collection]).fetchall()
+    data = step_graph(models, collection)
+    skeletons = {m["skeleton_id"] for m in models if m["primitive"] in data["nodes"]}
+    if len(skeletons) != 1:
+        raise GraphError(f'the step models of "{collection}" are of {len(skeletons)} skeletons')
+    return save(conn, name, skeletons.pop(), data)
+
+
+def save(conn: psycopg.Connection, name: str, skeleton_id: int, data: dict[str, Any]) -> ModelGraph:
+    """Inserts or replaces the graph (the database checks it)."""
+    with conn.transaction():
+        conn.execute("INSERT INTO modb.graph_names (name, kind) VALUES (%s, %s) "
+                     "ON CONFLICT DO NOTHING", [name, KIND])  # fmt: skip
+        conn.execute(
+            "INSERT INTO modb.graphs (name, kind, skeleton_id, data) VALUES (%s, %s, %s, %s) "
+            "ON CONFLICT (name, kind) DO UPDATE SET skeleton_id = excluded.skeleton_id, "
+            "data = excluded.data",
+            [name, KIND, skeleton_id, Jsonb(data)],
+        )
+    return load(conn, name)
+
+
+def listing(conn: psycopg.Connection) -> list[ModelGraph]:
+    rows = conn.execute(
+        "SELECT id, name, skeleton_id, data, created_at::text FROM modb.graphs WHERE kind = %s "
+        "ORDER BY name", [KIND]
+    ).fetchall()  # fmt: skip
+    return [ModelGraph(*r) for r in rows]
+
+
+def load(conn: psycopg.Connection, name: str) -> ModelGraph:
+    row = conn.execute(
+        "SELECT id, name, skeleton_id, data, created_at::text FROM modb.graphs "
+        "WHERE kind = %s AND name = %s", [KIND, name]
+    ).fetchone()  # fmt: skip
+    if row is None:
+        raise GraphError(f'no graph of models "{name}" (modb model graph list names them)')
+    return ModelGraph(*row)
+
+
+def delete(conn: psycopg.Connection, name: str) -> None:
+    load(conn, name)
+    with conn.transaction():  # its row goes with its name (83_graphs.sql)
+        conn.execute("DELETE FROM modb.graph_names WHERE name = %s AND kind = %s", [name, KIND])
+
+
+def export_document(conn: psycopg.Connection, name: str) -> dict[str, Any]:
+    """The graph as a file: its nodes name their models by name and version, so it imports into
+    another database that holds those models."""
+    graph = load(conn, name)
+    nodes = {}
+    for node_name, node in graph.data["nodes"].items():
+        row = conn.execute("SELECT name, version FROM modb.models WHERE id = %s",
+                           [node["model_id"]]).fetchone()  # fmt: skip
+        if row is None:
+            raise GraphError(f'node "{node_name}" names model {node["model_id"]}, which is gone')
+        nodes[node_name] = {k: v for k, v in node.items() if k != "model_id"} | {
+            "model": row[0], "version": row[1]}  # fmt: skip
+    return {"format": FORMAT, "name": graph.name, "data": {**graph.data, "nodes": nodes}}
+
+
+def import_document(conn: psycopg.Connection, document: Any, name: str | None) -> ModelGraph:
+    """Stores an exported graph, its nodes' models found here by name and version."""
+    if not isinstance(document, dict) or document.get("format") != FORMAT:
+        raise GraphError(f'not a graph of models: expected "format": "{FORMAT}"')
+    data = document.get("data")
+    if not isinstance(data, dict) or not isinstance(data.get("nodes"), dict):
+        raise GraphError('"data" must hold "nodes" (and "transitions")')
+    nodes, skeletons = {}, set()
+    for node_name, node in data["nodes"].items():
+        row = conn.execute(
+            "SELECT id, skeleton_id FROM modb.models "
+            "WHERE name = %s AND version = %s AND kind = %s",
+            [node.get("model"), node.get("version"), MODEL_KIND],
+        ).fetchone()
+        if row is None:
+            raise GraphError(f'node "{node_name}": no motion model "{node.get("model")}" version '
+                             f'{node.get("version")} here: import that model first')  # fmt: skip
+        nodes[node_name] = {**node, "model_id": row[0]}
+        skeletons.add(row[1])
+    if len(skeletons) != 1:
+        raise GraphError(f"its models are of {len(skeletons)} skeletons here")
+    return save(conn, name or document.get("name") or "imported", skeletons.pop(),
+                {**data, "nodes": nodes})  # fmt: skip

@@ -1,0 +1,198 @@
+"""Synthesis from a graph of motion models, as `modb synth --models` runs it: the strip comes from
+the server (modb.synthesize_from_models: the same arguments give the same strip, whoever asks), and
+its quality is measured here against the capture the models learnt from."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import psycopg
+
+from modb.clips import read_motion
+from modb.database import pgarray
+from modb.motion import Motion, Skeleton
+
+from .quality import REACH_MIN_DISTANCE, NaturalSteps, foot_skating, pose_jumps
+
+AIM_REACH_RATIO = 2.0  # a goal >= REACH_MIN_DISTANCE away within this times the straight line
+AIM_SLIDING_RATIO = 1.5  # stance-foot sliding at most this times the source's
+AIM_SEARCH_RATIO = 0.5  # median constraint error at most this times the best of 300 random draws
+
+STRIP = """
+SELECT fps, rotations, translations, report
+  FROM modb.synthesize_from_models(%s, %s::float8[], %s, %s, %s)
+"""
+SKELETON = """
+SELECT s.name, s.hierarchy, s.joint_map, s.mirror_pairs FROM modb.graphs g
+  JOIN modb.skeletons s ON s.id = g.skeleton_id WHERE g.name = %s AND g.kind = 'models'
+"""
+# the captured examples the graph's models learnt from: clip versions and step segments
+EXAMPLES = """
+SELECT DISTINCT p.clip_id, p.version, p.primitive, p.segment
+  FROM modb.graphs g, jsonb_each(g.data->'nodes') n, modb.models m,
+       jsonb_array_elements(m.data->'inputs') i, modb.processed_data p
+ WHERE g.name = %s AND g.kind = 'models' AND m.id = (n.value->>'model_id')::bigint
+   AND p.id = (i->>'id')::bigint AND NOT p.mirrored
+ ORDER BY 1, 2
+"""
+
+
+@dataclass
+class ModelStrip:
+    motion: Motion
+    report: dict[str, Any]  # the server's: steps, goals reached, notes
+    graph: str
+    goals: list[tuple[float, float]]
+    seed: int
+
+
+def synthesize(conn: psycopg.Connection, graph: str, goals: list[tuple[float, float]],
+               seconds: float, seed: int = 0, radius: float = 0.5) -> ModelStrip:  # fmt: skip
+    """The strip modb.synthesize_from_models walks, as a Motion of the graph's skeleton."""
+    pgarray.register(conn)
+    with conn.cursor(binary=True) as cur:
+        fps, rotations, translations, report = cur.execute(
+            STRIP, [graph, [list(g) for g in goals], seconds, seed, radius]
+        ).fetchone()
+    row = conn.execute(SKELETON, [graph]).fetchone()
+    skeleton = Skeleton.from_row(row[1], row[2], row[3], row[0])
+    r = np.asarray(rotations, dtype=np.float64)
+    t = np.zeros((len(r), 0, 3)) if translations is None else np.asarray(translations, np.float64)
+    motion = Motion(skeleton, float(fps), r, t, f"synth_{graph}".replace(" ", "_"),
+                    meta={"graph of models": graph, "seed": seed})  # fmt: skip
+    return ModelStrip(motion, report, graph, [tuple(g) for g in goals], seed)
+
+
+def stance_sliding(motion: Motion, steps: list[tuple[str, int, int]]) -> np.ndarray:
+    """Per frame of each step (swing side, first frame, last frame): the horizontal speed (m/s) of
+    the foot it stands on, at its slower point (ankle or toe: the foot rolls over its toes)."""
+    sk = motion.skeleton
+    positions = motion.world_positions()
+    out = []
+    for swing, first, last in steps:
+        stance = "right" if swing == "left" else "left"
+        joints = [sk.index(sk.joint_map[f"{stance}_{part}"]) for part in ("ankle", "toe")]
+        ground = positions[first : last + 1][:, joints][..., [0, 2]]
+        if len(ground) > 1:
+            out.append(np.linalg.norm(np.diff(ground, axis=0), axis=-1).min(axis=1) * motion.fps)
+    return np.concatenate(out) if out else np.zeros(0)
+
+
+def _swing(primitive: str) -> str | None:
+    sides = [s for s in ("left", "right") if s in primitive.lower()]
+    return sides[0] if len(sides) == 1 else None
+
+
+@dataclass
+class Source:
+    """What the models learnt from, measured: the scale the strip is judged on."""
+
+    natural: NaturalSteps
+    sliding: float  # m/s, stance-foot sliding over the captured steps
+    walking_speed: float  # m/s, the median pelvis speed over the captured steps
+
+    @classmethod
+    def of(cls, conn: psycopg.Connection, graph: str) -> Source:
+        pgarray.register(conn)
+        clips: dict[tuple[int, int], list[tuple[str, int, int]]] = {}
+        for clip_id, version, primitive, segment in conn.execute(EXAMPLES, [graph]).fetchall():
+            swing = _swing(primitive)
+            if swing:
+                step = (swing, segment["start"], segment["end"])
+                clips.setdefault((clip_id, version), []).append(step)
+        if not clips:
+            raise ValueError(f'graph "{graph}": its models name no captured steps to judge it by')
+        motions, sliding, speeds = [], [], []
+        for (clip_id, version), steps in clips.items():
+            m = read_motion(conn, clip_id, version)
+            motions.append(m)
+            sliding.append(stance_sliding(m, steps))
+            pelvis = m.world_positions()[:, m.skeleton.index(m.skeleton.joint_map["pelvis"])]
+            for _, first, last in steps:
+                travel = np.linalg.norm((pelvis[last] - pelvis[first])[[0, 2]])
+                speeds.append(travel * m.fps / max(last - first, 1))
+        return cls(NaturalSteps.of(motions), float(np.concatenate(sliding).mean()),
+                   float(np.median(speeds)))  # fmt: skip
+
+
+def measure(strip: ModelStrip, source: Source) -> dict[str, Any]:
+    """The strip's figures against the source's, and which aims they meet."""
+    motion, report = strip.motion, strip.report
+    fps = motion.fps
+    walked = report["stood_from_frame"]
+    moving = motion if walked is None else _frames(motion, walked + 1)
+    # a step runs from the frame before its first (the seam: its stance foot touches down) on
+    steps = [
+        (
+            side,
+            max(r["first_frame"] - 1, 0),
+            min(r["first_frame"] + r["n_frames"], motion.n_frames) - 1,
+        )
+        for r in report["steps"]
+        if (side := r["swing"])
+    ]
+    sliding = float(stance_sliding(motion, steps).mean()) if steps else 0.0
+    jumps = pose_jumps(motion)
+    errors = np.array([[s["tree_error_m"], s["error_m"], s["random_error_m"]]
+                       for s in report["steps"]])  # fmt: skip
+    goals = _goals(motion, strip.goals, report["reached"], source.walking_speed)
+    out = {
+        "graph": strip.graph,
+        "seed": strip.seed,
+        "seconds": (motion.n_frames - 1) / fps,
+        "steps": len(report["steps"]),
+        "stood_from_seconds": None if walked is None else walked / fps,
+        "notes": report["notes"],
+        "goals": goals,
+        "walking_speed": source.walking_speed,
+        "pose_jump_max": float(jumps.max()) if len(jumps) else 0.0,
+        "source_pose_jump_p999": source.natural.pose_jump_p999,
+        "stance_sliding": sliding,
+        "source_stance_sliding": source.sliding,
+        "foot_skating": foot_skating(moving)[0],
+        "source_foot_skating": source.natural.foot_skating,
+        "constraint_error_median": {
+            "tree_m": float(np.median(errors[:, 0])),
+            "refined_m": float(np.median(errors[:, 1])),
+            "best_of_300_random_m": float(np.median(errors[:, 2])),
+        },
+    }
+    judged = [g for g in goals if g["distance_m"] >= REACH_MIN_DISTANCE]
+    out["aims"] = {
+        "goals >= 5 m reached within 2x straight line": all(
+            g["reached"] and g["ratio"] <= AIM_REACH_RATIO for g in judged) if judged else None,
+        "pose jump <= source p99.9": out["pose_jump_max"] <= out["source_pose_jump_p999"],
+        "stance-foot sliding <= 1.5x source": sliding <= AIM_SLIDING_RATIO * source.sliding,
+        "search error <= half the best of 300 random": out["constraint_error_median"]["refined_m"]
+        <= AIM_SEARCH_RATIO * out["constraint_error_median"]["best_of_300_random_m"],
+    }  # fmt: skip
+    return out
+
+
+def _frames(motion: Motion, n: int) -> Motion:
+    return Motion(motion.skeleton, motion.fps, motion.rotations[:n], motion.translations[:n],
+                  motion.name, meta=motion.meta)  # fmt: skip
+
+
+def _goals(motion: Motion, goals, reached: dict[str, int], speed: float) -> list[dict[str, Any]]:
+    """Each goal: how far the pelvis stood from it when it became current, and when it was
+    reached against the straight line at the source's walking speed."""
+    sk = motion.skeleton
+    pelvis = motion.world_positions()[:, sk.index(sk.joint_map["pelvis"])][:, [0, 2]]
+    out, start = [], 0
+    for k, goal in enumerate(goals, start=1):
+        frame = reached.get(str(k))
+        distance = float(np.linalg.norm(np.asarray(goal) - pelvis[start]))
+        seconds = None if frame is None else (frame - start) / motion.fps
+        straight = distance / speed
+        closest = float(np.linalg.norm(pelvis[start:] - goal, axis=-1).min())
+        out.append({"goal": k, "target": list(goal), "distance_m": distance,
+                    "reached": frame is not None, "seconds": seconds,
+                    "straight_seconds": straight, "closest_m": closest,
+                    "ratio": None if seconds is None else seconds / straight})  # fmt: skip
+        if frame is None:
+            break
+        start = frame
+    return out
