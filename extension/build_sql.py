@@ -17,8 +17,8 @@ continuity ratio, match box, objective, graphs, graph cost-to-go, motion primiti
 synthesis, privileges, access and audit, motion models, graphs of models, retargeting, edit scripts,
 checks of stored documents), each object defined in one only, built in file-name order: an object
 after what it names when it is created (CREATE EXTENSION does not check function bodies, but a
-type, a constraint, a trigger, an operator or a SQL-standard body, BEGIN ATOMIC or RETURN, does), and
-90_privileges.sql's grants on all tables and sequences reach those made before it only
+type, a constraint, a trigger, an operator or a SQL-standard body, BEGIN ATOMIC or RETURN, does),
+and 90_privileges.sql's grants on all tables and sequences reach those made before it only
 (access_tokens and audit_log, after it, must stay closed to modb_reader).
 
 Upgrade scripts come from sql/upgrades/OLD--NEW.sql: hand-written steps whose '--@include FILE'
