@@ -60,6 +60,7 @@ OLD_VERSIONS = [
     "0.19.0",
     "0.20.0",
     "0.21.0",
+    "0.22.0",
 ]
 
 # What a retargeting, an edit script and a cut store, without ids (sequences differ between runs):
@@ -148,6 +149,34 @@ def _models_in_versions(db, dsn, processed_before) -> None:
     assert db.execute("SELECT count(*) FROM modb.sample_motion('kept', 2, 0)").fetchone() == (2,)
 
 
+def _step_models(db, dsn) -> tuple[str, list]:
+    """0.22.0's models of the stored clips' left and right steps."""
+    collection = db.execute(
+        "SELECT modb.collection_path(collection_id) FROM modb.clips WHERE id = 1"
+    ).fetchone()[0]
+    for (clip,) in db.execute("SELECT id FROM modb.clips ORDER BY id").fetchall():
+        db.execute("SELECT * FROM modb.annotate_steps(%s)", [clip])
+    db.commit()
+    for side in ("left", "right"):
+        r = run_modb(dsn, "model", "build", f"{side} steps", "--collection", collection,
+                     "--primitive", f"{side}_step", "-q")  # fmt: skip
+        assert r.returncode == 0, r.stderr
+    return collection, db.execute(MODELS).fetchall()
+
+
+MODELS = "SELECT id, name, version, md5(data::text), md5(meta::text) FROM modb.models ORDER BY id"
+
+
+def _graph_of_the_models(db, dsn, collection, models_before) -> None:
+    assert len(models_before) == 2 and db.execute(MODELS).fetchall() == models_before
+    r = run_modb(dsn, "model", "graph", "steps", "--collection", collection)
+    assert r.returncode == 0 and "steps (graph of models): 2 nodes" in r.stdout, r.stderr
+    fps, n_frames = db.execute(
+        "SELECT fps, n_frames FROM modb.synthesize_from_models('steps', ARRAY[[0, 3]]::float8[], 2)"
+    ).fetchone()
+    assert n_frames == round(2 * fps) + 1
+
+
 def test_old_versions_install_through_the_chain(db):
     # An install script left from an earlier install of the project would stand in for the chain.
     sharedir = db.execute("SELECT setting FROM pg_config WHERE name = 'SHAREDIR'").fetchone()[0]
@@ -172,6 +201,8 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
     db.execute('UPDATE modb.clip_versions SET meta = \'{"tags": ["kept"]}\'')
     if old == "0.21.0":  # 0.22.0: models in versions; processed data may hold mirrored examples
         processed_before = _steps_aligned_and_a_model(db)
+    if old == "0.22.0":  # 0.23.0: graphs of those models, and synthesis from them
+        collection, models_before = _step_models(db, fresh_db)
     before = db.execute(
         "SELECT clip_id, version, n_frames, meta, md5(rotations::text) FROM modb.clip_versions "
         "ORDER BY 1"
@@ -203,6 +234,8 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
     db.execute("ALTER EXTENSION modb UPDATE")
     if old == "0.21.0":
         _models_in_versions(db, fresh_db, processed_before)
+    if old == "0.22.0":
+        _graph_of_the_models(db, fresh_db, collection, models_before)
     if old == "0.19.0":
         stored_after = _retarget_and_edit(db)
         assert len(stored_before) == 2 and all(row[-1] for row in stored_before)
@@ -284,7 +317,7 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
         # 0.18.0: the update leaves the blocks as they were (no term codes) and builds the
         # directory's index; they count as unpacked, so a load's packing derives them again
         uncoded = "SELECT count(*) FILTER (WHERE term_codes IS NULL) FROM modb.snippet_blocks"
-        coded_before = ("0.18.0", "0.19.0", "0.20.0", "0.21.0")  # 0.18.0 on coded them
+        coded_before = ("0.18.0", "0.19.0", "0.20.0", "0.21.0", "0.22.0")  # 0.18.0 on coded them
         assert (db.execute(uncoded).fetchone()[0] > 0) == (old not in coded_before)
         assert db.execute("SELECT to_regclass('modb.snippet_blocks_directory_idx')").fetchone()[0]
         db.execute("SELECT * FROM modb.pack_snippet_blocks(0.2)")

@@ -30,7 +30,8 @@ SELECT functions_are('modb', ARRAY[
     '_apply_edit_script', 'joint_axes_problem', 'skeletons_check_documents', 'edit_script_problems',
     'edit_scripts_check_commands', 'collections_check_name', 'terminators_updated',
     'select_snippet_ending_reference', 'annotate_steps', '_annotate_steps', 'align_primitive', '_align_primitive',
-    'models_version_rules', 'sample_motion', '_sample_motion']);
+    'models_version_rules', 'sample_motion', '_sample_motion', 'model_graph_problem', 'model_graphs_check',
+    'synthesize_from_models', '_synthesize_from_models']);
 SELECT is((SELECT o.opcname::text FROM pg_index i JOIN pg_opclass o ON o.oid = i.indclass[0]
             WHERE i.indexrelid = 'modb.snippets_begin_features_idx'::regclass), 'cube_feature_ops',
           'the feature index uses modb''s operator class');

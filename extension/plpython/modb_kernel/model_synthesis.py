@@ -177,6 +177,7 @@ class Synthesis:
             "error_m": float(model.errors(refined, target)[0]),
             "random_error_m": model.best_random(target, self.rng),
             "mahalanobis": float(model.mahalanobis(refined)[0][0]),
+            "scores": refined.tolist(),
         }
         self.add(model, refined)
         record["n_frames"] = self.body.n_frames - record["first_frame"]

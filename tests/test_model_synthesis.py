@@ -1,0 +1,322 @@
+"""Graphs of motion models and synthesis from them (issue 45), on CMU 16's walks and turns and on
+shipped Bandai walks and walk-turns: graphs built, listed, exported, imported, and refused by the
+database when broken; courses walked by `modb synth --models` and modb.synthesize_from_models.
+
+Every figure is the test's own: forward kinematics with scipy's rotations (support.own_kinematics),
+goals, pose jumps and stance-foot sliding measured on its positions, the source's scale on the
+captured steps the models learnt from, and each step's constraint error recomputed from the scores
+the server reports (scipy's B-splines on the stored knots, the joint limits applied with scipy's
+rotations), against the best of 300 draws of the mixture made here (scipy.stats)."""
+
+from __future__ import annotations
+
+import json
+import os
+
+import numpy as np
+import psycopg
+import pytest
+from scipy.interpolate import BSpline
+from scipy.stats import multivariate_normal
+from support import own_kinematics
+from support.bvh_oracle import bvhio_world_positions
+from support.commands import run_modb
+from support.data import mocap
+from support.databases import scratch_database
+from support.gltf_validator import validate
+
+from modb.database import pgarray
+
+GRAPH = "walk"
+# fixed before any tuning: each goal at least 5 m from the last, with turns of 70-120 degrees
+COURSES = {"cmu16": [(0.0, 6.0), (6.0, 8.0), (6.0, 2.0)],
+           "bandai": [(0.0, 6.0), (-6.0, 8.0), (-6.0, 2.0)]}  # fmt: skip
+SECONDS = 25.0
+REACH_M = 0.75
+
+
+def bandai_files():
+    data = mocap("bandai-2-dev", "data")
+    kinds = ("walk_active", "walk-turn-left_active", "walk-turn-right_active")
+    return [str(p) for kind in kinds for p in sorted(data.glob(f"dataset-2_{kind}_0*.bvh"))[:8]]
+
+
+@pytest.fixture(scope="module", params=sorted(COURSES))
+def walks(request, cluster):
+    """A database of the dataset's walks with left and right step models and the graph GRAPH."""
+    name = request.param
+    files = [str(mocap("cmu", "16"))] if name == "cmu16" else bandai_files()
+    with scratch_database(cluster, f"model_synth_{name}_{os.getpid()}") as dsn:
+        for args in (("load", *files, "--collection", name, "-q"), ("annotate", "--steps", name)):
+            r = run_modb(dsn, *args)
+            assert r.returncode == 0, r.stderr
+        for side in ("left", "right"):
+            r = run_modb(dsn, "model", "build", f"{name}_{side}_step", "--collection", name,
+                         "--primitive", f"{side}_step", "-q")  # fmt: skip
+            assert r.returncode == 0, r.stderr
+        r = run_modb(dsn, "model", "graph", GRAPH, "--collection", name)
+        assert r.returncode == 0, r.stderr
+        assert f"{GRAPH} (graph of models): 2 nodes (2 standard), 2 transitions" in r.stdout
+        yield name, dsn
+
+
+def query(dsn, sql, params=()):
+    with psycopg.connect(dsn) as conn:
+        pgarray.register(conn)
+        with conn.cursor(binary=True) as cur:
+            return cur.execute(sql, params).fetchall()
+
+
+class Rig:
+    """The graph's skeleton, read from the database, with the test's own kinematics."""
+
+    def __init__(self, dsn):
+        sql = ("SELECT s.hierarchy, s.joint_map FROM modb.graphs g JOIN modb.skeletons s "
+               "ON s.id = g.skeleton_id WHERE g.name = %s AND g.kind = 'models'")  # fmt: skip
+        hierarchy, joint_map = query(dsn, sql, [GRAPH])[0]
+        joints = hierarchy["joints"]
+        self.names = [j["name"] for j in joints]
+        self.parents = [j["parent"] for j in joints]
+        self.offsets = np.array([j["offset"] for j in joints])
+        self.translated = hierarchy.get("translated", [])
+        self.unit_m = hierarchy["unit_m"]
+        self.at = {k: self.names.index(v) for k, v in joint_map.items()}
+        pelvis, body = self.at["pelvis"], []
+        for j, p in enumerate(self.parents):  # the pelvis and every joint below it
+            if j == pelvis or p in body:
+                body.append(j)
+        self.body = body
+
+    def fk(self, rotations, translations):
+        return own_kinematics.world_positions(self.parents, self.offsets, self.translated,
+                                              rotations, translations)  # fmt: skip
+
+    def heading(self, positions):
+        axis = positions[..., self.at["left_hip"], :] - positions[..., self.at["right_hip"], :]
+        return np.arctan2(-axis[..., 2], axis[..., 0])
+
+
+def pose_jumps(rig, p):
+    """Per frame step, the largest move of a body joint relative to the pelvis's ground point."""
+    ground = p[:, rig.at["pelvis"]] * np.array([1.0, 0.0, 1.0])
+    pose = p[:, rig.body] - ground[:, None]
+    return np.linalg.norm(np.diff(pose, axis=0), axis=-1).max(axis=1)
+
+
+def stance_speeds(rig, p, fps, steps):
+    """Horizontal speed of the foot each step stands on, at its slower point (ankle or toe)."""
+    out = []
+    for swing, first, last in steps:
+        stance = "right" if swing == "left" else "left"
+        joints = [rig.at[f"{stance}_ankle"], rig.at[f"{stance}_toe"]]
+        ground = p[first : last + 1][:, joints][..., [0, 2]]
+        out.append(np.linalg.norm(np.diff(ground, axis=0), axis=-1).min(axis=1) * fps)
+    return np.concatenate(out)
+
+
+@pytest.fixture(scope="module")
+def source(walks):
+    """The scale of the capture the models learnt from, measured here: pose jumps p99.9, stance
+    sliding over its steps, the median pelvis speed of its steps."""
+    _, dsn = walks
+    rig = Rig(dsn)
+    rows = query(dsn, "SELECT DISTINCT p.clip_id, p.version, p.primitive, p.segment "
+                 "FROM modb.processed_data p WHERE NOT p.mirrored")  # fmt: skip
+    clips = {}
+    for clip_id, version, primitive, segment in rows:
+        clips.setdefault((clip_id, version), []).append(
+            (primitive.split("_")[0], segment["start"], segment["end"]))  # fmt: skip
+    jumps, sliding, speeds = [], [], []
+    for (clip_id, version), steps in clips.items():
+        fps, rotations, translations = query(
+            dsn, "SELECT fps, rotations, translations FROM modb.clip_versions "
+            "WHERE clip_id = %s AND version = %s", [clip_id, version])[0]  # fmt: skip
+        p = rig.fk(np.asarray(rotations), np.asarray(translations))
+        jumps.append(pose_jumps(rig, p))
+        sliding.append(stance_speeds(rig, p, fps, steps))
+        pelvis = p[:, rig.at["pelvis"]][:, [0, 2]]
+        speeds += [np.linalg.norm(pelvis[b] - pelvis[a]) * fps / (b - a) for _, a, b in steps]
+    return {"jump_p999": np.percentile(np.concatenate(jumps), 99.9),
+            "sliding": np.concatenate(sliding).mean(), "speed": np.median(speeds)}  # fmt: skip
+
+
+def synthesize(dsn, goals, seed):
+    return query(dsn, "SELECT fps, rotations, translations, report FROM "
+                 "modb.synthesize_from_models(%s, %s::float8[], %s, %s)",
+                 [GRAPH, [list(g) for g in goals], SECONDS, seed])[0]  # fmt: skip
+
+
+def own_end_features(model, rig, scores):
+    """The landing (x, z) of the swing foot from the stance foot and the turn, in the frame of
+    the step's first heading, for rows of scores: B-splines (scipy) at the first and last frames,
+    the joint limits applied (scipy rotations), the test's own FK."""
+    spatial = model["spatial"]
+    k, n = spatial["n_basis"], model["n_frames"]
+    split = len(spatial["components"])
+    flat = np.asarray(spatial["mean"]) + scores[:, :split] @ np.asarray(spatial["components"])
+    channels = BSpline(np.asarray(spatial["knots"]), flat.reshape(len(scores), k, -1)
+                       .transpose(1, 0, 2), 3)(np.array([0.0, n - 1.0]))  # fmt: skip
+    nt = len(model["translated"])
+    weights = np.asarray(spatial["weights"])[:, None]
+    q = channels[..., 3 * nt :].reshape(2, len(scores), -1, 4) / weights
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    mean = np.asarray(model["limits"]["mean"])
+    most = np.radians(model["limits"]["degrees"])
+    for j in range(q.shape[2]):
+        mean_j = own_kinematics.rotations_of(mean[j])
+        rel = (mean_j.inv() * own_kinematics.rotations_of(q[:, :, j])).as_rotvec()
+        angle = np.linalg.norm(rel, axis=-1, keepdims=True)
+        rel *= np.minimum(1.0, most[j] / np.maximum(angle, 1e-12))
+        xyzw = (mean_j * own_kinematics.Rotation.from_rotvec(rel)).as_quat()
+        q[:, :, j] = np.concatenate([xyzw[:, 3:], xyzw[:, :3]], axis=1).reshape(2, -1, 4)
+    t = channels[..., : 3 * nt].reshape(2, len(scores), nt, 3)
+    p = rig.fk(q.reshape(-1, *q.shape[2:]), t.reshape(-1, nt, 3)).reshape(2, len(scores), -1, 3)
+    first, last = rig.heading(p[0]), rig.heading(p[1])
+    swing = "left" if "left" in model["primitive"] else "right"
+    stance = "right" if swing == "left" else "left"
+    moved = (p[1, :, rig.at[f"{swing}_ankle"]] - p[0, :, rig.at[f"{stance}_ankle"]])[:, [0, 2]]
+    c, s = np.cos(-first), np.sin(-first)
+    landing = np.stack([c * moved[:, 0] + s * moved[:, 1], -s * moved[:, 0] + c * moved[:, 1]], 1)
+    turn = (last - first + np.pi) % (2 * np.pi) - np.pi
+    return landing, turn
+
+
+def own_errors(model, rig, scores, target, heading_weight):
+    landing, turn = own_end_features(model, rig, scores)
+    wrapped = (turn - target[2] + np.pi) % (2 * np.pi) - np.pi
+    return np.hypot(np.linalg.norm(landing - target[:2], axis=1), heading_weight * wrapped)
+
+
+def test_a_course_is_walked_through_every_goal_by_the_tests_own_measures(walks, source, tmp_path):
+    name, dsn = walks
+    goals = COURSES[name]
+    rig = Rig(dsn)
+    fps, rotations, translations, report = synthesize(dsn, goals, seed=3)
+    rotations, translations = np.asarray(rotations), np.asarray(translations)
+    # the same seed, the same strip; another seed, another
+    again = synthesize(dsn, goals, seed=3)
+    assert np.array_equal(np.asarray(again[1]), rotations) and again[3]["steps"] == report["steps"]
+    assert not np.array_equal(np.asarray(synthesize(dsn, goals, seed=4)[1])[-1], rotations[-1])
+    assert len(rotations) == round(SECONDS * fps) + 1
+    p = rig.fk(rotations, translations)
+    pelvis = p[:, rig.at["pelvis"]][:, [0, 2]]
+    assert np.linalg.norm(pelvis[0]) < 1e-6
+    # goals: each reached within REACH_M and within 2x the straight line at the source's pace
+    start = 0
+    for k, goal in enumerate(goals, start=1):
+        near = np.flatnonzero(np.linalg.norm(pelvis[start:] - goal, axis=1) <= REACH_M)
+        assert len(near), f"goal {k} {goal} never within {REACH_M} m"
+        distance = np.linalg.norm(np.asarray(goal) - pelvis[start])
+        assert distance >= 5.0
+        seconds = near[0] / fps
+        assert seconds <= 2.0 * distance / source["speed"], (k, seconds, distance)
+        start += near[0]
+    # the character stands after its last goal (the graph has no end or idle node), and says so
+    assert any("stands in that pose" in note for note in report["notes"])
+    stood = report["stood_from_frame"]
+    assert np.abs(np.diff(p[stood:], axis=0)).max() == 0.0
+    walking = p[: stood + 1]
+    # no pose jump above the source's p99.9; stance-foot sliding at most 1.5x the source's
+    assert pose_jumps(rig, walking).max() <= source["jump_p999"]
+    steps = [(s["swing"], max(s["first_frame"] - 1, 0), s["first_frame"] + s["n_frames"] - 1)
+             for s in report["steps"]]  # fmt: skip
+    assert stance_speeds(rig, walking, fps, steps).mean() <= 1.5 * source["sliding"]
+    # each step's constraint error recomputed from its scores; the search against 300 draws
+    models = {m: d for m, d in query(dsn, "SELECT name, data FROM modb.models")}
+    rng = np.random.default_rng(0)
+    ours, random = [], []
+    for s in report["steps"]:
+        model, target = models[s["model"]], np.asarray(s["target"])
+        error = own_errors(model, rig, np.asarray([s["scores"]]), target, 0.5)[0]
+        assert error == pytest.approx(s["error_m"], abs=2e-3)
+        mixture = model["mixture"]
+        which = rng.choice(len(mixture["weights"]), 300, p=mixture["weights"])
+        draws = np.vstack([multivariate_normal(mixture["means"][c], mixture["covariances"][c])
+                           .rvs(random_state=rng).reshape(1, -1) for c in which])  # fmt: skip
+        ours.append(error)
+        random.append(own_errors(model, rig, draws, target, 0.5).min())
+    assert np.median(ours) <= 0.5 * np.median(random), (np.median(ours), np.median(random))
+    # the command line gives the same strip: BVH read back by bvhio, glb by the Khronos validator
+    bvh, glb, rep = tmp_path / "course.bvh", tmp_path / "course.glb", tmp_path / "report.json"
+    to = [a for g in goals for a in ("--to", f"{g[0]},{g[1]}")]
+    r = run_modb(dsn, "synth", "--models", GRAPH, *to, "--seconds", str(SECONDS), "--seed", "3",
+                 "--in-place", "--out", str(bvh))  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    names, read = bvhio_world_positions(str(bvh), rig.unit_m)
+    assert np.abs(read - p[:, [rig.names.index(n) for n in names]]).max() < 2e-3
+    r = run_modb(dsn, "synth", "--models", GRAPH, *to, "--seconds", str(SECONDS), "--seed", "3",
+                 "--out", str(glb), "--report-json", str(rep))  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert validate(glb)["issues"]["numErrors"] == 0
+    figures = json.loads(rep.read_text())
+    assert figures["steps"] == report["steps"]
+    assert all(figures["report"]["aims"].values()), figures["report"]["aims"]
+
+
+def test_graphs_are_listed_exported_imported_and_refused_when_broken(walks, tmp_path):
+    name, dsn = walks
+    if name != "cmu16":
+        pytest.skip("the graph's life is the same on every dataset: once is enough")
+    r = run_modb(dsn, "model", "graph", "list")
+    assert r.returncode == 0 and r.stdout.startswith(f"{GRAPH} (graph of models): 2 nodes")
+    r = run_modb(dsn, "graph", "list")
+    assert r.returncode == 0 and f"{GRAPH} (graph of models)" in r.stdout
+    out = tmp_path / "walk.json"
+    assert run_modb(dsn, "model", "graph", "export", GRAPH, "--out", str(out)).returncode == 0
+    r = run_modb(dsn, "model", "graph", "import", str(out), "--name", "copy")
+    assert r.returncode == 0, r.stderr
+    (a,), (b,) = (query(dsn, "SELECT data FROM modb.graphs WHERE name = %s AND kind = 'models'",
+                        [n])[0] for n in (GRAPH, "copy"))  # fmt: skip
+    assert a == b and set(a["nodes"]) == {"left_step", "right_step"}
+    assert sorted((t["from"], t["to"]) for t in a["transitions"]) == [
+        ("left_step", "right_step"), ("right_step", "left_step")]  # fmt: skip
+    # broken graphs, refused by the database whoever writes them
+    left = a["nodes"]["left_step"]["model_id"]
+    broken = {
+        "is reached by no transition": {**a, "transitions": a["transitions"][:1]},
+        "there is no motion model with id": {**a, "nodes": {**a["nodes"], "x": {"model_id": 10**9,
+                                                                               "type": "start"}}},
+        "must be {\"from\": node, \"to\": node}": {**a, "transitions": [
+            *a["transitions"], {"from": "left_step", "to": "nowhere"}]},
+    }  # fmt: skip
+    with psycopg.connect(dsn) as conn:
+        for reason, data in broken.items():
+            with pytest.raises(psycopg.errors.CheckViolation) as e, conn.transaction():
+                conn.execute("UPDATE modb.graphs SET data = %s WHERE name = 'copy' AND kind = "
+                             "'models'", [json.dumps(data)])  # fmt: skip
+            assert reason in e.value.diag.message_primary
+        # a model of another skeleton
+        other = conn.execute(
+            "INSERT INTO modb.skeletons (name, hierarchy, joint_map) SELECT 'other', hierarchy, "
+            "joint_map FROM modb.skeletons LIMIT 1 RETURNING id").fetchone()[0]  # fmt: skip
+        foreign = conn.execute(
+            "INSERT INTO modb.models (name, kind, skeleton_id, data) SELECT 'foreign', kind, %s, "
+            "data FROM modb.models WHERE id = %s RETURNING id", [other, left]
+        ).fetchone()[0]  # fmt: skip
+        with pytest.raises(psycopg.errors.CheckViolation) as e, conn.transaction():
+            nodes = {**a["nodes"], "left_step": {**a["nodes"]["left_step"], "model_id": foreign}}
+            conn.execute("UPDATE modb.graphs SET data = %s WHERE name = 'copy' AND kind = 'models'",
+                         [json.dumps({**a, "nodes": nodes})])  # fmt: skip
+        assert f"is of skeleton {other}, the graph of skeleton" in e.value.diag.message_primary
+        conn.rollback()
+        # an end node plays after the last goal
+        ended = {**a, "nodes": {**a["nodes"], "stop": {"model_id": left, "type": "end"}},
+                 "transitions": [*a["transitions"], {"from": "right_step", "to": "stop"},
+                                 {"from": "left_step", "to": "stop"}]}  # fmt: skip
+        conn.execute("UPDATE modb.graphs SET data = %s WHERE name = 'copy' AND kind = 'models'",
+                     [json.dumps(ended)])  # fmt: skip
+        conn.commit()
+    report = query(dsn, "SELECT report FROM modb.synthesize_from_models('copy', "
+                   "ARRAY[[0, 3]]::float8[], 8, 0)")[0][0]  # fmt: skip
+    assert report["steps"][-1]["node"] == "stop" and list(report["reached"]) == ["1"]
+    assert any('the end node "stop" played' in n for n in report["notes"])
+    # options of snippet selection are refused with --models; --seed without it
+    r = run_modb(dsn, "synth", "--models", GRAPH, "--to", "0,6", "--seconds", "5", "--profile",
+                 "default", "--out", str(tmp_path / "x.bvh"))  # fmt: skip
+    assert r.returncode == 2 and "--profile selects snippets" in r.stderr
+    r = run_modb(dsn, "synth", "--to", "0,6", "--seconds", "5", "--seed", "1", "--out",
+                 str(tmp_path / "x.bvh"))  # fmt: skip
+    assert r.returncode == 2 and "--seed goes with --models" in r.stderr
+    r = run_modb(dsn, "synth", "--models", "nothing", "--to", "0,6", "--seconds", "5", "--out",
+                 str(tmp_path / "x.bvh"))  # fmt: skip
+    assert r.returncode == 1 and 'no graph of models "nothing"' in r.stderr
