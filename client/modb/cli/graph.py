@@ -18,7 +18,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     graph = sub.add_parser(
         "graph", help="transition graphs: the snippets a chain can keep moving among"
     )
-    graph.add_argument("action", choices=["build", "list"])
+    graph.add_argument(
+        "action", choices=["build", "list"], help="list: graphs of motion models too (their kind)"
+    )
     graph.add_argument("name", nargs="?", help="build: the graph's name (rebuilt when it exists)")
     graph.add_argument(
         "--profile", default="default", help="build: the match profile whose level 0 is an edge"
@@ -44,6 +46,12 @@ def run(args: argparse.Namespace) -> int:
         if args.action == "list":
             for g in list_graphs(conn):
                 print(describe(g))
+            models_too = "SELECT to_regproc('modb.model_graph_problem') IS NOT NULL"
+            if conn.execute(models_too).fetchone()[0]:
+                from modb.models.graphs import listing
+
+                for m in listing(conn):  # 0.23.0: graphs of motion models (modb model graph)
+                    print(m.describe())
             return 0
         if not args.name:
             print(
