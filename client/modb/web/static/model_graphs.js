@@ -40,6 +40,7 @@ function button(text, title, onClick) {
   const b = document.createElement('button');
   b.textContent = text;
   b.title = title;
+  b.setAttribute('aria-label', title);
   b.addEventListener('click', onClick);
   return b;
 }
@@ -89,7 +90,7 @@ function draw() {
     } else {
       const length = Math.hypot(b.x - a.x, b.y - a.y) || 1;
       const [dx, dy] = [(b.x - a.x) / length, (b.y - a.y) / length];
-      const shift = pairs.has(`${t.to}\u0000${t.from}`) ? 5 : 0; // each of a pair on its own right side
+      const shift = pairs.has(`${t.to}\u0000${t.from}`) ? 6 : 0; // each of a pair on its own right side
       const [sx, sy] = [-dy * shift, dx * shift];
       const [x0, y0] = edge(a, dx, dy);
       const [x1, y1] = edge(b, -dx, -dy);
@@ -129,20 +130,23 @@ function render() {
     li.dataset.node = name;
     const label = document.createElement('span');
     label.textContent = `${name} · ${modelLabel(nodes[name].model_id)}`;
+    label.title = label.textContent;
     const type = document.createElement('select');
     type.className = 'node-type';
     type.setAttribute('aria-label', `type of ${name}`);
     type.append(...TYPES.map((t) => option(t, t)));
     type.value = typeOf(nodes[name]);
     type.addEventListener('change', () => change(() => { nodes[name].type = type.value; }));
-    li.append(label, ' ', type, ' ', button('remove', `remove ${name} and its transitions`, () => removeNode(name)));
+    li.append(label, type, button('×', `remove ${name} and its transitions`, () => removeNode(name)));
     return li;
   }));
   $('graph-transitions').replaceChildren(...transitions.map((t, i) => {
     const li = document.createElement('li');
     Object.assign(li.dataset, { from: t.from, to: t.to });
-    li.append(`${t.from} → ${t.to} `, button('remove', 'remove this transition',
-                                             () => change(() => state.data.transitions.splice(i, 1))));
+    const label = document.createElement('span');
+    label.textContent = `${t.from} → ${t.to}`;
+    const remove = () => change(() => state.data.transitions.splice(i, 1));
+    li.append(label, button('×', `remove ${t.from} → ${t.to}`, remove));
     return li;
   }));
   for (const id of ['graph-from', 'graph-to']) {
@@ -292,7 +296,8 @@ async function start() {
 $('graph-add-node').addEventListener('click', addNode);
 $('graph-add-transition').addEventListener('click', addTransition);
 $('graph-save').addEventListener('click', () => save().catch((e) => say(e.message, true)));
-$('graph-revert').addEventListener('click', () => state.graph && open(state.graph.id).catch((e) => say(e.message, true)));
+$('graph-revert').addEventListener('click', () => state.graph
+  && open(state.graph.id).catch((e) => say(e.message, true)));
 $('graph-create').addEventListener('click', () => create().catch((e) => say(e.message, true)));
 
 window.modbModelGraphs = {
