@@ -60,7 +60,7 @@ class Body:
     def __init__(self, rig):
         self.rig = rig
         self.rotations, self.translations = [], []
-        self.stance = None  # (x, z) where the next step's stance foot stands
+        self.feet = {}  # side -> (x, z) where that ankle stood at the last frame
         self.heading = 0.0  # the last frame's hip heading
 
     @property
@@ -197,7 +197,7 @@ class Synthesis:
         elif stance is None:
             anchor, at = positions[rig.pelvis][[0, 2]], body.pelvis()
         else:
-            anchor, at = positions[rig.ankle[stance]][[0, 2]], body.stance
+            anchor, at = positions[rig.ankle[stance]][[0, 2]], body.feet[stance]
         yaw = body.heading - first
         shift = at - rotate_y(anchor, yaw)
         rotations, translations = placed(rig, rotations, translations, yaw, shift)
@@ -214,8 +214,7 @@ class Synthesis:
         body.translations.append(translations)
         end = rig.positions(rotations[-1:], translations[-1:])[0]
         body.heading = float(hip_heading(end, rig.left_hip, rig.right_hip))
-        if model.swing is not None:
-            body.stance = end[rig.ankle[model.swing]][[0, 2]]
+        body.feet = {side: end[joint][[0, 2]] for side, joint in rig.ankle.items()}
         self.mark_goals(rotations, translations)
 
     def keep_planted(self, rotations, translations, foot, path):
