@@ -230,15 +230,16 @@ def test_a_course_is_walked_through_every_goal_by_the_tests_own_measures(walks, 
         error = own_errors(model, rig, np.asarray([s["scores"]]), target, 0.5)[0]
         assert error == pytest.approx(s["error_m"], abs=2e-3)
         mixture = model["mixture"]
-        which = rng.choice(len(mixture["weights"]), 300, p=mixture["weights"])
+        counts = rng.multinomial(300, mixture["weights"])
         draws = np.vstack([multivariate_normal(mixture["means"][c], mixture["covariances"][c])
-                           .rvs(random_state=rng).reshape(1, -1) for c in which])  # fmt: skip
+                           .rvs(n, random_state=rng).reshape(n, -1)
+                           for c, n in enumerate(counts) if n])  # fmt: skip
         ours.append(error)
         random.append(own_errors(model, rig, draws, target, 0.5).min())
     assert np.median(ours) <= 0.5 * np.median(random), (np.median(ours), np.median(random))
     # the command line gives the same strip: BVH read back by bvhio, glb by the Khronos validator
     bvh, glb, rep = tmp_path / "course.bvh", tmp_path / "course.glb", tmp_path / "report.json"
-    to = [a for g in goals for a in ("--to", f"{g[0]},{g[1]}")]
+    to = [f"--to={g[0]},{g[1]}" for g in goals]
     r = run_modb(dsn, "synth", "--models", GRAPH, *to, "--seconds", str(SECONDS), "--seed", "3",
                  "--in-place", "--out", str(bvh))  # fmt: skip
     assert r.returncode == 0, r.stderr
@@ -247,7 +248,8 @@ def test_a_course_is_walked_through_every_goal_by_the_tests_own_measures(walks, 
     r = run_modb(dsn, "synth", "--models", GRAPH, *to, "--seconds", str(SECONDS), "--seed", "3",
                  "--out", str(glb), "--report-json", str(rep))  # fmt: skip
     assert r.returncode == 0, r.stderr
-    assert validate(glb)["issues"]["numErrors"] == 0
+    issues = validate(glb)
+    assert issues["numErrors"] == 0, issues["messages"]
     figures = json.loads(rep.read_text())
     assert figures["steps"] == report["steps"]
     assert all(figures["report"]["aims"].values()), figures["report"]["aims"]
@@ -285,10 +287,11 @@ def test_graphs_are_listed_exported_imported_and_refused_when_broken(walks, tmp_
                 conn.execute("UPDATE modb.graphs SET data = %s WHERE name = 'copy' AND kind = "
                              "'models'", [json.dumps(data)])  # fmt: skip
             assert reason in e.value.diag.message_primary
-        # a model of another skeleton
-        other = conn.execute(
-            "INSERT INTO modb.skeletons (name, hierarchy, joint_map) SELECT 'other', hierarchy, "
-            "joint_map FROM modb.skeletons LIMIT 1 RETURNING id").fetchone()[0]  # fmt: skip
+        # a model of another skeleton (a Bandai file's, loaded beside)
+        bandai = mocap("bandai-2-dev", "data", "dataset-2_walk_active_001.bvh")
+        r = run_modb(dsn, "load", str(bandai), "--collection", "other", "--no-snippets", "-q")
+        assert r.returncode == 0, r.stderr
+        other = conn.execute("SELECT max(skeleton_id) FROM modb.clip_versions").fetchone()[0]
         foreign = conn.execute(
             "INSERT INTO modb.models (name, kind, skeleton_id, data) SELECT 'foreign', kind, %s, "
             "data FROM modb.models WHERE id = %s RETURNING id", [other, left]
