@@ -65,7 +65,7 @@ COMMENT ON VIEW modb.model_status IS
     'Each model version without its data: whether it is its name''s latest, what it was built from, and why it is stale (NULL: current): its collection was deleted, or the processed data it was built from was deleted, aligned again, joined by new examples, or is stale itself';
 GRANT SELECT ON modb.model_status TO modb_reader;
 
-CREATE FUNCTION modb._sample_motion(model text, n int, seed int, version int)
+CREATE OR REPLACE FUNCTION modb._sample_motion(model text, n int, seed int, version int)
 RETURNS TABLE (sample int, fps float8, n_frames int, rotations real[], translations real[])
 LANGUAGE plpython3u STABLE PARALLEL SAFE
 AS $py$

@@ -87,7 +87,7 @@ COMMENT ON FUNCTION modb.model_graphs_check() IS
 CREATE TRIGGER model_graphs_check BEFORE INSERT OR UPDATE ON modb.graphs
     FOR EACH ROW WHEN (NEW.kind = 'models') EXECUTE FUNCTION modb.model_graphs_check();
 
-CREATE FUNCTION modb._synthesize_from_models(graph text, goals float8[], seconds float8, seed int,
+CREATE OR REPLACE FUNCTION modb._synthesize_from_models(graph text, goals float8[], seconds float8, seed int,
                                              arrival_radius float8)
 RETURNS TABLE (fps float8, n_frames int, rotations real[], translations real[], report jsonb)
 LANGUAGE plpython3u STABLE PARALLEL SAFE
