@@ -111,6 +111,7 @@ class Synthesis:
         self.seams = inertialization.Seams(rig.parents, rig.offsets, rig.translated, rig.pelvis)
         self.body = Body(rig)
         self.steps, self.notes = [], []
+        self.node = None  # the node of the last step
         self.goal = 0  # index of the current goal
         self.reached = {}  # goal index -> frame reached
         self.stood_from = None
@@ -120,13 +121,20 @@ class Synthesis:
         return int(round(self.seconds * self.fps)) + 1
 
     def run(self):
-        node = start_node(self.graph, self.rng)
+        """The strip: steps toward the goals until the last is reached or the time is up, then
+        what follows the last goal (finish)."""
         while self.body.n_frames < self.wanted_frames and self.goal < len(self.goals):
-            self.step(node)
-            node = self.next_node(node)
+            self.walk_step()
         if self.body.n_frames < self.wanted_frames:
-            self.finish(node)
+            self.finish(self.node)
         return self
+
+    def walk_step(self):
+        """One more step toward the current goal: from a start node first, then from the graph's
+        transitions (an avatar calls this as its queue of frames runs low)."""
+        node = start_node(self.graph, self.rng) if self.node is None else self.next_node(self.node)
+        self.step(node)
+        self.node = node
 
     def next_node(self, node):
         """The successor whose tree search meets the next step's constraints best."""
