@@ -314,22 +314,13 @@ MODELS = Statement(
 )
 
 
-def synthesize_stored(db, graph_name, goals, seconds, seed, radius=ARRIVAL_RADIUS_M):
-    """[(fps, n_frames, rotations, translations, report)]: what modb.synthesize_from_models
-    returns (its COMMENT says what)."""
+def load(db, graph_name):
+    """(graph document, node name -> StepModel, Rig) of the stored graph of models."""
     found = db.run(GRAPH, [graph_name])
     if not found:
         raise StoreError(f'no graph of models "{graph_name}"', sqlstate="P0002",
                          hint="modb model graph list names them; modb model graph NAME "
                          "--collection C builds one")  # fmt: skip
-    if seed is None or seed < 0:
-        raise StoreError(f"seed is {seed}: give a whole number >= 0", sqlstate="22023")
-    if not goals or any(g is None or len(g) != 2 or None in g for g in goals):
-        raise StoreError("goals must be a non-empty float8[][2] of world X and Z in metres, e.g. "
-                         "ARRAY[[0, 6], [5, 8]]", sqlstate="22023")  # fmt: skip
-    if radius is None or not 0 < radius <= 10:
-        raise StoreError(f"arrival_radius is {radius}: give metres above 0, at most 10",
-                         sqlstate="22023")  # fmt: skip
     graph = json.loads(found[0]["data"])
     ids = sorted({int(n["model_id"]) for n in graph["nodes"].values()})
     rows = {r["id"]: r for r in db.run(MODELS, [ids])}
@@ -347,8 +338,25 @@ def synthesize_stored(db, graph_name, goals, seconds, seed, radius=ARRIVAL_RADIU
     try:
         rig = Rig({"hierarchy": json.loads(first["hierarchy"]),
                    "joint_map": json.loads(first["joint_map"])})  # fmt: skip
-        synthesis = Synthesis(graph, step_models(graph, documents, rig), rig, goals, seconds, seed,
-                              radius).run()  # fmt: skip
+        return graph, step_models(graph, documents, rig), rig
+    except ValueError as e:
+        raise StoreError(f'graph "{graph_name}": {e}', sqlstate="22023") from None
+
+
+def synthesize_stored(db, graph_name, goals, seconds, seed, radius=ARRIVAL_RADIUS_M):
+    """[(fps, n_frames, rotations, translations, report)]: what modb.synthesize_from_models
+    returns (its COMMENT says what)."""
+    if seed is None or seed < 0:
+        raise StoreError(f"seed is {seed}: give a whole number >= 0", sqlstate="22023")
+    if not goals or any(g is None or len(g) != 2 or None in g for g in goals):
+        raise StoreError("goals must be a non-empty float8[][2] of world X and Z in metres, e.g. "
+                         "ARRAY[[0, 6], [5, 8]]", sqlstate="22023")  # fmt: skip
+    if radius is None or not 0 < radius <= 10:
+        raise StoreError(f"arrival_radius is {radius}: give metres above 0, at most 10",
+                         sqlstate="22023")  # fmt: skip
+    graph, models, rig = load(db, graph_name)
+    try:
+        synthesis = Synthesis(graph, models, rig, goals, seconds, seed, radius).run()
     except ValueError as e:
         raise StoreError(f'graph "{graph_name}": {e}', sqlstate="22023") from None
     rotations, translations = synthesis.frames()
