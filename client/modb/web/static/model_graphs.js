@@ -6,7 +6,7 @@
 // (modb.model_graph_problem), so a refused save shows the database's reason here and stores nothing. A new
 // graph starts from one model: its skeleton, and a start node playing it.
 // window.modbModelGraphs is what tests (and the console) read.
-import { getJSON } from './panels.js';
+import { getJSON, motionModels } from './panels.js';
 import { token } from './token.js';
 
 const TYPES = ['start', 'standard', 'end', 'idle'];
@@ -269,8 +269,8 @@ async function create() {
   say(`created ${name}: add nodes and transitions, then save`);
 }
 
-async function list() {
-  state.graphs = await getJSON('/api/graphs?kind=models');
+async function list(asked = getJSON('/api/graphs?kind=models')) {
+  state.graphs = await asked;
   $('model-graphs').replaceChildren(...state.graphs.map((g) => {
     const li = document.createElement('li');
     const span = document.createElement('span');
@@ -286,11 +286,14 @@ async function list() {
   $('graphs-panel').hidden = !state.graphs.length && !state.models.length;
 }
 
+// Both listings asked for at once, as the page loads (the motion models with the Models panel).
 async function start() {
-  state.models = await getJSON('/api/motion-models').catch(() => []);
+  const graphs = getJSON('/api/graphs?kind=models');
+  graphs.catch(() => {}); // (its failure is list()'s to say)
+  state.models = await motionModels().catch(() => []);
   $('graph-new-model').replaceChildren(...state.models.map((m) => option(
     m.id, `${m.name} v${m.version} · ${m.primitive} · skeleton ${m.skeleton_id}`)));
-  await list();
+  await list(graphs);
 }
 
 $('graph-add-node').addEventListener('click', addNode);

@@ -5,7 +5,7 @@
 // window.modbModels is what tests (and the console) read.
 import * as THREE from 'three';
 import { loadCharacter } from './character.js';
-import { getJSON } from './panels.js';
+import { getJSON, motionModels } from './panels.js';
 
 const SPACING = 0.8; // metres between figures in a row: shoulders are ~0.4 m wide, a step swings in z
 const ROW_GAP = 3.5; // metres between the rows: a step travels up to ~0.8 m forward (+Z)
@@ -308,6 +308,6 @@ window.modbModels = {
   // per figure: its row, its index, the frame shown, its offset and the joints' world positions as drawn
   figures: () => state.figures.map((f) => ({ kind: f.kind, index: f.index, frame: f.frame,
                                              offset: f.offset.toArray(), joints: f.joints() })),
-  ready: getJSON('/api/motion-models').then(listModels, () => listModels([])).then(() => true),
+  ready: motionModels().then(listModels, () => listModels([])).then(() => true),
 };
 requestAnimationFrame(tick);

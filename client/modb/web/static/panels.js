@@ -8,6 +8,14 @@ export async function getJSON(url) {
   return body;
 }
 
+// The motion models (/api/motion-models), asked for once per page: the Models panel and the Graphs of models
+// panel share the answer (one request; its first answer can take the server a moment).
+let motionModelsAsked = null;
+export function motionModels() {
+  motionModelsAsked ??= getJSON('/api/motion-models');
+  return motionModelsAsked;
+}
+
 function item(label, title, id, onSelect) {
   const li = document.createElement('li');
   const span = document.createElement('span');
