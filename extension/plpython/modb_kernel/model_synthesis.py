@@ -60,12 +60,13 @@ class Body:
     def __init__(self, rig):
         self.rig = rig
         self.rotations, self.translations = [], []
+        self.dropped = 0  # frames no longer kept (an avatar keeps the last step's only)
         self.feet = {}  # side -> (x, z) where that ankle stood at the last frame
         self.heading = 0.0  # the last frame's hip heading
 
     @property
     def n_frames(self):
-        return sum(len(r) for r in self.rotations)
+        return self.dropped + sum(len(r) for r in self.rotations)
 
     def last_two(self):
         r = np.concatenate(self.rotations[-2:])[-2:]
@@ -149,7 +150,7 @@ class Synthesis:
         for n in choices:
             model = self.models[n]
             target = self.target(model)
-            errors.append(model.errors(model.search(target, self.rng), target)[0])
+            errors.append(model.errors(model.search(target, self.rng)[0], target)[0])
         return choices[int(np.argmin(errors))]
 
     def target(self, model, toward=None):
@@ -171,7 +172,7 @@ class Synthesis:
     def step(self, node, toward=None):
         model = self.models[node]
         target = self.target(model, toward)
-        found = model.search(target, self.rng)
+        found, examined = model.search(target, self.rng)
         refined = model.refine(found, target)
         record = {
             "node": node,
@@ -185,6 +186,7 @@ class Synthesis:
             "error_m": float(model.errors(refined, target)[0]),
             "random_error_m": model.best_random(target, self.rng),
             "mahalanobis": float(model.mahalanobis(refined)[0][0]),
+            "candidates": examined,
             "scores": refined.tolist(),
         }
         self.add(model, refined)

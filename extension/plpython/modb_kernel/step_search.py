@@ -177,21 +177,22 @@ class StepModel:
         return d.min(axis=0), d.argmin(axis=0)
 
     def search(self, target, rng):
-        """Scores from the tree: a beam of BEAM nodes down its levels, then one of the leaves'
-        CHOICES samples of least error drawn with rng (so a seed varies the walk, and a straight
-        walk does not repeat one pair of steps)."""
+        """(scores, candidates examined) from the tree: a beam of BEAM nodes down its levels, then
+        one of the leaves' CHOICES samples of least error drawn with rng (so a seed varies the
+        walk, and a straight walk does not repeat one pair of steps)."""
         level = [self.tree["root"]]
-        leaves = []
+        leaves, examined = [], 0
         while level:
             inner = [c for node in level for c in node.get("children", [])]
             leaves += [node for node in level if "samples" in node]
             if not inner:
                 break
+            examined += len(inner)
             means = np.array([c["mean"] for c in inner])
             level = [inner[i] for i in np.argsort(self.errors(means, target))[:BEAM]]
         held = np.concatenate([np.asarray(leaf["samples"], dtype=np.float64) for leaf in leaves])
         e = self.errors(held, target)
-        return held[rng.choice(np.argsort(e)[:CHOICES])]
+        return held[rng.choice(np.argsort(e)[:CHOICES])], len(held) + examined
 
     def refine(self, start, target):
         """The scores near start that least-squares minimise the constraint error plus
