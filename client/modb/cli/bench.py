@@ -100,6 +100,24 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     synth.set_defaults(func=run_synth)
 
+    compare = benchmarks.add_parser(
+        "synth-compare",
+        help="motion matching and a graph of models on the same courses, judged alike",
+    )
+    compare.add_argument("--collection", required=True, help="the collection both draw from")
+    compare.add_argument(
+        "--models",
+        metavar="GRAPH",
+        help="the graph of models (default: the collection's, built from its step models when "
+        "there is none)",
+    )
+    compare.add_argument(
+        "--seconds", type=COURSE_SECONDS, default=60.0, help="each course's length (default 60)"
+    )
+    compare.add_argument("--seed", type=SEED, default=0, help="the models' seed (default 0)")
+    compare.add_argument("--json", metavar="FILE", help="also write the figures as JSON")
+    compare.set_defaults(func=run_synth_compare)
+
     crowd = benchmarks.add_parser(
         "crowd",
         help="N simulated avatars against a primary and k hot standbys (a cluster of its own), "
@@ -295,6 +313,32 @@ def run_synth(args: argparse.Namespace) -> int:
         f"profile {args.profile}{graph}:"
     )
     print(summary)  # `modb synth --report` also lists every choice
+    return 0
+
+
+def run_synth_compare(args: argparse.Namespace) -> int:
+    import json
+
+    from modb.bench.synth_compare import run, table
+    from modb.models import graphs
+
+    from .synth import prepare_default_graph
+
+    with connect(args) as conn:
+        graph = args.models
+        if graph is None:
+            mine = [g for g in graphs.listing(conn) if g.data.get("collection") == args.collection]
+            graph = mine[0].name if mine else graphs.build(conn, f"{args.collection} walk",
+                                                           args.collection).name  # fmt: skip
+        prepare_default_graph(conn, Settings(collection=args.collection), None, quiet=True)
+        result = run(conn, args.collection, graph, args.seconds, args.seed)
+    print(f"collection {args.collection}, graph of models {graph}, {args.seconds:g} s a course, "
+          f"seed {args.seed}; the source's pose jump p99 "
+          f"{result['source_pose_jump_p99_cm']:.1f} cm, pace {result['source_walking_speed']:.2f} "
+          "m/s")  # fmt: skip
+    print(table(result))
+    if args.json:
+        Path(args.json).write_text(json.dumps(result, indent=2) + "\n")
     return 0
 
 
