@@ -190,9 +190,10 @@ ROWS = (
 
 
 def table(result: dict[str, Any]) -> str:
-    """A Markdown table: a row per figure, a column per course and family."""
+    """A Markdown table: a row per figure, a column per course and family (MM: motion
+    matching)."""
     names = list(result["courses"])
-    head = ["figure"] + [f"{n}: {family}" for n in names for family in ("matching", "models")]
+    head = ["figure"] + [f"{n}: {family}" for n in names for family in ("MM", "models")]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for label, show in ROWS:
         cells = [show(result["courses"][n][family]) for n in names
