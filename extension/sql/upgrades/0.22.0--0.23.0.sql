@@ -1,3 +1,0 @@
--- 0.23.0: graphs of motion models (modb.graphs kind 'models', checked by modb.model_graph_problem) and
--- synthesis from them (modb.synthesize_from_models); the kernel's inertialization shared by both families.
---@include 96_model_graphs.sql
