@@ -323,3 +323,40 @@ def test_graphs_are_listed_exported_imported_and_refused_when_broken(walks, tmp_
     r = run_modb(dsn, "synth", "--models", "nothing", "--to", "0,6", "--seconds", "5", "--out",
                  str(tmp_path / "x.bvh"))  # fmt: skip
     assert r.returncode == 1 and 'no graph of models "nothing"' in r.stderr
+
+
+def test_both_families_are_compared_alike(walks, tmp_path):
+    """`modb bench synth-compare` (issue 46) on short courses: every course walked by both
+    families, and the models' novelty recomputed here by brute force on the test's own FK."""
+    name, dsn = walks
+    if name != "cmu16":
+        pytest.skip("one dataset shows the comparison's figures are its own")
+    out = tmp_path / "compare.json"
+    r = run_modb(dsn, "bench", "synth-compare", "--collection", name, "--models", GRAPH,
+                 "--seconds", "8", "--json", str(out))  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    result = json.loads(out.read_text())
+    assert set(result["courses"]) == {"demo", "right angles", "about-turns"}
+    for course in result["courses"].values():
+        assert {"motion matching", "models"} <= set(course)
+    demo = result["courses"]["demo"]
+    rig = Rig(dsn)
+    fps, rotations, translations, _ = query(
+        dsn, "SELECT fps, rotations, translations, report FROM modb.synthesize_from_models(%s, "
+        "%s::float8[], 8, 0)", [GRAPH, [list(g) for g in demo["goals"]]])[0]  # fmt: skip
+
+    def features(p):
+        ground = p[:, rig.at["pelvis"]] * np.array([1.0, 0.0, 1.0])
+        local = p[:, rig.body] - ground[:, None]
+        heading = rig.heading(p)
+        turn = own_kinematics.Rotation.from_euler("y", -heading[:, None])  # the hips to face +Z
+        turned = np.stack([turn[k].apply(local[k]) for k in range(len(p))])
+        return turned.reshape(len(p), -1) / np.sqrt(len(rig.body))
+
+    strip = features(rig.fk(np.asarray(rotations), np.asarray(translations)))
+    clips = query(dsn, "SELECT v.rotations, v.translations FROM modb.current_clips c "
+                  "JOIN modb.clip_versions v USING (clip_id, version) WHERE c.collection = %s",
+                  [name])  # fmt: skip
+    source = np.concatenate([features(rig.fk(np.asarray(r), np.asarray(t)))[::2] for r, t in clips])
+    nearest = np.array([np.sqrt(((source - f) ** 2).sum(axis=1)).min() for f in strip])
+    assert 100 * np.median(nearest) == pytest.approx(demo["models"]["novelty_median_cm"], abs=0.05)
