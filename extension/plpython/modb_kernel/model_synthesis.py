@@ -26,6 +26,7 @@ from .database import Statement, StoreError
 from .step_search import Rig, StepModel, hip_heading, rotate_y, wrap
 
 MAX_SECONDS = 600.0
+MAX_COORDINATE = 1e6  # metres from the origin, as the snippet chain's goals
 ARRIVAL_RADIUS_M = 0.5
 TURN_REACH = 1.5  # a step asks at most this many times the turn 95% of the model's steps make
 
@@ -345,13 +346,25 @@ def load(db, graph_name):
         raise StoreError(f'graph "{graph_name}": {e}', sqlstate="22023") from None
 
 
+def _sound_goals(goals):
+    """A non-empty list of [x, z] pairs of finite numbers within MAX_COORDINATE."""
+    if not goals or not all(isinstance(g, (list, tuple)) and len(g) == 2 for g in goals):
+        return False
+    values = [v for g in goals for v in g]
+    return all(isinstance(v, (int, float)) and abs(v) <= MAX_COORDINATE for v in values)
+
+
 def synthesize_stored(db, graph_name, goals, seconds, seed, radius=ARRIVAL_RADIUS_M):
     """[(fps, n_frames, rotations, translations, report)]: what modb.synthesize_from_models
     returns (its COMMENT says what)."""
     if seed is None or seed < 0:
         raise StoreError(f"seed is {seed}: give a whole number >= 0", sqlstate="22023")
-    if not goals or any(g is None or len(g) != 2 or None in g for g in goals):
-        raise StoreError("goals must be a non-empty float8[][2] of world X and Z in metres, e.g. "
+    if seconds is None or not 0 < seconds <= MAX_SECONDS:
+        raise StoreError(f"seconds is {seconds}: give more than 0, at most {MAX_SECONDS:g}",
+                         sqlstate="22023")  # fmt: skip
+    if not _sound_goals(goals):
+        raise StoreError(f"goals must be a non-empty float8[][2] of world X and Z in metres, each "
+                         f"finite and at most {MAX_COORDINATE:g} from the origin, e.g. "
                          "ARRAY[[0, 6], [5, 8]]", sqlstate="22023")  # fmt: skip
     if radius is None or not 0 < radius <= 10:
         raise StoreError(f"arrival_radius is {radius}: give metres above 0, at most 10",
