@@ -246,7 +246,8 @@ def profiles(conn: psycopg.Connection) -> list[dict[str, Any]]:
 
 
 def avatar_choices(conn: psycopg.Connection) -> dict[str, Any]:
-    """The avatar panel's choices: profiles, transition graphs newest first, collections, joints."""
+    """The avatar panel's choices: profiles, transition graphs newest first, collections, joints;
+    and the graphs of models it can walk on instead, by name."""
     graphs = [
         r[0]
         for r in conn.execute(
@@ -254,9 +255,12 @@ def avatar_choices(conn: psycopg.Connection) -> dict[str, Any]:
             "ORDER BY created_at DESC, id DESC"
         )
     ]
+    models = conn.execute("SELECT name FROM modb.graphs WHERE kind = 'models' ORDER BY name")
+    model_graphs = [r[0] for r in models]
     return {
         "profiles": profiles(conn),
         "graphs": graphs,
+        "model_graphs": model_graphs,
         "collections": [c["path"] for c in collections(conn)],
         "joints": list(STANDARD_JOINTS),
     }

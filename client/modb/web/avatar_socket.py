@@ -1,4 +1,5 @@
-"""The WebSocket /ws/avatar: avatar mode's asyncio side (AvatarSession does the work in threads).
+"""The WebSocket /ws/avatar: avatar mode's asyncio side (AvatarSession, or ModelAvatarSession on a
+graph of models, does the work in threads; a "mode" message switches from one to the other).
 
 The Host/Origin guard in front refuses a foreign page before this runs. Each connection gets its own
 database session; at most `max_avatars` are open at once (by default MAX_AVATARS_PER_NODE for each
@@ -22,6 +23,8 @@ from starlette.concurrency import run_in_threadpool
 from starlette.exceptions import HTTPException
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
+from modb_kernel.database import StoreError
+
 from modb.database.read_nodes import ReadNodes
 from modb.synthesis.avatar import Settings
 from . import api
@@ -29,6 +32,8 @@ from .auth import Tokens
 
 from .avatar_session import AvatarSession
 from .avatar_settings import check_settings
+from .avatar_standing import standing_messages
+from .model_avatar_session import ModelAvatarSession, checked_mode
 
 log = logging.getLogger("modb.web")
 MAX_AVATARS_PER_NODE = 8  # open avatar sockets (walking or not) per database node, by default
@@ -38,6 +43,10 @@ MAX_MESSAGE_DEPTH = 8  # arrays and objects within each other; the protocol's me
 AUTH_WAIT_S = 10  # with --require-token: how long the page has to send its token
 CLOSE_UNAUTHORIZED = 4401  # a close code of the application's range (4000-4999): 401's meaning
 _SPECIAL = re.compile(r'[\\"\[\]{}]')  # what the depth scan looks at: quotes, escapes, brackets
+
+
+Session = AvatarSession | ModelAvatarSession
+Send = Callable[[dict[str, Any]], None]
 
 
 class MessageRefused(ValueError):
@@ -123,6 +132,12 @@ async def _authorized(websocket: WebSocket, tokens: Tokens) -> bool:
         return False
 
 
+def _mode(session: Session) -> dict[str, Any]:
+    if isinstance(session, ModelAvatarSession):
+        return {"models": session.graph, "seed": session.seed}
+    return {"models": None, "seed": None}
+
+
 def default_max_avatars(nodes: ReadNodes) -> int:
     return MAX_AVATARS_PER_NODE * (1 + len(nodes.standbys))
 
@@ -137,8 +152,39 @@ def avatar_endpoint(
             check_settings(conn, settings)
 
     def offered() -> dict[str, Any]:
+        """What the page can choose, and the avatar standing before its first goal."""
         with pool.connection() as conn:
-            return api.avatar_choices(conn)
+            return {**api.avatar_choices(conn), "standing": standing_messages(conn)}
+
+    def switch(session: Session, message: dict[str, Any], send: Send, kept: list) -> Session:
+        """The session of the mode a "mode" message asks for (the current one goes on when the
+        message is refused): on a graph of models {"models": name, "seed": int, "goals":
+        [[x, z], ...]}, else motion matching ({"models": null}), with the settings it had last
+        on this connection (`kept`). The new one stands at the origin."""
+        try:
+            models, seed, goals = checked_mode(message)
+            if isinstance(session, AvatarSession):
+                kept[0] = session.settings
+            if models is None:
+                new: Session = AvatarSession(nodes, send, check, kept[0])
+                with pool.connection() as conn:
+                    standing = standing_messages(conn)
+            else:
+                with pool.connection() as conn:
+                    new = ModelAvatarSession(conn, send, models, seed, goals)
+                standing = []
+        except (ValueError, StoreError) as e:  # StoreError: no such graph; ValueError: a broken one
+            hint = getattr(e, "hint", None)
+            why = f"no mode change: {e}" + (f" ({hint})" if hint else "")
+            send({"type": "refused", "message": why, "mode": _mode(session)})
+            return session
+        session.close()
+        send({"type": "mode", **_mode(new), "settings": new.public_settings()})
+        for m in standing:
+            send(m)
+        if isinstance(new, ModelAvatarSession):
+            new.start()
+        return new
 
     async def endpoint(websocket: WebSocket) -> None:
         await websocket.accept()
@@ -162,13 +208,15 @@ def avatar_endpoint(
                 future.cancel()
                 raise
 
-        session: AvatarSession | None = None
+        session: Session | None = None
         try:
-            choices = await run_in_threadpool(offered)
             session = AvatarSession(nodes, send, check, _defaults())
-            await websocket.send_text(
-                json.dumps({"type": "ready", **choices, "settings": session.public_settings()})
-            )
+            kept = [session.settings]  # motion matching's settings, while on a graph of models
+            # the standing avatar comes in the ready message (its first message stays "ready", and
+            # a script's next message answers what it sent)
+            choices = await run_in_threadpool(offered)
+            ready = {"type": "ready", **choices, "mode": _mode(session)}
+            await websocket.send_text(json.dumps({**ready, "settings": session.public_settings()}))
             while True:
                 received = await websocket.receive()
                 if received["type"] == "websocket.disconnect":
@@ -181,7 +229,10 @@ def avatar_endpoint(
                 if isinstance(message, dict) and message.get("type") == "auth":
                     continue  # the page sends its token whether or not the server asks for one
                 try:
-                    await run_in_threadpool(session.handle, message)
+                    if isinstance(message, dict) and message.get("type") == "mode":
+                        session = await run_in_threadpool(switch, session, message, send, kept)
+                    else:
+                        await run_in_threadpool(session.handle, message)
                 except Exception:  # a bug: the server's log has it; the page may go on
                     log.exception("avatar message %.200r", message)
                     await websocket.send_text(

@@ -1,6 +1,7 @@
 // Avatar mode: the server walks an Avatar toward the goals clicked here and streams its poses over a
 // WebSocket at the source rate; this page poses the figure, draws its trail and the goals, and tunes the
-// selection. window.modbAvatar is what tests (and the console) read.
+// selection. The avatar walks by motion matching (snippets) or on a graph of models (the mode selector);
+// in both it stands at the origin from the start. window.modbAvatar is what tests (and the console) read.
 import { loadCharacter, saveFile } from './character.js';
 import { Course } from './course.js';
 import { Rig } from './rig.js';
@@ -20,6 +21,7 @@ stage.look([0, 7, -7], [0, 0, 3]); // from above and behind the avatar, which st
 const state = {
   connected: false, settings: null, rig: null, character: null, framed: false, frames: 0, frame: null,
   choices: [], goals: [], goalIndex: 0, messages: [], closed: null, pelvisAt: {},
+  mode: { models: null, seed: null }, steps: [],
 };
 
 function status(text, isError = false) {
@@ -35,6 +37,40 @@ const tuning = new Tuning($('tuning'), send);
 let resolveReady;
 const ready = new Promise((resolve) => { resolveReady = resolve; });
 
+function fixed(value, digits) {
+  return value === null || value === undefined ? '-' : Number(value).toFixed(digits);
+}
+const cm = (metres) => `${fixed(100 * metres, 1)} cm`;
+
+// The mode in force, as the server says: motion matching (models null) or a graph of models and its seed.
+function showMode(mode) {
+  state.mode = mode;
+  const models = mode.models !== null;
+  $('mode').value = mode.models || '';
+  if (models) $('seed').value = mode.seed;
+  $('seed-choice').style.display = models ? '' : 'none';
+  $('model-readouts').hidden = !models;
+  document.querySelectorAll('#tuning .snippets-only').forEach((section) => { section.hidden = models; });
+}
+
+function chooseMode() {
+  const models = $('mode').value || null;
+  const seed = Math.max(0, Math.floor(Number($('seed').value) || 0));
+  status(models ? `loading the graph of models ${models}…` : 'back to motion matching…');
+  send({ type: 'mode', models, seed });
+}
+
+// A step of the walk on models, as it starts to play: its primitive, the search, its constraint error.
+function showStep(step) {
+  const r = step.readout;
+  $('step').textContent = `${step.step} (${step.goal === null ? 'after the last goal' : `goal ${step.goal}`})`;
+  $('primitive').textContent = `${step.node} (${step.model})`;
+  $('step-candidates').textContent = String(step.candidates);
+  $('error').textContent = cm(step.error_m);
+  $('error-compare').textContent = `${cm(step.tree_error_m)} / ${cm(step.random_error_m)}`;
+  $('error-medians').textContent = `${cm(r.error_m_median)}; ${cm(r.tree_error_m_median)} / ${cm(r.random_error_m_median)} (${r.steps} steps)`;
+}
+
 function showGoals(goals, index) {
   Object.assign(state, { goals, goalIndex: index });
   course.setGoals(goals, index, state.settings ? state.settings.arrival_radius : 0.5);
@@ -45,10 +81,38 @@ const handlers = {
     state.connected = true;
     state.settings = m.settings;
     tuning.build(m);
+    $('mode').append(...m.model_graphs.map((name) => Object.assign(document.createElement('option'), {
+      value: name, textContent: `graph of models: ${name}`,
+    })));
+    showMode(m.mode);
+    m.standing.forEach((message) => handlers[message.type](message)); // the avatar, standing at the origin
     status('click the ground to set a goal');
     resolveReady(true);
   },
+  mode(m) {
+    showMode({ models: m.models, seed: m.seed });
+    state.settings = m.settings;
+    if (m.models === null) tuning.show(m.settings);
+    // a new avatar, standing at the origin: the last one's trail, goals and frames go
+    course.trail = [];
+    course.trailLine.geometry.setDrawRange(0, 0);
+    state.pelvisAt = {};
+    state.steps = [];
+    document.querySelectorAll('#model-readouts td').forEach((cell) => { cell.textContent = '-'; });
+    showGoals([], 0);
+    status(m.models === null ? 'click the ground to set a goal (motion matching)'
+      : `on the graph of models ${m.models} (seed ${m.seed}): click the ground to set a goal`);
+  },
+  step(m) {
+    state.steps.push(m);
+    if (state.steps.length > KEEP_CHOICES) state.steps.shift();
+    showStep(m);
+    showGoals(m.goals, m.goal_index);
+    if ($('status').textContent.startsWith('on the graph')) status('');
+  },
   skeleton(m) {
+    if (state.rig && state.skeletonId === m.id) return; // posed already (the standing avatar's)
+    state.skeletonId = m.id;
     state.rig = new Rig(m.hierarchy, m.pelvis);
     state.framed = false;
     state.character = null;
@@ -100,6 +164,7 @@ const handlers = {
   refused(m) {
     status(m.message, true);
     if (m.settings) tuning.show(m.settings);
+    if (m.mode) showMode(m.mode); // a mode refused: the one in force goes on
   },
   stopped(m) { status(m.message, true); },
 };
@@ -127,6 +192,8 @@ canvas.addEventListener('click', (e) => {
   if (point) send({ type: 'goal', x: point.x, z: point.z, add: e.shiftKey });
 });
 
+$('mode').addEventListener('change', chooseMode);
+$('seed').addEventListener('change', () => { if (state.mode.models !== null) chooseMode(); });
 $('show-skeleton').addEventListener('change', () => stage.showSkeleton($('show-skeleton').checked || !state.character));
 for (const format of ['bvh', 'glb']) {
   $(`download-${format}`).addEventListener('click', () => {
@@ -144,6 +211,7 @@ requestAnimationFrame(tick);
 
 window.modbAvatar = {
   state,
+  send, // a message to the server, on this page's socket
   stage,
   course,
   ready,

@@ -1,0 +1,273 @@
+"""Avatar mode on a graph of models: one browser connection drives one ModelAvatar.
+
+The graph and its models are read once, when the session starts (on a read-only connection it
+gives back at once); the walk runs in this process after that. A thread plays the avatar's frames
+at the models' rate: it stands, idle, until a goal comes; a step's readout (its primitive, the
+search's candidates, its constraint error) is sent when the step starts to play. The avatar is not
+thread-safe: goals (the socket's thread) and frames (the play thread) take turns under a lock.
+"""
+
+from __future__ import annotations
+
+import base64
+import logging
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+import psycopg
+
+from modb.motion import Motion, Skeleton
+from modb.provenance import as_meta, credits, origins, sources_among
+from modb.synthesis.chain import Frame, Goal, checked_goal
+from modb.synthesis.from_models import EXAMPLES
+from modb.synthesis.from_models import SKELETON as GRAPH_SKELETON
+from modb.synthesis.model_avatar import MAX_GOALS, ModelAvatar, StepReadout
+from modb.synthesis.root_motion import with_root_motion
+
+from .avatar_messages import frame_message
+from .downloads import FORMATS, motion_bytes
+
+log = logging.getLogger("modb.web")
+
+KEEP_SECONDS = 300  # a download holds the last 5 min of the walk
+RECENT = 50  # the readout's medians: over the last this many steps
+MAX_SEED = 2**31 - 1  # modb.synthesize_from_models's seed is an int
+
+Send = Callable[[dict[str, Any]], None]
+
+
+class ModelAvatarSession:
+    """A browser connection's avatar on a graph of models: handle() takes the page's messages;
+    start() sets the play thread going (the standing pose first)."""
+
+    def __init__(
+        self,
+        conn: psycopg.Connection,
+        send: Send,
+        graph: str,
+        seed: int = 0,
+        goals: Sequence[Goal] = (),
+    ) -> None:
+        """Reads the graph on `conn` (raises what ModelAvatar raises for a graph it cannot walk:
+        StoreError naming an unknown one); goals given here are the course before the walk
+        starts, as `modb synth --models --to ...` takes them."""
+        self._send = send
+        self.graph, self.seed = graph, seed
+        self._avatar = ModelAvatar(conn, graph, seed)
+        for goal in goals:
+            self._avatar.add_waypoint(checked_goal(goal))
+        name, hierarchy, joint_map, mirror_pairs = conn.execute(GRAPH_SKELETON, [graph]).fetchone()
+        self._skeleton = Skeleton.from_row(hierarchy, joint_map, mirror_pairs, name)
+        self._sources = _sources(conn, graph)
+        self._lock = threading.Lock()  # the avatar: goals from handle(), frames from the thread
+        self._stopping = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._walk: deque[Frame] = deque()  # the walk's frames, for downloads (the last 5 min)
+
+    @property
+    def fps(self) -> float:
+        return float(self._avatar.fps)
+
+    def public_settings(self) -> dict[str, Any]:
+        radius = self._avatar.synthesis.radius
+        return {"models": self.graph, "seed": self.seed, "arrival_radius": radius}
+
+    def start(self) -> None:
+        self._thread = threading.Thread(target=self._play, daemon=True, name="modb-model-avatar")
+        self._thread.start()
+
+    def handle(self, message: dict[str, Any]) -> None:
+        kind = message.get("type") if isinstance(message, dict) else None
+        if kind == "goal":
+            self._goal(message)
+        elif kind == "download":
+            self._download(message)
+        elif kind == "settings":
+            self._send(
+                {
+                    "type": "refused",
+                    "message": "a graph of models has no selection settings: choose motion "
+                    "matching to tune them",
+                }
+            )
+        else:
+            self._send(
+                {
+                    "type": "refused",
+                    "message": f"unknown message type {kind!r:.200}: send goal, download or mode",
+                }
+            )
+
+    def _goal(self, message: dict[str, Any]) -> None:
+        try:
+            goal = checked_goal((message["x"], message["z"]))
+        except (KeyError, TypeError, ValueError, OverflowError):  # OverflowError: a huge integer
+            why = f'a goal is {{"x": metres, "z": metres}}, got {message!r:.200}'
+            self._send({"type": "refused", "message": why})
+            return
+        try:
+            with self._lock:
+                if message.get("add"):
+                    self._avatar.add_waypoint(goal)
+                else:
+                    self._avatar.set_goal(goal)
+                goals, index = self._avatar.goals, self._avatar.goal_index
+        except ValueError as e:  # too many goals ahead
+            self._send({"type": "refused", "message": str(e)})
+            return
+        self._send({"type": "goals", "goals": goals, "goal_index": index})
+
+    def _play(self) -> None:
+        """The avatar's frames at its rate: the standing pose first, then each new frame (an idle
+        avatar repeats its last pose: not sent again); a step's readout as it starts to play."""
+        avatar = self._avatar
+        fps = self.fps
+        try:
+            skeleton_id, hierarchy, pelvis = avatar.skeleton
+            self._send(
+                {"type": "skeleton", "id": skeleton_id, "hierarchy": hierarchy, "pelvis": pelvis}
+            )
+            shown = avatar.standing
+            self._send(frame_message(shown))
+            frames = avatar.frames()
+            idle = True  # standing, before any goal
+            due = time.monotonic()
+            while not self._stopping.is_set():
+                with self._lock:
+                    frame = next(frames)
+                    readouts = avatar.readouts
+                    goals, index = avatar.goals, avatar.goal_index
+                due = max(due, time.monotonic())  # after a stall, on from now: no burst
+                if self._stopping.wait(max(0.0, due - time.monotonic())):
+                    break
+                due += 1.0 / fps
+                if frame.rotations is shown.rotations:  # idle: the pose shown already
+                    if not idle:  # the walk's last frame played: every goal served
+                        self._send({"type": "goals", "goals": goals, "goal_index": index})
+                        idle = True
+                    continue
+                idle = False
+                if frame.step != shown.step:  # the first frame of a new step
+                    self._send(step_message(readouts, frame.step, goals))
+                self._send(frame_message(frame))
+                self._keep(frame)
+                shown = frame
+        except Exception as e:  # the page closed (a send failed), or a bug: the server's log has it
+            if not self._stopping.is_set():
+                log.exception("model avatar stopped")
+                try:
+                    self._send(
+                        {
+                            "type": "stopped",
+                            "message": f"the avatar stopped: {e}; choose "
+                            "the graph again to start over",
+                        }
+                    )
+                except Exception:
+                    pass
+
+    def _keep(self, frame: Frame) -> None:
+        self._walk.append(frame)
+        while len(self._walk) > KEEP_SECONDS * self.fps:
+            self._walk.popleft()
+
+    def _download(self, message: dict[str, Any]) -> None:
+        """The walk so far (its last KEEP_SECONDS), with root motion, as a file the page saves."""
+        fmt = message.get("format")
+        frames = list(self._walk)
+        if fmt not in FORMATS or not frames:
+            why = (
+                f"format is one of {', '.join(FORMATS)}, got {fmt!r:.50}"
+                if fmt not in FORMATS
+                else "nothing walked yet: click the ground first"
+            )
+            self._send({"type": "refused", "message": f"no download: {why}"})
+            return
+        walk = Motion(
+            skeleton=self._skeleton,
+            fps=self.fps,
+            rotations=np.stack([f.rotations for f in frames]),
+            translations=np.stack([f.translations for f in frames]),
+            name="walk",
+            meta={"synthesized": True, "graph of models": self.graph, "seed": self.seed},
+        )
+        walk = with_root_motion(walk)
+        if self._sources:  # a glTF file names them inside (asset.copyright); the page says them too
+            walk.meta["sources"] = self._sources
+        media, extension = FORMATS[fmt]
+        self._send(
+            {
+                "type": "file",
+                "name": f"walk.{extension}",
+                "media_type": media,
+                "data": base64.b64encode(motion_bytes(walk, fmt)).decode(),
+                "seconds": (len(frames) - 1) / self.fps,
+                "sources": credits(self._sources),
+            }
+        )
+
+    def close(self) -> None:
+        self._stopping.set()
+        if self._thread is not None:
+            self._thread.join(timeout=30)
+
+
+def step_message(readouts: list[StepReadout], step: int, goals: list[Goal]) -> dict[str, Any]:
+    """A step's readout, and the medians of the last RECENT steps' errors. The goal being served
+    is the step's (the synthesis runs a second ahead of what plays)."""
+    r = readouts[step - 1]
+    recent = readouts[max(0, step - RECENT) : step]
+
+    def median(field: str) -> float:
+        return float(np.median([getattr(s, field) for s in recent]))
+
+    return {
+        "type": "step",
+        "step": r.step,
+        "node": r.node,  # the primitive
+        "model": r.model,
+        "first_frame": r.first_frame,
+        "n_frames": r.n_frames,
+        "candidates": r.candidates,  # tree nodes and leaf samples the search examined
+        "error_m": r.error_m,  # the constraint error of the step played
+        "tree_error_m": r.tree_error_m,  # the tree's search alone
+        "random_error_m": r.random_error_m,  # the best of 300 random draws
+        "goal": r.goal,
+        "goals": goals,
+        "goal_index": len(goals) if r.goal is None else min(r.goal - 1, len(goals)),
+        "readout": {
+            "steps": len(recent),
+            "error_m_median": median("error_m"),
+            "tree_error_m_median": median("tree_error_m"),
+            "random_error_m_median": median("random_error_m"),
+        },
+    }
+
+
+def checked_mode(message: dict[str, Any]) -> tuple[str | None, int, list[Goal]]:
+    """(graph of models or None for motion matching, seed, goals) of a "mode" message; ValueError
+    saying what is wrong."""
+    models, seed, goals = message.get("models"), message.get("seed", 0), message.get("goals") or []
+    if models is not None and (not isinstance(models, str) or not models or len(models) > 200):
+        raise ValueError(f'"models" is a graph of models\' name or null, got {models!r:.100}')
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
+        raise ValueError(f'"seed" is a whole number from 0 to {MAX_SEED}, got {seed!r:.50}')
+    if not isinstance(goals, list) or len(goals) > MAX_GOALS:
+        raise ValueError(f'"goals" is a list of at most {MAX_GOALS} [x, z] in metres')
+    try:
+        checked = [checked_goal(g) for g in goals]
+    except (TypeError, ValueError) as e:
+        raise ValueError(f'"goals": {e}') from None
+    if checked and models is None:
+        raise ValueError('"goals" go with "models": motion matching starts at the first click')
+    return models, seed, checked
+
+
+def _sources(conn: psycopg.Connection, graph: str) -> list[dict]:
+    """The sources of the captured steps the graph's models learnt from, and their terms."""
+    versions = [(clip, version) for clip, version, *_ in conn.execute(EXAMPLES, [graph])]
+    return as_meta(sources_among(origins(conn, versions), versions))

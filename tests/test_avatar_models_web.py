@@ -1,0 +1,413 @@
+"""The avatar page on a graph of models, in a real browser (Debian's chromium), against the real
+`modb serve` and a database of CMU 16's walks and turns with left and right step models, the
+graph of models GRAPH, and the snippets `modb load` makes: the avatar stands at the origin as the
+page opens, in both modes; on models, clicks walk it to the goals with the step's primitive,
+candidates and constraint error in the panel; the same seed and goals give the walk
+modb.synthesize_from_models gives (the page's own kinematics against the test's); its walk
+downloads as glTF and BVH."""
+
+from __future__ import annotations
+
+import base64
+import os
+import time
+
+import numpy as np
+import psycopg
+import pytest
+from support import own_kinematics
+from support.bvh_oracle import bvhio_world_positions
+from support.browser import module_page, serving, severe_console_entries
+from support.commands import run_modb
+from support.data import REPO, mocap
+from support.databases import scratch_database
+from support.gltf_validator import validate
+
+from modb.database import pgarray
+
+GRAPH = "walk"
+ARRIVAL_RADIUS = 0.5  # metres: the avatar's on models, as modb.synthesize_from_models's default
+ARTIFACTS = REPO / "tests" / "artifacts"
+STATE = (
+    "const s = window.modbAvatar.state; return {frames: s.frames, frame: s.frame, goals: s.goals, "
+    "goalIndex: s.goalIndex, steps: s.steps, messages: s.messages, mode: s.mode, "
+    "trail: window.modbAvatar.trail()}"
+)
+
+
+@pytest.fixture(scope="module")
+def walks(cluster):
+    """CMU 16 with snippets (motion matching), steps annotated, left and right step models and
+    the graph of models GRAPH over them."""
+    with scratch_database(cluster, f"avatar_models_{os.getpid()}") as dsn:
+        for args in (
+            ("load", str(mocap("cmu", "16")), "--collection", "cmu16", "-q"),
+            ("annotate", "--steps", "cmu16"),
+            *(
+                ("model", "build", f"cmu16_{side}_step", "--collection", "cmu16",
+                 "--primitive", f"{side}_step", "-q")
+                for side in ("left", "right")
+            ),
+            ("model", "graph", GRAPH, "--collection", "cmu16"),
+        ):  # fmt: skip
+            r = run_modb(dsn, *args)
+            assert r.returncode == 0, r.stderr
+        yield dsn
+
+
+@pytest.fixture(scope="module")
+def server(walks):
+    with serving(walks) as address:
+        yield address, walks
+
+
+@pytest.fixture(scope="module")
+def browser(chromium_driver):
+    with module_page(chromium_driver, "1400,1000") as driver:
+        yield driver
+
+
+class Rig:
+    """The skeleton of GRAPH (the snippets' too: one skeleton here), with the test's own
+    kinematics."""
+
+    def __init__(self, dsn: str):
+        with psycopg.connect(dsn) as conn:
+            hierarchy, joint_map = conn.execute(
+                "SELECT s.hierarchy, s.joint_map FROM modb.graphs g JOIN modb.skeletons s "
+                "ON s.id = g.skeleton_id WHERE g.name = %s AND g.kind = 'models'",
+                [GRAPH],
+            ).fetchone()
+        joints = hierarchy["joints"]
+        self.names = [j["name"] for j in joints]
+        self.parents = [j["parent"] for j in joints]
+        self.offsets = [j["offset"] for j in joints]
+        self.translated = hierarchy["translated"]
+        self.unit_m = hierarchy["unit_m"]
+        self.at = {k: self.names.index(v) for k, v in joint_map.items()}
+
+    def fk(self, rotations, translations) -> np.ndarray:
+        return own_kinematics.world_positions(
+            self.parents, self.offsets, self.translated, rotations, translations
+        )
+
+    def heading(self, positions) -> float:
+        """Where the hips face (0: +Z), from their world positions."""
+        axis = np.asarray(positions[self.at["left_hip"]]) - positions[self.at["right_hip"]]
+        return float(np.arctan2(-axis[2], axis[0]))
+
+
+def open_page(driver, address: str, follow: bool = False) -> None:
+    from selenium.webdriver.common.by import By
+
+    driver.get(f"http://{address}/avatar")
+    ready = driver.execute_async_script(
+        "const done = arguments[0]; window.modbAvatar.ready.then(done, (e) => done(String(e)))"
+    )
+    assert ready is True, ready
+    if not follow:  # the view stays where the test puts it, for clicks
+        driver.find_element(By.ID, "follow").click()
+
+
+def page_state(driver) -> dict:
+    return driver.execute_script(STATE)
+
+
+def wait_until(driver, condition, timeout: float, what: str) -> dict:
+    deadline = time.monotonic() + timeout
+    while True:
+        state = page_state(driver)
+        if condition(state):
+            return state
+        if time.monotonic() > deadline:
+            raise AssertionError(
+                f"{what}: not within {timeout} s; the page has {state['frames']} frames, "
+                f"{len(state['steps'])} steps, last messages {state['messages'][-3:]}"
+            )
+        time.sleep(0.2)
+
+
+def standing_pose(driver) -> dict:
+    """The rig's world positions as the page posed it (three.js), and its joint names."""
+    return driver.execute_script(
+        "const r = window.modbAvatar.state.rig; "
+        "return {names: r.joints.map((j) => j.name), positions: r.worldPositions()}"
+    )
+
+
+def assert_stands_at_the_origin(driver, rig: Rig, what: str) -> None:
+    posed = standing_pose(driver)
+    assert posed["names"] == rig.names, what
+    positions = np.asarray(posed["positions"])
+    pelvis = positions[rig.at["pelvis"]]
+    assert np.hypot(pelvis[0], pelvis[2]) < 0.01, (what, pelvis)  # above the origin
+    feet = [rig.at[f"{side}_{part}"] for side in ("left", "right") for part in ("ankle", "toe")]
+    height = pelvis[1] - positions[feet, 1].min()
+    assert 0.7 < pelvis[1] < 1.2 and 0.7 < height < 1.2, (what, pelvis, height)  # an adult's
+    assert abs(rig.heading(positions)) < np.radians(5), what  # facing +Z
+
+
+def choose_mode(driver, value: str) -> dict:
+    """What a user does: picks the mode in the selector; the page's state once the server has
+    switched and the new avatar stands."""
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.support.ui import Select
+
+    since = len(page_state(driver)["messages"])
+    frames = page_state(driver)["frames"]
+    Select(driver.find_element(By.ID, "mode")).select_by_value(value)
+    return wait_until(
+        driver,
+        lambda s: (
+            any(m["type"] in ("mode", "refused") for m in s["messages"][since:])
+            and s["frames"] > frames
+        ),
+        30,
+        f"the mode {value!r} and its standing avatar",
+    )
+
+
+def click_ground(driver, x: float, z: float, waypoint: bool = False) -> None:
+    """A real pointer click where the ground point (x, z) shows on the canvas."""
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.common.keys import Keys
+
+    offset = driver.execute_script(
+        "return window.modbAvatar.offsetOf(arguments[0], arguments[1])", x, z
+    )
+    assert offset["visible"], f"({x}, {z}) is not on the canvas: {offset}"
+    canvas = driver.find_element(By.CSS_SELECTOR, "#view canvas")
+    actions = ActionChains(driver).move_to_element_with_offset(
+        canvas, round(offset["x"]), round(offset["y"])
+    )
+    if waypoint:
+        actions = actions.key_down(Keys.SHIFT).click().key_up(Keys.SHIFT)
+    else:
+        actions = actions.click()
+    actions.perform()
+
+
+def closest_approach(trail: list, goal) -> float:
+    points = np.asarray(trail, dtype=float).reshape(-1, 2)
+    return float(np.hypot(*(points - goal).T).min()) if len(points) else np.inf
+
+
+def test_the_avatar_stands_at_the_origin_as_the_page_opens_in_both_modes(server, browser):
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.common.keys import Keys
+
+    address, dsn = server
+    rig = Rig(dsn)
+    open_page(browser, address)
+    state = page_state(browser)
+    # motion matching: the skeleton and a standing frame came with the page's first message
+    assert state["mode"] == {"models": None, "seed": None}
+    assert state["frames"] >= 1 and not state["goals"], state["frames"]
+    assert_stands_at_the_origin(browser, rig, "motion matching")
+    options = [
+        o.get_attribute("value") for o in browser.find_elements(By.CSS_SELECTOR, "#mode option")
+    ]
+    assert options == ["", GRAPH]
+    # a click: the snippet walk starts where the avatar stood
+    click_ground(browser, 0.0, 2.5)
+    state = wait_until(
+        browser, lambda s: any(m["type"] == "choice" for m in s["messages"]), 30, "a selection"
+    )
+    first = browser.execute_script("return window.modbAvatar.state.pelvisAt[0]")
+    assert np.hypot(first[0], first[2]) < 1e-3, first
+    # a setting of motion matching, kept while the avatar walks on models
+    since = len(state["messages"])
+    lead_time = browser.find_element(By.ID, "lead_time")
+    lead_time.send_keys(Keys.CONTROL, "a")
+    lead_time.send_keys("0.3", Keys.TAB)
+    wait_until(
+        browser,
+        lambda s: any(m["type"] == "settings" for m in s["messages"][since:]),
+        10,
+        "the settings answered",
+    )
+    # on the graph of models: a new avatar stands at the origin; it stays (idle) until a goal
+    state = choose_mode(browser, GRAPH)
+    mode = next(m for m in reversed(state["messages"]) if m["type"] in ("mode", "refused"))
+    assert mode["type"] == "mode" and mode["models"] == GRAPH and mode["seed"] == 0, mode
+    assert not state["steps"] and not state["goals"]
+    # the last walk's trail went; the new avatar's pelvis is its first point
+    assert len(state["trail"]) == 1 and closest_approach(state["trail"], (0, 0)) < 0.01
+    assert_stands_at_the_origin(browser, rig, "graph of models")
+    frames = state["frames"]
+    time.sleep(1.0)  # idle: the same pose is not sent again
+    assert page_state(browser)["frames"] == frames
+    assert browser.find_element(By.ID, "model-readouts").is_displayed()
+    assert not browser.find_element(By.ID, "thresholds").is_displayed()
+    # an unknown graph is refused, saying so; the graph of models goes on
+    since = len(page_state(browser)["messages"])
+    browser.execute_script("window.modbAvatar.send({type: 'mode', models: 'nowhere', seed: 0})")
+    state = wait_until(
+        browser,
+        lambda s: any(m["type"] == "refused" for m in s["messages"][since:]),
+        10,
+        "the refusal",
+    )
+    refused = next(m for m in state["messages"][since:] if m["type"] == "refused")
+    assert 'no graph of models "nowhere"' in refused["message"], refused
+    assert refused["mode"] == {"models": GRAPH, "seed": 0}
+    assert browser.find_element(By.ID, "status").text == refused["message"]
+    assert browser.find_element(By.ID, "mode").get_attribute("value") == GRAPH
+    # back to motion matching, with its settings: it stands again
+    state = choose_mode(browser, "")
+    assert state["mode"] == {"models": None, "seed": None}
+    mode = next(m for m in reversed(state["messages"]) if m["type"] == "mode")
+    assert mode["settings"]["lead_time"] == 0.3
+    assert browser.find_element(By.ID, "lead_time").get_attribute("value") == "0.3"
+    assert_stands_at_the_origin(browser, rig, "motion matching again")
+    assert browser.find_element(By.ID, "thresholds").is_displayed()
+    assert severe_console_entries(browser) == []
+
+
+def test_on_models_clicks_walk_the_avatar_to_its_goals_with_the_steps_readout(
+    server, browser, tmp_path
+):
+    from selenium.webdriver.common.by import By
+
+    address, dsn = server
+    rig = Rig(dsn)
+    open_page(browser, address)
+    choose_mode(browser, GRAPH)
+    # the goals in view
+    browser.execute_script("window.modbAvatar.stage.look([0.5, 9, -3], [0.5, 0, 3.5])")
+    click_ground(browser, 0.5, 3.0)
+    click_ground(browser, 1.5, 5.0, waypoint=True)
+    state = wait_until(browser, lambda s: len(s["goals"]) == 2, 10, "the goal and the waypoint")
+    goals = np.asarray(state["goals"])
+    assert np.abs(goals - [[0.5, 3.0], [1.5, 5.0]]).max() < 0.1, goals
+    state = wait_until(
+        browser,
+        lambda s: closest_approach(s["trail"], goals[1]) <= ARRIVAL_RADIUS,
+        40,
+        "the pelvis within the arrival radius of the waypoint",
+    )
+    trail = np.asarray(state["trail"])
+    near = [np.flatnonzero(np.hypot(*(trail - g).T) <= ARRIVAL_RADIUS) for g in goals]
+    assert len(near[0]) and near[0][0] < near[1][0]  # the goal first, then the waypoint
+    # The steps: left and right steps of the models, each searched, with its constraint error;
+    # the panel shows the last one (read in the same script as the cells).
+    steps, cells = browser.execute_script(
+        "return [window.modbAvatar.state.steps, Object.fromEntries(['step', 'primitive', "
+        "'step-candidates', 'error', 'error-compare'].map((id) => [id, "
+        "document.getElementById(id).textContent]))]"
+    )
+    assert len(steps) >= 4
+    assert [s["step"] for s in steps] == list(range(1, len(steps) + 1))
+    models = {"left_step": "cmu16_left_step", "right_step": "cmu16_right_step"}
+    assert all(models[s["node"]] == s["model"] for s in steps)
+    assert {s["node"] for s in steps} == set(models)
+    assert all(s["candidates"] > 0 and s["n_frames"] > 0 for s in steps)
+    errors = np.array([[s["error_m"], s["tree_error_m"], s["random_error_m"]] for s in steps])
+    assert (errors >= 0).all() and np.median(errors[:, 0]) <= np.median(errors[:, 2])
+    last = steps[-1]
+    assert cells == {
+        "step": f"{last['step']} (goal {last['goal']})"
+        if last["goal"] is not None
+        else f"{last['step']} (after the last goal)",
+        "primitive": f"{last['node']} ({last['model']})",
+        "step-candidates": str(last["candidates"]),
+        "error": f"{100 * last['error_m']:.1f} cm",
+        "error-compare": f"{100 * last['tree_error_m']:.1f} cm / "
+        f"{100 * last['random_error_m']:.1f} cm",
+    }
+    # It stands once the last goal is reached: no frame more.
+    state = wait_until(browser, lambda s: s["goalIndex"] == 2, 20, "the waypoint marked as served")
+    time.sleep(1.5)
+    frames = page_state(browser)["frames"]
+    time.sleep(0.5)
+    assert page_state(browser)["frames"] == frames
+    # The walk downloads, with root motion: glTF the Khronos validator passes, BVH whose pelvis
+    # (read by bvhio) went where the page's own kinematics put it, frame by frame.
+    pelvis_at = browser.execute_script("return window.modbAvatar.state.pelvisAt")
+    for fmt in ("glb", "bvh"):
+        since = len(page_state(browser)["messages"])
+        browser.find_element(By.ID, f"download-{fmt}").click()
+        state = wait_until(
+            browser,
+            lambda s: any(m["type"] in ("file", "refused") for m in s["messages"][since:]),
+            30,
+            f"the walk as {fmt}",
+        )
+        message = next(m for m in state["messages"][since:] if m["type"] in ("file", "refused"))
+        assert message["type"] == "file" and message["name"] == f"walk.{fmt}", message
+        assert message["sources"] == "cmu16: licence not recorded"
+        path = tmp_path / message["name"]
+        path.write_bytes(base64.b64decode(message["data"]))
+        if fmt == "glb":
+            issues = validate(path)
+            assert issues["numErrors"] == 0, issues["messages"]
+            continue
+        names, positions = bvhio_world_positions(str(path), rig.unit_m)
+        assert len(positions) == len(pelvis_at) == round(message["seconds"] * 120) + 1
+        read = positions[:, names.index(rig.names[rig.at["pelvis"]])]
+        shown = np.array([pelvis_at[str(k)] for k in range(len(read))])
+        assert np.abs(read - shown).max() < 2e-3
+    assert severe_console_entries(browser) == []
+
+
+def test_the_same_seed_and_goals_give_the_walk_synthesize_from_models_gives(server, browser):
+    """Goals sent with the mode, before the walk starts, as `modb synth --models GRAPH --to ...
+    --seed 5` takes them: the page's pelvis, by its own kinematics, within 1 mm of the SQL
+    function's strip by the test's; each step as the function reports it. The docs' picture
+    (docs/avatar-models.png, copied from tests/artifacts) is taken on the way, at full density."""
+    address, dsn = server
+    rig = Rig(dsn)
+    goals, seed = [[0.0, 3.0], [-1.5, 5.0], [0.5, 6.5]], 5
+    with psycopg.connect(dsn) as conn:
+        pgarray.register(conn)
+        with conn.cursor(binary=True) as cur:
+            fps, rotations, translations, report = cur.execute(
+                "SELECT fps, rotations, translations, report "
+                "FROM modb.synthesize_from_models(%s, %s::float8[], 30, %s)",
+                [GRAPH, goals, seed],
+            ).fetchone()
+    assert list(report["reached"]) == ["1", "2", "3"], report["notes"]
+    stood = report["stood_from_frame"]
+    expected = rig.fk(np.asarray(rotations), np.asarray(translations))[: stood + 1]
+    expected = expected[:, rig.at["pelvis"]]
+    browser.execute_cdp_cmd(
+        "Emulation.setDeviceMetricsOverride",
+        {"width": 1280, "height": 760, "deviceScaleFactor": 1, "mobile": False},
+    )
+    try:
+        open_page(browser, address)
+        browser.execute_script("window.modbAvatar.stage.look([3.2, 5.0, -2.2], [-0.5, 0, 3.0])")
+        browser.execute_script(
+            "window.modbAvatar.send({type: 'mode', models: arguments[0], seed: arguments[1], "
+            "goals: arguments[2]})",
+            GRAPH,
+            seed,
+            goals,
+        )
+        wait_until(browser, lambda s: len(s["steps"]) >= 3, 30, "three steps")
+        time.sleep(1.5)  # software WebGL needs real time to draw
+        ARTIFACTS.mkdir(exist_ok=True)
+        browser.save_screenshot(str(ARTIFACTS / "avatar-models.png"))
+    finally:
+        browser.execute_cdp_cmd("Emulation.clearDeviceMetricsOverride", {})
+    state = wait_until(
+        browser,
+        lambda s: s["frame"] is not None and s["frame"]["index"] >= stood,
+        60,
+        "the last frame of the walk",
+    )
+    assert state["mode"] == {"models": GRAPH, "seed": seed}
+    pelvis_at = browser.execute_script("return window.modbAvatar.state.pelvisAt")
+    assert sorted(int(k) for k in pelvis_at) == list(range(stood + 1))
+    shown = np.array([pelvis_at[str(k)] for k in range(stood + 1)])
+    assert np.abs(shown - expected).max() < 1e-3
+    played = [(s["node"], s["model"], s["first_frame"], s["n_frames"], s["candidates"])
+              for s in state["steps"]]  # fmt: skip
+    reported = [(s["node"], s["model"], s["first_frame"], s["n_frames"], s["candidates"])
+                for s in report["steps"]]  # fmt: skip
+    assert played == reported
+    for s, r in zip(state["steps"], report["steps"], strict=True):
+        assert s["error_m"] == pytest.approx(r["error_m"], abs=1e-6)
+        assert s["random_error_m"] == pytest.approx(r["random_error_m"], abs=1e-6)
+    assert severe_console_entries(browser) == []
