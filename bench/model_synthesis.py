@@ -34,7 +34,9 @@ def main(dsn: str, out: Path, rounds: int) -> None:
     for collection in COLLECTIONS:
         graph = f"{collection}_walk"
         subprocess.run([sys.executable, "-m", "modb.cli", "--dsn", dsn, "model", "graph", graph,
-                        "--collection", collection], check=True, capture_output=True)  # fmt: skip
+                        "--collection", collection, "--model", f"{collection}_left_step",
+                        "--model", f"{collection}_right_step"], check=True,
+                       capture_output=True)  # fmt: skip
         with connect(dsn) as conn:
             models = conn.execute(
                 "SELECT n.value->>'model' FROM modb.graphs g, jsonb_each(g.data->'nodes') n "

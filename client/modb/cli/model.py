@@ -77,6 +77,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     graph.add_argument("--collection", help="NAME: the collection whose step models it joins")
     graph.add_argument("--out", metavar="FILE", help="export: the JSON file ('-': stdout)")
     graph.add_argument("--name", help="import: store it under this name (default: its own)")
+    graph.add_argument("--model", action="append", metavar="MODEL",
+                       help="NAME: use this model for its primitive where the collection has "
+                       "several (repeatable)")  # fmt: skip
     model.set_defaults(func=run)
 
 
@@ -284,7 +287,7 @@ def _graph(conn: psycopg.Connection, args: argparse.Namespace) -> int:
     else:
         if argument is not None or not args.collection:
             raise G.GraphError("build a graph with: modb model graph NAME --collection C")
-        print(G.build(conn, action, args.collection).describe())
+        print(G.build(conn, action, args.collection, args.model).describe())
     return 0
 
 

@@ -22,10 +22,10 @@ ROLES = (("start", re.compile(r"start|begin", re.I)), ("end", re.compile(r"stop|
          ("idle", re.compile(r"idle|stand", re.I)))  # fmt: skip
 
 LATEST_MODELS = """
-SELECT DISTINCT ON (s.primitive) s.primitive, s.id, s.name, s.version, s.skeleton_id
+SELECT s.primitive, s.id, s.name, s.version, s.skeleton_id
   FROM modb.model_status s
  WHERE s.kind = %s AND s.collection = %s AND s.latest
- ORDER BY s.primitive, s.created_at DESC, s.id DESC
+ ORDER BY s.primitive, s.name
 """
 
 
@@ -88,10 +88,26 @@ def _node(model: dict[str, Any], role: str) -> dict[str, Any]:
             "type": role, "action": "walk"}  # fmt: skip
 
 
-def build(conn: psycopg.Connection, name: str, collection: str) -> ModelGraph:
-    """Stores (or replaces) the graph `name` of the collection's latest current step models."""
+def build(conn: psycopg.Connection, name: str, collection: str,
+          chosen: list[str] | None = None) -> ModelGraph:  # fmt: skip
+    """Stores (or replaces) the graph `name` of the latest versions of the collection's models,
+    one per primitive: the only one there is, or the one `chosen` names (refused, naming them,
+    when several models of a primitive could serve)."""
     with conn.cursor(row_factory=psycopg.rows.dict_row) as cur:
-        models = cur.execute(LATEST_MODELS, [MODEL_KIND, collection]).fetchall()
+        found = cur.execute(LATEST_MODELS, [MODEL_KIND, collection]).fetchall()
+    unknown = sorted(set(chosen or ()) - {m["name"] for m in found})
+    if unknown:
+        raise GraphError(f'no model {", ".join(unknown)} of collection "{collection}" '
+                         "(modb model list --collection names them)")  # fmt: skip
+    models = []
+    for primitive in dict.fromkeys(m["primitive"] for m in found):
+        these = [m for m in found if m["primitive"] == primitive]
+        picked = [m for m in these if m["name"] in (chosen or ())] or these
+        if len(picked) > 1:
+            raise GraphError(f'collection "{collection}" has {len(picked)} models of {primitive} ('
+                             f"{', '.join(m['name'] for m in picked)}): say which with --model "
+                             "NAME")  # fmt: skip
+        models.append(picked[0])
     data = step_graph(models, collection)
     skeletons = {m["skeleton_id"] for m in models if m["primitive"] in data["nodes"]}
     if len(skeletons) != 1:
@@ -160,7 +176,11 @@ def import_document(conn: psycopg.Connection, document: Any, name: str | None) -
     if not isinstance(data, dict) or not isinstance(data.get("nodes"), dict):
         raise GraphError('"data" must hold "nodes" (and "transitions")')
     nodes, skeletons = {}, set()
+    if not data["nodes"]:
+        raise GraphError('"nodes" is empty: a graph of models has at least one node')
     for node_name, node in data["nodes"].items():
+        if not isinstance(node, dict):
+            raise GraphError(f'node "{node_name}" must be an object with "model" and "version"')
         row = conn.execute(
             "SELECT id, skeleton_id FROM modb.models "
             "WHERE name = %s AND version = %s AND kind = %s",

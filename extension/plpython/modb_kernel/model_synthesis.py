@@ -28,7 +28,7 @@ from .step_search import Rig, StepModel, hip_heading, rotate_y, wrap
 MAX_SECONDS = 600.0
 MAX_COORDINATE = 1e6  # metres from the origin, as the snippet chain's goals
 ARRIVAL_RADIUS_M = 0.5
-TURN_REACH = 1.5  # a step asks at most this many times the turn 95% of the model's steps make
+TURN_REACH = 1.0  # a step asks at most the turn 95% of the model's steps make
 
 
 class SynthesisError(ValueError):
@@ -116,6 +116,7 @@ class Synthesis:
         self.node = None  # the node of the last step
         self.goal = 0  # index of the current goal
         self.reached = {}  # goal index -> frame reached
+        self.closest = np.inf  # metres: the pelvis's least distance to the current goal so far
         self.stood_from = None
 
     @property
@@ -129,30 +130,38 @@ class Synthesis:
             self.walk_step()
         if self.body.n_frames < self.wanted_frames:
             self.finish(self.node)
+        if self.goal < len(self.goals):
+            x, z = self.goals[self.goal]
+            self.notes.append(f"goal {self.goal + 1} ({x:g}, {z:g}) not reached in "
+                              f"{self.seconds:g} s (closest {self.closest:.2f} m)")  # fmt: skip
         return self
 
     def walk_step(self):
         """One more step toward the current goal: from a start node first, then from the graph's
         transitions (an avatar calls this as its queue of frames runs low)."""
-        node = start_node(self.graph, self.rng) if self.node is None else self.next_node(self.node)
-        self.step(node)
+        node, search = (start_node(self.graph, self.rng), None) if self.node is None else (
+            self.next_node(self.node))  # fmt: skip
+        self.step(node, search=search)
         self.node = node
 
     def next_node(self, node):
-        """The successor whose tree search meets the next step's constraints best."""
+        """(the successor whose tree search meets the next step's constraints best, that search's
+        (scores, candidates examined) or None when there was one successor only)."""
         types = node_types(self.graph)
         choices = [n for n in successors(self.graph, node) if types[n] in ("standard", "start")]
         choices = [n for n in choices if types[n] == "standard"] or choices
         if not choices:
             raise SynthesisError(f'node "{node}" leads to no standard node: the walk cannot go on')
         if len(choices) == 1:
-            return choices[0]
-        errors = []
+            return choices[0], None
+        searched = []
         for n in choices:
-            model = self.models[n]
-            target = self.target(model)
-            errors.append(model.errors(model.search(target, self.rng)[0], target)[0])
-        return choices[int(np.argmin(errors))]
+            target = self.target(self.models[n])
+            found, examined = self.models[n].search(target, self.rng)
+            searched.append((float(self.models[n].errors(found, target)[0]), n,
+                             (found, examined)))  # fmt: skip
+        _, best, search = min(searched, key=lambda row: row[0])
+        return best, search  # the search that chose it is the step's
 
     def target(self, model, toward=None):
         """(landing x, z, turn) in the step's frame: the model's usual step turned toward the
@@ -170,10 +179,10 @@ class Synthesis:
         landing = rotate_y(model.usual_landing, turn / 2)
         return np.array([landing[0], landing[1], model.usual_turn + turn])
 
-    def step(self, node, toward=None):
+    def step(self, node, toward=None, search=None):
         model = self.models[node]
         target = self.target(model, toward)
-        found, examined = model.search(target, self.rng)
+        found, examined = model.search(target, self.rng) if search is None else search
         refined = model.refine(found, target)
         record = {
             "node": node,
@@ -200,6 +209,8 @@ class Synthesis:
         split = model.split
         rotations, translations, _ = motion_model.frames_from_scores(model.model, scores[:split],
                                                                      scores[split:])  # fmt: skip
+        if len(rotations) > 3:  # the clamped spline's last frame kinks where the scores are far out
+            rotations, translations = rotations[:-1], translations[:-1]
         positions = rig.positions(rotations[:1], translations[:1])[0]
         first = float(hip_heading(positions, rig.left_hip, rig.right_hip))
         stance = None if model.swing is None else ("right" if model.swing == "left" else "left")
@@ -244,10 +255,14 @@ class Synthesis:
         pelvis = self.rig.positions(rotations, translations)[:, self.rig.pelvis][:, [0, 2]]
         start = self.body.n_frames - len(rotations)
         for k, p in enumerate(pelvis):
-            current = self.goals[self.goal] if self.goal < len(self.goals) else None
-            if current is not None and np.linalg.norm(p - current) <= self.radius:
+            if self.goal >= len(self.goals):
+                break
+            distance = float(np.linalg.norm(p - self.goals[self.goal]))
+            self.closest = min(self.closest, distance)
+            if distance <= self.radius:
                 self.reached[self.goal] = start + k
                 self.goal += 1
+                self.closest = np.inf
 
     def finish(self, node):
         """After the last goal: the end node and then the idle node where the graph has them,
@@ -270,10 +285,12 @@ class Synthesis:
             hold = self.wanted_frames - self.body.n_frames
             self.body.rotations.append(np.repeat(r[-1:], hold, axis=0))
             self.body.translations.append(np.repeat(t[-1:], hold, axis=0))
+            when = f"{self.stood_from / self.fps:.2f} s"
             self.notes.append(
-                f'the graph has no end or idle node after "{node}": the character finished its '
-                f"step and stands in that pose from {self.stood_from / self.fps:.2f} s"
-            )
+                f'after the end node "{ends[0]}" the character stands in its last pose from {when}'
+                if ends else f'the graph has no end or idle node after "{node}": the character '
+                f"finished its step and stands in that pose from {when}"
+            )  # fmt: skip
 
     def frames(self):
         """(rotations, translations) of the strip, cut to the seconds asked for."""
@@ -357,6 +374,9 @@ def _sound_goals(goals):
 def synthesize_stored(db, graph_name, goals, seconds, seed, radius=ARRIVAL_RADIUS_M):
     """[(fps, n_frames, rotations, translations, report)]: what modb.synthesize_from_models
     returns (its COMMENT says what)."""
+    if graph_name is None:
+        raise StoreError("graph is NULL: name a graph of models (modb model graph list)",
+                         sqlstate="22004")  # fmt: skip
     if seed is None or seed < 0:
         raise StoreError(f"seed is {seed}: give a whole number >= 0", sqlstate="22023")
     if seconds is None or not 0 < seconds <= MAX_SECONDS:

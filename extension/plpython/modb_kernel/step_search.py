@@ -50,16 +50,13 @@ class Rig:
         self.offsets = np.array([j["offset"] for j in joints], dtype=np.float64)
         self.translated = list(hierarchy.get("translated", []))
         index = {k: self.names.index(v) for k, v in joint_map.items() if v in self.names}
-        needed = [f"{side}_{part}" for side in ("left", "right")
-                  for part in ("hip", "knee", "ankle", "toe")]  # fmt: skip
-        missing = [k for k in ["pelvis", *needed] if k not in index]
+        needed = ["pelvis", "left_hip", "right_hip", "left_ankle", "right_ankle"]
+        missing = [k for k in needed if k not in index]
         if missing:
             raise ValueError(f"its joint map lacks {', '.join(missing)}")
         self.pelvis, self.left_hip, self.right_hip = (index[k] for k in ("pelvis", "left_hip",
                                                                           "right_hip"))  # fmt: skip
         self.ankle = {"left": index["left_ankle"], "right": index["right_ankle"]}
-        self.legs = [tuple(index[f"{side}_{part}"] for part in ("hip", "knee", "ankle", "toe"))
-                     for side in ("left", "right")]  # fmt: skip
 
         # the constraints read these joints only: forward kinematics of them and their ancestors
         chain = set()
