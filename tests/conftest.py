@@ -35,6 +35,10 @@ FIRST = (
     "test_catalog_edits.py",
     "test_synthesis.py",
     "test_select_fast.py",
+    "test_model_synthesis.py",
+    "test_avatar_models_web.py",
+    "test_models.py",
+    "test_model_graphs_web.py",
 )
 _RUN = pytest.StashKey[Path]()
 

@@ -39,6 +39,7 @@ EXCLUDE_SECONDS = Number(0.0, MAX_EXCLUDE_SECONDS, unit="seconds")
 LEAD_TIME = Number(0.0, MAX_LEAD_TIME, unit="seconds")
 BLEND = whole(0, MAX_BLEND_FRAMES, "frames")
 SNIPPET = whole(1, MAX_ID)
+MAX_MODEL_SECONDS = 600.0  # modb.synthesize_from_models's limit (the strip is one row)
 SEED = whole(0, 2**31 - 1)
 # options of snippet selection, which a walk on a graph of models has no use for
 SELECTION_ONLY = ("collection", "start", "profile", "graph", "no_graph", "exclude_seconds",
@@ -326,6 +327,10 @@ def run_models(args: argparse.Namespace, goals: list[Goal]) -> int:
               f"{'it' if len(given) == 1 else 'them'}", file=sys.stderr)  # fmt: skip
         return 2
     seed = args.seed or 0
+    if args.seconds > MAX_MODEL_SECONDS:
+        print(f"modb synth: --seconds {args.seconds:g}: a walk on a graph of models lasts at most "
+              f"{MAX_MODEL_SECONDS:g} s", file=sys.stderr)  # fmt: skip
+        return 2
     with connect(args) as conn:
         try:
             strip = synthesize(conn, args.models, [(g[0], g[-1]) for g in goals], args.seconds,

@@ -13,6 +13,7 @@ import psycopg
 from modb.clips import read_motion
 from modb.database import pgarray
 from modb.motion import Motion, Skeleton
+from modb_kernel.step_search import swing_side
 
 from .quality import REACH_MIN_DISTANCE, NaturalSteps, foot_skating, pose_jumps
 
@@ -54,7 +55,7 @@ def synthesize(conn: psycopg.Connection, graph: str, goals: list[tuple[float, fl
     pgarray.register(conn)
     with conn.cursor(binary=True) as cur:
         fps, rotations, translations, report = cur.execute(
-            STRIP, [graph, [list(g) for g in goals], seconds, seed, radius]
+            STRIP, [graph, [[float(v) for v in g] for g in goals], seconds, seed, radius]
         ).fetchone()
     row = conn.execute(SKELETON, [graph]).fetchone()
     skeleton = Skeleton.from_row(row[1], row[2], row[3], row[0])
@@ -80,11 +81,6 @@ def stance_sliding(motion: Motion, steps: list[tuple[str, int, int]]) -> np.ndar
     return np.concatenate(out) if out else np.zeros(0)
 
 
-def _swing(primitive: str) -> str | None:
-    sides = [s for s in ("left", "right") if s in primitive.lower()]
-    return sides[0] if len(sides) == 1 else None
-
-
 @dataclass
 class Source:
     """What the models learnt from, measured: the scale the strip is judged on."""
@@ -98,7 +94,7 @@ class Source:
         pgarray.register(conn)
         clips: dict[tuple[int, int], list[tuple[str, int, int]]] = {}
         for clip_id, version, primitive, segment in conn.execute(EXAMPLES, [graph]).fetchall():
-            swing = _swing(primitive)
+            swing = swing_side(primitive)
             if swing:
                 step = (swing, segment["start"], segment["end"])
                 clips.setdefault((clip_id, version), []).append(step)
