@@ -18,6 +18,7 @@ HEADING_WEIGHT_M = 0.5  # metres of constraint error per radian of heading error
 PRIOR_WEIGHT_M = 0.02  # metres of constraint error per unit of Mahalanobis distance
 BEAM = 4  # nodes kept per level of the tree
 CHOICES = 8  # the best leaf samples the search draws one from
+QUICKEST_SHARE = 25  # percent: the quickest steps of a model, passed by the search
 RANDOM_BASELINE = 300  # random samples the search is measured against
 
 
@@ -119,7 +120,18 @@ class StepModel:
         self.usual_turn = float(np.median(turn))
         self.turn_reach = float(np.percentile(np.abs(turn - self.usual_turn), 95))
         self.usual_travel = np.median(travel, axis=0)
+        # the quickest quarter of the model's steps swing their limbs fastest: drawn with far-out
+        # shapes, a frame jumped more than any capture (Bandai at 30 fps); the search passes them
+        self.least_frames = float(np.percentile(self.durations(held), QUICKEST_SHARE))
         self.seconds = (model["n_frames"] - 1) / model["fps"]
+
+    def durations(self, scores):
+        """Frames each row of scores lasts (motion_model.time_function's end, for many rows)."""
+        temporal = self.model["temporal"]
+        basis = motion_model.basis(self.model["n_frames"] - 1, temporal["n_basis"])
+        coefficients = np.asarray(temporal["mean"]) + np.atleast_2d(scores)[:, self.split :] @ (
+            np.asarray(temporal["components"], dtype=np.float64))  # fmt: skip
+        return np.exp(coefficients @ basis.T).sum(axis=1)
 
     def end_frames(self, scores):
         """(rotations (m, 2, J, 4), translations (m, 2, T, 3)) of the first and last canonical
@@ -189,6 +201,9 @@ class StepModel:
             level = [inner[i] for i in np.argsort(self.errors(means, target))[:BEAM]]
         held = np.concatenate([np.asarray(leaf["samples"], dtype=np.float64) for leaf in leaves])
         e = self.errors(held, target)
+        quick = self.durations(held) < self.least_frames
+        if not quick.all():
+            e[quick] = np.inf
         return held[rng.choice(np.argsort(e)[:CHOICES])], len(held) + examined
 
     def refine(self, start, target):
