@@ -26,8 +26,6 @@ from .database import Statement, StoreError
 from .step_search import Rig, StepModel, hip_heading, rotate_y, wrap
 
 MAX_SECONDS = 600.0
-KINK = 2.0  # a last frame's turn this many times the one before it (and KINK_FLOOR_RAD more) kinks
-KINK_FLOOR_RAD = 0.02
 MAX_COORDINATE = 1e6  # metres from the origin, as the snippet chain's goals
 ARRIVAL_RADIUS_M = 0.5
 TURN_REACH = 1.0  # a step asks at most the turn 95% of the model's steps make
@@ -35,24 +33,6 @@ TURN_REACH = 1.0  # a step asks at most the turn 95% of the model's steps make
 
 class SynthesisError(ValueError):
     pass
-
-
-def smooth_end(rotations, translations):
-    """The motion with each joint whose last frame kinks carried on from the two frames before
-    at their pace (its turn repeated). A clamped spline's end is its last coefficient alone, and
-    where the scores lie far out the last frame can jump (on CMU 16's U-turns, 11 cm a frame
-    against 1 inside the step); a joint that turns on as before, a foot coming down, keeps its
-    own last frame (carrying every joint on made Bandai's landing feet slide at 30 fps)."""
-    if len(rotations) < 4:
-        return rotations, translations
-    rotations = rotations.copy()
-    last = quaternion.angle_between(rotations[-1], rotations[-2])
-    before = quaternion.angle_between(rotations[-2], rotations[-3])
-    kinked = last > KINK * before + KINK_FLOOR_RAD
-    turn = quaternion.multiply(rotations[-2], quaternion.conjugate(rotations[-3]))
-    carried = quaternion.canonical(quaternion.multiply(turn, rotations[-2]))
-    rotations[-1][kinked] = carried[kinked]
-    return rotations, translations
 
 
 def node_types(graph):
@@ -229,7 +209,6 @@ class Synthesis:
         split = model.split
         rotations, translations, _ = motion_model.frames_from_scores(model.model, scores[:split],
                                                                      scores[split:])  # fmt: skip
-        rotations, translations = smooth_end(rotations, translations)
         positions = rig.positions(rotations[:1], translations[:1])[0]
         first = float(hip_heading(positions, rig.left_hip, rig.right_hip))
         stance = None if model.swing is None else ("right" if model.swing == "left" else "left")
