@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import base64
 from typing import Any
 
 import numpy as np
 
-from modb.provenance import Origin
+from modb.motion import Motion
+from modb.provenance import Origin, credits
+
+from .downloads import FORMATS, motion_bytes
 from modb.synthesis.avatar import Choice, Frame
 
 RECENT = 50  # the readouts summarise the last this many selections
@@ -72,4 +76,20 @@ def frame_message(frame: Frame) -> dict[str, Any]:
         "step": frame.step,
         "rotations": np.round(frame.rotations, 6).tolist(),
         "translations": np.round(frame.translations, 5).tolist(),
+    }
+
+
+def file_message(walk: Motion, fmt: str, sources: list[dict]) -> dict[str, Any]:
+    """A download of the walk (root motion on) as the page saves it: BVH or glTF, its sources
+    named inside (a glTF file's asset.copyright) and for the page to show."""
+    if sources:
+        walk.meta["sources"] = sources
+    media, extension = FORMATS[fmt]
+    return {
+        "type": "file",
+        "name": f"walk.{extension}",
+        "media_type": media,
+        "data": base64.b64encode(motion_bytes(walk, fmt)).decode(),
+        "seconds": (walk.n_frames - 1) / walk.fps,
+        "sources": credits(sources),
     }

@@ -9,7 +9,6 @@ with the previous ones.
 
 from __future__ import annotations
 
-import base64
 import logging
 import threading
 import time
@@ -21,15 +20,15 @@ from typing import Any
 import psycopg
 
 from modb.database.read_nodes import NoNode, Node, ReadNodes
-from modb.provenance import Origin, Version, as_meta, credits, origins, sources_among
+from modb.provenance import Origin, Version, as_meta, origins, sources_among
 from modb.synthesis.avatar import Avatar, Choice, Frame, NoContinuation, Settings, checked_goal
 from modb.synthesis.placement import Placement
 from modb.synthesis.root_motion import with_root_motion
 from modb.synthesis.synth import strip_motion
 
-from .avatar_messages import choice_message, frame_message
+from .avatar_messages import choice_message, file_message, frame_message
 from .avatar_settings import SettingsRefused, settings_from
-from .downloads import FORMATS, motion_bytes
+from .downloads import FORMATS
 
 log = logging.getLogger("modb.web")
 
@@ -303,20 +302,7 @@ class AvatarSession:
         first = avatar.choices[0]
         template = avatar.library.get(first.clip_id, first.version, first.mirrored).motion
         walk = with_root_motion(strip_motion(frames, template, "walk"))
-        sources = self._sources(avatar, frames)
-        if sources:  # a glTF file names them inside (asset.copyright); the page says them too
-            walk.meta["sources"] = sources
-        media, extension = FORMATS[fmt]
-        self._send(
-            {
-                "type": "file",
-                "name": f"walk.{extension}",
-                "media_type": media,
-                "data": base64.b64encode(motion_bytes(walk, fmt)).decode(),
-                "seconds": (len(frames) - 1) / first.fps,
-                "sources": credits(sources),
-            }
-        )
+        self._send(file_message(walk, fmt, self._sources(avatar, frames)))
 
     def _sources(self, avatar: Avatar, frames: list[Frame]) -> list[dict]:
         """The sources of the kept walk's snippets and their terms, from the origins the readout

@@ -9,7 +9,6 @@ thread-safe: goals (the socket's thread) and frames (the play thread) take turns
 
 from __future__ import annotations
 
-import base64
 import logging
 import threading
 import time
@@ -21,15 +20,15 @@ import numpy as np
 import psycopg
 
 from modb.motion import Motion, Skeleton
-from modb.provenance import as_meta, credits, origins, sources_among
+from modb.provenance import as_meta, origins, sources_among
 from modb.synthesis.chain import Frame, Goal, checked_goal
 from modb.synthesis.from_models import EXAMPLES
 from modb.synthesis.from_models import SKELETON as GRAPH_SKELETON
 from modb.synthesis.model_avatar import MAX_GOALS, ModelAvatar, StepReadout
 from modb.synthesis.root_motion import with_root_motion
 
-from .avatar_messages import frame_message
-from .downloads import FORMATS, motion_bytes
+from .avatar_messages import file_message, frame_message
+from .downloads import FORMATS
 
 log = logging.getLogger("modb.web")
 
@@ -195,20 +194,7 @@ class ModelAvatarSession:
             name="walk",
             meta={"synthesized": True, "graph of models": self.graph, "seed": self.seed},
         )
-        walk = with_root_motion(walk)
-        if self._sources:  # a glTF file names them inside (asset.copyright); the page says them too
-            walk.meta["sources"] = self._sources
-        media, extension = FORMATS[fmt]
-        self._send(
-            {
-                "type": "file",
-                "name": f"walk.{extension}",
-                "media_type": media,
-                "data": base64.b64encode(motion_bytes(walk, fmt)).decode(),
-                "seconds": (len(frames) - 1) / self.fps,
-                "sources": credits(self._sources),
-            }
-        )
+        self._send(file_message(with_root_motion(walk), fmt, self._sources))
 
     def close(self) -> None:
         self._stopping.set()
