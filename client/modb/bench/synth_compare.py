@@ -35,6 +35,7 @@ from modb.clips import read_motion
 from modb.database import pgarray
 from modb.motion import Motion
 from modb.synthesis.chain import Settings
+from modb.synthesis.from_models import first_frames
 from modb.synthesis.from_models import synthesize as synthesize_models
 from modb.synthesis.quality import foot_skating, pose_jumps
 from modb.synthesis.root_motion import with_root_motion
@@ -125,7 +126,7 @@ def goals_reached(motion: Motion, goals, speed: float) -> tuple[list[dict[str, A
 
 def measure(motion: Motion, goals, seconds_spent: float, source: Source) -> dict[str, Any]:
     reached, last = goals_reached(motion, goals, source.walking_speed)
-    walked = motion if last >= motion.n_frames - 1 else _cut(motion, last + 1)
+    walked = motion if last >= motion.n_frames - 1 else first_frames(motion, last + 1)
     jumps = pose_jumps(walked)
     root = with_root_motion(walked)
     top = root.world_positions()[:, 0][:, [0, 2]]
@@ -146,11 +147,6 @@ def measure(motion: Motion, goals, seconds_spent: float, source: Source) -> dict
         "compute_per_motion_second": seconds_spent / max((walked.n_frames - 1) / walked.fps, 1e-9),
         "goal_detail": reached,
     }
-
-
-def _cut(motion: Motion, n: int) -> Motion:
-    return Motion(motion.skeleton, motion.fps, motion.rotations[:n], motion.translations[:n],
-                  motion.name, meta=motion.meta)  # fmt: skip
 
 
 def run(conn: psycopg.Connection, collection: str, graph: str, seconds: float = SECONDS,

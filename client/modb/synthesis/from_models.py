@@ -118,7 +118,7 @@ def measure(strip: ModelStrip, source: Source) -> dict[str, Any]:
     motion, report = strip.motion, strip.report
     fps = motion.fps
     walked = report["stood_from_frame"]
-    moving = motion if walked is None else _frames(motion, walked + 1)
+    moving = motion if walked is None else first_frames(motion, walked + 1)
     # a step runs from the frame before its first (the seam: its stance foot touches down) on
     steps = [
         (
@@ -167,7 +167,8 @@ def measure(strip: ModelStrip, source: Source) -> dict[str, Any]:
     return out
 
 
-def _frames(motion: Motion, n: int) -> Motion:
+def first_frames(motion: Motion, n: int) -> Motion:
+    """The motion's first n frames."""
     return Motion(motion.skeleton, motion.fps, motion.rotations[:n], motion.translations[:n],
                   motion.name, meta=motion.meta)  # fmt: skip
 

@@ -65,7 +65,8 @@ class ModelAvatarSession:
         self._lock = threading.Lock()  # the avatar: goals from handle(), frames from the thread
         self._stopping = threading.Event()
         self._thread: threading.Thread | None = None
-        self._walk: deque[Frame] = deque()  # the walk's frames, for downloads (the last 5 min)
+        # the walk's frames, for downloads: the last KEEP_SECONDS (the deque drops the oldest)
+        self._walk: deque[Frame] = deque(maxlen=int(KEEP_SECONDS * self.fps) + 1)
 
     @property
     def fps(self) -> float:
@@ -153,7 +154,7 @@ class ModelAvatarSession:
                 if frame.step != shown.step:  # the first frame of a new step
                     self._send(step_message(readouts, frame.step, goals))
                 self._send(frame_message(frame))
-                self._keep(frame)
+                self._walk.append(frame)
                 shown = frame
         except Exception as e:  # the page closed (a send failed), or a bug: the server's log has it
             if not self._stopping.is_set():
@@ -168,11 +169,6 @@ class ModelAvatarSession:
                     )
                 except Exception:
                     pass
-
-    def _keep(self, frame: Frame) -> None:
-        self._walk.append(frame)
-        while len(self._walk) > KEEP_SECONDS * self.fps:
-            self._walk.popleft()
 
     def _download(self, message: dict[str, Any]) -> None:
         """The walk so far (its last KEEP_SECONDS), with root motion, as a file the page saves."""
