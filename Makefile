@@ -41,7 +41,8 @@ apt:
 	fi
 
 # Builds the module (and the scripts of a version not released yet) and installs the extension into the
-# local server only when the module, the control file or a script it installs differs from the installed one.
+# local server only when the module, the control file, a script or a kernel file it installs (every
+# released version's kernel package and the current one: extension/Makefile) differs from the installed one.
 # Installed modb scripts the project no longer ships (the full install scripts of 0.2.0 .. 0.15.0, say) are
 # removed: PostgreSQL would install those versions from them instead of from 0.1.0 and the upgrade chain.
 extension: apt
@@ -51,7 +52,8 @@ extension: apt
 	scripts=$$($(MAKE) -s --no-print-directory -C extension print-scripts PG_CONFIG=$(PG_CONFIG)); \
 	if ! cmp -s extension/modb.so $$($(PG_CONFIG) --pkglibdir)/modb.so \
 	   || ! cmp -s extension/modb.control $$installed/modb.control \
-	   || [ -n "$$(for f in $$scripts; do cmp -s extension/$$f $$installed/$$(basename $$f) || echo x; done)" ]; then \
+	   || [ -n "$$(for f in $$scripts; do cmp -s extension/$$f $$installed/$$(basename $$f) || echo x; done)" ] \
+	   || ! $(MAKE) -s --no-print-directory -C extension kernels-installed PG_CONFIG=$(PG_CONFIG) 2>/dev/null; then \
 		step "installing the modb extension into $$installed" \
 			$(SUDO) $(MAKE) -s -C extension install PG_CONFIG=$(PG_CONFIG); \
 	fi; \

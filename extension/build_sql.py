@@ -58,52 +58,48 @@ import sys
 HERE = pathlib.Path(__file__).resolve().parent
 KERNEL = HERE / "plpython" / "modb_kernel"
 
-# The lines of Python put before a PL/Python function's body (see the docstring), one string.
-PRELUDE = (
-    "kernel = GD.get({key!r})\n"
-    "if kernel is None:\n"
-    "    import importlib, importlib.abc, importlib.util, sys\n"
-    "    class EmbeddedKernel(importlib.abc.MetaPathFinder, importlib.abc.Loader):\n"
-    "        sources = {sources}\n"
-    "        package = {package!r}\n"
-    "        def find_spec(self, name, path=None, target=None):\n"
-    '            key = "modb_kernel" + name[len(self.package):] if'
-    ' name.split(".")[0] == self.package else None\n'
-    "            if key not in self.sources:\n"
-    "                return None\n"
-    "            return importlib.util.spec_from_loader(name, self, is_package=(key"
-    ' == "modb_kernel"))\n'
-    "        def create_module(self, spec):\n"
-    "            return None\n"
-    "        def exec_module(self, module):\n"
-    '            key = "modb_kernel" + module.__name__[len(self.package):]\n'
-    '            exec(compile(self.sources[key], "<modb {version}>/" +'
-    ' key.replace(".", "/") + ".py", "exec"),\n'
-    "                 module.__dict__)\n"
-    '    if not any(getattr(f, "package", None) == {package!r} for f in sys.meta_path):\n'
-    "        sys.meta_path.insert(0, EmbeddedKernel())\n"
-    "    kernel = importlib.import_module({package!r})\n"
-    "    for module in EmbeddedKernel.sources:\n"
-    '        if module != "modb_kernel":\n'
-    '            importlib.import_module({package!r} + module[len("modb_kernel"):])\n'
-    "    GD[{key!r}] = kernel"
-)
+# The Python put before a PL/Python function's body (see the docstring): the version's installed
+# package, found without SPI from where PostgreSQL's own $libdir is (beside the postgres binary's
+# folder, as PostgreSQL computes it), then the modules the body names. {package} and {version} are
+# filled in; the body reads the package as `kernel`.
+PRELUDE = """\
+import sys
+kernel = sys.modules.get({package!r})
+if kernel is None:
+    import importlib.util, os
+    folder = os.path.join(os.path.dirname(os.path.dirname(os.path.realpath("/proc/self/exe"))),
+                          "lib", {package!r})
+    if not os.path.isfile(os.path.join(folder, "__init__.py")):
+        plpy.error("modb {version}'s kernel is not installed on this server: no " + folder,
+                   hint="Install the extension's files as modb.so was installed (make -C extension "
+                        "install): the package {package} goes into the folder of modb.so.")
+    spec = importlib.util.spec_from_file_location({package!r}, os.path.join(folder, "__init__.py"),
+                                                  submodule_search_locations=[folder])
+    kernel = importlib.util.module_from_spec(spec)
+    sys.modules[{package!r}] = kernel
+    try:
+        spec.loader.exec_module(kernel)
+    except BaseException:
+        del sys.modules[{package!r}]
+        raise"""
+
+# At the top of the install script and of each upgrade script: the whole package imported, so that
+# CREATE EXTENSION or ALTER EXTENSION UPDATE fails at once, saying what to install, where the kernel
+# is missing or incomplete.
+KERNEL_CHECK = """\
+-- modb {version} runs the kernel installed beside modb.so ({package}): fail now if it is not there.
+DO LANGUAGE plpython3u $py$
+{prelude}
+import importlib, pkgutil
+for module in pkgutil.walk_packages(kernel.__path__, {package!r} + "."):
+    importlib.import_module(module.name)
+$py$;
+"""
 
 # A PL/Python function's definition and the COMMENT right after it (an upgrade re-creates both).
 PLPYTHON_FUNCTION = re.compile(
     r"^CREATE OR REPLACE FUNCTION .*?^\$py\$;\n(?:COMMENT ON FUNCTION .*?';\n)?", re.S | re.M
 )
-
-
-@functools.cache
-def kernel_sources() -> dict:
-    sources = {}
-    for path in sorted(KERNEL.glob("*.py")):
-        name = "modb_kernel" if path.stem == "__init__" else "modb_kernel." + path.stem
-        sources[name] = path.read_text()
-    if any("$py$" in text for text in sources.values()):
-        sys.exit("build_sql.py: a kernel source contains '$py$', which would end a function body")
-    return sources
 
 
 @functools.cache
@@ -156,31 +152,50 @@ def c_header() -> str:
     )
 
 
+def package(version: str) -> str:
+    """The kernel's package name in the server: one per version, so versions never mix."""
+    return "modb_kernel_" + version.replace(".", "_")
+
+
+KERNEL_LINE = re.compile(r"^#@modb_kernel(.*)$", re.M)
+
+
+def _kernel_imports(match: re.Match, version: str) -> str:
+    modules = match.group(1).split()
+    if not modules:
+        sys.exit("build_sql.py: '#@modb_kernel' names no module: list the modules the body uses")
+    missing = [m for m in modules if not (KERNEL / f"{m.replace('.', '/')}.py").exists()]
+    if missing:
+        sys.exit(f"build_sql.py: '#@modb_kernel' names modules the kernel lacks: {missing}")
+    lines = [PRELUDE.format(package=package(version), version=version)]
+    lines += [f"import {package(version)}.{m}" for m in modules]
+    return "\n".join(lines)
+
+
 def _expand(text: str, version: str) -> str:
-    sources = (
-        "{" + "".join(f"\n            {k!r}: {v!r}," for k, v in kernel_sources().items()) + "}"
-    )
-    prelude = PRELUDE.format(
-        key=f"modb_kernel {version}",
-        sources=sources,
-        package="modb_kernel_" + version.replace(".", "_"),
-        version=version,
-    )
-    text = text.replace("#@modb_kernel", prelude)
+    text = KERNEL_LINE.sub(lambda m: _kernel_imports(m, version), text)
     for placeholder, value in _constants().items():
         text = text.replace(placeholder, value)
     return text
 
 
+def kernel_check(version: str) -> str:
+    prelude = PRELUDE.format(package=package(version), version=version)
+    return KERNEL_CHECK.format(version=version, package=package(version), prelude=prelude)
+
+
 def build(version: str) -> str:
     files = sorted((HERE / "sql").glob("*.sql"))
-    return "\n".join(f"-- {path.name}\n{_expand(path.read_text(), version)}" for path in files)
+    parts = [f"-- {path.name}\n{_expand(path.read_text(), version)}" for path in files]
+    parts.insert(1, kernel_check(version))  # after 00_header.sql's guard
+    return "\n".join(parts)
 
 
 def build_upgrade(source: pathlib.Path) -> str:
     version = source.stem.split("--")[1]
     parts = [
-        f"\\echo Use \"ALTER EXTENSION modb UPDATE TO '{version}'\" to load this file. \\quit\n"
+        f"\\echo Use \"ALTER EXTENSION modb UPDATE TO '{version}'\" to load this file. \\quit\n",
+        kernel_check(version),
     ]
     included = set()
     steps = source.read_text().splitlines()

@@ -17,6 +17,10 @@ folder holds exactly the scripts asked for, and compares the two catalogues:
 - the extension's row (version, relocatable, its configuration tables with their conditions, by
   name), its member list (pg_describe_object), and the rows of its tables (the shipped profiles).
 
+From 0.24.0 the PL/Python functions import the version's kernel package installed beside modb.so
+(extension/Makefile): the private server's library folder gets the commit's frozen kernels (and the
+working copy as the commit's version while it is not released), never the installed ones.
+
 The frozen install scripts come from git history (`git show COMMIT:extension/sql/released/...`):
 by default the last commit that still had them (HEAD while it has them). The upgrade scripts, the
 base script and the control file come from the same commit; modb.so is this tree's build (or the
@@ -45,6 +49,8 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
 RELEASED = "extension/sql/released"
+KERNELS = "extension/plpython/released"  # a folder per released version (0.24.0 on)
+KERNEL = "extension/plpython/modb_kernel"  # the working copy
 BINDIR = Path("/usr/lib/postgresql/15/bin")
 VERSIONS = [f"0.{n}.0" for n in range(2, 17)]
 # pg_dump --binary-upgrade lines that only carry OIDs (or an extension's configuration as OIDs).
@@ -119,9 +125,10 @@ class Server:
             if not entry.name.startswith("modb"):
                 (self.ext / entry.name).symlink_to(entry)
         for entry in Path("/usr/lib/postgresql/15/lib").iterdir():
-            if entry.name != "modb.so":
+            if entry.name != "modb.so" and not entry.name.startswith("modb_kernel_"):
                 (self.lib / entry.name).symlink_to(entry)
         shutil.copy2(module, self.lib / "modb.so")
+        self.put_kernels()
         self.released = [
             Path(p).name for p in git("ls-tree", "--name-only", commit, f"{RELEASED}/").split()
         ]
@@ -136,6 +143,28 @@ class Server:
             shutil.chown(self.run, "postgres")
             self.data.mkdir()
             shutil.chown(self.data, "postgres")
+
+    def put_kernels(self) -> None:
+        """The kernel packages of the commit (0.24.0 on), never the installed ones: each released
+        version's frozen copy, and the working copy as the commit's version while it is not
+        released (extension/Makefile installs the same)."""
+        control = git("show", f"{self.commit}:extension/modb.control")
+        current = re.search(r"^default_version\s*=\s*'([^']+)'", control, re.M)[1]
+        sources = {}
+        for path in git("ls-tree", "-r", "--name-only", self.commit, f"{KERNELS}/").split():
+            version, _, name = path[len(KERNELS) + 1 :].partition("/")
+            sources.setdefault(version, []).append((path, name))
+        if current not in sources:
+            working = git("ls-tree", "-r", "--name-only", self.commit, f"{KERNEL}/").split()
+            sources[current] = [(p, p[len(KERNEL) + 1 :]) for p in working]
+        for version, files in sources.items():
+            folder = self.lib / ("modb_kernel_" + version.replace(".", "_"))
+            for path, name in files:
+                if name.endswith(".py"):
+                    (folder / name).parent.mkdir(parents=True, exist_ok=True)
+                    (folder / name).write_text(git("show", f"{self.commit}:{path}"))
+            for entry in [folder, *folder.rglob("*")]:
+                entry.chmod(0o755 if entry.is_dir() else 0o644)
 
     def frozen(self, name: str) -> str:
         return git("show", f"{self.commit}:{RELEASED}/{name}")

@@ -9,9 +9,10 @@ reformatted, without changing what installs.
 
 pg_dump leaves out an extension's member objects, so each script runs as a plain script (the same
 shim applied to both) into a fresh database of its own, and the two `pg_dump --schema-only` outputs
-are compared. The kernel sources embedded in every PL/Python function are compared apart: in the
-dumps they are replaced by a marker, and each embedded module must parse to the same code
-(docstrings and comments aside) as today's file in extension/plpython/modb_kernel.
+are compared. From 0.24.0 the functions import the version's kernel package, installed beside
+modb.so from its frozen copy (extension/plpython/released/VERSION/): each of its modules must parse
+to the same code (docstrings and comments aside) as today's file in extension/plpython/modb_kernel,
+and every released kernel must be installed as the tree has it.
 """
 
 from __future__ import annotations
@@ -34,15 +35,13 @@ REPO = Path(__file__).resolve().parents[1]
 EXTENSION = REPO / "extension"
 RELEASED = EXTENSION / "sql" / "released"
 KERNEL = EXTENSION / "plpython" / "modb_kernel"
+RELEASED_KERNELS = EXTENSION / "plpython" / "released"
 FROZEN = RELEASED / f"modb--{VERSION}.sql"
+FROZEN_KERNEL = RELEASED_KERNELS / VERSION
 
-pytestmark = pytest.mark.skipif(
+released_only = pytest.mark.skipif(
     not FROZEN.exists(), reason=f"{VERSION} is not released: the fragments are its working copy"
 )
-
-# The build embeds the kernel as `sources = {'modb_kernel': '...', ...}`, one module a line
-# (build_sql.py).
-EMBEDDED = re.compile(r"^( +)sources = (\{(?:\n +'modb_kernel[\w.]*': .*,)*\})$", re.M)
 CONFIG_DUMP = re.compile(r"^SELECT pg_catalog\.pg_extension_config_dump\((.*)\);\n", re.M)
 GUARD = re.compile(r"^\\echo Use .* \\quit\n", re.M)
 
@@ -66,11 +65,6 @@ def as_plain_script(text: str) -> tuple[str, list[str]]:
     # As CREATE EXTENSION runs it: function bodies are not checked (a SQL function may call a later
     # one).
     return "SET check_function_bodies = off;\n" + text, config_dump
-
-
-def embedded_kernels(text: str) -> list[dict[str, str]]:
-    """Every copy of the kernel sources embedded in a script (one per PL/Python function)."""
-    return [ast.literal_eval(m[2]) for m in EMBEDDED.finditer(text)]
 
 
 # Local variables renamed in the kernel since a release, as release -> module -> function ->
@@ -99,16 +93,17 @@ def code_of(source: str, renamed: dict[str, dict[str, str]] | None = None) -> st
     return ast.dump(tree)
 
 
-def todays_kernel() -> dict[str, str]:
+def kernel_modules(folder: Path) -> dict[str, str]:
+    """A kernel package's modules, by path inside it, with their sources."""
     return {
-        "modb_kernel" if p.stem == "__init__" else f"modb_kernel.{p.stem}": p.read_text()
-        for p in sorted(KERNEL.glob("*.py"))
+        p.relative_to(folder).as_posix(): p.read_text()
+        for p in sorted(folder.rglob("*.py"))
+        if "__pycache__" not in p.parts
     }
 
 
 def schema_of(cluster, name: str, script: str, tmp_path: Path) -> str:
-    """pg_dump --schema-only of a fresh database into which `script` ran, with the kernel sources
-    marked."""
+    """pg_dump --schema-only of a fresh database into which `script` ran."""
     with psycopg.connect(cluster.dsn("postgres"), autocommit=True) as conn:
         conn.execute(f'DROP DATABASE IF EXISTS "{name}"')
         conn.execute(f'CREATE DATABASE "{name}"')
@@ -127,12 +122,13 @@ def schema_of(cluster, name: str, script: str, tmp_path: Path) -> str:
         dump = [str(_bindir() / "pg_dump"), "--schema-only", "--restrict-key=modb"]
         r = subprocess.run([*dump, "-d", cluster.dsn(name)], capture_output=True, text=True)
         assert r.returncode == 0, r.stderr
-        return EMBEDDED.sub(r"\1sources = EMBEDDED_KERNEL_SOURCES", r.stdout)
+        return r.stdout
     finally:
         with psycopg.connect(cluster.dsn("postgres"), autocommit=True) as conn:
             conn.execute(f'DROP DATABASE "{name}" WITH (FORCE)')
 
 
+@released_only
 def test_the_fragments_install_the_released_catalogue(cluster, tmp_path):
     frozen, frozen_config_dump = as_plain_script(FROZEN.read_text())
     built, built_config_dump = as_plain_script(built_script())
@@ -141,20 +137,61 @@ def test_the_fragments_install_the_released_catalogue(cluster, tmp_path):
     pid = os.getpid()
     released = schema_of(cluster, f"release_frozen_{pid}", frozen, tmp_path)
     fragments = schema_of(cluster, f"release_built_{pid}", built, tmp_path)
-    assert "EMBEDDED_KERNEL_SOURCES" in released
+    package = "modb_kernel_" + VERSION.replace(".", "_")
+    assert f"import {package}.kinematics" in released
     assert "CREATE FUNCTION modb.select_next_snippets(" in released
     lines = released.splitlines(True), fragments.splitlines(True)
     diff = "".join(difflib.unified_diff(*lines, str(FROZEN), f"build_sql.py {VERSION}", n=2))
     assert not diff, diff[:20000]
 
 
+@released_only
 def test_the_released_kernel_is_todays_kernel_in_code():
-    today = todays_kernel()
-    built = embedded_kernels(built_script())
-    frozen = embedded_kernels(FROZEN.read_text())
-    assert frozen and len(frozen) == len(built)
-    assert all(copy == today for copy in built)  # the build embeds the files as they are
-    assert all(copy == frozen[0] for copy in frozen)  # one kernel in every function of the release
-    assert sorted(frozen[0]) == sorted(today)
-    for module, source in frozen[0].items():
-        assert code_of(source, RENAMED.get(module)) == code_of(today[module]), module
+    today, frozen = kernel_modules(KERNEL), kernel_modules(FROZEN_KERNEL)
+    assert frozen and sorted(frozen) == sorted(today)
+    for module, source in frozen.items():
+        name = "modb_kernel." + module[: -len(".py")].replace("/", ".")
+        assert code_of(source, RENAMED.get(name)) == code_of(today[module]), module
+
+
+def released_scripts_with_kernels() -> list[Path]:
+    """Every released script whose version imports an installed kernel (0.24.0 on)."""
+    versions = {p.name for p in RELEASED_KERNELS.iterdir()} if RELEASED_KERNELS.exists() else set()
+    return [p for p in sorted(RELEASED.glob("modb--*.sql")) if p.stem.split("--")[-1] in versions]
+
+
+def test_scripts_import_the_kernel_and_carry_none_of_it():
+    scripts = released_scripts_with_kernels()
+    if not scripts:
+        pytest.skip("no released version imports an installed kernel yet")
+    for script in scripts:
+        version = script.stem.split("--")[-1]
+        text = script.read_text()
+        modules = kernel_modules(RELEASED_KERNELS / version)
+        defined = {
+            node.name
+            for source in modules.values()
+            for node in ast.parse(source).body
+            if isinstance(node, (ast.FunctionDef, ast.ClassDef))
+        }
+        assert defined and not [name for name in defined if f"def {name}(" in text], script.name
+        package = "modb_kernel_" + version.replace(".", "_")
+        check = f"DO LANGUAGE plpython3u $py$\nimport sys\nkernel = sys.modules.get({package!r})"
+        assert check in text, script.name
+
+
+def test_every_released_kernel_is_installed_compiled(cluster):
+    """`make setup` installs each released version's kernel as the tree has it, with the server's
+    .pyc (the upgrade tests create old versions; two versions run side by side)."""
+    with psycopg.connect(cluster.dsn("postgres")) as conn:
+        libdir = Path(
+            conn.execute("SELECT setting FROM pg_config WHERE name = 'PKGLIBDIR'").fetchone()[0]
+        )
+    kernels = {p.name: p for p in RELEASED_KERNELS.iterdir()} if RELEASED_KERNELS.exists() else {}
+    if not FROZEN.exists():
+        kernels[VERSION] = KERNEL
+    for version, folder in kernels.items():
+        installed = libdir / ("modb_kernel_" + version.replace(".", "_"))
+        assert kernel_modules(installed) == kernel_modules(folder), installed
+        compiled = {p.name.split(".")[0] for p in installed.rglob("__pycache__/*.pyc")}
+        assert compiled == {Path(m).stem for m in kernel_modules(folder)}, installed

@@ -2,7 +2,7 @@ CREATE OR REPLACE FUNCTION modb.forward_kinematics(hierarchy jsonb, rotations re
 RETURNS TABLE (frame int, joint_index int, joint text, x float8, y float8, z float8)
 LANGUAGE plpython3u IMMUTABLE CALLED ON NULL INPUT PARALLEL SAFE
 AS $py$
-#@modb_kernel
+#@modb_kernel kinematics
 import json
 import numpy as np
 if hierarchy is None or rotations is None:

@@ -194,7 +194,7 @@ CREATE OR REPLACE FUNCTION modb._build_snippets(collection text DEFAULT NULL, cl
 RETURNS bigint
 LANGUAGE plpython3u VOLATILE PARALLEL UNSAFE
 AS $py$
-#@modb_kernel
+#@modb_kernel database snippet_cut
 D, C = kernel.database, kernel.snippet_cut
 db = D.Server(plpy)
 try:

@@ -18,7 +18,7 @@ CREATE OR REPLACE FUNCTION modb.build_transition_graph(name text, profile text D
 RETURNS bigint
 LANGUAGE plpython3u VOLATILE PARALLEL UNSAFE
 AS $py$
-#@modb_kernel
+#@modb_kernel graph_build
 import json
 
 B = kernel.graph_build

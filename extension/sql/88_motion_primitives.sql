@@ -7,7 +7,7 @@ CREATE OR REPLACE FUNCTION modb._annotate_steps(clip bigint)
 RETURNS TABLE (version int, name text, start_frame int, end_frame int, keyframes int[])
 LANGUAGE plpython3u VOLATILE STRICT PARALLEL UNSAFE
 AS $py$
-#@modb_kernel
+#@modb_kernel database step_annotations
 D = kernel.database
 try:
     version, made = kernel.step_annotations.annotate(D.Server(plpy), clip)
@@ -98,7 +98,7 @@ CREATE OR REPLACE FUNCTION modb._align_primitive(primitive text, collection text
 RETURNS TABLE (examples int, aligned int, deleted int)
 LANGUAGE plpython3u VOLATILE STRICT PARALLEL UNSAFE
 AS $py$
-#@modb_kernel
+#@modb_kernel database processed
 D = kernel.database
 try:
     return [kernel.processed.align_primitive(D.Server(plpy), primitive, collection)]

@@ -69,7 +69,7 @@ CREATE OR REPLACE FUNCTION modb._sample_motion(model text, n int, seed int, vers
 RETURNS TABLE (sample int, fps float8, n_frames int, rotations real[], translations real[])
 LANGUAGE plpython3u STABLE PARALLEL SAFE
 AS $py$
-#@modb_kernel
+#@modb_kernel database model_samples
 D = kernel.database
 try:
     return kernel.model_samples.sample_motion(D.Server(plpy), model, n, seed, version)

@@ -92,7 +92,7 @@ CREATE OR REPLACE FUNCTION modb._synthesize_from_models(graph text, goals float8
 RETURNS TABLE (fps float8, n_frames int, rotations real[], translations real[], report jsonb)
 LANGUAGE plpython3u STABLE PARALLEL SAFE
 AS $py$
-#@modb_kernel
+#@modb_kernel database model_synthesis
 D = kernel.database
 try:
     return kernel.model_synthesis.synthesize_stored(D.Server(plpy), graph, goals, seconds, seed, arrival_radius)

@@ -38,7 +38,7 @@ CREATE OR REPLACE FUNCTION modb._retarget(clip bigint, skeleton bigint, collecti
 RETURNS bigint
 LANGUAGE plpython3u VOLATILE PARALLEL UNSAFE
 AS $py$
-#@modb_kernel
+#@modb_kernel database retarget_clip
 D = kernel.database
 try:
     return kernel.retarget_clip.retarget_clip(D.Server(plpy), clip, skeleton, collection, fps, mirrored)

@@ -18,7 +18,7 @@ CREATE OR REPLACE FUNCTION modb._apply_edit_script(script text, clips bigint[])
 RETURNS TABLE (clip_id bigint, version int, n_frames int, snippets bigint)
 LANGUAGE plpython3u VOLATILE PARALLEL UNSAFE
 AS $py$
-#@modb_kernel
+#@modb_kernel database edit_clips
 D = kernel.database
 try:  # returned whole: an error raised inside a generator would lose its message
     return kernel.edit_clips.apply_script(D.Server(plpy), script, clips)

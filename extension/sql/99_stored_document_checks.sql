@@ -85,7 +85,7 @@ CREATE OR REPLACE FUNCTION modb.edit_script_problems(commands jsonb)
 RETURNS text[]
 LANGUAGE plpython3u IMMUTABLE STRICT PARALLEL SAFE
 AS $py$
-#@modb_kernel
+#@modb_kernel edits
 import json
 return kernel.edits.script_errors(json.loads(commands))
 $py$;

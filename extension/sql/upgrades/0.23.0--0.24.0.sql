@@ -1,0 +1,2 @@
+-- 0.24.0: the kernel installed once per version (a package beside modb.so that the PL/Python functions
+-- import), no longer pasted into every function; functions that cannot run in a parallel worker labelled so.
