@@ -1,13 +1,16 @@
 #!/usr/bin/env python3
-"""Assemble modb--<version>.sql and the upgrade scripts from sql/*.sql and the kernel.
+"""Assemble modb--<version>.sql and the upgrade scripts from sql/*.sql.
 
-The kernel package (plpython/modb_kernel/*.py) is embedded in every PL/Python function: a line
-'#@modb_kernel' in a body becomes a prelude that, on the function's first call in a session, imports
-the embedded sources as package modb_kernel_<version> and keeps it in GD for the version's other
-functions. So the server runs exactly the code of the installed extension version, never files from
-the repository or a virtualenv, and needs no SPI call to get it (SPI would make the functions
-unusable in parallel queries). {{STANDARD_JOINTS}} and {{FEATURES}} become SQL arrays of the
-kernel's constants, and --c-header writes the C code's count of standard joints
+The kernel package (plpython/modb_kernel/, shared with the client) is not in the scripts: it is
+installed beside modb.so once per version as the package modb_kernel_<version> (extension/Makefile),
+and a line '#@modb_kernel MODULE...' in a PL/Python body becomes a prelude that imports that
+package, found without SPI from where PostgreSQL's $libdir is (SPI would make the functions unusable
+in parallel queries), and the modules named; the body reads it as `kernel`. So the server runs the
+code of the installed extension version, never files from the repository or a virtualenv, and two
+databases of one server at two versions each run their own. Each script starts by importing the
+whole package (a DO block), so CREATE EXTENSION and ALTER EXTENSION UPDATE fail at once, saying what
+to install, on a server that lacks it. {{STANDARD_JOINTS}} and {{FEATURES}} become SQL arrays of
+the kernel's constants, and --c-header writes the C code's count of standard joints
 (src/standard_joints.h) from the same list.
 
 sql/*.sql holds one fragment per subject (header, roles, errors in words, validation, tables, clip
@@ -23,7 +26,7 @@ and 90_privileges.sql's grants on all tables and sequences reach those made befo
 
 Upgrade scripts come from sql/upgrades/OLD--NEW.sql: hand-written steps whose '--@include FILE'
 lines pull in fragments of sql/, and every other PL/Python function re-created (with its COMMENT)
-with NEW's kernel: at a '--@functions' line, so that the steps after it run NEW's code (a data
+with NEW's prelude: at a '--@functions' line, so that the steps after it run NEW's code (a data
 migration), else at the end. A fragment is included whole: one whose objects are all new in NEW, or
 one that can run again over the old version, made only of CREATE OR REPLACE, COMMENT, GRANT and
 upserts: 77_match_profiles_shipped.sql, 79_match_plan.sql, 80_match_continuity_ratio.sql,
@@ -40,14 +43,11 @@ installs the same catalogue: PostgreSQL installs `CREATE EXTENSION modb VERSION 
 the upgrades, so sql/released/ holds the first install script, every upgrade script and the newest
 install script.
 
-The kernel stays pasted into the function bodies (decided at 0.16.0, for the releases after it),
-not installed once as files the functions import: a version's code is in the catalogue, so databases
-of one server run different installed versions side by side, ALTER EXTENSION UPDATE changes code and
-catalogue in one transaction, and pg_dump, restores and standbys carry it with no file to install
-(files would need a folder per version that neither DROP EXTENSION nor an update removes). The first
-call reads nothing (no SPI, which a kernel kept in a table would need and which would cost the
-functions their use in parallel queries). The cost, the kernel's text in each PL/Python function of
-the install script and of each upgrade script, is paid in the tree once per release.
+Releasing a version also freezes its kernel: plpython/modb_kernel/ is copied to
+plpython/released/VERSION/, which the Makefile installs from then on (every released version's
+kernel stays installed: old versions are created by the upgrade tests, and one server may hold
+databases at several versions). Until 0.23.0 the kernel was pasted into every PL/Python function;
+those frozen scripts still carry it.
 """
 
 import functools

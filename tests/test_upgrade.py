@@ -61,6 +61,7 @@ OLD_VERSIONS = [
     "0.20.0",
     "0.21.0",
     "0.22.0",
+    "0.23.0",
 ]
 
 # What a retargeting, an edit script and a cut store, without ids (sequences differ between runs):
@@ -167,6 +168,44 @@ def _step_models(db, dsn) -> tuple[str, list]:
 MODELS = "SELECT id, name, version, md5(data::text), md5(meta::text) FROM modb.models ORDER BY id"
 
 
+def _models_and_their_outputs(db, dsn) -> list:
+    """0.23.0's step models and their graph, and what sampling and synthesis from them give: with
+    the same seeds, 0.24.0's installed kernel must give the same (0.23.0 ran the kernel pasted into
+    its functions)."""
+    collection, _ = _step_models(db, dsn)
+    r = run_modb(dsn, "model", "graph", "steps", "--collection", collection)
+    assert r.returncode == 0, r.stderr
+    return _model_outputs(db)
+
+
+def _model_outputs(db) -> list:
+    samples = db.execute(
+        "SELECT sample, fps, n_frames, rotations, translations "
+        "FROM modb.sample_motion('left steps', 2, 7) ORDER BY sample"
+    ).fetchall()
+    synthesized = db.execute(
+        "SELECT * FROM modb.synthesize_from_models('steps', ARRAY[[0, 3], [2, 4]]::float8[], 3, 5)"
+    ).fetchall()
+    assert len(samples) == 2 and len(synthesized) == 1
+    return samples + synthesized
+
+
+def _same_outputs(after, before) -> None:
+    """Equal, numbers to 1e-6 (numpy's sums may differ in the last bit between runs)."""
+    if isinstance(before, (list, tuple)) and not isinstance(before, str):
+        assert isinstance(after, (list, tuple)) and len(after) == len(before)
+        for value, expected in zip(after, before, strict=True):
+            _same_outputs(value, expected)
+    elif isinstance(before, dict):
+        assert isinstance(after, dict) and sorted(after) == sorted(before)
+        for key in before:
+            _same_outputs(after[key], before[key])
+    elif isinstance(before, float):
+        assert after == pytest.approx(before, abs=1e-6)
+    else:
+        assert after == before
+
+
 def _graph_of_the_models(db, dsn, collection, models_before) -> None:
     assert len(models_before) == 2 and db.execute(MODELS).fetchall() == models_before
     r = run_modb(dsn, "model", "graph", "steps", "--collection", collection)
@@ -203,6 +242,8 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
         processed_before = _steps_aligned_and_a_model(db)
     if old == "0.22.0":  # 0.23.0: graphs of those models, and synthesis from them
         collection, models_before = _step_models(db, fresh_db)
+    if old == "0.23.0":  # 0.24.0: the kernel installed beside modb.so, no longer pasted
+        outputs_before = _models_and_their_outputs(db, fresh_db)
     before = db.execute(
         "SELECT clip_id, version, n_frames, meta, md5(rotations::text) FROM modb.clip_versions "
         "ORDER BY 1"
@@ -236,6 +277,10 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
         _models_in_versions(db, fresh_db, processed_before)
     if old == "0.22.0":
         _graph_of_the_models(db, fresh_db, collection, models_before)
+    if old == "0.23.0":
+        _same_outputs(_model_outputs(db), outputs_before)  # this session, after the update
+        with psycopg.connect(fresh_db) as new_session:
+            _same_outputs(_model_outputs(new_session), outputs_before)
     if old == "0.19.0":
         stored_after = _retarget_and_edit(db)
         assert len(stored_before) == 2 and all(row[-1] for row in stored_before)
@@ -317,7 +362,7 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
         # 0.18.0: the update leaves the blocks as they were (no term codes) and builds the
         # directory's index; they count as unpacked, so a load's packing derives them again
         uncoded = "SELECT count(*) FILTER (WHERE term_codes IS NULL) FROM modb.snippet_blocks"
-        coded_before = ("0.18.0", "0.19.0", "0.20.0", "0.21.0", "0.22.0")  # 0.18.0 on coded them
+        coded_before = OLD_VERSIONS[OLD_VERSIONS.index("0.18.0") :]  # 0.18.0 on coded them
         assert (db.execute(uncoded).fetchone()[0] > 0) == (old not in coded_before)
         assert db.execute("SELECT to_regclass('modb.snippet_blocks_directory_idx')").fetchone()[0]
         db.execute("SELECT * FROM modb.pack_snippet_blocks(0.2)")
