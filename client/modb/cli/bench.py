@@ -4,6 +4,7 @@ BENCHMARKS.md). The benchmarks themselves are modules of modb.bench."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -273,6 +274,26 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     tail.add_argument("--seed", type=SEED, default=1, help=f"random seed ({SEED.span}; default 1)")
     tail.set_defaults(func=run_tail)
 
+    first_call = benchmarks.add_parser(
+        "first-call",
+        help="the first call of forward_kinematics, sample_motion and synthesize_from_models in a "
+        "new session, the kernel pasted (0.23.0) or installed (the default version); two databases "
+        "of the embedded cluster",
+    )
+    first_call.add_argument(
+        "--data",
+        default="../shared/mocap/bandai-2-dev/data",
+        help="Bandai dataset 2 BVH folder: six active walks are loaded, their steps modelled "
+        "(default ../shared/mocap/bandai-2-dev/data)",
+    )
+    first_call.add_argument(
+        "--rounds",
+        type=ROUNDS,
+        default=20,
+        help=f"new sessions per function and version ({ROUNDS.span}; default 20)",
+    )
+    first_call.set_defaults(func=run_first_call)
+
 
 class BenchCommands:
     """The commands a benchmark runs to fill a database of its own (modb.bench.commands), each as
@@ -289,6 +310,40 @@ class BenchCommands:
                 return graph_command.build(conn, name, collection=collection, quiet=True)
 
         return reporting_errors(build)
+
+    def annotate_steps(self, dsn: str, collection: str) -> int:
+        return self._modb(dsn, "annotate", "--steps", collection, "--quiet")
+
+    def build_model(self, dsn: str, name: str, collection: str, primitive: str) -> int:
+        return self._modb(dsn, "model", "build", name, "--collection", collection, "--primitive",
+                          primitive, "--quiet")  # fmt: skip
+
+    def build_model_graph(self, dsn: str, name: str, collection: str) -> int:
+        return self._modb(dsn, "model", "graph", name, "--collection", collection)
+
+    def _modb(self, dsn: str, *argv: str) -> int:
+        """The command run in this process; what it prints goes to stderr, beside the progress."""
+        from .main import main  # main imports this module
+
+        with contextlib.redirect_stdout(sys.stderr):
+            return main(["--dsn", dsn, *argv])
+
+
+def run_first_call(args: argparse.Namespace) -> int:
+    from modb.bench.first_call import report, run  # numpy (60 ms)
+
+    try:
+        result = run(
+            Path(args.data),
+            args.rounds,
+            BenchCommands(),
+            lambda text: print(f"modb bench first-call: {text}", file=sys.stderr),
+        )
+    except RuntimeError as e:
+        print(f"modb bench first-call: {e}", file=sys.stderr)
+        return 2
+    print(report(result))
+    return 0
 
 
 def run_synth(args: argparse.Namespace) -> int:
