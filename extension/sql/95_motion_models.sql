@@ -67,7 +67,7 @@ GRANT SELECT ON modb.model_status TO modb_reader;
 
 CREATE OR REPLACE FUNCTION modb._sample_motion(model text, n int, seed int, version int)
 RETURNS TABLE (sample int, fps float8, n_frames int, rotations real[], translations real[])
-LANGUAGE plpython3u STABLE PARALLEL SAFE
+LANGUAGE plpython3u STABLE PARALLEL UNSAFE  -- plpy.execute opens a subtransaction: not in a parallel worker
 AS $py$
 #@modb_kernel database model_samples
 D = kernel.database
@@ -80,7 +80,7 @@ COMMENT ON FUNCTION modb._sample_motion(text, int, int, int) IS
     'Internal: what modb.sample_motion runs (PL/Python); call that one, whose errors read without Python''s exception names';
 CREATE FUNCTION modb.sample_motion(model text, n int, seed int, version int DEFAULT NULL)
 RETURNS TABLE (sample int, fps float8, n_frames int, rotations real[], translations real[])
-LANGUAGE plpgsql STABLE PARALLEL SAFE
+LANGUAGE plpgsql STABLE PARALLEL UNSAFE  -- the EXCEPTION block is a subtransaction: not in a parallel worker
 AS $$
 DECLARE
     message text; error_state text; detail text; hint text;

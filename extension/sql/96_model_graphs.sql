@@ -90,7 +90,7 @@ CREATE TRIGGER model_graphs_check BEFORE INSERT OR UPDATE ON modb.graphs
 CREATE OR REPLACE FUNCTION modb._synthesize_from_models(graph text, goals float8[], seconds float8, seed int,
                                              arrival_radius float8)
 RETURNS TABLE (fps float8, n_frames int, rotations real[], translations real[], report jsonb)
-LANGUAGE plpython3u STABLE PARALLEL SAFE
+LANGUAGE plpython3u STABLE PARALLEL UNSAFE  -- plpy.execute opens a subtransaction: not in a parallel worker
 AS $py$
 #@modb_kernel database model_synthesis
 D = kernel.database
@@ -104,7 +104,7 @@ COMMENT ON FUNCTION modb._synthesize_from_models(text, float8[], float8, int, fl
 CREATE FUNCTION modb.synthesize_from_models(graph text, goals float8[], seconds float8, seed int DEFAULT 0,
                                             arrival_radius float8 DEFAULT 0.5)
 RETURNS TABLE (fps float8, n_frames int, rotations real[], translations real[], report jsonb)
-LANGUAGE plpgsql STABLE PARALLEL SAFE
+LANGUAGE plpgsql STABLE PARALLEL UNSAFE  -- the EXCEPTION block is a subtransaction: not in a parallel worker
 AS $$
 DECLARE
     message text; error_state text; detail text; hint text;

@@ -1,7 +1,7 @@
 -- The extension installs, drops and re-installs cleanly; objects, comments and declarations as documented.
 BEGIN;
 CREATE EXTENSION IF NOT EXISTS pgtap;
-SELECT plan(27);
+SELECT plan(25);
 
 SELECT has_extension('modb');
 SELECT has_schema('modb');
@@ -45,12 +45,7 @@ SELECT is((SELECT count(*) FROM pg_proc WHERE pronamespace = 'modb'::regnamespac
             AND obj_description(oid, 'pg_proc') IS NULL), 0::bigint, 'every function has a COMMENT');
 SELECT is((SELECT count(*) FROM pg_class WHERE relnamespace = 'modb'::regnamespace AND relkind IN ('r', 'v')
             AND obj_description(oid, 'pg_class') IS NULL), 0::bigint, 'every table and view has a COMMENT');
-SELECT is((SELECT count(*) FROM pg_proc WHERE pronamespace = 'modb'::regnamespace
-            AND provolatile IN ('i', 's') AND proparallel <> 's'), 0::bigint, 'every read-only function is PARALLEL SAFE');
-SET LOCAL force_parallel_mode = on;  -- PL/Python that used SPI would fail here ("cannot start subtransactions")
-SELECT ok(modb.unit_quaternions_ok('{{{1,0,0,0}}}') AND modb.finite_ok('{1,2}'),
-          'PL/Python functions run inside parallel queries');
-RESET force_parallel_mode;
+-- Parallel labels: tests/test_parallel_safety.py runs every PARALLEL SAFE function in a parallel worker.
 SELECT is((SELECT count(*) FROM pg_proc WHERE pronamespace = 'modb'::regnamespace AND prosecdef
              AND proname NOT IN ('token_grant', 'delete_collection', 'delete_clip', 'delete_clip_version')), 0::bigint,
     'no SECURITY DEFINER function but token_grant and the deleting functions');
