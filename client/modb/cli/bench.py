@@ -322,11 +322,19 @@ class BenchCommands:
         return self._modb(dsn, "model", "graph", name, "--collection", collection)
 
     def _modb(self, dsn: str, *argv: str) -> int:
-        """The command run in this process; what it prints goes to stderr, beside the progress."""
-        from .main import main  # main imports this module
+        """`modb --dsn DSN ARGV` (annotate or model) run in this process; what it prints goes to
+        stderr, beside the progress (a parser of those two: main's imports this module)."""
+        from . import annotate, model
 
+        parser = argparse.ArgumentParser(prog="modb")
+        parser.add_argument("--dsn")
+        parser.add_argument("-v", "--verbose", action="store_true")
+        commands = parser.add_subparsers(dest="command", required=True)
+        for command in (annotate, model):
+            command.add_parser(commands)
+        args = parser.parse_args(["--dsn", dsn, *argv])
         with contextlib.redirect_stdout(sys.stderr):
-            return main(["--dsn", dsn, *argv])
+            return reporting_errors(lambda: args.func(args))
 
 
 def run_first_call(args: argparse.Namespace) -> int:
