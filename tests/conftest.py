@@ -4,6 +4,7 @@ tests/README.md says which fixture to reuse for what."""
 
 from __future__ import annotations
 
+import functools
 import itertools
 import os
 from pathlib import Path
@@ -54,10 +55,30 @@ def pytest_unconfigure(config):
         shared.end_run(config.stash[_RUN])
 
 
+# Markers, given here from what a test uses so that none is forgotten (`make test-quick` leaves out
+# `slow` and `browser`): `browser`, a test that drives chromium; `data`, one whose module reads the
+# real capture (../shared/mocap, through support.data.mocap or the fixtures built from it); `slow`,
+# every test of a module in FIRST (over a minute).
+DATA_FIXTURES = {"locomotion", "cmu"}
+
+
+@functools.cache
+def _reads_capture(path: Path) -> bool:
+    return "mocap(" in path.read_text()
+
+
 def pytest_collection_modifyitems(items):
     rank = {name: i for i, name in enumerate(FIRST)}
     # (a stable sort: the other modules keep their order)
     items.sort(key=lambda item: rank.get(Path(item.fspath).name, len(FIRST)))
+    for item in items:
+        path = Path(item.fspath)
+        if path.name in rank:
+            item.add_marker(pytest.mark.slow)
+        if "chromium_driver" in item.fixturenames:
+            item.add_marker(pytest.mark.browser)
+        if DATA_FIXTURES & set(item.fixturenames) or _reads_capture(path):
+            item.add_marker(pytest.mark.data)
 
 
 @pytest.fixture(scope="session")

@@ -103,8 +103,8 @@ def test_export_of_an_older_version_and_ambiguous_names(fresh_db, db, tmp_path):
         names, expected = bvhio_world_positions(str(reference), 0.01)
         names2, got = bvhio_world_positions(str(out), 0.01)
         assert np.abs(got - expected).max() < TOLERANCE_M
-    r = run_modb(fresh_db, "export", "a/dataset-1_walk_active_001", "--version", "7")
-    assert r.returncode == 1 and "has no version 7" in r.stderr
+    r = run_modb(fresh_db, "export", "a/dataset-1_walk_active_001", "--version", "7", process=True)
+    assert r.returncode == 1 and "has no version 7" in r.stderr  # (a subprocess smoke test)
 
 
 def test_a_numeric_name_is_not_taken_for_an_id(fresh_db, db, tmp_path):

@@ -53,8 +53,8 @@ def test_units_auto_states_its_rule_and_refuses_to_guess(fresh_db, db):
     r = run_modb(fresh_db, "load", mocap(*WALK))
     assert r.returncode == 0
     assert "units auto: rest pose spans" in r.stderr and "-> cm (0.01 m per unit)" in r.stderr
-    r = run_modb(fresh_db, "load", mocap("cmu", "131", "bvh", "131_01.bvh"))
-    assert r.returncode == 1
+    r = run_modb(fresh_db, "load", mocap("cmu", "131", "bvh", "131_01.bvh"), process=True)
+    assert r.returncode == 1  # the process's exit status (a subprocess smoke test)
     assert "131_01.bvh: cannot infer units" in r.stderr and "--units" in r.stderr
     assert counts(db)[2] == 1
 

@@ -396,7 +396,8 @@ def test_cli_refuses_an_asf_repeated_root_channel(fresh_db, db, trial):
 def test_cli_refuses_an_amc_rate_outside_the_range(fresh_db, db, trial):
     """Up front, once for the whole call (not once per AMC file)."""
     for fps in ("5000", "nan", "0.5"):
-        r = run_modb(fresh_db, "load", trial / "131_01.amc", "--fps", fps)
+        # a process: the interpreter's exit status (a subprocess smoke test)
+        r = run_modb(fresh_db, "load", trial / "131_01.amc", "--fps", fps, process=True)
         assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
         assert f"argument --fps: must be a number from 1 to 1000 fps, got '{fps}'" in r.stderr
     assert counts(db) == (0, 0, 0, 0)
