@@ -1,12 +1,13 @@
-"""The `modb` command line as the tests run it: in this process by default (its `main()`, with what
-it prints captured), as a user's process where the process is the subject (`process=True`: exit
-codes of the interpreter, signals, the environment, installation).
+"""The `modb` command line as the tests run it: as a user's process by default, or in this process
+(`process=False`: its `main()`, with what it prints captured).
 
 In process saves each call the interpreter's start and numpy, scipy and scikit-learn's imports (1 to
-1.7 s a call). The result is the same `subprocess.CompletedProcess` either way: an exception the
-command does not handle becomes exit status 1 with its traceback in stderr, as Python's own exit
-would make it. Standard output and error are process-wide, so a call from another thread than the
-main one runs as a process."""
+1.7 s a call), but is not the default yet: with every call in process, a clean-clone run failed
+test_avatar_web's two-connection test (a statement timeout) where the same tree with processes
+passed; until that is understood, a test opts in. The result is the same
+`subprocess.CompletedProcess` either way: an exception the command does not handle becomes exit
+status 1 with its traceback in stderr, as Python's own exit would make it. Standard output and error
+are process-wide, so a call from another thread than the main one runs as a process."""
 
 from __future__ import annotations
 
@@ -20,7 +21,7 @@ import traceback
 from modb.cli.main import main
 
 
-def run_modb(dsn: str, *args: str, process: bool = False) -> subprocess.CompletedProcess:
+def run_modb(dsn: str, *args: str, process: bool = True) -> subprocess.CompletedProcess:
     """`modb --dsn DSN ARGS...`: its exit status, standard output and standard error (text)."""
     argv = ["--dsn", dsn, *map(str, args)]
     if process or threading.current_thread() is not threading.main_thread():
