@@ -189,7 +189,7 @@ def chunks(n_frames, fps, firsts, length, chunk_frames=CHUNK_FRAMES):
 
 def net_motion(terms, first, last):
     """Net pelvis translation (in the first frame's heading frame) and heading change of frames
-    first..last."""
+    first..last: for one snippet, or for many when first and last are arrays."""
     theta = terms["heading"]
     h_inv = quaternion.conjugate(_about_y(theta[first]))
     translation = quaternion.rotate(h_inv, terms["pelvis"][last] - terms["pelvis"][first])
