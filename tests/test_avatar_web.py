@@ -283,8 +283,16 @@ def set_in_panel(driver, element_id: str, value: str) -> None:
         element.send_keys(value, Keys.TAB)
 
 
+START_ATTEMPTS = 3  # clicks to start a walk whose first selection ran past the statement timeout
+
+
 def walk_without_graph(driver, address: str, goal: tuple[float, float]) -> None:
-    """A fresh page walking toward a far goal, choosing by the GiST box (no transition graph)."""
+    """A fresh page walking toward a far goal, choosing by the GiST box (no transition graph), once
+    its first snippet is chosen. That first selection, from standing, ranks every snippet (57,616:
+    over a CPU-second, where a step takes tens of milliseconds) against the avatar's 10 s statement
+    timeout: on a busy machine it can run past it, and the page says "click to start again", as a
+    user would (a few times at most; any other stop fails). A test that walks two pages starts one
+    after the other, never two such queries at once."""
     open_avatar(driver, address)
     since = len(page_state(driver)["messages"])
     set_in_panel(driver, "graph", "none")  # the page starts with the newest current graph
@@ -293,7 +301,21 @@ def walk_without_graph(driver, address: str, goal: tuple[float, float]) -> None:
         state["messages"][-1]["type"] == "settings"
         and state["messages"][-1]["settings"]["graph"] == "none"
     )
-    click_ground(driver, *goal)
+    for _ in range(START_ATTEMPTS):
+        since = len(page_state(driver)["messages"])
+        click_ground(driver, *goal)
+        state = wait_until(
+            driver,
+            lambda s: any(m["type"] in ("choice", "stopped") for m in s["messages"][since:]),
+            30,
+            "the walk's first selection",
+        )
+        first = next(m for m in state["messages"][since:] if m["type"] in ("choice", "stopped"))
+        if first["type"] == "choice":
+            return
+        assert "statement timeout" in first["message"], first
+        time.sleep(1.0)  # the stopped walk's thread closes its connection before a click restarts
+    raise AssertionError(f"no walk started in {START_ATTEMPTS} clicks: {first['message']}")
 
 
 def counted(state: dict, after_message: int = 0) -> list[tuple[int, int, int]]:

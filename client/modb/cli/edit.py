@@ -47,12 +47,12 @@ def _commands(args: argparse.Namespace) -> list:
         raise SystemExit(f"modb edit: {where}: {e.strerror}") from None
     except json.JSONDecodeError as e:
         raise SystemExit(f"modb edit: {where}:{e.lineno}: not JSON: {e.msg}") from None
-    from modb.web.body_rules import Invalid, check_script
+    from modb_kernel.edits import script_errors  # the check the database's trigger runs
 
-    try:
-        return check_script(commands, where)
-    except Invalid as e:
-        raise SystemExit(f"modb edit: {e}") from None
+    problems = script_errors(commands)
+    if problems:
+        raise SystemExit(f"modb edit: {where}: " + "; ".join(problems))
+    return commands
 
 
 def run(args: argparse.Namespace) -> int:

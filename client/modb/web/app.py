@@ -36,6 +36,7 @@ from modb.database.connection import connect
 from modb.database.read_nodes import ReadNodes
 from . import (
     api,
+    body_models,
     catalog_writes,
     database_errors,
     downloads,
@@ -46,7 +47,7 @@ from . import (
 )
 from .avatar_socket import avatar_endpoint, default_max_avatars
 from .auth import Tokens
-from .body_rules import Invalid
+from .bodies import Invalid
 from .guard import HostOriginGuard, allowed_hosts
 from .server_pool import ServerPool, Unreachable, probe
 from .writes import MAX_UPLOAD_MB, WRITER_ROLE, Writer, meta_endpoints, upload_endpoint
@@ -247,6 +248,20 @@ HEAVY_VIEWS: dict[str, tuple[View, Callable[[Request], Any]]] = {
 }
 
 
+# path: (handler, its body's model or None, makes frames) of the other POSTs (catalog_writes has
+# the catalogue's)
+WRITES: dict[str, tuple[Callable, Any, bool]] = {
+    "/api/jobs": (job_routes.submit_job, body_models.JOB, False),
+    "/api/edit-scripts/{name}/apply": (job_routes.apply_script, body_models.Targets, True),
+    "/api/collections/{path:path}/retarget": (
+        job_routes.retarget_collection, body_models.CollectionRetarget, False),
+    "/api/collections/{path:path}/steps": (job_routes.steps_collection, None, False),
+    "/api/processed-data": (job_routes.align_primitive, body_models.Align, False),
+    "/api/motion-models/{name}/build": (model_routes.build, body_models.ModelBuild, False),
+    "/api/jobs/{ident}/cancel": (job_routes.cancel_job, None, False),
+}  # fmt: skip
+
+
 def _error(status: int) -> Callable:
     async def handler(request: Request, exc: Exception) -> JSONResponse:
         return JSONResponse({"error": str(exc)}, status_code=status)
@@ -391,49 +406,16 @@ def create_app(
         ),
         Route("/api/uploads", upload_endpoint(tokens, writer, max_upload_mb), methods=["POST"]),
         *catalog_writes.routes(pool, tokens, writer),
-        Route(
-            "/api/jobs",
-            catalog_writes.write_endpoint(tokens, writer, job_routes.submit_job),
-            methods=["POST"],
+        *(
+            Route(path, catalog_writes.write_endpoint(tokens, writer, *how), methods=["POST"])
+            for path, how in WRITES.items()
         ),
-        Route(
-            "/api/edit-scripts/{name}/apply",
-            catalog_writes.write_endpoint(tokens, writer, job_routes.apply_script, frames=True),
-            methods=["POST"],
-        ),
-        Route(
-            "/api/collections/{path:path}/retarget",
-            catalog_writes.write_endpoint(tokens, writer, job_routes.retarget_collection),
-            methods=["POST"],
-        ),
-        Route(
-            "/api/collections/{path:path}/steps",
-            catalog_writes.write_endpoint(
-                tokens, writer, job_routes.steps_collection, with_body=False
-            ),
-            methods=["POST"],
-        ),
-        Route(
-            "/api/processed-data",
-            catalog_writes.write_endpoint(tokens, writer, job_routes.align_primitive),
-            methods=["POST"],
-        ),
-        Route(
-            "/api/motion-models/{name}/build",
-            catalog_writes.write_endpoint(tokens, writer, model_routes.build),
-            methods=["POST"],
-        ),
-        Route(
-            "/api/jobs/{ident}/cancel",
-            catalog_writes.write_endpoint(tokens, writer, job_routes.cancel_job, with_body=False),
-            methods=["POST"],
-        ),
-        Route("/api/openapi.json", lambda request: JSONResponse(openapi.schema())),
         Route("/avatar", lambda request: FileResponse(STATIC / "avatar.html")),
         WebSocketRoute("/ws/avatar", avatar_endpoint(nodes, pool, tokens, max_avatars)),
         Mount("/static", StaticFiles(directory=STATIC)),
         Mount("/vendor/three", StaticFiles(directory=THREE)),
     ]
+    routes.append(Route("/api/openapi.json", openapi.endpoint(routes)))  # (it reads the others)
     app = Starlette(
         routes=routes,
         lifespan=lifespan,

@@ -26,27 +26,10 @@ from modb.editing import catalog
 
 from . import model_graph_routes
 from .api import BadRequest, NotFound
+from . import body_models as bodies
 from .auth import Tokens
-from .bodies import authorized_json
-from .body_rules import (
-    FPS,
-    JOINT_AXES,
-    MAX_ID,
-    CollectionPath,
-    Fixed,
-    Flag,
-    JsonObject,
-    ListOf,
-    MapOf,
-    Name,
-    Nullable,
-    ParentPath,
-    Rule,
-    Shape,
-    Text,
-    Whole,
-    check_script,
-)
+from .bodies import authorized_json, parse
+from .body_models import MAX_ID
 from .writes import Writer
 
 MAX_DOCUMENT_BYTES = 64 << 20  # a model's or graph's data, as JSON
@@ -102,21 +85,32 @@ def _current_clips(conn: psycopg.Connection, clips: list[int]) -> list[int]:
 
 
 def write_endpoint(
-    tokens: Tokens, writer: Writer, handler: Handler, with_body: bool = True, frames: bool = False
+    tokens: Tokens,
+    writer: Writer,
+    handler: Handler,
+    body: Any = None,
+    frames: bool = False,
+    if_match: str | None = None,
 ):
-    """An endpoint running `handler` as one audited transaction of the writer role. `frames`: the
+    """An endpoint running `handler` as one audited transaction of the writer role, on the body
+    checked against its model `body` (body_models; none read without one): the handler gets the
+    fields given. The model is the endpoint's `request_body`, which /api/openapi.json publishes.
+    `if_match`: what the ETag names, asked for (428) before the body is checked. `frames`: the
     handler makes clip versions (edits, retargeting), after which the connection is closed, not
     pooled again: a server process keeps part of the memory of the frames it computed (about 2 kB
     per frame, outside PostgreSQL's and Python's accounting, BENCHMARKS.md), so each such write gets
     a fresh one and the writers' memory stays bounded."""
 
-    def run(request: Request, grant, body: Any) -> JSONResponse:
+    def run(request: Request, grant, given: Any) -> JSONResponse:
+        if if_match and not request.headers.get("if-match"):
+            raise HTTPException(428, f"send If-Match with the ETag of {if_match} you read")
+        fields = None if body is None else parse(body, given)  # before any work
         # A database error leaves the transaction rolled back; the app answers it (database_errors)
         request.state.grant = grant  # whose token: a job's submitter
         with writer.pool().connection() as conn:
             try:
                 with conn.transaction():
-                    done = handler(conn, request, body)
+                    done = handler(conn, request, fields)
                     audit.record(conn, grant.name, done.action, done.obj, done.detail)
             finally:
                 if frames:
@@ -124,21 +118,19 @@ def write_endpoint(
         return JSONResponse(done.body, status_code=done.status, headers=done.headers)
 
     async def endpoint(request: Request) -> JSONResponse:
-        grant, body = await authorized_json(request, tokens, MAX_DOCUMENT_BYTES, with_body)
-        return await run_in_threadpool(run, request, grant, body)
+        grant, given = await authorized_json(request, tokens, MAX_DOCUMENT_BYTES, body is not None)
+        return await run_in_threadpool(run, request, grant, given)
 
+    endpoint.request_body = body
     return endpoint
 
 
 # Collections
 
-NEW_COLLECTION = Shape({"path": CollectionPath()}, ("path",))
-CHANGED_COLLECTION = Shape({"name": Name(), "parent": Nullable(ParentPath())}, at_least_one=True)
-
 
 def _create_collection(conn, request, body) -> Done:
     """A new collection (and the levels above it); 409 when it exists (nothing audited)."""
-    path = NEW_COLLECTION(None, body)["path"]
+    path = body["path"]
     # two creates of one path queue here, so the second finds the first's and is the 409
     conn.execute(
         "SELECT pg_advisory_xact_lock(hashtext('modb.collections: a create'), hashtext(%s))",
@@ -152,7 +144,6 @@ def _create_collection(conn, request, body) -> Done:
 
 def _change_collection(conn, request, body) -> Done:
     path = request.path_params["path"]
-    body = CHANGED_COLLECTION(None, body)
     shown = path
     if "parent" in body:
         shown = catalog.move_collection(conn, shown, body["parent"])
@@ -220,16 +211,6 @@ def _restore_version(conn, request, body) -> Done:
 
 # A skeleton's joint map and mirror pairs
 
-MAPS = Shape(
-    {
-        "joint_map": MapOf(Text(), most=100),
-        "mirror_pairs": ListOf(Fixed(Text(), 2), most=1000),
-        "joint_axes": Nullable(JOINT_AXES),
-        "skeleton_id": Whole(what="the skeleton's id"),  # as GET answers, so it can be sent back
-    },
-    ("joint_map", "mirror_pairs"),
-)
-
 
 def _maps_body(maps: catalog.SkeletonMaps, **extra: Any) -> dict[str, Any]:
     return {"skeleton_id": maps.skeleton_id, **maps.document, **extra}
@@ -237,7 +218,7 @@ def _maps_body(maps: catalog.SkeletonMaps, **extra: Any) -> dict[str, Any]:
 
 def maps_endpoint(read_pool, tokens: Tokens, writer: Writer):
     """GET and PUT /api/skeletons/{skeleton_id}/maps (PUT needs If-Match, like a version's meta)."""
-    put = write_endpoint(tokens, writer, _put_maps)
+    put = write_endpoint(tokens, writer, _put_maps, bodies.SkeletonMaps, if_match="the maps")
 
     def get(request: Request) -> JSONResponse:
         tokens.reader(request)
@@ -254,15 +235,13 @@ def maps_endpoint(read_pool, tokens: Tokens, writer: Writer):
             return await run_in_threadpool(get, request)
         return await put(request)
 
+    endpoint.request_body = put.request_body
     return endpoint
 
 
 def _put_maps(conn, request, body) -> Done:
     skeleton_id = _int(request, "skeleton_id", "skeleton id")
-    if_match = request.headers.get("if-match")
-    if not if_match:
-        raise HTTPException(428, "send If-Match with the ETag of the maps you read")
-    body = MAPS(None, body)
+    if_match = request.headers["if-match"]  # (write_endpoint asked for it)
     if body.get("skeleton_id", skeleton_id) != skeleton_id:
         raise BadRequest(f"skeleton_id: {body['skeleton_id']}, but the path names {skeleton_id}")
     if not body["joint_map"]:
@@ -300,30 +279,7 @@ class _Stale(HTTPException):
 BUILT_KINDS = ("transitions",)
 
 
-class Document(Rule):
-    """A model's or graph's data: any JSON but null."""
-
-    expects = "any JSON value but null"
-
-    def __call__(self, where: str, value: Any) -> Any:
-        if value is None:
-            raise self.refuse(where, value)
-        return value
-
-
-ROW_FIELDS = {
-    "name": Text(),
-    "kind": Text(),
-    "data": Document(),
-    "meta": JsonObject(),
-    "skeleton_id": Nullable(Whole(what="a skeleton id")),
-}
-NEW_ROW = Shape(ROW_FIELDS, ("name", "kind", "data"))
-CHANGED_ROW = Shape(ROW_FIELDS, at_least_one=True)
-
-
-def _row_fields(conn, body: Any, table: str, partial: bool) -> dict[str, Any]:
-    fields = (CHANGED_ROW if partial else NEW_ROW)(None, body)
+def _row_fields(conn, fields: dict[str, Any], table: str) -> dict[str, Any]:
     if fields.get("kind") in BUILT_KINDS and table == "graphs":
         raise BadRequest("transition graphs are built: `modb graph build NAME`")
     if fields.get("skeleton_id") is not None:
@@ -347,7 +303,7 @@ def _taken(conn, table: str, name: str, kind: str) -> None:
 
 def _create_row(table: str):
     def handler(conn, request, body) -> Done:
-        fields = _row_fields(conn, body, table, partial=False)
+        fields = _row_fields(conn, body, table)
         _taken(conn, table, fields["name"], fields["kind"])
         if table == "graphs":  # a graph's name is also its row in modb.graph_names (83_graphs.sql)
             conn.execute(
@@ -392,7 +348,7 @@ def _row(conn, table: str, ident: int) -> tuple[str, str]:
 def _replace_row(table: str):
     def handler(conn, request, body) -> Done:
         ident = _int(request, "ident", f"{table[:-1]} id")
-        fields = _row_fields(conn, body, table, partial=True)
+        fields = _row_fields(conn, body, table)
         name, kind = _row(conn, table, ident)
         if table == "graphs" and (kind in BUILT_KINDS or {"name", "kind"} & fields.keys()):
             raise BadRequest(
@@ -480,29 +436,14 @@ def _delete_row(table: str):
 
 # Edit scripts and retargeting (modb.apply_edit_script, modb.retarget)
 
-SCRIPT = Shape({"commands": Rule(), "comment": Nullable(Text(2000, lines=True))}, ("commands",))
-TARGETS = Shape(
-    {"clips": ListOf(Whole(what="a clip id"), 1, distinct=True), "collection": CollectionPath()}
-)
-RETARGET = Shape(
-    {
-        "skeleton": Whole(what="a skeleton id"),
-        "collection": Nullable(CollectionPath()),
-        "fps": Nullable(FPS),
-        "mirror": Flag(),
-    },
-    ("skeleton",),
-)
-
 
 def _script_name(request: Request) -> str:
-    return Text()("edit script name", request.path_params["name"])
+    return parse(bodies.TEXT, request.path_params["name"], "edit script name")
 
 
 def _put_script(conn, request, body) -> Done:
     name = _script_name(request)
-    body = SCRIPT(None, body)
-    commands = check_script(body["commands"])
+    commands = body["commands"]  # (the kernel's own check: body_models.EDIT_SCRIPT)
     (made,) = conn.execute(
         "INSERT INTO modb.edit_scripts (name, commands, comment) VALUES (%s, %s, %s) "
         "ON CONFLICT (name) DO UPDATE SET commands = EXCLUDED.commands, "
@@ -525,11 +466,9 @@ def _delete_script(conn, request, body) -> Done:
     return Done({"deleted": name}, "edit script delete", name, {})
 
 
-def _target_clips(conn, body) -> list[int]:
-    """The clips named (each once), or those of the collection; 404 for one that is not there."""
-    body = TARGETS(None, body)
-    if len(body) != 1:
-        raise BadRequest('the body names the clips: {"clips": [ids]} or {"collection": "path"}')
+def _target_clips(conn, body: dict[str, Any]) -> list[int]:
+    """The clips named (each once: body_models.Targets), or those of the collection; 404 for one
+    that is not there."""
     if "collection" in body:
         path = body["collection"]
         if catalog.find_collection(conn, path) is None:
@@ -554,7 +493,6 @@ def apply_script(conn, request, body) -> Done:
 
 def _retarget(conn, request, body) -> Done:
     clip_id = _int(request, "ident", "clip id")
-    body = RETARGET(None, body)
     _current_clips(conn, [clip_id])
     skeleton = _existing(conn, "skeleton", body["skeleton"])
     (made,) = conn.execute(
@@ -596,34 +534,30 @@ def _steps(conn, request, body) -> Done:
 
 
 def routes(read_pool, tokens: Tokens, writer: Writer) -> list[Route]:
-    def write(
-        path: str, method: str, handler: Handler, with_body: bool = True, frames: bool = False
-    ) -> Route:
-        endpoint = write_endpoint(tokens, writer, handler, with_body, frames)
+    def write(path: str, method: str, handler: Handler, body: Any = None, frames=False) -> Route:
+        endpoint = write_endpoint(tokens, writer, handler, body, frames)
         return Route(path, endpoint, methods=[method])
 
     rows = [
         route
         for table in ("models", "graphs")
         for route in (
-            write(f"/api/{table}", "POST", _create_row(table)),
-            write(f"/api/{table}/{{ident}}", "PUT", _replace_row(table)),
-            write(f"/api/{table}/{{ident}}", "DELETE", _delete_row(table), with_body=False),
+            write(f"/api/{table}", "POST", _create_row(table), bodies.NewRow),
+            write(f"/api/{table}/{{ident}}", "PUT", _replace_row(table), bodies.RowChange),
+            write(f"/api/{table}/{{ident}}", "DELETE", _delete_row(table)),
         )
     ]
     return [
-        write("/api/collections", "POST", _create_collection),
-        write("/api/collections/{path:path}", "PATCH", _change_collection),
-        write("/api/collections/{path:path}", "DELETE", _delete_collection, with_body=False),
-        write("/api/clips/{ident}", "DELETE", _delete_clip, with_body=False),
-        write(
-            "/api/clips/{clip_id}/versions/{version}", "DELETE", _delete_version, with_body=False
-        ),
-        write("/api/clips/{clip_id}/versions/{version}/current", "POST", _restore_version, False),
-        write("/api/clips/{ident}/retarget", "POST", _retarget, frames=True),
-        write("/api/clips/{ident}/steps", "POST", _steps, with_body=False, frames=True),
-        write("/api/edit-scripts/{name}", "PUT", _put_script),
-        write("/api/edit-scripts/{name}", "DELETE", _delete_script, with_body=False),
+        write("/api/collections", "POST", _create_collection, bodies.NewCollection),
+        write("/api/collections/{path:path}", "PATCH", _change_collection, bodies.CollectionChange),
+        write("/api/collections/{path:path}", "DELETE", _delete_collection),
+        write("/api/clips/{ident}", "DELETE", _delete_clip),
+        write("/api/clips/{clip_id}/versions/{version}", "DELETE", _delete_version),
+        write("/api/clips/{clip_id}/versions/{version}/current", "POST", _restore_version),
+        write("/api/clips/{ident}/retarget", "POST", _retarget, bodies.Retarget, frames=True),
+        write("/api/clips/{ident}/steps", "POST", _steps, frames=True),
+        write("/api/edit-scripts/{name}", "PUT", _put_script, bodies.EditScript),
+        write("/api/edit-scripts/{name}", "DELETE", _delete_script),
         Route(
             "/api/skeletons/{skeleton_id}/maps",
             maps_endpoint(read_pool, tokens, writer),

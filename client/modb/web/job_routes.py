@@ -20,81 +20,14 @@ from modb.jobs.submit import (
     workers_alive,
 )
 
-from .api import BadRequest, NotFound
-from .body_rules import (
-    FPS,
-    CollectionPath,
-    Flag,
-    JsonObject,
-    ListOf,
-    Nullable,
-    Number,
-    Shape,
-    Text,
-    Whole,
-)
+from .api import NotFound
+from .bodies import parse
+from .body_models import PATH
 from .catalog_writes import Done, _existing, _int, _target_clips
 from .catalog_writes import apply_script as apply_script_at_once
 
 MAX_LISTED = 200
-# The clips a job works on: ids, or every clip of a collection (at the time it is queued).
-CLIPS = {
-    "clips": ListOf(Whole(what="a clip id"), 1, distinct=True),
-    "from_collection": CollectionPath(),
-}
-# What each kind of job takes: the arguments of its command (`modb graph build`, `modb retarget`,
-# `modb edit apply`, `modb split`).
-ARGUMENTS = {
-    "build_graph": Shape(
-        {
-            "name": Text(),
-            "profile": Text(),
-            "collection": Nullable(CollectionPath()),
-            "min_turn_degrees": Number(0.0, 180.0, unit="degrees"),
-        },
-        ("name",),
-        name="arguments",
-    ),
-    "retarget": Shape(
-        {
-            **CLIPS,
-            "skeleton": Whole(what="a skeleton id"),
-            "collection": Nullable(CollectionPath()),
-            "fps": Nullable(FPS),
-            "mirrored": Flag(),
-        },
-        ("skeleton",),
-        name="arguments",
-    ),  # fmt: skip
-    "apply_edit_script": Shape({**CLIPS, "script": Text()}, ("script",), name="arguments"),
-    "split_by_annotation": Shape(
-        {**CLIPS, "annotation": Nullable(Text()), "collection": Nullable(CollectionPath())},
-        name="arguments",
-    ),
-    "annotate_steps": Shape(CLIPS, name="arguments"),
-    "align": Shape(
-        {"primitive": Text(), "collection": CollectionPath()},
-        ("primitive", "collection"),
-        name="arguments",
-    ),
-    "build_model": Shape(
-        {
-            "name": Text(),
-            "collection": CollectionPath(),
-            "primitive": Text(),
-            "seed": Whole(0, 2**31 - 1, what="a seed"),
-            "variance": Number(0.5, 0.999, unit="share of the variance"),
-            "report": Flag(),
-        },
-        ("name", "collection", "primitive"),
-        name="arguments",
-    ),
-}
-ALIGN = ARGUMENTS["align"]
-SUBMITTED = Shape(
-    {"kind": Text(), "arguments": JsonObject(), "after": ListOf(Whole(what="a job id"), 1)},
-    ("kind", "arguments"),
-)
+# What each kind of job takes, the arguments of its command: body_models.JOB_ARGUMENTS.
 
 
 def _tables(conn: psycopg.Connection) -> None:
@@ -121,12 +54,9 @@ def job(conn: psycopg.Connection, job_id: int) -> dict[str, Any]:
 
 
 def _clips(conn: psycopg.Connection, arguments: dict[str, Any]) -> list[int]:
-    """The clips the arguments name (404 for one that is not there), taken out of them."""
+    """The clips the arguments name, by ids or by a collection (one of them: body_models.
+    ClipArguments; 404 for one that is not there), taken out of them."""
     named = {k: arguments.pop(k) for k in ("clips", "from_collection") if k in arguments}
-    if len(named) != 1:
-        raise BadRequest(
-            'the arguments name the clips: "clips": [ids] or "from_collection": "path"'
-        )
     if "clips" in named:
         return _target_clips(conn, {"clips": named["clips"]})
     return _target_clips(conn, {"collection": named["from_collection"]})
@@ -164,27 +94,20 @@ def queue_job(
     )  # fmt: skip
 
 
-def submit_job(conn: psycopg.Connection, request: Request, body: Any) -> Done:
-    """POST /api/jobs: {"kind", "arguments", "after": [job ids] (optional)}."""
-    fields = SUBMITTED(None, body)
-    kind = fields["kind"]
-    if kind not in ARGUMENTS:
-        raise BadRequest(f'"kind": one of {", ".join(ARGUMENTS)}, got {kind!r:.60}')
-    arguments = ARGUMENTS[kind](None, fields["arguments"])
+def submit_job(conn: psycopg.Connection, request: Request, body: dict[str, Any]) -> Done:
+    """POST /api/jobs: {"kind", "arguments", "after": [job ids] (optional)} (body_models.JOB)."""
+    kind, arguments = body["kind"], body["arguments"]
     _tables(conn)
     if kind not in ("build_graph", "align", "build_model"):
         arguments = {"clips": _clips(conn, arguments), **arguments}
-    return queue_job(conn, request, kind, arguments, fields.get("after"))
+    return queue_job(conn, request, kind, arguments, body.get("after"))
 
 
-def retarget_collection(conn: psycopg.Connection, request: Request, body: Any) -> Done:
-    """POST /api/collections/PATH/retarget: every clip of it, as a job."""
-    path = CollectionPath()("collection path", request.path_params["path"])
-    arguments = ARGUMENTS["retarget"](None, body)
-    if "clips" in arguments or "from_collection" in arguments:
-        raise BadRequest(
-            "the path names the clips: the body gives skeleton, collection, fps, mirrored"
-        )
+def retarget_collection(conn: psycopg.Connection, request: Request, body: dict[str, Any]) -> Done:
+    """POST /api/collections/PATH/retarget: every clip of it, as a job (body_models.
+    CollectionRetarget)."""
+    path = parse(PATH, request.path_params["path"], "collection path")
+    arguments = body
     _tables(conn)
     arguments = {"clips": _target_clips(conn, {"collection": path}), **arguments}
     return queue_job(conn, request, "retarget", arguments)
@@ -203,17 +126,17 @@ def cancel_job(conn: psycopg.Connection, request: Request, body: Any) -> Done:
 
 def steps_collection(conn: psycopg.Connection, request: Request, body: Any) -> Done:
     """POST /api/collections/PATH/steps: the steps of every clip of it, as a job."""
-    path = CollectionPath()("collection path", request.path_params["path"])
+    path = parse(PATH, request.path_params["path"], "collection path")
     _tables(conn)
     return queue_job(
         conn, request, "annotate_steps", {"clips": _target_clips(conn, {"collection": path})}
     )
 
 
-def align_primitive(conn: psycopg.Connection, request: Request, body: Any) -> Done:
+def align_primitive(conn: psycopg.Connection, request: Request, body: dict[str, Any]) -> Done:
     """POST /api/processed-data {"primitive", "collection"}: a job (202) where the database has job
     tables, else aligned at once (200 with the counts)."""
-    arguments = ALIGN(None, body)
+    arguments = body
     if schema.installed(conn):
         return queue_job(conn, request, "align", arguments)
     examples, aligned, deleted = conn.execute(
@@ -227,7 +150,7 @@ def align_primitive(conn: psycopg.Connection, request: Request, body: Any) -> Do
 def apply_script(conn: psycopg.Connection, request: Request, body: Any) -> Done:
     """POST /api/edit-scripts/NAME/apply: to clips, at once; to a whole collection, a job (202)
     where the database has job tables."""
-    if isinstance(body, dict) and "collection" in body and schema.installed(conn):
+    if "collection" in body and schema.installed(conn):
         clips = _target_clips(conn, body)
         return queue_job(
             conn,

@@ -15,11 +15,12 @@ from modb.jobs import schema
 from modb.motion import Motion
 
 from .api import BadRequest, NotFound
+from .bodies import parse
+from .body_models import TEXT
 from .catalog_writes import Done
-from .job_routes import ARGUMENTS, queue_job
+from .job_routes import queue_job
 
 MAX_SHOWN = 50  # samples or examples in one answer
-BUILD = ARGUMENTS["build_model"]
 
 
 def _name(request: Request) -> str:
@@ -143,15 +144,14 @@ def examples(conn: psycopg.Connection, request: Request) -> dict[str, Any]:
                            lambda k, m: {"processed_data_id": shown[k][0]})  # fmt: skip
 
 
-def build(conn: psycopg.Connection, request: Request, body: Any) -> Done:
+def build(conn: psycopg.Connection, request: Request, body: dict[str, Any]) -> Done:
     """POST /api/motion-models/NAME/build {"collection", "primitive", "seed", "variance",
-    "report"}: a job (202) where the database has job tables, else built at once (201)."""
+    "report"} (body_models.ModelBuild): a job (202) where the database has job tables, else built
+    at once (201)."""
     from modb.models.examples import NoExamples
     from modb.models.pipeline import build_model
 
-    if not isinstance(body, dict):
-        raise BadRequest("the body: a JSON object")
-    arguments = BUILD(None, {**body, "name": _name(request)})
+    arguments = {"name": parse(TEXT, _name(request), "the model's name"), **body}
     if schema.installed(conn):
         return queue_job(conn, request, "build_model", arguments)
     try:

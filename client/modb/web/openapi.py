@@ -1,12 +1,24 @@
-"""The OpenAPI 3.1 description of `modb serve`'s JSON interface, served at /api/openapi.json
-(tests/test_rest_writes.py checks that it names every route the app has)."""
+"""The OpenAPI 3.1 description of `modb serve`'s JSON interface, served at /api/openapi.json:
+what each operation is (its summary, parameters and answers) from the table here, its request body
+from the model its route checks the body with (body_models.py, the route's `request_body`), as
+pydantic's JSON Schema under components/schemas. No body is written here. tests/test_rest_writes.py
+checks that it names every route the app has; tests/test_rest_contract.py that each body is
+checked as it is published."""
 
 from __future__ import annotations
 
+import re
+from collections.abc import Callable
 from typing import Any
 
+from pydantic import TypeAdapter
+from starlette.requests import Request
+from starlette.responses import JSONResponse
+
 from modb.version import __version__
-from modb_kernel.edits import COMMANDS as COMMAND_NAMES
+
+from .bodies import json_schema
+from .body_models import PATH, PublishedSchema
 
 
 ERROR = {"type": "object", "properties": {"error": {"type": "string"}}, "required": ["error"]}
@@ -50,25 +62,6 @@ def _responses(ok: str, *errors: int, body: dict[str, Any] = ANY) -> dict[str, A
 READ = "Open on loopback; with `modb serve --require-token`, any live token."
 WRITE = "Needs a loader token (`modb token create NAME --role loader`)."
 CLIP = _id("ident", "clip id")
-SEGMENTS = {
-    "type": "array",
-    "items": {
-        "type": "object",
-        "required": ["name", "start", "end"],
-        "properties": {
-            "name": {"type": "string", "maxLength": 64},
-            "start": {"type": "integer", "minimum": 0, "description": "first frame, 0-based"},
-            "end": {"type": "integer", "description": "last frame, inclusive"},
-        },
-    },
-}
-META = {
-    "type": "object",
-    "properties": {
-        "annotations": SEGMENTS,
-        "tags": {"type": "array", "items": {"type": "string"}},
-    },
-}
 
 
 def _read(summary: str, *params: dict[str, Any], media: str = "application/json") -> dict:
@@ -89,7 +82,6 @@ _WRITE_ERRORS = (400, 401, 403, 404, 409, 503)
 def _write(
     summary: str,
     *params: dict[str, Any],
-    body: dict | None = None,
     ok: str = "done",
     errors: tuple[int, ...] = _WRITE_ERRORS,
     about: str = "",
@@ -101,32 +93,9 @@ def _write(
         "parameters": list(params),
         "responses": _responses(ok, *errors),
     }
-    if body is not None:
-        op["requestBody"] = {"required": True, "content": {"application/json": {"schema": body}}}
     return op
 
 
-def _object(required: list[str], **properties: dict[str, Any]) -> dict[str, Any]:
-    return {"type": "object", "required": required, "properties": properties}
-
-
-TEXT = {"type": "string", "minLength": 1, "maxLength": 200}
-NAME = {**TEXT, "pattern": "^[^/]+$", "description": "a name: no '/', not '.' or '..'"}
-PATH = {**TEXT, "description": "names joined by '/' (no empty segment, '.' or '..')"}
-ID = {"type": "integer", "minimum": 1}
-COMMANDS = {
-    "type": "array",
-    "minItems": 1,
-    "maxItems": 100,
-    "items": {
-        "type": "object",
-        "required": ["op"],
-        "properties": {"op": {"enum": list(COMMAND_NAMES)}},
-        "description": "modb_kernel/edits.py lists each command's fields",
-    },
-}
-ROW = {"name": TEXT, "kind": TEXT, "data": {}, "meta": {"type": "object"},
-       "skeleton_id": {"type": ["integer", "null"], "minimum": 1}}  # fmt: skip
 IF_MATCH = {"name": "If-Match", "in": "header", "required": True, "schema": {"type": "string"}}
 GRAPH_IF_MATCH = {
     **IF_MATCH,
@@ -149,7 +118,6 @@ def catalog_writes() -> dict[str, dict[str, Any]]:
         "/api/collections": {
             "post": _write(
                 "create a collection (and the levels above it)",
-                body=_object(["path"], path=PATH),
                 ok="its id and path (201); 409 when it exists",
             )
         },
@@ -157,7 +125,6 @@ def catalog_writes() -> dict[str, dict[str, Any]]:
             "patch": _write(
                 "rename and/or move a collection",
                 COLLECTION_PATH,
-                body=_object([], name=NAME, parent={"type": ["string", "null"]}),
                 ok="its new path",
                 about='"parent": "" moves it to the top.',
             ),
@@ -201,11 +168,6 @@ def catalog_writes() -> dict[str, dict[str, Any]]:
                 "replace a skeleton's joint map and mirror pairs",
                 _id("skeleton_id", "skeleton id"),
                 IF_MATCH,
-                body=_object(
-                    ["joint_map", "mirror_pairs"],
-                    joint_map={"type": "object"},
-                    mirror_pairs={"type": "array"},
-                ),
                 ok="the stored maps, and how many clips were cut again",
                 errors=(400, 401, 403, 404, 409, 428, 503),
                 about="Every clip on the skeleton is cut into snippets again.",
@@ -216,20 +178,15 @@ def catalog_writes() -> dict[str, dict[str, Any]]:
               "description": "the edit script's name"}  # fmt: skip
     out["/api/clips/{ident}/retarget"] = {"post": _write(
         "retarget the clip onto another skeleton, as a new clip linked to it", CLIP,
-        body=_object(["skeleton"], skeleton=ID, collection=PATH,
-                     fps={"type": "number", "minimum": 1, "maximum": 1000},
-                     mirror={"type": "boolean"}),
         ok="the new clip (201)")}  # fmt: skip
     out["/api/edit-scripts/{name}"] = {
         "put": _write("store an edit script (replacing one of that name)", script,
-                      body=_object(["commands"], commands=COMMANDS, comment=TEXT),
                       ok="stored (201 when new)"),
         "delete": _write("delete an edit script", script, ok="its name"),
     }  # fmt: skip
     out["/api/edit-scripts/{name}/apply"] = {"post": _write(
         "apply an edit script: a new version of each clip named (one transaction); to a whole "
         "collection, a job (202) where the database has job tables", script,
-        body=_object([], clips={"type": "array", "items": ID, "minItems": 1}, collection=PATH),
         ok="each clip's new version, or the queued job (202, Location: /api/jobs/ID)")}  # fmt: skip
     out["/api/clips/{ident}/steps"] = {"post": _write(
         "find the clip's steps from its feet's contacts: left_step and right_step segments of its "
@@ -254,7 +211,6 @@ def catalog_writes() -> dict[str, dict[str, Any]]:
         "post": _write(
             "align a primitive's examples in a collection in time (a job where the database has "
             "job tables)",
-            body=_object(["primitive", "collection"], primitive=TEXT, collection=PATH),
             ok="the queued job (202), or the counts (200)",
         ),
     }
@@ -265,9 +221,6 @@ def catalog_writes() -> dict[str, dict[str, Any]]:
     out["/api/collections/{path}/retarget"] = {"post": _write(
         "retarget every clip of the collection onto another skeleton, as a job",
         collection_path,
-        body=_object(["skeleton"], skeleton=ID, collection=PATH,
-                     fps={"type": "number", "minimum": 1, "maximum": 1000},
-                     mirrored={"type": "boolean"}),
         ok="the queued job (202, Location: /api/jobs/ID)")}  # fmt: skip
     out.update(_motion_models())
     for table in ("models", "graphs"):
@@ -276,7 +229,6 @@ def catalog_writes() -> dict[str, dict[str, Any]]:
         out[f"/api/{table}"] = {
             "post": _write(
                 f"create a {table[:-1]} row{note}",
-                body=_object(["name", "kind", "data"], **ROW),
                 ok="its id (201)" + ("; a graph of models' ETag" if table == "graphs" else ""),
                 about="The database checks a graph of models (400 with why it is broken)."
                 if table == "graphs"
@@ -288,7 +240,6 @@ def catalog_writes() -> dict[str, dict[str, Any]]:
             "put": _write(
                 f"replace fields of a {table[:-1]} row{note}",
                 *((one, GRAPH_IF_MATCH) if graph else (one,)),
-                body=_object([], **ROW),
                 ok="the fields replaced" + ("; a graph of models' new ETag" if graph else ""),
                 errors=(400, 401, 403, 404, 409, 428, 503) if graph else _WRITE_ERRORS,
                 about=MODEL_GRAPHS if graph else "",
@@ -325,15 +276,12 @@ def _motion_models() -> dict[str, Any]:
             "build a model of a primitive's aligned examples as the next version of NAME (a job "
             "where the database has job tables; aligns first when the processed data is missing "
             "or stale)", name,
-            body=_object(["collection", "primitive"], collection=PATH, primitive=TEXT,
-                         seed={"type": "integer", "minimum": 0},
-                         variance={"type": "number", "minimum": 0.5, "maximum": 0.999},
-                         report={"type": "boolean"}),
             ok="the queued job (202, Location: /api/jobs/ID), or the model made (201)")},
     }  # fmt: skip
 
 
-def schema() -> dict[str, Any]:
+def operations() -> dict[str, Any]:
+    """Every operation, by path and method, without its JSON request body."""
     version_params = [_id("clip_id", "clip id"), _id("version", "clip version")]
     paths: dict[str, Any] = {
         "/api/collections": _read("every collection, with its clips' count"),
@@ -386,19 +334,6 @@ def schema() -> dict[str, Any]:
                 "script; split_by_annotation: clips or from_collection, annotation, collection; "
                 "annotate_steps: clips or from_collection; align: primitive, collection), "
                 "after the jobs `after` are done; a worker runs it",
-                body=_object(
-                    ["kind", "arguments"],
-                    kind={
-                        "enum": [
-                            "build_graph",
-                            "retarget",
-                            "apply_edit_script",
-                            "split_by_annotation",
-                        ]
-                    },
-                    arguments={"type": "object"},
-                    after={"type": "array", "items": ID, "minItems": 1},
-                ),
                 ok="the queued job (202, Location: /api/jobs/ID)",
             ),  # fmt: skip
         },
@@ -431,18 +366,6 @@ def schema() -> dict[str, Any]:
                         "schema": {"type": "string"},
                     },  # fmt: skip
                 ],
-                "requestBody": {
-                    "required": True,
-                    "content": {
-                        "application/json": {
-                            "schema": {
-                                "type": "object",
-                                "required": ["meta"],
-                                "properties": {"meta": META},
-                            }
-                        }
-                    },
-                },
                 "responses": _responses(
                     "the stored meta; the ETag header names it", 400, 401, 403, 404, 409, 428, 503
                 ),
@@ -462,7 +385,7 @@ def schema() -> dict[str, Any]:
                             "schema": {
                                 "type": "object",
                                 "properties": {
-                                    "collection": {"type": "string", "default": "uploads"},
+                                    "collection": {**json_schema(PATH), "default": "uploads"},
                                     "file": {
                                         "type": "array",
                                         "items": {"type": "string", "format": "binary"},
@@ -479,8 +402,37 @@ def schema() -> dict[str, Any]:
             "get": {"summary": "this description", "responses": _responses("OpenAPI 3.1")}
         },
     }
-    for path, operations in catalog_writes().items():
-        paths.setdefault(path, {}).update(operations)
+    for path, methods in catalog_writes().items():
+        paths.setdefault(path, {}).update(methods)
+    return paths
+
+
+def _documented(path: str) -> str:
+    """A route's path as documented: "/api/collections/{path:path}" is "/api/collections/{path}"."""
+    return re.sub(r"\{(\w+):\w+\}", r"{\1}", path)
+
+
+def schema(routes: list) -> dict[str, Any]:
+    """The document for the app's `routes`: each route whose endpoint checks a body against a model
+    (its `request_body`, for its methods but GET) gets that model's JSON Schema as its body."""
+    paths = operations()
+    bodies: dict[tuple[str, str], Any] = {}
+    for route in routes:
+        model = getattr(getattr(route, "endpoint", None), "request_body", None)
+        for method in sorted(set(getattr(route, "methods", None) or ()) - {"GET", "HEAD"}):
+            if model is not None:
+                bodies[_documented(route.path), method.lower()] = model
+    inputs = [(key, "validation", TypeAdapter(model)) for key, model in bodies.items()]
+    published, definitions = TypeAdapter.json_schemas(
+        inputs, ref_template="#/components/schemas/{model}", schema_generator=PublishedSchema
+    )
+    for (path, method), _ in bodies.items():
+        if method not in paths.get(path, {}):
+            raise LookupError(f"{method.upper()} {path} takes a body but is not described here")
+        paths[path][method]["requestBody"] = {
+            "required": True,
+            "content": {"application/json": {"schema": published[(path, method), "validation"]}},
+        }
     return {
         "openapi": "3.1.0",
         "info": {
@@ -489,13 +441,27 @@ def schema() -> dict[str, Any]:
             "description": "The motion database's REST interface (`modb serve`).",
         },
         "components": {
+            "schemas": definitions.get("$defs", {}),
             "securitySchemes": {
                 "token": {
                     "type": "http",
                     "scheme": "bearer",
                     "description": "`modb token create NAME --role loader|reader`",
                 }
-            }
+            },
         },
         "paths": paths,
     }
+
+
+def endpoint(routes: list) -> Callable[[Request], JSONResponse]:
+    """GET /api/openapi.json: the document for `routes` (made at the first request, when the list
+    holds every route)."""
+    made: list[dict[str, Any]] = []
+
+    def answer(request: Request) -> JSONResponse:
+        if not made:
+            made.append(schema(routes))
+        return JSONResponse(made[0])
+
+    return answer

@@ -40,8 +40,9 @@ from modb.editing.meta import (
 
 from .api import NotFound
 from .auth import Tokens
-from .bodies import authorized_json
-from .body_rules import CollectionPath, JsonObject, Shape
+from .bodies import authorized_json, parse
+from .body_models import PATH
+from .body_models import VersionMeta as MetaBody
 from .server_pool import ServerPool
 
 MAX_UPLOAD_MB = 100  # a request's body; `modb serve --max-upload-mb` changes it
@@ -132,9 +133,6 @@ def _path_ints(request: Request) -> tuple[int, int]:
         raise HTTPException(400, "clip and version are whole numbers") from None
 
 
-META_BODY = Shape({"meta": JsonObject()}, ("meta",))  # the whole new meta
-
-
 def meta_endpoints(read_pool: ConnectionPool, tokens: Tokens, writer: Writer):
     """GET and PUT /api/clips/{clip_id}/versions/{version}/meta."""
 
@@ -154,7 +152,7 @@ def meta_endpoints(read_pool: ConnectionPool, tokens: Tokens, writer: Writer):
             raise HTTPException(
                 428, "send If-Match with the ETag of the meta you read, so no edit is lost"
             )
-        body = META_BODY(None, body)
+        body = parse(MetaBody, body)  # {"meta": the whole new meta}
 
         def audited(conn: psycopg.Connection, written: VersionMeta) -> None:
             audit.record(
@@ -188,6 +186,7 @@ def meta_endpoints(read_pool: ConnectionPool, tokens: Tokens, writer: Writer):
         grant, body = await authorized_json(request, tokens, MAX_META_BYTES + 1024)
         return await run_in_threadpool(put, request, grant, body)
 
+    endpoint.request_body = MetaBody  # (the PUT's)
     return endpoint
 
 
@@ -281,7 +280,7 @@ def upload_endpoint(tokens: Tokens, writer: Writer, max_upload_mb: int):
             given = form.get("collection") or "uploads"
             if not isinstance(given, str):
                 raise HTTPException(400, "collection: a form field, not a file")
-            collection = CollectionPath()("collection", given.strip().strip("/"))
+            collection = parse(PATH, given.strip().strip("/"), "collection")
             files = _uploaded_files(form)
             answer = await run_in_threadpool(_load_upload, writer, grant, collection, files)
         finally:
