@@ -8,6 +8,7 @@ from collections.abc import Callable
 from typing import Any
 
 import psycopg
+from threadpoolctl import threadpool_limits
 
 from . import quality, store
 from .build import VARIANCE_KEPT
@@ -28,6 +29,24 @@ def build_model(
     advance: Callable[[int, int], None] = lambda done, total: None,
 ) -> dict[str, Any]:
     """Builds and stores the model; returns what was made (with the report when asked)."""
+    # One thread for BLAS and OpenMP: a build is many small fits (a mixture per size tried, a KMeans
+    # per tree node), where threads only wait for each other; on a busy two-core host OpenMP's
+    # spinning made a build 6x slower (97 s against 17 s, the same model: BENCHMARKS.md).
+    with threadpool_limits(limits=1):
+        return _build_model(conn, name, collection, primitive, seed, variance, report, say, advance)
+
+
+def _build_model(
+    conn: psycopg.Connection,
+    name: str,
+    collection: str,
+    primitive: str,
+    seed: int,
+    variance: float,
+    report: bool,
+    say: Callable[[str], None],
+    advance: Callable[[int, int], None],
+) -> dict[str, Any]:
     total = len(STAGES) - (0 if report else 1)
     why = stale_or_missing(conn, collection, primitive)
     if why is not None:
