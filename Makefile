@@ -87,11 +87,13 @@ $(VENV)/.installed: pyproject.toml setup.py extension/modb.control | web  # vers
 
 # The linter first (line length 100, pyproject.toml [tool.ruff]), then every test, in parallel
 # workers (one per CPU; TEST_WORKERS=0 runs them in this process). Whole modules go to a worker, in
-# the order tests/conftest.py gives (the slowest first): see tests/README.md.
+# the order tests/conftest.py gives (the slowest first): see tests/README.md. One BLAS/OpenMP thread
+# in each worker, its commands and the test cluster's server: the workers already fill the CPUs.
 TEST_WORKERS ?= auto
+ONE_THREAD := OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1
 test: setup
 	$(VENV)/bin/ruff check .
-	$(VENV)/bin/pytest -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
+	$(ONE_THREAD) $(VENV)/bin/pytest -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
 # The embedded database, real capture: $(DATA) when it is there, else CMU 01_01 from PyPI.
 demo: setup
@@ -100,7 +102,7 @@ demo: setup
 # The inner loop: every test but the slow modules' and the browser's (tests/README.md).
 test-quick: setup
 	$(VENV)/bin/ruff check .
-	$(VENV)/bin/pytest -n $(TEST_WORKERS) --dist loadfile -m "not slow and not browser"
+	$(ONE_THREAD) $(VENV)/bin/pytest -n $(TEST_WORKERS) --dist loadfile -m "not slow and not browser"
 
 # Parse and load speed on real files, beside bvhio in the same run (see BENCHMARKS.md).
 bench-load: setup
