@@ -62,6 +62,7 @@ OLD_VERSIONS = [
     "0.21.0",
     "0.22.0",
     "0.23.0",
+    "0.24.0",
 ]
 
 # What a retargeting, an edit script and a cut store, without ids (sequences differ between runs):
@@ -220,7 +221,8 @@ def test_old_versions_install_through_the_chain(db):
     # An install script left from an earlier install of the project would stand in for the chain.
     sharedir = db.execute("SELECT setting FROM pg_config WHERE name = 'SHAREDIR'").fetchone()[0]
     scripts = {p.name for p in (Path(sharedir) / "extension").glob("modb--*.sql")}
-    installed = [v for v in OLD_VERSIONS if f"modb--{v}.sql" in scripts]
+    # The newest release's install script ships until the next release (docs/development.md).
+    installed = [v for v in OLD_VERSIONS[:-1] if f"modb--{v}.sql" in scripts]
     assert installed == ["0.1.0"], (
         f"{installed}: `make setup` removes installed modb scripts the project no longer ships"
     )
@@ -242,7 +244,9 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
         processed_before = _steps_aligned_and_a_model(db)
     if old == "0.22.0":  # 0.23.0: graphs of those models, and synthesis from them
         collection, models_before = _step_models(db, fresh_db)
-    if old == "0.23.0":  # 0.24.0: the kernel installed beside modb.so, no longer pasted
+    # 0.24.0: the kernel installed beside modb.so, no longer pasted; 0.25.0: the kernel computes
+    # faster (graphs, cuts) and models build on one thread: what they give stays the same
+    if old in ("0.23.0", "0.24.0"):
         outputs_before = _models_and_their_outputs(db, fresh_db)
     before = db.execute(
         "SELECT clip_id, version, n_frames, meta, md5(rotations::text) FROM modb.clip_versions "
@@ -277,7 +281,7 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
         _models_in_versions(db, fresh_db, processed_before)
     if old == "0.22.0":
         _graph_of_the_models(db, fresh_db, collection, models_before)
-    if old == "0.23.0":
+    if old in ("0.23.0", "0.24.0"):
         _same_outputs(_model_outputs(db), outputs_before)  # this session, after the update
         with psycopg.connect(fresh_db) as new_session:
             _same_outputs(_model_outputs(new_session), outputs_before)
