@@ -32,16 +32,16 @@ def connect(dsn: str) -> psycopg.Connection:
 
 
 def _set_tightness(conn, f) -> None:
+    """The four thresholds of the session, in one statement (a round trip, not four)."""
+    params = []
     for knob, value in (
         ("position_threshold", 0.12),
         ("angle_threshold", 0.3),
         ("velocity_threshold", 0.6),
         ("angular_velocity_threshold", 4.0),
     ):
-        conn.execute(
-            "SELECT set_config(%s, %s, false)",
-            [f"modb.{knob}", "" if f is None else repr(value * f)],
-        )
+        params += [f"modb.{knob}", "" if f is None else repr(value * f)]
+    conn.execute("SELECT " + ", ".join(["set_config(%s, %s, false)"] * 4), params)
 
 
 def _both(conn, args):

@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.interpolate import RegularGridInterpolator
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components
 from scipy.spatial.transform import Rotation
 
 STANDARD = [
@@ -212,8 +214,22 @@ def resolve_profile(settings: dict, knobs: dict) -> dict:
     }
 
 
+def _sum(x: np.ndarray) -> np.ndarray:
+    """The sum over the last (short) axis, written out in numpy's order (its reduction over an axis
+    of 3 or 4 is several times slower)."""
+    total = x[..., 0]
+    for k in range(1, x.shape[-1]):
+        total = total + x[..., k]
+    return total
+
+
+def _length(x: np.ndarray, norm: str = "l2") -> np.ndarray:
+    """np.linalg.norm over the last axis (or the L1 norm)."""
+    return _sum(np.abs(x)) if norm == "l1" else np.sqrt(_sum(x * x))
+
+
 def quat_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    d = np.abs(np.sum(a * b, axis=-1)) / (np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1))
+    d = np.abs(_sum(a * b)) / (_length(a) * _length(b))
     return 2 * np.arccos(np.clip(d, -1, 1))
 
 
@@ -221,19 +237,15 @@ def ratios(prev: dict, cand: dict, plan: dict) -> np.ndarray:
     """prev: arrays of one terminator; cand: arrays over candidates. Largest
     difference/threshold."""
     j = plan["joints"]
-    dp = cand["pos"][:, j] - prev["pos"][j]
-    dist = np.abs(dp).sum(axis=-1) if plan["norm"] == "l1" else np.linalg.norm(dp, axis=-1)
+    dist = _length(cand["pos"][:, j] - prev["pos"][j], plan["norm"])
     terms = [
         dist / plan["position_threshold"],
         quat_angle(cand["rot"][:, j], prev["rot"][j]) / plan["angle_threshold"],
     ]
     if plan["velocity_terms"]:
+        terms.append(_length(cand["vel"][:, j] - prev["vel"][j]) / plan["velocity_threshold"])
         terms.append(
-            np.linalg.norm(cand["vel"][:, j] - prev["vel"][j], axis=-1) / plan["velocity_threshold"]
-        )
-        terms.append(
-            np.linalg.norm(cand["angvel"][:, j] - prev["angvel"][j], axis=-1)
-            / plan["angular_velocity_threshold"]
+            _length(cand["angvel"][:, j] - prev["angvel"][j]) / plan["angular_velocity_threshold"]
         )
     return np.max(np.concatenate(terms, axis=1), axis=1)
 
@@ -257,54 +269,78 @@ def target_cost(
 
 
 def level0_ratios(
-    space: dict, members: np.ndarray, plan: dict
+    space: dict, members: np.ndarray, plan: dict, within: float = np.inf, block: int = 128
 ) -> dict[int, tuple[np.ndarray, np.ndarray]]:
     """For each snippet index p of `members`: (indices of the members that may follow it, their
     ratios), before the ratio test: same poses and rate, no replay of p's frames (the seam aside).
-    """
+    Only the pairs whose ratio is at most `within`: the terms of `ratios` one at a time (a kind of
+    term at one joint), each over the pairs that the earlier ones kept within it, for `block`
+    snippets p at a time."""
+    members = np.asarray(members)
+    j = plan["joints"]
+    cand = {k: space[k][members][:, j] for k in ("pos", "rot", "vel", "angvel")}
+    ends = {k: np.stack([space["end"][p][k] for p in members])[:, j] for k in cand}
+    pose, fps = space["pose"][members], space["fps"][members]
+    clip, version = space["clip"][members], space["version"][members]
+    lo, hi = space["first"][members] + 1, space["first"][members] + space["n"][members] - 1
+
+    def term(kind, k, a, b):
+        """One kind of term at the k-th included joint, for the pairs (members[a], members[b])."""
+        if kind == "pos":
+            dist = _length(cand["pos"][b, k] - ends["pos"][a, k], plan["norm"])
+            return dist / plan["position_threshold"][k]
+        if kind == "rot":
+            return quat_angle(cand["rot"][b, k], ends["rot"][a, k]) / plan["angle_threshold"][k]
+        threshold = plan["velocity_threshold" if kind == "vel" else "angular_velocity_threshold"]
+        return _length(cand[kind][b, k] - ends[kind][a, k]) / threshold[k]
+
+    kinds = ["pos", "rot"] + (["vel", "angvel"] if plan["velocity_terms"] else [])
     out = {}
-    cand = {k: space[k][members] for k in ("pos", "rot", "vel", "angvel")}
-    pose = np.array(space["pose"])[members]
-    for p in members:
-        ok = (pose == space["pose"][p]) & (space["fps"][members] == space["fps"][p])
-        same = (space["clip"][members] == space["clip"][p]) & (
-            space["version"][members] == space["version"][p]
-        )
-        lo, hi = space["first"][members] + 1, space["first"][members] + space["n"][members] - 1
+    for start in range(0, len(members), block):
+        rows = np.arange(start, min(start + block, len(members)))
+        ok = (pose == pose[rows, None]) & (fps == fps[rows, None])
         ok &= ~(
-            same & (space["first"][p] + 1 <= hi) & (lo <= space["first"][p] + space["n"][p] - 1)
+            (clip == clip[rows, None])
+            & (version == version[rows, None])
+            & (lo[rows, None] <= hi)
+            & (lo <= hi[rows, None])
         )
-        out[int(p)] = (
-            members[ok],
-            ratios(space["end"][p], {k: v[ok] for k, v in cand.items()}, plan),
-        )
+        # every pair of the block at once while most are left, then only the pairs left
+        ratio, left = np.zeros(ok.shape), ok
+        a, b = rows[:, None], slice(None)
+        for kind in kinds:
+            for k in range(len(j)):
+                ratio = np.maximum(ratio, term(kind, k, a, b))
+                if left is not None:
+                    left &= ratio <= within
+                    if left.mean() < 0.2 or (kind == kinds[-1] and k == len(j) - 1):
+                        a, b = np.nonzero(left)
+                        ratio, left = ratio[a, b], None
+                        a += start
+                else:
+                    keep = ratio <= within
+                    a, b, ratio = a[keep], b[keep], ratio[keep]
+        bounds = np.searchsorted(a, rows, side="left").tolist() + [len(a)]
+        for k, row in enumerate(rows):
+            out[int(members[row])] = (
+                members[b[bounds[k] : bounds[k + 1]]],
+                ratio[bounds[k] : bounds[k + 1]],
+            )
     return out
 
 
 def strong_components(nodes, successors: dict) -> list[set]:
-    """The sets of nodes that all reach each other: for each node not yet placed, the nodes it
-    reaches that also reach it (two breadth-first searches)."""
-    predecessors: dict = {n: [] for n in nodes}
-    for n in nodes:
-        for m in successors[n]:
-            predecessors[m].append(n)
-
-    def reach(start, links):
-        seen, todo = {start}, [start]
-        while todo:
-            for m in links[todo.pop()]:
-                if m not in seen:
-                    seen.add(m)
-                    todo.append(m)
-        return seen
-
-    placed: set = set()
-    components = []
-    for n in nodes:
-        if n not in placed:
-            component = reach(n, successors) & reach(n, predecessors)
-            placed |= component
-            components.append(component)
+    """The sets of nodes that all reach each other (scipy's strongly connected components of the
+    graph of `successors`: node -> the nodes it links to)."""
+    nodes = list(nodes)
+    index = {n: k for k, n in enumerate(nodes)}
+    links = [(index[n], index[m]) for n in nodes for m in successors[n]]
+    a, b = np.array(links, dtype=np.int64).reshape(-1, 2).T
+    graph = csr_matrix((np.ones(len(a)), (a, b)), shape=(len(nodes), len(nodes)))
+    count, labels = connected_components(graph, directed=True, connection="strong")
+    components: list[set] = [set() for _ in range(count)]
+    for n, label in zip(nodes, labels.tolist()):
+        components[label].add(n)
     return components
 
 
@@ -312,8 +348,28 @@ def levels(r: np.ndarray) -> np.ndarray:
     return np.select([r <= 1, r <= 2, r <= 4, r <= 8], [0, 1, 2, 3], 4)
 
 
+def _pose(hierarchy: dict) -> str:
+    """What two snippets must share to follow each other: the joints, their parents and channels,
+    and the offsets of the joints without position channels."""
+    return json.dumps(
+        [
+            (
+                j["name"],
+                j["parent"],
+                j["channels"],
+                None
+                if {"Xposition", "Yposition", "Zposition"} <= set(j["channels"])
+                or {"TX", "TY", "TZ"} <= set(j["channels"])
+                else j["offset"],
+            )
+            for j in hierarchy["joints"]
+        ]
+    )
+
+
 def load_snippet_space(conn) -> dict:
-    """Every snippet's data as the oracle computes it, keyed by position in arrays."""
+    """Every snippet's data as the oracle computes it, keyed by position in arrays ("pose": one
+    number per distinct _pose, "end": one dict of terminator arrays per snippet)."""
     from modb.clips import read_motion  # reads frames only; terminators are recomputed here
 
     rows = conn.execute(
@@ -326,100 +382,63 @@ def load_snippet_space(conn) -> dict:
         sid: (h, m)
         for sid, h, m in conn.execute("SELECT id, hierarchy, joint_map FROM modb.skeletons")
     }
-    cache: dict = {}
+    poses: dict[str, int] = {}
+    pose_of = {sid: poses.setdefault(_pose(h), len(poses)) for sid, (h, _) in skeletons.items()}
+    n = len(rows)
     out = {
-        k: []
-        for k in (
-            "id",
-            "clip",
-            "version",
-            "first",
-            "n",
-            "collection",
-            "fps",
-            "pose",
-            "pos",
-            "rot",
-            "vel",
-            "angvel",
-            "feat",
-            "net",
-            "net_turn",
-            "future",
-            "future_turn",
-            "end",
-        )
+        "id": np.array([r[0] for r in rows]),
+        "clip": np.array([r[1] for r in rows]),
+        "version": np.array([r[2] for r in rows]),
+        "first": np.array([r[3] for r in rows]),
+        "n": np.array([r[4] for r in rows]),
+        "collection": np.array([r[5] for r in rows]),
+        "fps": np.array([r[6] for r in rows]),
+        "pose": np.array([pose_of[r[7]] for r in rows]),
+        "end": [None] * n,
     }
+    for key, shape in (("pos", (19, 3)), ("rot", (19, 4)), ("vel", (19, 3)), ("angvel", (19, 3))):
+        out[key] = np.zeros((n, *shape))
+    for key, shape in (("feat", (49,)), ("net", (3,)), ("future", (3,))):
+        out[key] = np.zeros((n, *shape))
+    out["net_turn"], out["future_turn"] = np.zeros(n), np.zeros(n)
     starts = {(clip, version, first) for _, clip, version, first, *_ in rows}
-    for sid, clip, version, first, n_frames, collection, fps, skeleton in rows:
-        if (clip, version) not in cache:
-            motion = read_motion(conn, clip, version)
-            h, jm = skeletons[skeleton]
-            cache[(clip, version)] = clip_terms(
-                h,
-                jm,
-                motion.rotations.astype(np.float32).astype(np.float64),
-                motion.translations.astype(np.float32).astype(np.float64),
-                fps,
-            )
-        t = cache[(clip, version)]
-        h = skeletons[skeleton][0]
-        pose = json.dumps(
-            [
-                (
-                    j["name"],
-                    j["parent"],
-                    j["channels"],
-                    None
-                    if {"Xposition", "Yposition", "Zposition"} <= set(j["channels"])
-                    or {"TX", "TY", "TZ"} <= set(j["channels"])
-                    else j["offset"],
-                )
-                for j in h["joints"]
-            ]
+    by_clip: dict = {}
+    for k, (_, clip, version, *_rest) in enumerate(rows):
+        by_clip.setdefault((clip, version), []).append(k)
+    for (clip, version), at in by_clip.items():
+        at = np.array(at)
+        fps, skeleton = rows[at[0]][6], rows[at[0]][7]
+        motion = read_motion(conn, clip, version)
+        h, jm = skeletons[skeleton]
+        t = clip_terms(
+            h,
+            jm,
+            motion.rotations.astype(np.float32).astype(np.float64),
+            motion.translations.astype(np.float32).astype(np.float64),
+            fps,
         )
-        last = first + n_frames - 1
-        for key, value in (
-            ("id", sid),
-            ("clip", clip),
-            ("version", version),
-            ("first", first),
-            ("n", n_frames),
-            ("collection", collection),
-            ("fps", fps),
-            ("pose", pose),
-        ):
-            out[key].append(value)
-        for key, arr in (
-            ("pos", t.pos),
-            ("rot", t.rot),
-            ("vel", t.vel),
-            ("angvel", t.angvel),
-            ("feat", t.feat),
-        ):
-            out[key].append(arr[first])
-        out["end"].append(
-            {
-                "pos": t.pos[last],
-                "rot": t.rot[last],
-                "vel": t.vel[last],
-                "angvel": t.angvel[last],
-                "feat": t.feat[last],
+        first = out["first"][at]
+        last = first + out["n"][at] - 1
+        for key in ("pos", "rot", "vel", "angvel", "feat"):
+            out[key][at] = getattr(t, key)[first]
+        for k, f in zip(at.tolist(), last.tolist()):
+            out["end"][k] = {
+                key: getattr(t, key)[f] for key in ("pos", "rot", "vel", "angvel", "feat")
             }
-        )
-        to_local = _yaw([t.heading[first]]).inv()
-        out["net"].append(to_local.apply(t.pelvis[last] - t.pelvis[first])[0])
-        out["net_turn"].append(np.angle(np.exp(1j * (t.heading[last] - t.heading[first]))))
+        to_local = _yaw(t.heading[first]).inv()
+        out["net"][at] = to_local.apply(t.pelvis[last] - t.pelvis[first])
+        out["net_turn"][at] = np.angle(np.exp(1j * (t.heading[last] - t.heading[first])))
         # Where playing on leads: this window and up to two more, each starting on the last one's
         # end.
-        end = last
-        for _ in range(2):
-            if (clip, version, end) not in starts:
-                break
-            end += n_frames - 1
-        out["future"].append(to_local.apply(t.pelvis[end] - t.pelvis[first])[0])
-        out["future_turn"].append(np.angle(np.exp(1j * (t.heading[end] - t.heading[first]))))
-    return {k: (np.array(v) if k not in ("end", "pose") else v) for k, v in out.items()}
+        end = last.copy()
+        for k, n_frames in enumerate(out["n"][at].tolist()):
+            for _ in range(2):
+                if (clip, version, int(end[k])) not in starts:
+                    break
+                end[k] += n_frames - 1
+        out["future"][at] = to_local.apply(t.pelvis[end] - t.pelvis[first])
+        out["future_turn"][at] = np.angle(np.exp(1j * (t.heading[end] - t.heading[first])))
+    return out
 
 
 def two_step_cost(space: dict, i: int, nexts: np.ndarray, target, plan: dict) -> float:
@@ -465,16 +484,11 @@ def _seen_from_end(space: dict, i: int, points) -> np.ndarray:
     return seen[:, [0, 2]]
 
 
-def read_cost(table: np.ndarray, grid: dict, xz: np.ndarray) -> np.ndarray:
-    """A cost-to-go table (angles x rings) read at goals (x, z): linear in (angle, log radius) by
-    scipy, 0 within the inner radius, the outer ring plus the distance beyond it at the grid's
-    speed."""
-    return read_costs(table[None], grid, xz[None])[0]
-
-
 def read_costs(tables: np.ndarray, grid: dict, xz: np.ndarray) -> np.ndarray:
-    """read_cost of many tables (n, angles, rings), each at its own goals xz (n, goals, 2), in one
-    scipy call: the table's index is one more grid axis, read at whole numbers only."""
+    """Cost-to-go tables (n, angles, rings), each read at its own goals (x, z) xz (n, goals, 2):
+    linear in (angle, log radius) by scipy, 0 within the inner radius, the outer ring plus the
+    distance beyond it at the grid's speed. One scipy call: the table's index is one more grid axis,
+    read at whole numbers only."""
     angles, rings, inner, outer = (
         grid["angles"],
         grid["rings"],
@@ -495,34 +509,93 @@ def read_costs(tables: np.ndarray, grid: dict, xz: np.ndarray) -> np.ndarray:
     return np.where(r <= inner, 0.0, value + np.maximum(r - outer, 0) / grid["speed"])
 
 
+def interpolation(grid: dict, xz: np.ndarray) -> tuple[csr_matrix, np.ndarray]:
+    """read_costs at fixed goals as a linear map: (W, beyond) such that read_costs(tables, grid, xz)
+    is (W @ tables.ravel() + beyond) for any tables (n, angles, rings), xz (n, goals, 2) flattened
+    to (n x goals): linear in (angle, log radius), with scipy's cells and weights, checked against
+    read_costs on random tables."""
+    angles, rings, inner, outer = (
+        grid["angles"],
+        grid["rings"],
+        grid["inner_radius"],
+        grid["outer_radius"],
+    )
+    n, goals = xz.shape[:2]
+    r = np.hypot(xz[..., 0], xz[..., 1]).ravel()
+    u = np.clip(
+        np.log(np.maximum(r, 1e-12) / inner) / np.log(outer / inner) * (rings - 1), 0, rings - 1
+    )
+    a = np.mod(np.arctan2(xz[..., 0], xz[..., 1]), 2 * np.pi).ravel() / (2 * np.pi / angles)
+    ia = np.minimum(np.floor(a), angles - 1).astype(np.int64)
+    iu = np.minimum(np.floor(u), rings - 2).astype(np.int64)
+    fa, fu = a - ia, u - iu
+    table = np.repeat(np.arange(n), goals) * angles * rings
+    outside = r > inner
+    rows, cols, weights = [], [], []
+    for da, wa in ((0, 1 - fa), (1, fa)):
+        for du, wu in ((0, 1 - fu), (1, fu)):
+            rows.append(np.flatnonzero(outside))
+            cols.append((table + (ia + da) % angles * rings + iu + du)[outside])
+            weights.append((wa * wu)[outside])
+    w = csr_matrix(
+        (np.concatenate(weights), (np.concatenate(rows), np.concatenate(cols))),
+        shape=(n * goals, n * angles * rings),
+    )
+    beyond = np.where(outside, np.maximum(r - outer, 0) / grid["speed"], 0.0)
+    tables = np.random.default_rng(0).uniform(0, 60, size=(n, angles, rings))
+    scipy_read = read_costs(tables, grid, xz).ravel()
+    assert np.allclose(w @ tables.ravel() + beyond, scipy_read, rtol=1e-12, atol=1e-9)
+    return w, beyond
+
+
 def cost_to_go(
     space: dict, successors: dict, seam: dict, grid: dict, tolerance: float = 1e-6
 ) -> dict:
     """Value iteration from zero: snippet index -> (angles x rings) least seconds (snippet
     durations, plus seam[(from, to)] per transition) until a chain through the graph (successors:
-    index -> indices) ends within the inner radius of a goal at each grid point."""
+    index -> indices) ends within the inner radius of a goal at each grid point. Each iteration
+    reads every table where each successor ends (read_costs, as a fixed linear map) and takes the
+    least over each snippet's transitions."""
     angles, rings = grid["angles"], grid["rings"]
     theta = np.arange(angles) * 2 * np.pi / angles
     radii = np.geomspace(grid["inner_radius"], grid["outer_radius"], rings)
     points = np.stack(
         [np.outer(np.sin(theta), radii).ravel(), np.outer(np.cos(theta), radii).ravel()], axis=1
     )
-    order = list(successors)
+    # the snippets by their number of transitions, most first
+    order = sorted(successors, key=lambda i: -len(successors[i]))
     row = {i: k for k, i in enumerate(order)}
     seen = np.stack([_seen_from_end(space, i, points) for i in order])
     duration = np.array([duration_of(space, i) for i in order])[:, None]
-    nexts = [np.array([row[int(t)] for t in successors[i]]) for i in order]
-    seams = [np.array([seam[i, int(t)] for t in successors[i]])[:, None] for i in order]
-    values = np.zeros((len(order), angles, rings))
+    read, beyond = interpolation(grid, seen)
+    beyond = beyond.reshape(len(order), len(points)) + duration
+    # Slot k: the k-th transition of every snippet that has more than k (the first rows).
+    degree = np.array([len(successors[i]) for i in order])
+    assert degree.min() > 0, "a snippet without transitions"
+    slots = [
+        (
+            np.array([row[int(successors[i][k])] for i in order[: (degree > k).sum()]]),
+            np.array([seam[i, int(successors[i][k])] for i in order[: (degree > k).sum()]]),
+        )
+        for k in range(degree.max())
+    ]
+    values = np.zeros((len(order), angles * rings))
+    new, part = np.empty_like(values), np.empty_like(values)
     while True:
-        through = duration + read_costs(values, grid, seen)
-        new = np.stack([(through[n] + c).min(axis=0) for n, c in zip(nexts, seams)])
-        new = new.reshape(values.shape)
-        new[:, :, 0] = 0.0
+        through = (read @ values.ravel()).reshape(values.shape) + beyond
+        for k, (to, cost) in enumerate(slots):
+            rows = len(to)
+            np.take(through, to, axis=0, out=part[:rows] if k else new)
+            if k:
+                np.add(part[:rows], cost[:, None], out=part[:rows])
+                np.minimum(new[:rows], part[:rows], out=new[:rows])
+            else:
+                new += cost[:, None]
+        new.reshape(-1, angles, rings)[:, :, 0] = 0.0
         change = np.abs(new - values).max()
-        values = new
+        values, new = new, values
         if change < tolerance:
-            return {i: values[row[i]] for i in order}
+            return {i: values[row[i]].reshape(angles, rings) for i in order}
 
 
 def select(
@@ -575,18 +648,19 @@ def select(
         ratio = np.zeros(len(ids))
     else:
         p = int(np.flatnonzero(ids == prev_id)[0])
-        ok &= (np.array(space["pose"]) == space["pose"][p]) & (space["fps"] == space["fps"][p])
+        ok &= (space["pose"] == space["pose"][p]) & (space["fps"] == space["fps"][p])
         prev = space["end"][p]
-        cand = {k: space[k] for k in ("pos", "rot", "vel", "angvel")}
-        ratio = ratios(prev, cand, plan)
+        # (the ratios of the eligible snippets: the others' are never read)
+        ratio = np.zeros(len(ids))
+        ratio[ok] = ratios(prev, {k: space[k][ok] for k in ("pos", "rot", "vel", "angvel")}, plan)
         level = levels(ratio)
         if plan["graph_cost_to_go"] and costs is not None and p in successors:
-            for i in np.flatnonzero(ok & (level == 0)):
-                seconds = (
-                    duration_of(space, i)
-                    + read_cost(costs[i], grid, _seen_from_end(space, i, target))[0]
-                )
-                cost[i] = grid["speed"] * seconds
+            at = np.flatnonzero(ok & (level == 0))
+            if len(at):  # each one's table, read where the target lies seen from its end
+                seen = np.stack([_seen_from_end(space, i, target) for i in at])
+                tables = np.stack([costs[i] for i in at])
+                seconds = np.array([duration_of(space, i) for i in at])
+                cost[at] = grid["speed"] * (seconds + read_costs(tables, grid, seen)[:, 0])
         elif plan["graph_lookahead"] and successors is not None and p in successors:
             for i in np.flatnonzero(ok & (level == 0)):
                 cost[i] = min(cost[i], two_step_cost(space, i, successors[i], target, plan))
@@ -595,8 +669,14 @@ def select(
             np.linalg.norm(space["feat"] - prev["feat"], axis=1),
             cost + plan["continuity_weight"] * ratio,
         )
-    rows = [
-        (int(level[i]), float(order_key[i]), int(ids[i]), float(ratio[i]))
-        for i in np.flatnonzero(ok)
-    ]
-    return sorted(rows)
+    at = np.flatnonzero(ok)
+    # sorted as the tuples (level, order key, id, ratio) sort
+    at = at[np.lexsort((ratio[at], ids[at], order_key[at], level[at]))]
+    return list(
+        zip(
+            level[at].tolist(),
+            order_key[at].tolist(),
+            ids[at].tolist(),
+            ratio[at].tolist(),
+        )
+    )
