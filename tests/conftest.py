@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import functools
 import itertools
+import json
 import os
 from pathlib import Path
 
@@ -59,7 +60,7 @@ def pytest_unconfigure(config):
 # `slow` and `browser`): `browser`, a test that drives chromium; `data`, one whose module reads the
 # real capture (../shared/mocap, through support.data.mocap or the fixtures built from it); `slow`,
 # every test of a module in FIRST (over a minute).
-DATA_FIXTURES = {"locomotion", "cmu"}
+DATA_FIXTURES = {"locomotion", "cmu", "cmu16_walks"}
 
 
 @functools.cache
@@ -105,8 +106,8 @@ def db(fresh_db):
         yield conn
 
 
-def _load(dsn: str, *args) -> None:
-    r = run_modb(dsn, *args)
+def _load(dsn: str, *args, process: bool = True) -> None:
+    r = run_modb(dsn, *args, process=process)
     assert r.returncode == 0, r.stderr
 
 
@@ -143,8 +144,69 @@ def cmu(cluster):
 
 
 @pytest.fixture(scope="session")
+def cmu16_walks(cluster, tmp_path_factory):
+    """CMU 16 (walks and turns, ASF/AMC) loaded as collection `cmu16` with snippets, its steps
+    annotated, the step models cmu16_left_step and cmu16_right_step and the graph of models `walk`
+    over them: built once per run, as a template (support.shared.copy_of_built). cmu16_walks(name)
+    is a context manager giving the conninfo of a copy of it named `name`, the caller's to read and
+    write, dropped after: name it after the module and os.getpid(). The left steps' model is built
+    with its quality report (--report-json); what that build printed and the report are kept:
+    shared.kept("cmu16_left_step") (test_models checks them). Built in this process."""
+    walks = mocap("cmu", "16")
+
+    def build(dsn: str) -> None:
+        def modb(*args) -> None:
+            _load(dsn, *args, process=False)
+
+        modb("load", walks, "--collection", "cmu16", "-q")
+        modb("annotate", "--steps", "cmu16")
+        report = tmp_path_factory.mktemp("cmu16_walks") / "report.json"
+        r = run_modb(dsn, "model", "build", "cmu16_left_step", "--collection", "cmu16",
+                     "--primitive", "left_step", "--report-json", report,
+                     process=False)  # fmt: skip
+        assert r.returncode == 0, r.stderr
+        shared.keep("cmu16_left_step", {"stdout": r.stdout, "stderr": r.stderr,
+                                        "report": json.loads(report.read_text())})  # fmt: skip
+        modb("model", "build", "cmu16_right_step", "--collection", "cmu16", "--primitive",
+             "right_step", "-q")  # fmt: skip
+        r = run_modb(dsn, "model", "graph", "walk", "--collection", "cmu16", process=False)
+        assert r.returncode == 0, r.stderr
+        # what test_model_synthesis holds the graph it makes of each dataset to
+        assert "walk (graph of models): 2 nodes (2 standard), 2 transitions" in r.stdout, r.stdout
+
+    return functools.partial(shared.copy_of_built, cluster, "shared_cmu16_walks", build)
+
+
+@pytest.fixture(scope="session")
 def chromium_driver():
     """One headless chromium per worker, for every browser test of it (each module's `browser`
     fixture starts it on a blank page at its own size)."""
     with chromium() as driver:
         yield driver
+
+
+# requestAnimationFrame by a 500 ms timer: the pages draw (software WebGL, in chromium's GPU
+# process) on every animation frame, playing or not, as often as the CPU lets them, a core taken
+# from the other worker (models_web's first test: 31 s of the GPU process's CPU at 100 ms, 7 s at
+# 500 ms). Animation goes by the clock (the time since the last frame) and what the tests read (a
+# figure's joints, a point's place on the canvas) is computed when read, not when drawn: only how
+# often the pages draw changes.
+FEW_FRAMES = """
+window.requestAnimationFrame = (callback) => setTimeout(() => callback(performance.now()), 500);
+window.cancelAnimationFrame = (id) => clearTimeout(id);
+"""
+
+
+@pytest.fixture(scope="module")
+def few_frames(chromium_driver):
+    """For a module's pages (its `browser` fixture asks for it): two frames drawn a second
+    (FEW_FRAMES, run before each page's own scripts); as before after the module."""
+    added = chromium_driver.execute_cdp_cmd(
+        "Page.addScriptToEvaluateOnNewDocument", {"source": FEW_FRAMES}
+    )
+    try:
+        yield
+    finally:
+        chromium_driver.execute_cdp_cmd(
+            "Page.removeScriptToEvaluateOnNewDocument", {"identifier": added["identifier"]}
+        )

@@ -18,9 +18,7 @@ import pytest
 from support import own_kinematics
 from support.bvh_oracle import bvhio_world_positions
 from support.browser import module_page, serving, severe_console_entries
-from support.commands import run_modb
-from support.data import REPO, mocap
-from support.databases import scratch_database
+from support.data import REPO
 from support.gltf_validator import validate
 
 from modb.database import pgarray
@@ -36,22 +34,10 @@ STATE = (
 
 
 @pytest.fixture(scope="module")
-def walks(cluster):
+def walks(cmu16_walks):
     """CMU 16 with snippets (motion matching), steps annotated, left and right step models and
-    the graph of models GRAPH over them."""
-    with scratch_database(cluster, f"avatar_models_{os.getpid()}") as dsn:
-        for args in (
-            ("load", str(mocap("cmu", "16")), "--collection", "cmu16", "-q"),
-            ("annotate", "--steps", "cmu16"),
-            *(
-                ("model", "build", f"cmu16_{side}_step", "--collection", "cmu16",
-                 "--primitive", f"{side}_step", "-q")
-                for side in ("left", "right")
-            ),
-            ("model", "graph", GRAPH, "--collection", "cmu16"),
-        ):  # fmt: skip
-            r = run_modb(dsn, *args)
-            assert r.returncode == 0, r.stderr
+    the graph of models GRAPH over them (a copy of conftest's cmu16_walks)."""
+    with cmu16_walks(f"avatar_models_{os.getpid()}") as dsn:
         yield dsn
 
 
@@ -62,7 +48,7 @@ def server(walks):
 
 
 @pytest.fixture(scope="module")
-def browser(chromium_driver):
+def browser(chromium_driver, few_frames):
     with module_page(chromium_driver, "1400,1000") as driver:
         yield driver
 

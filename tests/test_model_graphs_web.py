@@ -21,14 +21,11 @@ from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import Select
 from support.browser import module_page, serving, severe_console_entries
 from support.commands import run_modb
-from support.data import mocap
-from support.databases import scratch_database
 
 from modb.database.cluster import ensure_writer_role
 
 GRAPH = "walk"
-LEFT, RIGHT = "walk_left", "walk_right"
-TRIALS = 8  # of CMU 16's walks and turns: steps enough for a model of each side
+LEFT, RIGHT = "cmu16_left_step", "cmu16_right_step"
 
 
 @dataclass
@@ -68,27 +65,18 @@ def walk_graph(left: int, right: int) -> dict:
 
 
 @pytest.fixture(scope="module")
-def site(cluster, tmp_path_factory):
-    """Some of CMU 16's trials with their steps found, a model of each side's steps, a graph of the
-    two made in SQL, a loader's and a reader's token, served."""
-    walks = mocap("cmu", "16")
-    folder = tmp_path_factory.mktemp("cmu16")
-    for f in [walks / "16.asf", *sorted(walks.glob("*.amc"))[:TRIALS]]:
-        (folder / f.name).symlink_to(f)
-    with scratch_database(cluster, f"model_graphs_web_{os.getpid()}") as dsn:
+def site(cmu16_walks):
+    """CMU 16's trials with their steps found, a model of each side's steps (a copy of conftest's
+    cmu16_walks, less the graph of models it made), a graph of the two made in SQL, a loader's and
+    a reader's token, served."""
+    with cmu16_walks(f"model_graphs_web_{os.getpid()}") as dsn:
         with psycopg.connect(dsn, autocommit=True) as conn:
             ensure_writer_role(conn)
-        for args in (
-            ("load", folder, "--collection", "cmu16", "-q"),
-            ("annotate", "--steps", "cmu16"),
-            ("model", "build", LEFT, "--collection", "cmu16", "--primitive", "left_step"),
-            ("model", "build", RIGHT, "--collection", "cmu16", "--primitive", "right_step"),
-        ):
-            r = run_modb(dsn, *args)
-            assert r.returncode == 0, (args, r.stderr)
+        r = run_modb(dsn, "model", "graph", "delete", GRAPH, process=False)
+        assert r.returncode == 0, r.stderr
         tokens = {}
         for name, role in (("editor", "loader"), ("viewer", "reader")):
-            r = run_modb(dsn, "token", "create", name, "--role", role)
+            r = run_modb(dsn, "token", "create", name, "--role", role, process=False)
             assert r.returncode == 0, r.stderr
             tokens[name] = r.stdout.strip()
         with psycopg.connect(dsn) as conn:
@@ -222,7 +210,7 @@ def test_rest_graphs_of_models_need_the_etag_they_were_read_with(site, client):
 
 
 @pytest.fixture(scope="module")
-def browser(chromium_driver):
+def browser(chromium_driver, few_frames):
     with module_page(chromium_driver, "1280,1000") as driver:
         yield driver
 

@@ -6,7 +6,10 @@ Every figure is the test's own: forward kinematics with scipy's rotations (suppo
 goals, pose jumps and stance-foot sliding measured on its positions, the source's scale on the
 captured steps the models learnt from, and each step's constraint error recomputed from the scores
 the server reports (scipy's B-splines on the stored knots, the joint limits applied with scipy's
-rotations), against the best of 300 draws of the mixture made here (scipy.stats)."""
+rotations), against the best of 300 draws of the mixture made here (scipy.stats).
+
+The `modb` command runs in this process (`process=False`): these tests are about the graphs and
+what they make, not the command's process."""
 
 from __future__ import annotations
 
@@ -35,6 +38,10 @@ SECONDS = 25.0
 REACH_M = 0.75
 
 
+def modb(dsn, *args):
+    return run_modb(dsn, *args, process=False)
+
+
 def bandai_files():
     data = mocap("bandai-2-dev", "data")
     kinds = ("walk_active", "walk-turn-left_active", "walk-turn-right_active")
@@ -43,18 +50,25 @@ def bandai_files():
 
 @pytest.fixture(scope="module", params=sorted(COURSES))
 def walks(request, cluster):
-    """A database of the dataset's walks with left and right step models and the graph GRAPH."""
+    """A database of the dataset's walks with left and right step models and the graph GRAPH; for
+    CMU 16 a copy of conftest's cmu16_walks (built alike, its graph held to the same words)."""
     name = request.param
-    files = [str(mocap("cmu", "16"))] if name == "cmu16" else bandai_files()
+    if name == "cmu16":
+        with request.getfixturevalue("cmu16_walks")(f"model_synth_{name}_{os.getpid()}") as dsn:
+            yield name, dsn
+        return
+    files = bandai_files()
     with scratch_database(cluster, f"model_synth_{name}_{os.getpid()}") as dsn:
-        for args in (("load", *files, "--collection", name, "-q"), ("annotate", "--steps", name)):
-            r = run_modb(dsn, *args)
+        # no snippets: the tests that select snippets (motion matching) run on CMU 16 only
+        for args in (("load", *files, "--collection", name, "--no-snippets", "-q"),
+                     ("annotate", "--steps", name)):  # fmt: skip
+            r = modb(dsn, *args)
             assert r.returncode == 0, r.stderr
         for side in ("left", "right"):
-            r = run_modb(dsn, "model", "build", f"{name}_{side}_step", "--collection", name,
-                         "--primitive", f"{side}_step", "-q")  # fmt: skip
+            r = modb(dsn, "model", "build", f"{name}_{side}_step", "--collection", name,
+                     "--primitive", f"{side}_step", "-q")  # fmt: skip
             assert r.returncode == 0, r.stderr
-        r = run_modb(dsn, "model", "graph", GRAPH, "--collection", name)
+        r = modb(dsn, "model", "graph", GRAPH, "--collection", name)
         assert r.returncode == 0, r.stderr
         assert f"{GRAPH} (graph of models): 2 nodes (2 standard), 2 transitions" in r.stdout
         yield name, dsn
@@ -240,12 +254,12 @@ def test_a_course_is_walked_through_every_goal_by_the_tests_own_measures(walks, 
     # the command line gives the same strip: BVH read back by bvhio, glb by the Khronos validator
     bvh, glb, rep = tmp_path / "course.bvh", tmp_path / "course.glb", tmp_path / "report.json"
     to = [f"--to={g[0]},{g[1]}" for g in goals]
-    r = run_modb(dsn, "synth", "--models", GRAPH, *to, "--seconds", str(SECONDS), "--seed", "3",
+    r = modb(dsn, "synth", "--models", GRAPH, *to, "--seconds", str(SECONDS), "--seed", "3",
                  "--in-place", "--out", str(bvh))  # fmt: skip
     assert r.returncode == 0, r.stderr
     names, read = bvhio_world_positions(str(bvh), rig.unit_m)
     assert np.abs(read - p[:, [rig.names.index(n) for n in names]]).max() < 2e-3
-    r = run_modb(dsn, "synth", "--models", GRAPH, *to, "--seconds", str(SECONDS), "--seed", "3",
+    r = modb(dsn, "synth", "--models", GRAPH, *to, "--seconds", str(SECONDS), "--seed", "3",
                  "--out", str(glb), "--report-json", str(rep))  # fmt: skip
     assert r.returncode == 0, r.stderr
     issues = validate(glb)
@@ -259,13 +273,13 @@ def test_graphs_are_listed_exported_imported_and_refused_when_broken(walks, tmp_
     name, dsn = walks
     if name != "cmu16":
         pytest.skip("the graph's life is the same on every dataset: once is enough")
-    r = run_modb(dsn, "model", "graph", "list")
+    r = modb(dsn, "model", "graph", "list")
     assert r.returncode == 0 and r.stdout.startswith(f"{GRAPH} (graph of models): 2 nodes")
-    r = run_modb(dsn, "graph", "list")
+    r = modb(dsn, "graph", "list")
     assert r.returncode == 0 and f"{GRAPH} (graph of models)" in r.stdout
     out = tmp_path / "walk.json"
-    assert run_modb(dsn, "model", "graph", "export", GRAPH, "--out", str(out)).returncode == 0
-    r = run_modb(dsn, "model", "graph", "import", str(out), "--name", "copy")
+    assert modb(dsn, "model", "graph", "export", GRAPH, "--out", str(out)).returncode == 0
+    r = modb(dsn, "model", "graph", "import", str(out), "--name", "copy")
     assert r.returncode == 0, r.stderr
     (a,), (b,) = (query(dsn, "SELECT data FROM modb.graphs WHERE name = %s AND kind = 'models'",
                         [n])[0] for n in (GRAPH, "copy"))  # fmt: skip
@@ -289,7 +303,7 @@ def test_graphs_are_listed_exported_imported_and_refused_when_broken(walks, tmp_
             assert reason in e.value.diag.message_primary
         # a model of another skeleton (a Bandai file's, loaded beside)
         bandai = mocap("bandai-2-dev", "data", "dataset-2_walk_active_001.bvh")
-        r = run_modb(dsn, "load", str(bandai), "--collection", "other", "--no-snippets", "-q")
+        r = modb(dsn, "load", str(bandai), "--collection", "other", "--no-snippets", "-q")
         assert r.returncode == 0, r.stderr
         other = conn.execute("SELECT max(skeleton_id) FROM modb.clip_versions").fetchone()[0]
         foreign = conn.execute(
@@ -314,13 +328,13 @@ def test_graphs_are_listed_exported_imported_and_refused_when_broken(walks, tmp_
     assert report["steps"][-1]["node"] == "stop" and list(report["reached"]) == ["1"]
     assert any('the end node "stop" played' in n for n in report["notes"])
     # options of snippet selection are refused with --models; --seed without it
-    r = run_modb(dsn, "synth", "--models", GRAPH, "--to", "0,6", "--seconds", "5", "--profile",
+    r = modb(dsn, "synth", "--models", GRAPH, "--to", "0,6", "--seconds", "5", "--profile",
                  "default", "--out", str(tmp_path / "x.bvh"))  # fmt: skip
     assert r.returncode == 2 and "--profile selects snippets" in r.stderr
-    r = run_modb(dsn, "synth", "--to", "0,6", "--seconds", "5", "--seed", "1", "--out",
+    r = modb(dsn, "synth", "--to", "0,6", "--seconds", "5", "--seed", "1", "--out",
                  str(tmp_path / "x.bvh"))  # fmt: skip
     assert r.returncode == 2 and "--seed goes with --models" in r.stderr
-    r = run_modb(dsn, "synth", "--models", "nothing", "--to", "0,6", "--seconds", "5", "--out",
+    r = modb(dsn, "synth", "--models", "nothing", "--to", "0,6", "--seconds", "5", "--out",
                  str(tmp_path / "x.bvh"))  # fmt: skip
     assert r.returncode == 1 and 'no graph of models "nothing"' in r.stderr
 
@@ -332,7 +346,7 @@ def test_both_families_are_compared_alike(walks, tmp_path):
     if name != "cmu16":
         pytest.skip("one dataset shows the comparison's figures are its own")
     out = tmp_path / "compare.json"
-    r = run_modb(dsn, "bench", "synth-compare", "--collection", name, "--models", GRAPH,
+    r = modb(dsn, "bench", "synth-compare", "--collection", name, "--models", GRAPH,
                  "--seconds", "8", "--json", str(out))  # fmt: skip
     assert r.returncode == 0, r.stderr
     result = json.loads(out.read_text())

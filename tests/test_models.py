@@ -4,11 +4,15 @@ processed data, kept in versions, sampled in the server, exported, imported, ser
 The quality report's figures are checked against the test's own computations: its own PCA (numpy's
 SVD), B-spline evaluation (scipy's BSpline on the stored knots), forward kinematics and rotation
 means (scipy's rotations), Gaussian likelihood (scipy.stats), contacts and nearest neighbours
-(brute force), on the samples modb.sample_motion returns."""
+(brute force), on the samples modb.sample_motion returns.
+
+The model is conftest's cmu16_walks's model of the left steps, built there once per run with its
+report (`modb model build --report-json`, its output kept): a copy of that database is the module's,
+to write in. The `modb` command runs in this process (`process=False`): these tests are
+about the models, not the command's process."""
 
 from __future__ import annotations
 
-import json
 import os
 
 import numpy as np
@@ -17,9 +21,8 @@ import pytest
 from scipy.interpolate import BSpline
 from scipy.stats import multivariate_normal
 from sklearn.model_selection import KFold
-from support import own_kinematics
+from support import own_kinematics, shared
 from support.commands import run_modb
-from support.data import mocap
 from support.databases import scratch_database
 from support.gltf_validator import validate
 
@@ -28,28 +31,30 @@ from modb.models import build as B
 from modb.models.examples import read_inputs, rig_of
 from modb_kernel import motion_model
 
-MODEL = "walk_left"
+MODEL = "cmu16_left_step"
+
+
+def modb(dsn, *args):
+    return run_modb(dsn, *args, process=False)
 
 
 @pytest.fixture(scope="module")
-def dsn(cluster):
-    with scratch_database(cluster, f"models_{os.getpid()}") as dsn:
-        r = run_modb(dsn, "load", mocap("cmu", "16"), "--collection", "cmu16", "-q")
-        assert r.returncode == 0, r.stderr
-        r = run_modb(dsn, "annotate", "--steps", "cmu16")
-        assert r.returncode == 0, r.stderr
+def dsn(cmu16_walks):
+    """CMU 16 loaded (collection cmu16), its steps annotated, MODEL and the right steps' model
+    built, and the graph of models over them: a copy of conftest's cmu16_walks."""
+    with cmu16_walks(f"models_{os.getpid()}") as dsn:
         yield dsn
 
 
 @pytest.fixture(scope="module")
-def report(dsn, tmp_path_factory):
-    path = tmp_path_factory.mktemp("models") / "report.json"
-    r = run_modb(dsn, "model", "build", MODEL, "--collection", "cmu16", "--primitive",
-                 "left_step", "--report-json", path)  # fmt: skip
-    assert r.returncode == 0, r.stderr
-    assert "aligning 'left_step' in 'cmu16' first: it has no processed data" in r.stderr
-    assert f"model {MODEL} version 1 " in r.stdout and "meets the quality targets" in r.stdout
-    return json.loads(path.read_text())
+def report(dsn):
+    """The report of MODEL's first build, which aligned the left steps first (conftest's
+    cmu16_walks built MODEL right after finding the steps, and kept what it printed)."""
+    build = shared.kept(MODEL)
+    assert "aligning 'left_step' in 'cmu16' first: it has no processed data" in build["stderr"]
+    assert f"model {MODEL} version 1 " in build["stdout"]
+    assert "meets the quality targets" in build["stdout"]
+    return build["report"]
 
 
 def stored(conn, version=None):
@@ -202,13 +207,12 @@ def test_the_report_meets_the_targets_by_the_tests_own_measures(dsn, report):
     new = np.stack([fk(*motion_model.canonical_frames(model, d[:split]))
                     for d in motion_model.draw_scores(model["mixture"], 100, 0)])  # fmt: skip
 
-    def rms(a, b):
-        return np.sqrt(np.mean(np.sum((a - b) ** 2, axis=-1))) * 100
+    def rms(a, others):
+        """cm: the root mean square over frames and joints of a's distance to each of others."""
+        return np.sqrt(np.mean(np.sum((others - a) ** 2, axis=-1), axis=(1, 2))) * 100
 
-    own = [
-        min(rms(c, o) for j, o in enumerate(canonical) if j != i) for i, c in enumerate(canonical)
-    ]
-    nearest = [min(rms(s, o) for o in canonical) for s in new]
+    own = [np.delete(rms(c, canonical), i).min() for i, c in enumerate(canonical)]
+    nearest = [rms(s, canonical).min() for s in new]
     assert report["novelty"]["training_nn_cm"] == pytest.approx(np.median(own), rel=1e-6)
     assert report["novelty"]["samples_nn_cm"] == pytest.approx(np.median(nearest), rel=1e-6)
     assert 0.5 <= np.median(nearest) / np.median(own) <= 2.0
@@ -236,19 +240,17 @@ def test_sample_motion_in_sql_glb_and_bvh_files(dsn, report, tmp_path):
         assert (
             len(conn.execute("SELECT * FROM modb.sample_motion(%s, 2, 1)", [MODEL]).fetchall()) == 2
         )
-    r = run_modb(
-        dsn, "model", "sample", MODEL, "-n", "10", "--seed", "3", "--out", tmp_path / "s.glb"
-    )
+    r = modb(dsn, "model", "sample", MODEL, "-n", "10", "--seed", "3", "--out", tmp_path / "s.glb")
     assert r.returncode == 0, r.stderr
     issues = validate(tmp_path / "s.glb")
     assert issues["numErrors"] == 0, issues["messages"]
     import pygltflib
 
     assert len(pygltflib.GLTF2.load(str(tmp_path / "s.glb")).animations) == 10
-    r = run_modb(dsn, "model", "sample", MODEL, "-n", "3", "--out", tmp_path / "s.bvh")
+    r = modb(dsn, "model", "sample", MODEL, "-n", "3", "--out", tmp_path / "s.bvh")
     assert r.returncode == 0, r.stderr
     assert sorted(p.name for p in tmp_path.glob("s_*.bvh")) == ["s_01.bvh", "s_02.bvh", "s_03.bvh"]
-    r = run_modb(dsn, "model", "sample", MODEL, "--out", tmp_path / "s.txt")
+    r = modb(dsn, "model", "sample", MODEL, "--out", tmp_path / "s.txt")
     assert r.returncode == 2 and "name a .bvh, .glb or .gltf file" in r.stderr
 
 
@@ -257,11 +259,9 @@ def test_versions_reproducible_builds_staleness_export_and_import(dsn, report, t
         ("cmu16", "jump", 'collection "cmu16" has 0 "jump" segments: aligning needs at least 5'),
         ("nope", "left_step", 'no collection "nope"'),
     ):
-        r = run_modb(
-            dsn, "model", "build", "x", "--collection", collection, "--primitive", primitive
-        )
+        r = modb(dsn, "model", "build", "x", "--collection", collection, "--primitive", primitive)
         assert r.returncode == 2 and message in r.stderr, r.stderr
-    r = run_modb(dsn, "model", "build", MODEL, "--collection", "cmu16", "--primitive", "left_step")
+    r = modb(dsn, "model", "build", MODEL, "--collection", "cmu16", "--primitive", "left_step")
     assert r.returncode == 0 and f"model {MODEL} version 2 " in r.stdout, r.stderr
     with connect(dsn) as conn:
         (v1, meta1), (v2, meta2) = stored(conn, 1), stored(conn, 2)
@@ -271,12 +271,12 @@ def test_versions_reproducible_builds_staleness_export_and_import(dsn, report, t
         conn.execute(
             "UPDATE modb.models SET meta = meta || '{\"note\": 1}' WHERE name = %s", [MODEL]
         )
-    r = run_modb(dsn, "model", "list")
+    r = modb(dsn, "model", "list")
     assert f"{MODEL} v1: left_step of cmu16" in r.stdout and f"{MODEL} v2 (latest)" in r.stdout
     assert "stale" not in r.stdout
-    r = run_modb(dsn, "model", "export", MODEL, "--version", "1", "--out", tmp_path / "m.json")
+    r = modb(dsn, "model", "export", MODEL, "--version", "1", "--out", tmp_path / "m.json")
     assert r.returncode == 0, r.stderr
-    r = run_modb(dsn, "model", "import", tmp_path / "m.json", "--name", "walk_left_copy")
+    r = modb(dsn, "model", "import", tmp_path / "m.json", "--name", "walk_left_copy")
     assert r.returncode == 0 and "model walk_left_copy version 1" in r.stdout, r.stderr
     with connect(dsn) as conn:
         copied = conn.execute(
@@ -295,25 +295,25 @@ def test_versions_reproducible_builds_staleness_export_and_import(dsn, report, t
         assert stale == {1: stale[1], 2: stale[2]} and all(
             s.startswith("processed data it was built from is stale") for s in stale.values()
         ), stale
-    r = run_modb(dsn, "model", "build", MODEL, "--collection", "cmu16", "--primitive", "left_step")
+    r = modb(dsn, "model", "build", MODEL, "--collection", "cmu16", "--primitive", "left_step")
     assert r.returncode == 0 and "version 3" in r.stdout, r.stderr
     assert "first: its processed data is stale" in r.stderr
-    r = run_modb(dsn, "model", "list", "--collection", "cmu16")
+    r = modb(dsn, "model", "list", "--collection", "cmu16")
     assert f"{MODEL} v3 (latest)" in r.stdout and "stale: processed data" in r.stdout
     with connect(dsn) as conn:
         assert conn.execute(
             "SELECT stale FROM modb.model_status WHERE name = %s AND version = 3", [MODEL]
         ).fetchone() == (None,)
-    r = run_modb(dsn, "model", "delete", MODEL, "--version", "2")
+    r = modb(dsn, "model", "delete", MODEL, "--version", "2")
     assert r.returncode == 0 and "deleted 1 version of model" in r.stdout
-    r = run_modb(dsn, "model", "show", MODEL, "--version", "2")
+    r = modb(dsn, "model", "show", MODEL, "--version", "2")
     assert r.returncode == 2 and f'no motion model "{MODEL}" version 2' in r.stderr
     # a database without the skeleton refuses the file, saying what to do
     with scratch_database(cluster, f"models_empty_{os.getpid()}") as empty:
-        r = run_modb(empty, "model", "import", tmp_path / "m.json")
+        r = modb(empty, "model", "import", tmp_path / "m.json")
         assert r.returncode == 2 and "load a clip of that skeleton first" in r.stderr
     (tmp_path / "bad.json").write_text('{"format": "modb motion model",\n "data": [}')
-    r = run_modb(dsn, "model", "import", tmp_path / "bad.json")
+    r = modb(dsn, "model", "import", tmp_path / "bad.json")
     assert r.returncode == 2 and "bad.json: line 2: not JSON" in r.stderr
 
 
@@ -324,7 +324,7 @@ def test_rest_lists_shows_samples_and_builds_with_a_loader_token(dsn, report):
 
     tokens = {}
     for name, role in (("models-loader", "loader"), ("models-reader", "reader")):
-        r = run_modb(dsn, "token", "create", name, "--role", role)
+        r = modb(dsn, "token", "create", name, "--role", role)
         assert r.returncode == 0, r.stderr
         tokens[role] = {"Authorization": f"Bearer {r.stdout.strip()}"}
     with serving(dsn) as address, httpx.Client(base_url=f"http://{address}", timeout=120) as client:
@@ -363,7 +363,7 @@ def test_rest_lists_shows_samples_and_builds_with_a_loader_token(dsn, report):
         assert bad.status_code == 400 and "variance" in bad.text
         made = client.post(path, json=body, headers=tokens["loader"])  # no job tables: at once
         assert made.status_code == 201 and made.json()["version"] == 1, made.text
-        r = run_modb(dsn, "worker", "--init")
+        r = modb(dsn, "worker", "--init")
         assert r.returncode == 0, r.stderr
         queued = client.post(path, json={**body, "report": True}, headers=tokens["loader"])
         assert queued.status_code == 202, queued.text

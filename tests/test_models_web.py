@@ -13,32 +13,27 @@ import pytest
 from selenium.webdriver.common.by import By
 from support.browser import get, module_page, serving, severe_console_entries
 from support.commands import run_modb
-from support.data import REPO, mocap
-from support.databases import scratch_database
+from support.data import REPO
 
 ARTIFACTS = REPO / "tests" / "artifacts"
 TOLERANCE_M = 0.01  # the page's pose against the server's, as test_web.py holds clips to
-MODEL = "walk_left"
+MODEL = "cmu16_left_step"
 
 
 @pytest.fixture(scope="module")
-def site(cluster):
-    """CMU subject 16's walks with their steps found and a model of the left steps, served."""
-    with scratch_database(cluster, f"models_web_{os.getpid()}") as dsn:
-        walks = mocap("cmu", "16")
-        for args in (
-            ("load", walks, "--collection", "cmu16", "-q"),
-            ("annotate", "--steps", "cmu16"),
-            ("model", "build", MODEL, "--collection", "cmu16", "--primitive", "left_step"),
-        ):
-            r = run_modb(dsn, *args)
+def site(cmu16_walks):
+    """CMU subject 16's walks with their steps found and a model of the left steps, served: a copy
+    of conftest's cmu16_walks less its graph of models and its model of the right steps."""
+    with cmu16_walks(f"models_web_{os.getpid()}") as dsn:
+        for args in (("model", "graph", "delete", "walk"), ("model", "delete", "cmu16_right_step")):
+            r = run_modb(dsn, *args, process=False)
             assert r.returncode == 0, (args, r.stderr)
         with serving(dsn) as address:
             yield address
 
 
 @pytest.fixture(scope="module")
-def browser(chromium_driver):
+def browser(chromium_driver, few_frames):
     with module_page(chromium_driver) as driver:
         yield driver
 

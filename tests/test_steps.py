@@ -4,7 +4,10 @@ Checked against the test's own computations: foot contacts found by its own forw
 (scipy's rotations) and its own run cleaning, on every shipped walk (Bandai dataset 1's and 2's
 walks and walk-turns, CMU 16's trials); the warp's cost against a brute-force search of every path
 on small cases; aligned frames against the source frames resampled by the time function with the
-test's own slerp (scipy's)."""
+test's own slerp (scipy's).
+
+The `modb` command runs in this process (`process=False`): these tests are about the steps and the
+data, not the command's process."""
 
 from __future__ import annotations
 
@@ -30,6 +33,10 @@ from modb_kernel import mirror as kernel_mirror
 from modb_kernel import steps as kernel_steps
 
 SIDES = ("left", "right")
+
+
+def modb(dsn, *args):
+    return run_modb(dsn, *args, process=False)
 
 
 def shipped_walks():
@@ -168,10 +175,11 @@ def test_the_warp_is_the_cheapest_path_of_a_brute_force_search():
 @pytest.fixture(scope="module")
 def dsn(cluster):
     with scratch_database(cluster, f"steps_{os.getpid()}") as dsn:
-        r = run_modb(dsn, "load", mocap("cmu", "16"), "--collection", "cmu16", "-q")
+        # no snippets: nothing here selects them
+        r = modb(dsn, "load", mocap("cmu", "16"), "--collection", "cmu16", "--no-snippets", "-q")
         assert r.returncode == 0, r.stderr
         walks = sorted(mocap("bandai-2-dev", "data").glob("dataset-2_walk_active_*.bvh"))[:6]
-        r = run_modb(dsn, "load", *map(str, walks), "--collection", "bandai", "-q")
+        r = modb(dsn, "load", *map(str, walks), "--collection", "bandai", "--no-snippets", "-q")
         assert r.returncode == 0, r.stderr
         yield dsn
 
@@ -188,7 +196,7 @@ def stored_segments(conn, clip):
 
 
 def test_annotate_steps_writes_automatic_segments_and_keeps_a_persons(dsn):
-    r = run_modb(dsn, "annotate", "--steps", "cmu16", "bandai")
+    r = modb(dsn, "annotate", "--steps", "cmu16", "bandai")
     assert r.returncode == 0, r.stderr
     assert "34 clips: " in r.stdout, r.stdout
     with connect(dsn) as conn:
@@ -217,7 +225,7 @@ def test_annotate_steps_writes_automatic_segments_and_keeps_a_persons(dsn):
             "AND c.clip_id = %s",
             [psycopg.types.json.Jsonb([mine, edited, *before[1:]]), clip],
         )
-    r = run_modb(dsn, "annotate", "--steps", f"id:{clip}")
+    r = modb(dsn, "annotate", "--steps", f"id:{clip}")
     assert r.returncode == 0, r.stderr
     with connect(dsn) as conn:
         after = stored_segments(conn, clip)
@@ -228,9 +236,9 @@ def test_annotate_steps_writes_automatic_segments_and_keeps_a_persons(dsn):
 
 
 def test_alignment_lands_keyframes_and_resamples_the_source(dsn):
-    r = run_modb(dsn, "annotate", "--steps", "cmu16")
+    r = modb(dsn, "annotate", "--steps", "cmu16")
     assert r.returncode == 0, r.stderr
-    r = run_modb(dsn, "align", "left_step", "--collection", "cmu16")
+    r = modb(dsn, "align", "left_step", "--collection", "cmu16")
     assert r.returncode == 0, r.stderr
     assert "left_step in cmu16: " in r.stdout and " stale rows deleted" in r.stdout
     with connect(dsn) as conn:
@@ -250,7 +258,7 @@ def test_alignment_lands_keyframes_and_resamples_the_source(dsn):
         assert {row[2]["name"] for row in rows if not row[-1]} == {"left_step"}
         motions = {}
         for clip, version, segment, is_reference, n, times, sections, rotations, mirrored in rows:
-            times = np.asarray(times)
+            times, rotations = np.asarray(times), np.asarray(rotations)  # once, not per joint
             span = segment["end"] - segment["start"]
             assert n == lengths[reference] and len(times) == n
             assert np.all(np.diff(times) >= 0) and times[0] >= 0 and times[-1] <= span
@@ -290,17 +298,17 @@ def test_stale_rows_say_so_and_aligning_again_redoes_only_them(dsn):
         n_rows = conn.execute(
             "SELECT count(*) FROM modb.processed_data WHERE primitive = 'left_step'"
         ).fetchone()[0]
-    r = run_modb(dsn, "annotate", f"id:{clip}", "--remove", f"left_step:{start}-{end}")
+    r = modb(dsn, "annotate", f"id:{clip}", "--remove", f"left_step:{start}-{end}")
     assert r.returncode == 0, r.stderr
     with connect(dsn) as conn:
         assert conn.execute(
             "SELECT stale FROM modb.processed_data_status WHERE clip_id = %s AND start_frame = %s",
             [clip, start],
         ).fetchone() == ("its segment changed or is gone",)
-    r = run_modb(dsn, "align", "left_step", "--collection", "cmu16")
+    r = modb(dsn, "align", "left_step", "--collection", "cmu16")
     assert r.returncode == 0, r.stderr
     assert f"{n_rows - 1} examples, 0 aligned now, 1 stale rows deleted" in r.stdout, r.stdout
-    r = run_modb(dsn, "align", "jump", "--collection", "cmu16")
+    r = modb(dsn, "align", "jump", "--collection", "cmu16")
     assert r.returncode == 2 and 'has 0 "jump" segments: aligning needs at least 5' in r.stderr
 
 
@@ -318,7 +326,7 @@ def test_rest_finds_steps_and_aligns_as_jobs_and_reads_processed_data(dsn):
         ).fetchone()[0]
     tokens = {}
     for name, role in (("steps-loader", "loader"), ("steps-reader", "reader")):
-        r = run_modb(dsn, "token", "create", name, "--role", role)
+        r = modb(dsn, "token", "create", name, "--role", role)
         assert r.returncode == 0, r.stderr
         tokens[role] = {"Authorization": f"Bearer {r.stdout.strip()}"}
     with serving(dsn) as address, httpx.Client(base_url=f"http://{address}", timeout=60) as client:
@@ -328,7 +336,7 @@ def test_rest_finds_steps_and_aligns_as_jobs_and_reads_processed_data(dsn):
         assert r.json()["steps"] and all(
             s["keyframes"] == [s["start"], s["end"]] for s in r.json()["steps"]
         )
-        r = run_modb(dsn, "worker", "--init")
+        r = modb(dsn, "worker", "--init")
         assert r.returncode == 0, r.stderr
         found = client.post("/api/collections/bandai/steps", headers=tokens["loader"])
         assert found.status_code == 202 and found.json()["kind"] == "modb.annotate_steps", (
