@@ -4,10 +4,16 @@ user's profiles stay, and the updated catalogue is what a fresh install of today
 Each old version is installed as users install it, `CREATE EXTENSION modb VERSION 'old'`: only
 0.1.0's and the newest install script are shipped, so PostgreSQL runs 0.1.0's and the upgrade chain
 (extension/compare_chain.py showed, for every release, that the chain installs what its own install
-script did)."""
+script did).
+
+What a fresh install of today's version stores for the same files is the same for every old
+version: it is loaded once for the module (`fresh_load`). Each test loads and processes the old
+version's data by that version. The `modb` command runs in this process (`process=False`): these
+tests are about the data, not the command's process."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -15,7 +21,9 @@ import psycopg
 import pytest
 from support.commands import run_modb
 from support.data import mocap
+from support.databases import scratch_database
 
+from modb.database.connection import connect
 from modb.synthesis.graphs import list_graphs
 
 
@@ -36,6 +44,22 @@ MIRRORED_TERMINATORS = (
     "t "
     "JOIN modb.clips c ON c.id = t.clip_id WHERE t.mirrored ORDER BY 1, 2"
 )
+
+
+def _files() -> list:
+    """The two CMU 131 trials (120 fps) each version loads."""
+    return [mocap("cmu", "131", "131_01.amc"), mocap("cmu", "131", "131_02.amc")]
+
+
+@pytest.fixture(scope="module")
+def fresh_load(cluster):
+    """What a fresh install of today's version stores for the files loaded with --mirror: the mirror
+    images' terminators (MIRRORED_TERMINATORS) and every terminator's features (FEATURES)."""
+    with scratch_database(cluster, f"upgrade_fresh_{os.getpid()}") as dsn:
+        r = run_modb(dsn, "load", *_files(), "--mirror", process=False)
+        assert r.returncode == 0, r.stderr
+        with connect(dsn) as conn:
+            return conn.execute(MIRRORED_TERMINATORS).fetchall(), conn.execute(FEATURES).fetchall()
 
 
 OLD_VERSIONS = [
@@ -146,7 +170,7 @@ def _models_in_versions(db, dsn, processed_before) -> None:
     assert db.execute("SELECT max(version) FROM modb.models").fetchone() == (2,)
     collection = db.execute("SELECT DISTINCT collection FROM modb.processed_data_status").fetchone()
     r = run_modb(dsn, "model", "build", "kept", "--collection", collection[0], "--primitive",
-                 "left_step")  # fmt: skip
+                 "left_step", process=False)  # fmt: skip
     assert r.returncode == 0 and "model kept version 1" in r.stdout, r.stderr
     assert db.execute("SELECT count(*) FROM modb.sample_motion('kept', 2, 0)").fetchone() == (2,)
 
@@ -161,7 +185,7 @@ def _step_models(db, dsn) -> tuple[str, list]:
     db.commit()
     for side in ("left", "right"):
         r = run_modb(dsn, "model", "build", f"{side} steps", "--collection", collection,
-                     "--primitive", f"{side}_step", "-q")  # fmt: skip
+                     "--primitive", f"{side}_step", "-q", process=False)  # fmt: skip
         assert r.returncode == 0, r.stderr
     return collection, db.execute(MODELS).fetchall()
 
@@ -174,7 +198,7 @@ def _models_and_their_outputs(db, dsn) -> list:
     the same seeds, 0.24.0's installed kernel must give the same (0.23.0 ran the kernel pasted into
     its functions)."""
     collection, _ = _step_models(db, dsn)
-    r = run_modb(dsn, "model", "graph", "steps", "--collection", collection)
+    r = run_modb(dsn, "model", "graph", "steps", "--collection", collection, process=False)
     assert r.returncode == 0, r.stderr
     return _model_outputs(db)
 
@@ -209,7 +233,7 @@ def _same_outputs(after, before) -> None:
 
 def _graph_of_the_models(db, dsn, collection, models_before) -> None:
     assert len(models_before) == 2 and db.execute(MODELS).fetchall() == models_before
-    r = run_modb(dsn, "model", "graph", "steps", "--collection", collection)
+    r = run_modb(dsn, "model", "graph", "steps", "--collection", collection, process=False)
     assert r.returncode == 0 and "steps (graph of models): 2 nodes" in r.stdout, r.stderr
     fps, n_frames = db.execute(
         "SELECT fps, n_frames FROM modb.synthesize_from_models('steps', ARRAY[[0, 3]]::float8[], 2)"
@@ -229,15 +253,16 @@ def test_old_versions_install_through_the_chain(db):
 
 
 @pytest.mark.parametrize("old", OLD_VERSIONS)
-def test_update_keeps_the_data(cluster, fresh_db, db, old):
+def test_update_keeps_the_data(fresh_db, db, old, fresh_load):
     current = db.execute(
         "SELECT default_version FROM pg_available_extensions WHERE name = 'modb'"
     ).fetchone()[0]
     db.execute("DROP EXTENSION modb")
     db.execute(f"CREATE EXTENSION modb VERSION '{old}'")
     with_snippets = old != "0.1.0"  # snippets (and mirror images) came with 0.2.0
-    files = [mocap("cmu", "131", "131_01.amc"), mocap("cmu", "131", "131_02.amc")]
-    r = run_modb(fresh_db, "load", *files, *(["--mirror"] if with_snippets else ["--no-snippets"]))
+    files = _files()
+    r = run_modb(fresh_db, "load", *files, *(["--mirror"] if with_snippets else ["--no-snippets"]),
+                 process=False)  # fmt: skip
     assert r.returncode == 0, r.stderr
     db.execute('UPDATE modb.clip_versions SET meta = \'{"tags": ["kept"]}\'')
     if old == "0.21.0":  # 0.22.0: models in versions; processed data may hold mirrored examples
@@ -496,12 +521,11 @@ def test_update_keeps_the_data(cluster, fresh_db, db, old):
         and db.execute(grants).fetchall() == updated_grants
         and db.execute(column_acls).fetchall() == updated_column_acls
     )
-    if with_snippets:
-        assert run_modb(fresh_db, "load", *files, "--mirror").returncode == 0
-        assert db.execute(MIRRORED_TERMINATORS).fetchall() == updated_mirrored
+    if with_snippets:  # what the files loaded into a fresh install store (fresh_load)
+        fresh_mirrored, fresh = fresh_load
+        assert fresh_mirrored == updated_mirrored
         # 0.8.0's update computes the new feature dimensions in SQL from the stored rotations; a
         # load computes them in the kernel from float8: the same cube, to float4 rounding.
-        fresh = db.execute(FEATURES).fetchall()
         assert [r[:2] for r in fresh] == [r[:2] for r in updated_features]
         difference = np.abs(
             np.array([r[2] for r in fresh]) - np.array([r[2] for r in updated_features])

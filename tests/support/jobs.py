@@ -23,7 +23,8 @@ def events(conn: psycopg.Connection, job_id: int, kind: str) -> int:
     ).fetchone()[0]
 
 
-def worker(dsn: str) -> subprocess.Popen:
+def worker(dsn: str, *args: str) -> subprocess.Popen:
+    """`modb worker ARGS...`, a process of its own (its housekeeping every STALLED_AFTER / 3 s)."""
     return subprocess.Popen(
         [
             sys.executable,
@@ -34,6 +35,7 @@ def worker(dsn: str) -> subprocess.Popen:
             "worker",
             "--stalled-after",
             STALLED_AFTER,
+            *args,
         ],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
@@ -55,5 +57,5 @@ def until(conn: psycopg.Connection, job_id: int, ready, seconds: float, what: st
         state = job(conn, job_id)
         if ready(state):
             return state
-        time.sleep(0.1)
+        time.sleep(0.05)
     raise AssertionError(f"job {job_id}: not {what} within {seconds} s: {job(conn, job_id)}")
