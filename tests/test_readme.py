@@ -93,6 +93,9 @@ def test_every_readme_and_docs_block_runs_in_order(tmp_path):
     finally:
         subprocess.run(["modb", "db", "stop"], env=env, cwd=REPO, capture_output=True)
         shutil.rmtree(home, ignore_errors=True)
+        # where the time went (pytest shows it with -s, and keeps it in --junitxml's output)
+        for where, seconds in sorted(runner.seconds, key=lambda x: -x[1])[:15]:
+            print(f"{seconds:7.1f} s  {where}")
     assert ran >= 30, f"only {ran} README and docs blocks ran"
 
 

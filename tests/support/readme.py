@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import re
 import subprocess
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, field
 from pathlib import Path
 
 RUNNABLE = ("sh", "sql", "python")
@@ -66,6 +67,7 @@ class Runner:
     python: str
     dsn: str | None = None
     timeout: float = 1200
+    seconds: list[tuple[str, float]] = field(default_factory=list)  # each block's, in order
 
     def command(self, block: Block) -> list[str]:
         if block.language == "sh":
@@ -81,6 +83,7 @@ class Runner:
     def run(self, block: Block) -> subprocess.CompletedProcess:
         """Runs one block; a failure is an AssertionError naming its file, line and output."""
         stdin = block.text if block.language == "sql" else None
+        started = time.monotonic()
         r = subprocess.run(
             self.command(block),
             input=stdin,
@@ -90,6 +93,7 @@ class Runner:
             text=True,
             timeout=self.timeout,
         )
+        self.seconds.append((f"{block.path}:{block.line}", time.monotonic() - started))
         if r.returncode != 0:
             raise AssertionError(
                 f"{block.path}:{block.line}: the {block.language} block failed "
