@@ -20,26 +20,26 @@ from support.databases import GRAPH
 from modb.database.connection import connect
 from modb.demo.data import locomotion_files
 
-# Modules that take longest go first (over a minute each, by their time), so that the workers
+# Modules that take longest go first (by their time in a run of the suite), so that the workers
 # finish together: pytest-xdist hands out whole modules in this order (make test runs --dist
 # loadfile --no-loadscope-reorder). The demo and the avatar page start at once: one builds the
 # demo's graph, the other the shared locomotion graph, which the modules that need it wait for.
 FIRST = (
-    "test_demo.py",
     "test_avatar_web.py",
-    "test_select_oracle.py",
+    "test_demo.py",
     "test_readme.py",
-    "test_replicas.py",
     "test_upgrade.py",
+    "test_select_oracle.py",
+    "test_select_fast.py",
+    "test_synthesis.py",
+    "test_model_synthesis.py",
+    "test_nothing_lost.py",
+    "test_models.py",
+    "test_catalog_edits.py",
+    "test_replicas.py",
+    "test_avatar_models_web.py",
     "test_jobs.py",
     "test_export_roundtrip.py",
-    "test_nothing_lost.py",
-    "test_catalog_edits.py",
-    "test_synthesis.py",
-    "test_select_fast.py",
-    "test_model_synthesis.py",
-    "test_avatar_models_web.py",
-    "test_models.py",
     "test_model_graphs_web.py",
 )
 _RUN = pytest.StashKey[Path]()
@@ -183,30 +183,3 @@ def chromium_driver():
     fixture starts it on a blank page at its own size)."""
     with chromium() as driver:
         yield driver
-
-
-# requestAnimationFrame by a 500 ms timer: the pages draw (software WebGL, in chromium's GPU
-# process) on every animation frame, playing or not, as often as the CPU lets them, a core taken
-# from the other worker (models_web's first test: 31 s of the GPU process's CPU at 100 ms, 7 s at
-# 500 ms). Animation goes by the clock (the time since the last frame) and what the tests read (a
-# figure's joints, a point's place on the canvas) is computed when read, not when drawn: only how
-# often the pages draw changes.
-FEW_FRAMES = """
-window.requestAnimationFrame = (callback) => setTimeout(() => callback(performance.now()), 500);
-window.cancelAnimationFrame = (id) => clearTimeout(id);
-"""
-
-
-@pytest.fixture(scope="module")
-def few_frames(chromium_driver):
-    """For a module's pages (its `browser` fixture asks for it): two frames drawn a second
-    (FEW_FRAMES, run before each page's own scripts); as before after the module."""
-    added = chromium_driver.execute_cdp_cmd(
-        "Page.addScriptToEvaluateOnNewDocument", {"source": FEW_FRAMES}
-    )
-    try:
-        yield
-    finally:
-        chromium_driver.execute_cdp_cmd(
-            "Page.removeScriptToEvaluateOnNewDocument", {"identifier": added["identifier"]}
-        )

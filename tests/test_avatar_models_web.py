@@ -48,7 +48,7 @@ def server(walks):
 
 
 @pytest.fixture(scope="module")
-def browser(chromium_driver, few_frames):
+def browser(chromium_driver):
     with module_page(chromium_driver, "1400,1000") as driver:
         yield driver
 

@@ -210,7 +210,7 @@ def test_rest_graphs_of_models_need_the_etag_they_were_read_with(site, client):
 
 
 @pytest.fixture(scope="module")
-def browser(chromium_driver, few_frames):
+def browser(chromium_driver):
     with module_page(chromium_driver, "1280,1000") as driver:
         yield driver
 

@@ -33,7 +33,7 @@ def site(cmu16_walks):
 
 
 @pytest.fixture(scope="module")
-def browser(chromium_driver, few_frames):
+def browser(chromium_driver):
     with module_page(chromium_driver) as driver:
         yield driver
 

@@ -237,7 +237,8 @@ def test_by_default_it_listens_on_loopback_only(server):
 
 @pytest.fixture(scope="module")
 def browser(chromium_driver):
-    with module_page(chromium_driver) as driver:
+    # every frame drawn: these tests watch a clip play frame by frame
+    with module_page(chromium_driver, few_frames=False) as driver:
         yield driver
 
 

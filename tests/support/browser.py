@@ -75,6 +75,19 @@ def serving(dsn: str, *options: str, modb: tuple[str, ...] = MODB, cwd: Path | N
         proc.wait(10)
 
 
+# requestAnimationFrame by a 500 ms timer, before a page's own scripts (module_page): the pages draw
+# (software WebGL, in chromium's GPU process) on every animation frame, playing or not, as often as
+# the CPU lets them, a core taken from the other worker (models_web's first test: 31 s of the GPU
+# process's CPU at 100 ms, 7 s at 500 ms). Animation goes by the clock (the time since the last
+# frame), avatar frames as they arrive, and what the tests read (a figure's joints, a point's place
+# on the canvas) is computed when read, not when drawn: only how often the pages draw changes. A
+# picture for the docs sleeps a second or more before it is taken.
+FEW_FRAMES = """
+window.requestAnimationFrame = (callback) => setTimeout(() => callback(performance.now()), 500);
+window.cancelAnimationFrame = (id) => clearTimeout(id);
+"""
+
+
 @contextlib.contextmanager
 def chromium(size: str = "1280,800"):
     """A headless chromium with a fresh profile (skips, saying why, where it is not installed)."""
@@ -114,20 +127,30 @@ def chromium(size: str = "1280,800"):
 
 
 @contextlib.contextmanager
-def module_page(driver, size: str = "1280,800"):
+def module_page(driver, size: str = "1280,800", few_frames: bool = True):
     """The worker's browser (conftest's chromium_driver) for one module: a blank page at `size`,
     the console log of earlier modules read away, no cookies (each `serving` has its own origin, so
-    its storage starts empty). Blank again after the module: a page left open goes on drawing
-    (software WebGL), a core's worth of CPU for the rest of the run."""
+    its storage starts empty). Its pages draw two frames a second (FEW_FRAMES) unless `few_frames`
+    is false (a module that watches playback frame by frame). Blank again after the module: a page
+    left open goes on drawing (software WebGL), a core's worth of CPU for the rest of the run."""
     driver.get("about:blank")
     driver.delete_all_cookies()
     width, height = (int(v) for v in size.split(","))
     driver.set_window_size(width, height)
     driver.get_log("browser")
+    added = None
+    if few_frames:
+        added = driver.execute_cdp_cmd(
+            "Page.addScriptToEvaluateOnNewDocument", {"source": FEW_FRAMES}
+        )
     try:
         yield driver
     finally:
         driver.get("about:blank")
+        if added is not None:
+            driver.execute_cdp_cmd(
+                "Page.removeScriptToEvaluateOnNewDocument", {"identifier": added["identifier"]}
+            )
 
 
 def severe_console_entries(driver) -> list[dict]:
