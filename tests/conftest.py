@@ -14,25 +14,24 @@ import pytest
 from support import shared
 from support.browser import chromium
 from support.commands import run_modb
-from support.data import mocap
-from support.databases import GRAPH
+from support.data import MOCAP, mocap
 
 from modb.database.connection import connect
-from modb.demo.data import locomotion_files
 
 # Modules that take longest go first (by their time in a run of the suite), so that the workers
 # finish together: pytest-xdist hands out whole modules in this order (make test runs --dist
-# loadfile --no-loadscope-reorder). The demo and the avatar page start at once: one builds the
-# demo's graph, the other the shared locomotion graph, which the modules that need it wait for.
+# loadfile --no-loadscope-reorder), the first to the first worker, the second to the other. The
+# avatar page's module builds the shared `locomotion` database (the demo's run) while the other
+# worker runs the README, which needs none of it; the other modules that need it come later.
 FIRST = (
     "test_avatar_web.py",
-    "test_demo.py",
     "test_readme.py",
     "test_upgrade.py",
     "test_select_oracle.py",
     "test_select_fast.py",
     "test_synthesis.py",
     "test_model_synthesis.py",
+    "test_demo.py",
     "test_nothing_lost.py",
     "test_models.py",
     "test_catalog_edits.py",
@@ -59,7 +58,7 @@ def pytest_unconfigure(config):
 # Markers, given here from what a test uses so that none is forgotten (`make test-quick` leaves out
 # `slow` and `browser`): `browser`, a test that drives chromium; `data`, one whose module reads the
 # real capture (../shared/mocap, through support.data.mocap or the fixtures built from it); `slow`,
-# every test of a module in FIRST (over a minute).
+# every test of a module in FIRST (over a minute) and every test that needs `locomotion`.
 DATA_FIXTURES = {"locomotion", "cmu", "cmu16_walks"}
 
 
@@ -74,7 +73,7 @@ def pytest_collection_modifyitems(items):
     items.sort(key=lambda item: rank.get(Path(item.fspath).name, len(FIRST)))
     for item in items:
         path = Path(item.fspath)
-        if path.name in rank:
+        if path.name in rank or "locomotion" in item.fixturenames:  # (minutes to build)
             item.add_marker(pytest.mark.slow)
         if "chromium_driver" in item.fixturenames:
             item.add_marker(pytest.mark.browser)
@@ -113,20 +112,22 @@ def _load(dsn: str, *args, process: bool = True) -> None:
 
 @pytest.fixture(scope="session")
 def locomotion(cluster, tmp_path_factory):
-    """Every locomotion clip of ../shared/mocap/bandai-2-dev (419 files), with snippets and the
-    transition graph GRAPH: built once per run, shared by the synthesis and avatar tests (which
-    only read it)."""
+    """The database `modb demo --data ../shared/mocap` makes: every locomotion clip of Bandai
+    dataset 2 (419 files, collection COLLECTION, 57,616 snippets) with the transition graph GRAPH
+    over them, beside CMU 01_01 and CMU 131; built once per run by the demo itself, shared by the
+    synthesis and avatar tests (which only read it) and test_demo (which checks what the demo
+    printed and wrote: shared.kept("demo")): the same load and graph, built once."""
     # development: a database this fixture filled before
     if os.environ.get("MODB_TEST_LOCOMOTION_DSN"):
         return os.environ["MODB_TEST_LOCOMOTION_DSN"]
-    data = mocap("bandai-2-dev", "data")
+    for needed in (("cmu", "01"), ("cmu", "131"), ("bandai-2-dev", "data")):
+        mocap(*needed)  # skips, naming it, where it is absent (the demo would go to PyPI instead)
 
     def build(dsn: str) -> None:
-        folder = tmp_path_factory.mktemp("locomotion")
-        for f in locomotion_files(data):
-            os.symlink(f, folder / f.name)
-        _load(dsn, "load", folder, "--collection", "bandai-2/locomotion", "-q")
-        _load(dsn, "graph", "build", GRAPH, "-q")
+        cache = tmp_path_factory.mktemp("demo")
+        r = run_modb(dsn, "demo", "--data", MOCAP, "--cache", cache)  # the user's command
+        assert r.returncode == 0, r.stderr
+        shared.keep("demo", {"stdout": r.stdout, "stderr": r.stderr, "cache": str(cache)})
 
     return shared.built_once(cluster, "shared_locomotion", build)
 

@@ -14,6 +14,7 @@ import psycopg
 import pytest
 from support.browser import chromium, module_page, serving, severe_console_entries
 from support.data import REPO
+from support.databases import COLLECTION
 from support.snippet_oracle import resolve_profile
 
 from modb_kernel.joints import STANDARD_JOINTS
@@ -549,10 +550,7 @@ def test_every_panel_control_reaches_this_connections_settings(avatar_server, br
     )
     assert answer("lead_time", "0.3")["settings"]["lead_time"] == 0.3
     assert answer("arrival_radius", "1")["settings"]["arrival_radius"] == 1.0
-    assert (
-        answer("collection", "bandai-2/locomotion")["settings"]["collection"]
-        == "bandai-2/locomotion"
-    )
+    assert answer("collection", COLLECTION)["settings"]["collection"] == COLLECTION
     assert answer("graph", "none")["settings"]["graph"] == "none"
     assert answer("graph", "")["settings"]["graph"] is None  # automatic: the newest current graph
     refused = answer("position_threshold", "-1")

@@ -9,7 +9,10 @@ import psycopg
 
 from .shared import create_database, drop_database
 
-GRAPH = "locomotion"  # the transition graph of conftest's `locomotion` fixture
+# conftest's `locomotion` fixture (the demo's database): the transition graph the demo builds, and
+# the collection of Bandai dataset 2's locomotion clips it covers
+GRAPH = "demo"
+COLLECTION = "demo/bandai-2/locomotion"
 
 
 @contextlib.contextmanager
