@@ -40,6 +40,12 @@ FIRST = (
     "test_jobs.py",
     "test_export_roundtrip.py",
     "test_model_graphs_web.py",
+    "test_bvh_oracle.py",
+    "test_wheel.py",
+    "test_cli_hardening.py",
+    "test_steps.py",
+    "test_asf_oracle.py",
+    "test_clip_jobs.py",
 )
 _RUN = pytest.StashKey[Path]()
 
@@ -58,7 +64,7 @@ def pytest_unconfigure(config):
 # Markers, given here from what a test uses so that none is forgotten (`make test-quick` leaves out
 # `slow` and `browser`): `browser`, a test that drives chromium; `data`, one whose module reads the
 # real capture (../shared/mocap, through support.data.mocap or the fixtures built from it); `slow`,
-# every test of a module in FIRST (over a minute) and every test that needs `locomotion`.
+# every test of a module in FIRST (over half a minute) and every test that needs `locomotion`.
 DATA_FIXTURES = {"locomotion", "cmu", "cmu16_walks"}
 
 
