@@ -23,7 +23,7 @@ from scipy.interpolate import BSpline
 from scipy.stats import multivariate_normal
 from support import own_kinematics
 from support.bvh_oracle import bvhio_world_positions
-from support.commands import run_modb
+from support.commands import run_modb_here as modb
 from support.data import mocap
 from support.databases import scratch_database
 from support.gltf_validator import validate
@@ -36,10 +36,6 @@ COURSES = {"cmu16": [(0.0, 6.0), (6.0, 8.0), (6.0, 2.0)],
            "bandai": [(0.0, 6.0), (-6.0, 8.0), (-6.0, 2.0)]}  # fmt: skip
 SECONDS = 25.0
 REACH_M = 0.75
-
-
-def modb(dsn, *args):
-    return run_modb(dsn, *args, process=False)
 
 
 def bandai_files():

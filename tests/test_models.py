@@ -22,7 +22,7 @@ from scipy.interpolate import BSpline
 from scipy.stats import multivariate_normal
 from sklearn.model_selection import KFold
 from support import own_kinematics, shared
-from support.commands import run_modb
+from support.commands import run_modb_here as modb
 from support.databases import scratch_database
 from support.gltf_validator import validate
 
@@ -32,10 +32,6 @@ from modb.models.examples import read_inputs, rig_of
 from modb_kernel import motion_model
 
 MODEL = "cmu16_left_step"
-
-
-def modb(dsn, *args):
-    return run_modb(dsn, *args, process=False)
 
 
 @pytest.fixture(scope="module")

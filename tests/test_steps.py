@@ -19,7 +19,7 @@ import numpy as np
 import psycopg
 import pytest
 from scipy.spatial.transform import Rotation, Slerp
-from support.commands import run_modb
+from support.commands import run_modb_here as modb
 from support.data import mocap
 from support import own_kinematics
 from support.databases import scratch_database
@@ -33,10 +33,6 @@ from modb_kernel import mirror as kernel_mirror
 from modb_kernel import steps as kernel_steps
 
 SIDES = ("left", "right")
-
-
-def modb(dsn, *args):
-    return run_modb(dsn, *args, process=False)
 
 
 def shipped_walks():

@@ -31,6 +31,11 @@ def run_modb(dsn: str, *args: str, process: bool = True) -> subprocess.Completed
     return _in_process(argv)
 
 
+def run_modb_here(dsn: str, *args: str) -> subprocess.CompletedProcess:
+    """run_modb in this process (process=False): for tests whose subject is not the process."""
+    return run_modb(dsn, *args, process=False)
+
+
 def _captured() -> io.TextIOWrapper:
     """A text stream with a `.buffer`, as sys.stdout has (`--out -` writes bytes to it)."""
     return io.TextIOWrapper(io.BytesIO(), encoding="utf-8", errors="replace", write_through=True)

@@ -79,11 +79,12 @@ def cluster() -> Cluster:
     return c
 
 
-def create_database(c: Cluster, name: str) -> str:
-    """A new database with the extension (a copy of the template: what CREATE EXTENSION makes)."""
+def create_database(c: Cluster, name: str, template: str = TEMPLATE) -> str:
+    """A new database, a copy of `template` (by default the run's template with the extension: what
+    CREATE EXTENSION makes)."""
     with psycopg.connect(c.dsn("postgres"), autocommit=True) as admin:
         admin.execute(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
-        admin.execute(f'CREATE DATABASE "{name}" TEMPLATE "{TEMPLATE}"')
+        admin.execute(f'CREATE DATABASE "{name}" TEMPLATE "{template}"')
     return c.dsn(name)
 
 
@@ -114,10 +115,9 @@ def copy_of_built(
         _build_once(c, built_name, build, template=True)
         with psycopg.connect(c.dsn("postgres"), autocommit=True) as admin:
             _disconnect(admin, built_name)  # nobody should be: a backend left over, say
-            admin.execute(f'DROP DATABASE IF EXISTS "{copy_name}" WITH (FORCE)')
-            admin.execute(f'CREATE DATABASE "{copy_name}" TEMPLATE "{built_name}"')
+        dsn = create_database(c, copy_name, template=built_name)
     try:
-        yield c.dsn(copy_name)
+        yield dsn
     finally:
         drop_database(c, copy_name)
 
