@@ -87,6 +87,7 @@ OLD_VERSIONS = [
     "0.22.0",
     "0.23.0",
     "0.24.0",
+    "0.25.0",
 ]
 
 # What a retargeting, an edit script and a cut store, without ids (sequences differ between runs):

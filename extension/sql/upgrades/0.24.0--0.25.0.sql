@@ -1,2 +1,0 @@
--- 0.25.0: the same catalogue; the kernel computes faster (a transition graph's cost-to-go, the net motion of
--- snippets as clips are cut), with the same results.
