@@ -17,8 +17,9 @@ sql/*.sql holds one fragment per subject (header, roles, errors in words, valida
 rules, collections, catalogue edits, kinematics, generations, snippets, snippet blocks, standard
 joints, quaternion angles, match profiles, shipped profiles, annotations and segments, match plan,
 continuity ratio, match box, objective, graphs, graph cost-to-go, motion primitives, selection,
-synthesis, privileges, access and audit, motion models, graphs of models, retargeting, edit scripts,
-checks of stored documents), each object defined in one only, built in file-name order: an object
+synthesis, privileges, checks of model documents, access and audit, the check of graphs of models,
+motion models, what model listings read, graphs of models, retargeting, edit scripts, checks of
+stored documents), each object defined in one only, built in file-name order: an object
 after what it names when it is created (CREATE EXTENSION does not check function bodies, but a
 type, a constraint, a trigger, an operator or a SQL-standard body, BEGIN ATOMIC or RETURN, does),
 and 90_privileges.sql's grants on all tables and sequences reach those made before it only
@@ -30,8 +31,9 @@ with NEW's prelude: at a '--@functions' line, so that the steps after it run NEW
 migration), else at the end. A fragment is included whole: one whose objects are all new in NEW, or
 one that can run again over the old version, made only of CREATE OR REPLACE, COMMENT, GRANT and
 upserts: 77_match_profiles_shipped.sql, 79_match_plan.sql, 80_match_continuity_ratio.sql,
-85_graph_cost_to_go.sql, 86_selection.sql, 89_synthesis.sql, 90_privileges.sql. A changed function
-of another fragment is re-created by a hand-written step.
+85_graph_cost_to_go.sql, 86_selection.sql, 89_synthesis.sql, 90_privileges.sql,
+94_model_graph_problem.sql. A changed function of another fragment is re-created by a hand-written
+step.
 
 Releasing a version freezes its scripts: modb--NEW.sql and modb--OLD--NEW.sql, as built, go into
 sql/released/ under a first line saying they are generated and frozen and the command that made

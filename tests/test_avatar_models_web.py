@@ -121,8 +121,25 @@ def standing_pose(driver) -> dict:
     )
 
 
+def character_pose(driver) -> list | None:
+    """The skinned character's bones' world positions (three.js), once its mesh has loaded."""
+    return driver.execute_script(
+        "const c = window.modbAvatar.state.character; if (!c) return null; "
+        "c.mesh.updateMatrixWorld(true); "
+        "return c.bones.map((b) => [12, 13, 14].map((k) => b.matrixWorld.elements[k]))"
+    )
+
+
 def assert_stands_at_the_origin(driver, rig: Rig, what: str) -> None:
+    """The stick skeleton and the skinned character both stand above the origin, facing +Z, in
+    one pose (the character as soon as it has loaded: a user sees it, not the sticks)."""
+    deadline = time.monotonic() + 30
+    while (bones := character_pose(driver)) is None and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert bones is not None, f"{what}: the character never loaded"
     posed = standing_pose(driver)
+    assert np.allclose(bones, posed["positions"], atol=0.02), (what, bones[:3],
+                                                               posed["positions"][:3])  # fmt: skip
     assert posed["names"] == rig.names, what
     positions = np.asarray(posed["positions"])
     pelvis = positions[rig.at["pelvis"]]

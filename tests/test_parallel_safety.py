@@ -196,6 +196,15 @@ CALLS: dict[str, Call] = {
     "modb.mirror_pairs_ok(jsonb,jsonb)": Call(
         "SELECT modb.mirror_pairs_ok(k.hierarchy, k.mirror_pairs) FROM modb.skeletons k"
     ),
+    "modb.model_document_problems(jsonb)": Call(
+        # a stored model is sound (no problem); with fps 0, one
+        "SELECT modb.model_document_problems(m.data),"
+        " modb.model_document_problems(jsonb_set(m.data, '{fps}', '0'))"
+        " FROM modb.models m WHERE m.kind = 'motion_primitive'"
+    ),
+    "modb.model_mixture_md5(jsonb)": Call(
+        "SELECT modb.model_mixture_md5(m.data) FROM modb.models m WHERE m.kind = 'motion_primitive'"
+    ),
     "modb.model_graph_problem(jsonb,bigint)": Call(
         # the stored graph is sound (NULL); without its transitions, a node no transition reaches
         "SELECT modb.model_graph_problem(g.data, g.skeleton_id) IS NULL,"

@@ -216,6 +216,50 @@ def _model_outputs(db) -> list:
     return samples + synthesized
 
 
+def _models_0_26_0_refuses(db) -> None:
+    """Two rows 0.25.0 stored and 0.26.0 refuses: a model with fps 0 (it broke sampling) and a
+    model whose meta holds a tree of another mixture (one dimension short)."""
+    db.execute(
+        "INSERT INTO modb.models (name, kind, skeleton_id, data, meta) "
+        "SELECT 'broken', kind, skeleton_id, jsonb_set(data, '{fps}', '0'), '{}' "
+        "FROM modb.models WHERE name = 'left steps'"
+    )
+    db.execute(
+        "INSERT INTO modb.models (name, kind, skeleton_id, data, meta) "
+        "SELECT 'foreign tree', kind, skeleton_id, data, "
+        "jsonb_set(meta, '{tree,root,mean}', (meta->'tree'->'root'->'mean') - 0) "
+        "FROM modb.models WHERE name = 'left steps'"
+    )
+
+
+def _models_repaired(db) -> None:
+    names = {n for (n,) in db.execute("SELECT name FROM modb.models").fetchall()}
+    assert "broken" not in names and {"foreign tree", "left steps", "right steps"} <= names
+    repaired = db.execute(
+        "SELECT old_value, problem, repaired_by FROM modb.repaired_rows "
+        "WHERE table_name = 'models' ORDER BY id"
+    ).fetchall()
+    assert len(repaired) == 2, repaired
+    (broken, problem, by), (foreign, tree_problem, _) = repaired
+    assert broken["name"] == "broken" and broken["data"]["fps"] == 0 and by == "0.26.0"
+    assert '"fps" must be a number from 1 to 1000' in problem
+    assert "tree" in foreign["meta"] and "another mixture" in tree_problem
+    assert db.execute(
+        "SELECT meta ? 'tree', has_tree FROM modb.models WHERE name = 'foreign tree'"
+    ).fetchone() == (False, False)
+    # every tree kept is stamped with its own mixture; each version's inputs are rows of their own
+    assert db.execute(
+        "SELECT bool_and(meta->'tree'->>'mixture_md5' = modb.model_mixture_md5(data)), count(*) "
+        "FROM modb.models WHERE meta ? 'tree'"
+    ).fetchone() == (True, 2)
+    assert db.execute(
+        "SELECT bool_and((SELECT count(*) FROM modb.model_inputs i WHERE i.model_id = m.id) "
+        "= jsonb_array_length(m.data->'inputs')) FROM modb.models m"
+    ).fetchone() == (True,)
+    current = db.execute("SELECT count(*) FROM modb.model_status WHERE stale IS NULL").fetchone()
+    assert current[0] >= 2
+
+
 def _same_outputs(after, before) -> None:
     """Equal, numbers to 1e-6 (numpy's sums may differ in the last bit between runs)."""
     if isinstance(before, (list, tuple)) and not isinstance(before, str):
@@ -271,9 +315,12 @@ def test_update_keeps_the_data(fresh_db, db, old, fresh_load):
     if old == "0.22.0":  # 0.23.0: graphs of those models, and synthesis from them
         collection, models_before = _step_models(db, fresh_db)
     # 0.24.0: the kernel installed beside modb.so, no longer pasted; 0.25.0: the kernel computes
-    # faster (graphs, cuts) and models build on one thread: what they give stays the same
-    if old in ("0.23.0", "0.24.0"):
+    # faster (graphs, cuts) and models build on one thread; 0.26.0: the kernel lets cancels in and
+    # gives memory back: what they give stays the same
+    if old in ("0.23.0", "0.24.0", "0.25.0"):
         outputs_before = _models_and_their_outputs(db, fresh_db)
+    if old == "0.25.0":  # 0.26.0 checks model documents: what it refuses is repaired
+        _models_0_26_0_refuses(db)
     before = db.execute(
         "SELECT clip_id, version, n_frames, meta, md5(rotations::text) FROM modb.clip_versions "
         "ORDER BY 1"
@@ -307,7 +354,9 @@ def test_update_keeps_the_data(fresh_db, db, old, fresh_load):
         _models_in_versions(db, fresh_db, processed_before)
     if old == "0.22.0":
         _graph_of_the_models(db, fresh_db, collection, models_before)
-    if old in ("0.23.0", "0.24.0"):
+    if old == "0.25.0":
+        _models_repaired(db)
+    if old in ("0.23.0", "0.24.0", "0.25.0"):
         _same_outputs(_model_outputs(db), outputs_before)  # this session, after the update
         with psycopg.connect(fresh_db) as new_session:
             _same_outputs(_model_outputs(new_session), outputs_before)

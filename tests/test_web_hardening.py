@@ -321,6 +321,11 @@ UNDER_THE_LIMIT = (MAX_MESSAGE_BYTES - 16) // 2  # deep, and short enough to be 
         ('{"type": "goal", "x": 1' + "0" * 5000 + ', "z": 0}', "a number in the message has"),
         ('"' + '\\"' * 20000, "not JSON text"),
         (b"\x00\x01binary", "binary messages are not part of the protocol"),
+        # JSON's types kept (issue 58): a text or a truth is not a number
+        (json.dumps({"type": "goal", "x": "1", "z": 0}), "a goal is"),
+        (json.dumps({"type": "goal", "x": True, "z": 0}), "a goal is"),
+        (json.dumps({"type": "mode", "models": "walk", "goals": [["1", 2]]}),
+         'no mode change: "goals"'),  # fmt: skip
     ],
     ids=[
         "100000-deep",
@@ -334,6 +339,9 @@ UNDER_THE_LIMIT = (MAX_MESSAGE_BYTES - 16) // 2  # deep, and short enough to be 
         "integer-of-5000-digits",
         "unterminated-string-of-escapes",
         "binary",
+        "goal-as-text",
+        "goal-as-true",
+        "mode-goal-as-text",
     ],
 )
 def test_a_bad_websocket_message_is_refused_and_the_socket_goes_on(server, message, reason):

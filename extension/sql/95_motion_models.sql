@@ -43,27 +43,6 @@ COMMENT ON FUNCTION modb.models_version_rules() IS
 CREATE TRIGGER models_version_rules BEFORE INSERT OR UPDATE ON modb.models
     FOR EACH ROW EXECUTE FUNCTION modb.models_version_rules();
 
-CREATE VIEW modb.model_status AS
-SELECT m.id, m.name, m.kind, m.version, m.version = max(m.version) OVER (PARTITION BY m.name, m.kind) AS latest,
-       modb.collection_path(m.collection_id) AS collection, m.data->>'primitive' AS primitive, m.skeleton_id,
-       m.created_at,
-       CASE WHEN NOT m.data ? 'inputs' THEN NULL
-            WHEN m.collection_id IS NULL THEN 'its collection was deleted'
-            WHEN EXISTS (SELECT FROM jsonb_array_elements(m.data->'inputs') i
-                          WHERE NOT EXISTS (SELECT FROM modb.processed_data p WHERE p.id = (i->>'id')::bigint))
-                 THEN 'processed data it was built from was deleted or aligned again'
-            WHEN EXISTS (SELECT FROM modb.processed_data p
-                          WHERE p.collection_id = m.collection_id AND p.primitive = m.data->>'primitive'
-                            AND NOT m.data->'inputs' @> jsonb_build_array(jsonb_build_object('id', p.id)))
-                 THEN 'the primitive has processed data it was not built from'
-            ELSE (SELECT 'processed data it was built from is stale: ' || min(s.stale)
-                    FROM modb.processed_data_status s
-                   WHERE m.data->'inputs' @> jsonb_build_array(jsonb_build_object('id', s.id)) AND s.stale IS NOT NULL)
-       END AS stale
-  FROM modb.models m;
-COMMENT ON VIEW modb.model_status IS
-    'Each model version without its data: whether it is its name''s latest, what it was built from, and why it is stale (NULL: current): its collection was deleted, or the processed data it was built from was deleted, aligned again, joined by new examples, or is stale itself';
-GRANT SELECT ON modb.model_status TO modb_reader;
 
 CREATE OR REPLACE FUNCTION modb._sample_motion(model text, n int, seed int, version int)
 RETURNS TABLE (sample int, fps float8, n_frames int, rotations real[], translations real[])

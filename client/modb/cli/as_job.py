@@ -112,7 +112,8 @@ def run(
             bar.update((state.done or 0) - bar.n)
 
     try:
-        state = run_and_wait(conn, resolve(args.dsn)[0], kind, who, shown, **arguments)
+        state = run_and_wait(conn, resolve(args.dsn)[0], kind, who, shown,
+                             quiet=getattr(args, "quiet", False), **arguments)  # fmt: skip
     except TooManyQueued as e:
         print(f"modb {command}: {e}", file=sys.stderr)
         return 2

@@ -12,7 +12,7 @@ from pathlib import Path
 import psycopg
 
 from . import as_job
-from .common import Number, connect
+from .common import Number, connect, writable
 
 SEED = Number(0, 2**31 - 1, whole=True)
 VERSION = Number(1, 2**31 - 1, whole=True)
@@ -37,7 +37,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     build.add_argument("--variance", type=VARIANCE, default=0.95,
                        help="the share of the variance the PCAs keep (0.95)")  # fmt: skip
     build.add_argument("--report-json", metavar="FILE",
-                       help="measure the model's quality and write the report here")  # fmt: skip
+                       help="measure the model's quality and write the report here (the "
+                       "measuring takes about twice as long as the build itself)")  # fmt: skip
     build.add_argument("-q", "--quiet", action="store_true", help="no progress")
     as_job.add_options(build, "build")
     listing = actions.add_parser("list", help="the models, each version, and whether it is stale")
@@ -111,6 +112,8 @@ def _build(conn: psycopg.Connection, args: argparse.Namespace) -> int:
     from modb.models.examples import NoExamples
     from modb.models.pipeline import STAGES, build_model
 
+    if not writable("model build", args.report_json):  # before a version is stored
+        return 2
     as_a_job = as_job.usable(conn, args, "model build", "0.22.0")
     if as_a_job is None:
         return 2
@@ -215,16 +218,20 @@ def _import(conn: psycopg.Connection, args: argparse.Namespace) -> int:
         raise BadModelFile(f"{args.file}: line {e.lineno}: not JSON ({e.msg})") from None
     try:
         with conn.transaction():
-            ident, version, name = import_document(conn, document, args.name)
+            ident, version, name, tree_kept = import_document(conn, document, args.name)
     except BadModelFile as e:
         raise BadModelFile(f"{args.file}: {e}") from None
-    print(f"model {name} version {version} (id {ident}) from {args.file}")
+    tree = "its acceleration tree" if tree_kept else f"no tree (`modb model tree {name}` draws one)"
+    print(f"model {name} version {version} (id {ident}) from {args.file}, with {tree}")
     return 0
 
 
 def _sample(conn: psycopg.Connection, args: argparse.Namespace) -> int:
-    from modb.models.samples import write_samples
+    from modb.models.samples import numbered, write_samples
 
+    first = numbered(args.out, 1, args.n) if args.out.lower().endswith(".bvh") else args.out
+    if not writable("model sample", first):  # before any sampling
+        return 2
     try:
         written = write_samples(conn, args.name, args.n, args.seed, args.version, args.out)
     except ValueError as e:

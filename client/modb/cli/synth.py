@@ -19,6 +19,8 @@ from modb.synthesis.chain import (
     Settings,
     checked_goal,
 )
+from modb_kernel.model_synthesis import MAX_ARRIVAL_RADIUS_M
+
 from modb.synthesis.defaults import NO_GRAPH, default_graph, largest_pool, profile_names_graph
 from modb.synthesis.graphs import build_default_graph
 
@@ -103,7 +105,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--arrival-radius",
         type=ARRIVAL_RADIUS,
         default=0.5,
-        help=f"a goal is reached this near ({ARRIVAL_RADIUS.span}; default 0.5)",
+        help=f"a goal is reached this near ({ARRIVAL_RADIUS.span}, with --models at most "
+        f"{MAX_ARRIVAL_RADIUS_M:g}; default 0.5)",
     )
     synth.add_argument(
         "--exclude-seconds",
@@ -141,7 +144,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--foot-lock",
         action="store_true",
         help="hold each standing foot where it stood (two-bone IK on the legs): less foot "
-        "skating, seams as rough as without",
+        "skating, seams as rough as without (selected snippets only, not with --models)",
     )
     synth.add_argument(
         "--in-place",
@@ -313,7 +316,6 @@ def run_models(args: argparse.Namespace, goals: list[Goal]) -> int:
     import psycopg
 
     from modb.resample import at_fps
-    from modb.synthesis.foot_lock import lock_feet
     from modb.synthesis.from_models import Source, measure, synthesize
     from modb.synthesis.root_motion import with_root_motion
 
@@ -325,6 +327,14 @@ def run_models(args: argparse.Namespace, goals: list[Goal]) -> int:
         print(f"modb synth: {', '.join(given)} select{'s' if len(given) == 1 else ''} snippets: "
               "a walk on a graph of models (--models) has no use for "
               f"{'it' if len(given) == 1 else 'them'}", file=sys.stderr)  # fmt: skip
+        return 2
+    if args.foot_lock:
+        print("modb synth: --foot-lock locks the feet of selected snippets; a walk on a graph of "
+              "models (--models) plants its own", file=sys.stderr)  # fmt: skip
+        return 2
+    if args.arrival_radius > MAX_ARRIVAL_RADIUS_M:
+        print(f"modb synth: --arrival-radius {args.arrival_radius:g}: a walk on a graph of models "
+              f"takes at most {MAX_ARRIVAL_RADIUS_M:g} m", file=sys.stderr)  # fmt: skip
         return 2
     seed = args.seed or 0
     if args.seconds > MAX_MODEL_SECONDS:
@@ -342,7 +352,7 @@ def run_models(args: argparse.Namespace, goals: list[Goal]) -> int:
             return 1
         for note in strip.report["notes"]:
             print(f"modb synth: {note}", file=sys.stderr)
-        motion = lock_feet(strip.motion) if args.foot_lock else strip.motion
+        motion = strip.motion
         out = motion if args.in_place else with_root_motion(motion)
         if args.fps:
             out = at_fps(out, args.fps)

@@ -188,18 +188,20 @@ def run_and_wait(
     kind: str,
     who: str,
     shown: Callable[[JobState], None],
+    quiet: bool = False,
     **arguments: Any,
 ) -> JobState:
     """Submits a job and waits until it ends: run by a worker when one is alive, else in this
-    process (said once), on a queue of its own so that this process runs this job only. `shown`
-    gets each state seen (a progress bar, log lines)."""
+    process (said once, unless quiet), on a queue of its own so that this process runs this job
+    only. `shown` gets each state seen (a progress bar, log lines)."""
     runner, queue = None, None
     if not workers_alive(conn):
         queue = f"{QUEUES[kind]}.{socket.gethostname()}.{os.getpid()}"[:128]  # the column's width
     job_id = submit(conn, kind, who, queue, **arguments)
 
     def run_here(on: str, why: str) -> threading.Thread:
-        print(f"modb: job {job_id}: {why}; running it in this process", file=sys.stderr)
+        if not quiet:
+            print(f"modb: job {job_id}: {why}; running it in this process", file=sys.stderr)
         thread = threading.Thread(
             target=run_one, args=(conninfo, [on], STALLED_AFTER_S, False), daemon=True
         )

@@ -8,9 +8,11 @@ from collections.abc import Callable
 from typing import Any
 
 import procrastinate
+import psycopg
 from procrastinate.exceptions import JobAborted
 
 from modb.database.connection import connect
+from modb.web import database_errors
 
 from . import clip_jobs
 from .connection import as_loader
@@ -51,10 +53,18 @@ def _run(context: procrastinate.JobContext, what: str, work: Work) -> dict[str, 
         progress.log("cancelled: what it finished is whole and listed; nothing is half-made")
         raise
     except Exception as e:
-        progress.fail(str(e))
+        progress.fail(_in_words(e))
         raise
     finally:
         progress.close()
+
+
+def _in_words(e: Exception) -> str:
+    """What went wrong as a user reads it: a database error's message and hint, without its
+    CONTEXT lines (where in PL/pgSQL it was raised) or the driver's prefixes."""
+    if isinstance(e, psycopg.Error) and e.diag.message_primary:
+        return database_errors.message(e)
+    return str(e)
 
 
 def build_graph(
@@ -171,7 +181,7 @@ def build_model(
             progress.advance(done, total, "stages")
 
         return build(conn, name, collection, primitive, seed, variance, report, progress.log,
-                     advance)  # fmt: skip
+                     advance, job_id=context.job.id)  # fmt: skip
 
     return _run(context, f"building model {name!r} of {primitive!r} in {collection!r} for "
                 f"{submitter}", work)  # fmt: skip

@@ -14,6 +14,7 @@ import time
 
 from procrastinate.worker import Worker
 
+from .connection import as_loader
 from .engine import job_app
 
 log = logging.getLogger("modb.worker")
@@ -58,6 +59,19 @@ async def _housekeeping(app, me: Worker, stalled_after: float, keep_days: float)
             log.exception("job housekeeping failed; trying again in %.0f s", stalled_after / 3)
 
 
+def _unreachable_errors() -> tuple[type[BaseException], ...]:
+    """What a database that went away (stopped, restarting, the network down) raises."""
+    import psycopg
+    from procrastinate.exceptions import ConnectorException
+    from psycopg_pool import PoolTimeout
+
+    return (ConnectorException, PoolTimeout, psycopg.OperationalError, OSError)
+
+
+RECONNECT_FIRST_S = 1.0
+RECONNECT_MOST_S = 30.0
+
+
 def run_one(
     conninfo: str,
     queues: list[str] | None,
@@ -65,8 +79,51 @@ def run_one(
     wait: bool = True,
     keep_days: float = KEEP_DAYS,
 ) -> None:
-    """One worker in this process (returns when stopped, or with wait=False when no job is left)."""
+    """One worker in this process (returns when stopped, or with wait=False when no job is left).
+    A waiting worker outlives the database going away: it says so once, tries again with a
+    growing pause (RECONNECT_FIRST_S doubling up to RECONNECT_MOST_S), and says when it works
+    again; the jobs it was running are queued again by the others (or itself) as stalled."""
+    if not wait:
+        _run_worker(conninfo, queues, stalled_after, wait, keep_days)
+        return
+    pause, down_since = RECONNECT_FIRST_S, None
+    while True:
+        started = time.monotonic()
+        try:
+            _run_worker(conninfo, queues, stalled_after, wait, keep_days)
+            return  # stopped (a signal)
+        except _unreachable_errors() as e:
+            if time.monotonic() - started > 2 * RECONNECT_MOST_S:
+                pause = RECONNECT_FIRST_S  # it worked a while: a new outage
+            if down_since is None:
+                down_since = time.monotonic()
+                reason = " ".join(str(e).split())[:200] or type(e).__name__
+                log.warning("the database is unreachable (%s): trying again, every %.0f s at "
+                            "most, until it answers", reason, RECONNECT_MOST_S)  # fmt: skip
+        time.sleep(pause)
+        pause = min(RECONNECT_MOST_S, pause * 2)
+        if _answers(conninfo):
+            log.warning("the database answers again after %.0f s: taking jobs",
+                        time.monotonic() - down_since)  # fmt: skip
+            down_since, pause = None, RECONNECT_FIRST_S
+
+
+def _answers(conninfo: str) -> bool:
+    import psycopg
+
+    try:
+        with psycopg.connect(as_loader(conninfo), connect_timeout=5) as conn:
+            conn.execute("SELECT 1")
+        return True
+    except psycopg.Error:
+        return False
+
+
+def _run_worker(conninfo: str, queues: list[str] | None, stalled_after: float, wait: bool,
+                keep_days: float) -> None:  # fmt: skip
     app = job_app(conninfo)
+    if not wait:  # a command running its own job says how it ended, in words: not the engine's log
+        logging.getLogger("procrastinate").setLevel(logging.CRITICAL)
 
     async def main() -> None:
         async with app.open_async():

@@ -50,7 +50,16 @@ class ModelGraph:
         return (f"{self.name} (graph of models): {len(nodes)} nodes ({types}), "
                 f"{len(self.data.get('transitions', []))} transitions, skeleton "
                 f"{self.skeleton_id}" + (f", collection {self.data['collection']}"
-                                         if self.data.get("collection") else ""))  # fmt: skip
+                                         if self.data.get("collection") else "")
+                + "; models: " + ", ".join(f"{n} = {_model_words(v)}"
+                                           for n, v in sorted(nodes.items())))  # fmt: skip
+
+
+def _model_words(node: dict[str, Any]) -> str:
+    """'cmu16_left_step v2 (id 8)': which version of which model a node plays."""
+    if "model" in node and "version" in node:
+        return f"{node['model']} v{node['version']} (id {node['model_id']})"
+    return f"model id {node['model_id']}"
 
 
 def step_graph(models: list[dict[str, Any]], collection: str) -> dict[str, Any]:

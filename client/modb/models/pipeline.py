@@ -12,7 +12,7 @@ from threadpoolctl import threadpool_limits
 
 from . import quality, store
 from .build import VARIANCE_KEPT
-from .examples import read_inputs, stale_or_missing
+from .examples import Inputs, read_inputs, stale_or_missing
 
 STAGES = ("align", "read", "build", "store", "report")
 
@@ -27,13 +27,17 @@ def build_model(
     report: bool = False,
     say: Callable[[str], None] = lambda line: None,
     advance: Callable[[int, int], None] = lambda done, total: None,
+    job_id: int | None = None,
 ) -> dict[str, Any]:
-    """Builds and stores the model; returns what was made (with the report when asked)."""
+    """Builds and stores the model; returns what was made (with the report when asked). A job's
+    build (job_id) marks the version it stores, so that a retry of the job finds it and stores
+    no second one."""
     # One thread for BLAS and OpenMP: a build is many small fits (a mixture per size tried, a KMeans
     # per tree node), where threads only wait for each other; on a busy two-core host OpenMP's
     # spinning made a build 6x slower (97 s against 17 s, the same model: BENCHMARKS.md).
     with threadpool_limits(limits=1):
-        return _build_model(conn, name, collection, primitive, seed, variance, report, say, advance)
+        return _build_model(conn, name, collection, primitive, seed, variance, report, say, advance,
+                            job_id)  # fmt: skip
 
 
 def _build_model(
@@ -46,8 +50,14 @@ def _build_model(
     report: bool,
     say: Callable[[str], None],
     advance: Callable[[int, int], None],
+    job_id: int | None,
 ) -> dict[str, Any]:
     total = len(STAGES) - (0 if report else 1)
+    earlier = store.stored_by_job(conn, name, job_id) if job_id is not None else None
+    if earlier is not None:
+        say(f"version {earlier[1]} of {name!r} was stored by this job before it was retried: "
+            "kept, not built again")  # fmt: skip
+        return _made(conn, earlier, name, collection, primitive, seed, report, advance, total)
     why = stale_or_missing(conn, collection, primitive)
     if why is not None:
         say(f"aligning {primitive!r} in {collection!r} first: {why}")
@@ -70,15 +80,28 @@ def _build_model(
     )
     advance(3, total)
     with conn.transaction():
-        ident, version = store.save(conn, name, inputs, document, tree_seed=seed)
+        ident, version = store.save(conn, name, inputs, document, tree_seed=seed, job_id=job_id)
+    return _made(conn, (ident, version, document), name, collection, primitive, seed, report,
+                 advance, total, inputs)  # fmt: skip
+
+
+def _made(conn: psycopg.Connection, stored: tuple[int, int, dict[str, Any]], name: str,
+          collection: str, primitive: str, seed: int, report: bool,
+          advance: Callable[[int, int], None], total: int, inputs: Inputs | None = None,
+          ) -> dict[str, Any]:  # fmt: skip
+    """What a build made: the stored version in brief, and its quality report when asked."""
+    ident, version, document = stored
+    mixture = document["mixture"]
     advance(4, total)
+    if report and inputs is None:
+        inputs = read_inputs(conn, collection, primitive)
     made: dict[str, Any] = {
         "id": ident,
         "name": name,
         "version": version,
         "collection": collection,
         "primitive": primitive,
-        "examples": len(inputs.examples),
+        "examples": len(document.get("inputs", [])),
         "spatial_components": len(document["spatial"]["components"]),
         "temporal_components": len(document["temporal"]["components"]),
         "mixture_components": len(mixture["weights"]),

@@ -17,11 +17,11 @@ from .examples import Inputs, rig_of
 from .tree import build_tree, shape
 
 FILE_FORMAT = "modb motion model"
+BUILT_BY_JOB = "built_by_job"  # the meta key naming the job that stored a version
+# No document read: the counts are columns the database derives as a version is written
 LISTING = """
 SELECT s.id, s.name, s.version, s.latest, s.collection, s.primitive, s.skeleton_id,
-       s.created_at::text, s.stale, jsonb_array_length(m.data->'inputs') AS examples,
-       jsonb_array_length(m.data->'mixture'->'weights') AS components,
-       m.meta ? 'tree' AS has_tree
+       s.created_at::text, s.stale, m.examples, m.components, m.has_tree
   FROM modb.model_status s JOIN modb.models m USING (id)
  WHERE s.kind = %s AND (%s::text IS NULL OR s.collection = %s)
  ORDER BY s.name, s.version
@@ -47,15 +47,38 @@ def build_document(inputs: Inputs, collection: str, seed: int, variance: float) 
 
 
 def save(conn: psycopg.Connection, name: str, inputs: Inputs, document: dict[str, Any],
-         tree_seed: int | None = 0) -> tuple[int, int]:  # fmt: skip
+         tree_seed: int | None = 0, job_id: int | None = None) -> tuple[int, int]:  # fmt: skip
     """Stores the document as the next version of `name` (with its acceleration tree unless
-    tree_seed is None); returns (id, version)."""
-    meta = {} if tree_seed is None else {"tree": build_tree(document, seed=tree_seed)}
-    return conn.execute(
+    tree_seed is None; marked with the job that built it, if one did); returns (id, version)."""
+    meta = {} if job_id is None else {BUILT_BY_JOB: job_id}
+    ident, version = conn.execute(
         "INSERT INTO modb.models (name, kind, skeleton_id, collection_id, data, meta) "
         "VALUES (%s, %s, %s, %s, %s, %s) RETURNING id, version",
         [name, KIND, inputs.skeleton_id, inputs.collection_id, Jsonb(document), Jsonb(meta)],
     ).fetchone()
+    if tree_seed is not None:
+        _store_tree(conn, ident, build_tree(document, seed=tree_seed))
+    return ident, version
+
+
+def stored_by_job(conn: psycopg.Connection, name: str, job_id: int
+                  ) -> tuple[int, int, dict[str, Any]] | None:  # fmt: skip
+    """(id, version, document) of the version of `name` that job job_id stored, if it did (a
+    retried job finds its own result)."""
+    return conn.execute(
+        "SELECT id, version, data FROM modb.models WHERE name = %s AND kind = %s "
+        "AND meta->%s = to_jsonb(%s::bigint)",
+        [name, KIND, BUILT_BY_JOB, job_id],
+    ).fetchone()
+
+
+def _store_tree(conn: psycopg.Connection, ident: int, tree: dict[str, Any]) -> None:
+    """Writes the tree into the version's meta, where the database stamps it with the mixture it
+    was drawn from (modb.models_check_documents)."""
+    conn.execute(
+        "UPDATE modb.models SET meta = meta || jsonb_build_object('tree', %s::jsonb) WHERE id = %s",
+        [Jsonb(tree), ident],
+    )
 
 
 def listing(conn: psycopg.Connection, collection: str | None = None) -> list[dict[str, Any]]:
@@ -113,10 +136,7 @@ def rebuild_tree(conn: psycopg.Connection, name: str, version: int | None, seed:
                  progress: Callable[[str], None] | None = None) -> dict[str, Any]:  # fmt: skip
     row = load(conn, name, version)
     tree = build_tree(row["data"], seed=seed)
-    conn.execute(
-        "UPDATE modb.models SET meta = meta || jsonb_build_object('tree', %s::jsonb) WHERE id = %s",
-        [Jsonb(tree), row["id"]],
-    )
+    _store_tree(conn, row["id"], tree)
     return tree
 
 
@@ -131,10 +151,11 @@ class BadModelFile(ValueError):
 
 
 def import_document(conn: psycopg.Connection, document: Any, name: str | None = None
-                    ) -> tuple[int, int, str]:  # fmt: skip
+                    ) -> tuple[int, int, str, bool]:  # fmt: skip
     """Stores an exported model as the next version of its name (or `name`) on the stored skeleton
     of the same hierarchy, in the collection of the same path when there is one (else none: the
-    model is then stale, as it was not built here). Returns (id, version, name)."""
+    model is then stale, as it was not built here). Returns (id, version, name, whether the file's
+    acceleration tree was kept)."""
     if not isinstance(document, dict) or document.get("format") != FILE_FORMAT:
         raise BadModelFile(f'not a model file: its "format" is not "{FILE_FORMAT}"')
     data = document.get("data")
@@ -157,12 +178,19 @@ def import_document(conn: psycopg.Connection, document: Any, name: str | None = 
         "SELECT modb.find_collection(%s)", [collection if isinstance(collection, str) else None]
     ).fetchone()
     meta = document.get("meta") if isinstance(document.get("meta"), dict) else {}
+    tree = meta.pop("tree", None)
     ident, version = conn.execute(
         "INSERT INTO modb.models (name, kind, skeleton_id, collection_id, data, meta) "
         "VALUES (%s, %s, %s, %s, %s, %s) RETURNING id, version",
         [name, KIND, found[0], collection_id, Jsonb(data), Jsonb(meta)],
-    ).fetchone()
-    return ident, version, name
+    ).fetchone()  # the database refuses a document that cannot be sampled, saying why
+    # the file's tree only when the database finds it drawn from this very mixture
+    kept = isinstance(tree, dict) and conn.execute(
+        "UPDATE modb.models SET meta = meta || jsonb_build_object('tree', %s::jsonb) "
+        "WHERE id = %s AND %s = modb.model_mixture_md5(data)",
+        [Jsonb(tree), ident, tree.get("mixture_md5")],
+    ).rowcount == 1
+    return ident, version, name, kept
 
 
 def dumps(document: dict[str, Any]) -> str:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 import numbers
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from modb.validation import checked_number
 
@@ -122,6 +122,15 @@ def checked_goal(goal: Goal) -> Goal:
             f"got {goal!r:.200}"
         )
     return values
+
+
+def checked_json_goal(goal: Any) -> Goal:
+    """checked_goal() of a goal sent as JSON: only numbers, not "1" or true."""
+    if not isinstance(goal, (list, tuple)) or not all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) for v in goal
+    ):
+        raise ValueError(f"a goal's coordinates are numbers (metres), got {goal!r:.200}")
+    return checked_goal(goal)
 
 
 def checked_position(position) -> tuple[float, float, float]:

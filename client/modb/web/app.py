@@ -313,7 +313,7 @@ def _database_error(conninfo: str) -> Callable:
     async def handler(request: Request, exc: psycopg.Error) -> JSONResponse:
         if isinstance(exc, psycopg.errors.QueryCanceled):
             return await _query_canceled(request, exc)
-        if isinstance(exc, psycopg.OperationalError) and not database_errors.is_transient(exc):
+        if database_errors.is_connection_lost(exc):
             try:
                 await run_in_threadpool(probe, conninfo)
             except Unreachable as gone:

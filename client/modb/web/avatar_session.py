@@ -21,7 +21,8 @@ import psycopg
 
 from modb.database.read_nodes import NoNode, Node, ReadNodes
 from modb.provenance import Origin, Version, as_meta, origins, sources_among
-from modb.synthesis.avatar import Avatar, Choice, Frame, NoContinuation, Settings, checked_goal
+from modb.synthesis.avatar import Avatar, Choice, Frame, NoContinuation, Settings
+from modb.synthesis.chain import checked_json_goal
 from modb.synthesis.placement import Placement
 from modb.synthesis.root_motion import with_root_motion
 from modb.synthesis.synth import strip_motion
@@ -99,7 +100,7 @@ class AvatarSession:
 
     def _goal(self, message: dict[str, Any]) -> None:
         try:
-            goal = checked_goal((message["x"], message["z"]))
+            goal = checked_json_goal((message["x"], message["z"]))
         except (KeyError, TypeError, ValueError, OverflowError):  # OverflowError: a huge integer
             self._send(
                 {

@@ -37,6 +37,7 @@ async def authorized_json(
     """(the loader token's grant, the parsed body or None); 401/403, 411, 413 or 400 otherwise."""
     grant = await run_in_threadpool(tokens.writer, request)
     if not with_body:
+        await _no_body(request)
         return grant, None
     length = request.headers.get("content-length")
     if length is None or not length.isdigit():
@@ -56,6 +57,25 @@ async def authorized_json(
         raise HTTPException(400, "the body is nested too deep") from None
     except (ValueError, UnicodeDecodeError) as e:
         raise HTTPException(400, f"the body is not JSON: {e}") from None
+
+
+NO_BODY_LIMIT = 1024
+
+
+async def _no_body(request: Request) -> None:
+    """A write that takes no body refuses one that says something (an empty body, `{}` or `null`
+    are nothing): a field sent there would be ignored, as an unknown field is refused elsewhere."""
+    raw = bytearray()
+    async for chunk in request.stream():
+        raw += chunk
+        if len(raw) > NO_BODY_LIMIT:
+            break
+    text = raw.decode("utf-8", "replace").strip()
+    if text and text not in ("{}", "null"):
+        shown = text if len(text) <= 80 else text[:77] + "..."
+        raise HTTPException(
+            400, f"the body: {request.method} {request.url.path} takes none (got {shown})"
+        )
 
 
 # --- checking a body against its model ------------------------------------------------------------

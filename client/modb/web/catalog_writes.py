@@ -32,7 +32,8 @@ from .bodies import authorized_json, parse
 from .body_models import MAX_ID
 from .writes import Writer
 
-MAX_DOCUMENT_BYTES = 64 << 20  # a model's or graph's data, as JSON
+MAX_DOCUMENT_BYTES = 24 << 20  # a model's data (16 MB at most) with its meta, as JSON
+WRITE_TIMEOUT_S = "30s"  # a JSON write's statements, as a read's
 
 
 @dataclass
@@ -110,6 +111,9 @@ def write_endpoint(
         with writer.pool().connection() as conn:
             try:
                 with conn.transaction():
+                    # as on reads: a request is not a job (uploads keep the writer's longer cap)
+                    conn.execute("SELECT set_config('statement_timeout', %s, true)",
+                                 [WRITE_TIMEOUT_S])  # fmt: skip
                     done = handler(conn, request, fields)
                     audit.record(conn, grant.name, done.action, done.obj, done.detail)
             finally:
@@ -396,14 +400,17 @@ def _new_model_version(conn, ident: int, name: str, kind: str, fields: dict[str,
         raise BadRequest("a model's name and kind stay: a new name is a new model (POST)")
     changed = {k: v for k, v in fields.items() if k not in ("name", "kind")}
     kept = [c for c in ("skeleton_id", "collection_id", "data", "meta") if c not in changed]
+    # new data keeps the notes, not the acceleration tree drawn from the old data's mixture
+    kept_values = [
+        sql.SQL("meta - 'tree'") if c == "meta" and "data" in changed else sql.Identifier(c)
+        for c in kept
+    ]
     query = sql.SQL(
         "INSERT INTO modb.models (name, kind, {columns}) SELECT name, kind, {values} "
         "FROM modb.models WHERE id = %s RETURNING id, version"
     ).format(
         columns=sql.SQL(", ").join(map(sql.Identifier, [*changed, *kept])),
-        values=sql.SQL(", ").join(
-            [sql.Placeholder()] * len(changed) + [*map(sql.Identifier, kept)]
-        ),
+        values=sql.SQL(", ").join([sql.Placeholder()] * len(changed) + kept_values),
     )
     made, version = conn.execute(query, [*changed.values(), ident]).fetchone()
     return Done(

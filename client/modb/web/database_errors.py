@@ -61,6 +61,16 @@ def is_transient(e: psycopg.Error) -> bool:
     )
 
 
+def is_connection_lost(e: psycopg.Error) -> bool:
+    """Whether the connection itself failed (no SQLSTATE, a connection exception, the server
+    shutting down), not a statement the server refused: psycopg counts both as OperationalError
+    (a result past a cap, 54000, among them), and only the first may work again on another."""
+    state = e.sqlstate
+    return isinstance(e, psycopg.OperationalError) and (
+        state is None or state.startswith("08") or state in ("57P01", "57P02", "57P03")
+    )
+
+
 def answer(e: psycopg.Error) -> tuple[int, str]:
     """(HTTP status, message) for a database error raised while answering a request: not one of
     a connection that broke (the app asks whether the server is there)."""

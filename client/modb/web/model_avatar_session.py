@@ -21,7 +21,7 @@ import psycopg
 
 from modb.motion import Motion, Skeleton
 from modb.provenance import as_meta, origins, sources_among
-from modb.synthesis.chain import Frame, Goal, checked_goal
+from modb.synthesis.chain import Frame, Goal, checked_goal, checked_json_goal
 from modb.synthesis.from_models import EXAMPLES
 from modb.synthesis.from_models import SKELETON as GRAPH_SKELETON
 from modb.synthesis.model_avatar import MAX_GOALS, ModelAvatar, StepReadout
@@ -104,7 +104,7 @@ class ModelAvatarSession:
 
     def _goal(self, message: dict[str, Any]) -> None:
         try:
-            goal = checked_goal((message["x"], message["z"]))
+            goal = checked_json_goal((message["x"], message["z"]))
         except (KeyError, TypeError, ValueError, OverflowError):  # OverflowError: a huge integer
             why = f'a goal is {{"x": metres, "z": metres}}, got {message!r:.200}'
             self._send({"type": "refused", "message": why})
@@ -241,7 +241,7 @@ def checked_mode(message: dict[str, Any]) -> tuple[str | None, int, list[Goal]]:
     if not isinstance(goals, list) or len(goals) > MAX_GOALS:
         raise ValueError(f'"goals" is a list of at most {MAX_GOALS} [x, z] in metres')
     try:
-        checked = [checked_goal(g) for g in goals]
+        checked = [checked_json_goal(g) for g in goals]
     except (TypeError, ValueError) as e:
         raise ValueError(f'"goals": {e}') from None
     if checked and models is None:

@@ -280,7 +280,7 @@ def upload_endpoint(tokens: Tokens, writer: Writer, max_upload_mb: int):
             given = form.get("collection") or "uploads"
             if not isinstance(given, str):
                 raise HTTPException(400, "collection: a form field, not a file")
-            collection = parse(PATH, given.strip().strip("/"), "collection")
+            collection = parse(PATH, given.strip(), "collection")
             files = _uploaded_files(form)
             answer = await run_in_threadpool(_load_upload, writer, grant, collection, files)
         finally:

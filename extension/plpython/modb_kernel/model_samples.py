@@ -5,7 +5,7 @@ import json
 
 import numpy as np
 
-from . import motion_model
+from . import memory, motion_model
 from .database import Statement, StoreError
 
 KIND = "motion_primitive"
@@ -20,6 +20,9 @@ MODEL = Statement(
 
 def load(db, name, version=None):
     """(id, version, model document) of the model's version (the latest when None)."""
+    if name is None:
+        raise StoreError("model is NULL: name a motion model", sqlstate="22004",
+                         hint="modb model list names them")  # fmt: skip
     rows = db.run(MODEL, [name, version])
     if not rows:
         which = "" if version is None else f" version {version}"
@@ -40,7 +43,8 @@ def sample_motion(db, name, n, seed, version=None):
         raise StoreError(f"seed is {seed}: give a whole number >= 0", sqlstate="22023")
     _, _, model = load(db, name, version)
     out = []
-    for k, (rotations, translations, _) in enumerate(motion_model.sample(model, n, seed)):
+    drawn = motion_model.sample(model, n, seed, db.check_interrupts)
+    for k, (rotations, translations, _) in enumerate(drawn):
         out.append((
             k + 1,
             model["fps"],
@@ -48,4 +52,5 @@ def sample_motion(db, name, n, seed, version=None):
             rotations.astype(np.float32).tolist(),
             translations.astype(np.float32).tolist() if translations.shape[1] else None,
         ))  # fmt: skip
+    memory.release()  # the drawn frames are garbage now: their memory goes back to the system
     return out

@@ -21,13 +21,14 @@ import json
 
 import numpy as np
 
-from . import inertialization, motion_model, quaternion
+from . import inertialization, memory, motion_model, quaternion
 from .database import Statement, StoreError
 from .step_search import Rig, StepModel, hip_heading, rotate_y, wrap
 
 MAX_SECONDS = 600.0
 MAX_COORDINATE = 1e6  # metres from the origin, as the snippet chain's goals
 ARRIVAL_RADIUS_M = 0.5
+MAX_ARRIVAL_RADIUS_M = 10.0
 TURN_REACH = 1.0  # a step asks at most the turn 95% of the model's steps make
 
 
@@ -39,8 +40,18 @@ def node_types(graph):
     return {name: node.get("type", "standard") for name, node in graph["nodes"].items()}
 
 
-def successors(graph, name):
-    return [t["to"] for t in graph.get("transitions", []) if t["from"] == name]
+def successor_lists(graph):
+    """node name -> the nodes its transitions lead to, in the graph's order: made once, so that a
+    step costs the transitions of its node, not the graph's."""
+    out = {name: [] for name in graph["nodes"]}
+    for t in graph.get("transitions", []):
+        out[t["from"]].append(t["to"])
+    return out
+
+
+def no_interrupts():
+    """What a Synthesis calls between pieces of work where nothing can interrupt it (the
+    client); the server passes one that lets a cancel or a statement timeout in."""
 
 
 def start_node(graph, rng):
@@ -97,8 +108,10 @@ def placed(rig, rotations, translations, yaw, shift):
 
 
 class Synthesis:
-    def __init__(self, graph, models, rig, goals, seconds, seed, radius=ARRIVAL_RADIUS_M):
-        """graph: the graph document; models: node name -> StepModel; goals: [(x, z)]."""
+    def __init__(self, graph, models, rig, goals, seconds, seed, radius=ARRIVAL_RADIUS_M,
+                 interrupts=no_interrupts):  # fmt: skip
+        """graph: the graph document; models: node name -> StepModel; goals: [(x, z)];
+        interrupts: called before each piece of work (a step, a successor's search)."""
         if not 0 < seconds <= MAX_SECONDS:
             raise SynthesisError(f"seconds is {seconds}: give more than 0, at most {MAX_SECONDS:g}")
         rates = {m.model["fps"] for m in models.values()}
@@ -106,6 +119,8 @@ class Synthesis:
             raise SynthesisError(f"the graph's models are at {len(rates)} frame rates: retarget "
                                  "their examples to one first")  # fmt: skip
         self.graph, self.models, self.rig = graph, models, rig
+        self.types, self.successors = node_types(graph), successor_lists(graph)
+        self.interrupts = interrupts
         self.fps = rates.pop()
         self.goals = [np.asarray(g, dtype=np.float64) for g in goals]
         self.seconds, self.radius = float(seconds), float(radius)
@@ -147,8 +162,8 @@ class Synthesis:
     def next_node(self, node):
         """(the successor whose tree search meets the next step's constraints best, that search's
         (scores, candidates examined) or None when there was one successor only)."""
-        types = node_types(self.graph)
-        choices = [n for n in successors(self.graph, node) if types[n] in ("standard", "start")]
+        types = self.types
+        choices = [n for n in self.successors[node] if types[n] in ("standard", "start")]
         choices = [n for n in choices if types[n] == "standard"] or choices
         if not choices:
             raise SynthesisError(f'node "{node}" leads to no standard node: the walk cannot go on')
@@ -156,6 +171,7 @@ class Synthesis:
             return choices[0], None
         searched = []
         for n in choices:
+            self.interrupts()
             target = self.target(self.models[n])
             found, examined = self.models[n].search(target, self.rng)
             searched.append((float(self.models[n].errors(found, target)[0]), n,
@@ -180,6 +196,7 @@ class Synthesis:
         return np.array([landing[0], landing[1], model.usual_turn + turn])
 
     def step(self, node, toward=None, search=None):
+        self.interrupts()
         model = self.models[node]
         target = self.target(model, toward)
         found, examined = model.search(target, self.rng) if search is None else search
@@ -265,14 +282,14 @@ class Synthesis:
     def finish(self, node):
         """After the last goal: the end node and then the idle node where the graph has them,
         else the last pose held."""
-        types = node_types(self.graph)
-        ends = [n for n in successors(self.graph, node) if types[n] == "end"]
+        types, after = self.types, self.successors
+        ends = [n for n in after[node] if types[n] == "end"]
         if ends:
             self.step(ends[0], toward=None)
             self.notes.append(f'the end node "{ends[0]}" played after the last goal')
-            idles = [n for n in successors(self.graph, ends[0]) if types[n] == "idle"]
+            idles = [n for n in after[ends[0]] if types[n] == "idle"]
         else:
-            idles = [n for n in successors(self.graph, node) if types[n] == "idle"]
+            idles = [n for n in after[node] if types[n] == "idle"]
         while idles and self.body.n_frames < self.wanted_frames:
             self.step(idles[0], toward=None)
         if idles:
@@ -307,15 +324,20 @@ class Synthesis:
         }
 
 
-def step_models(graph, documents, rig):
-    """node name -> StepModel, from documents: model id -> (model document, its tree)."""
-    out = {}
+def step_models(graph, documents, rig, interrupts=no_interrupts):
+    """node name -> StepModel, from documents: model id -> (model document, its tree); nodes of
+    one model share its StepModel (prepared once)."""
+    prepared, out = {}, {}
     for name, node in graph["nodes"].items():
-        doc, tree = documents[node["model_id"]]
+        ident = node["model_id"]
+        doc, tree = documents[ident]
         if not tree:
             raise SynthesisError(f'the model of node "{name}" has no acceleration tree: '
                                  "rebuild it (modb model tree NAME)")  # fmt: skip
-        out[name] = StepModel(doc, tree, rig)
+        if ident not in prepared:
+            interrupts()
+            prepared[ident] = StepModel(doc, tree, rig)
+        out[name] = prepared[ident]
     return out
 
 
@@ -332,7 +354,7 @@ MODELS = Statement(
 )
 
 
-def load(db, graph_name):
+def load(db, graph_name, interrupts=no_interrupts):
     """(graph document, node name -> StepModel, Rig) of the stored graph of models."""
     found = db.run(GRAPH, [graph_name])
     if not found:
@@ -356,7 +378,7 @@ def load(db, graph_name):
     try:
         rig = Rig({"hierarchy": json.loads(first["hierarchy"]),
                    "joint_map": json.loads(first["joint_map"])})  # fmt: skip
-        return graph, step_models(graph, documents, rig), rig
+        return graph, step_models(graph, documents, rig, interrupts), rig
     except ValueError as e:
         raise StoreError(f'graph "{graph_name}": {e}', sqlstate="22023") from None
 
@@ -384,19 +406,24 @@ def synthesize_stored(db, graph_name, goals, seconds, seed, radius=ARRIVAL_RADIU
         raise StoreError(f"goals must be a non-empty float8[][2] of world X and Z in metres, each "
                          f"finite and at most {MAX_COORDINATE:g} from the origin, e.g. "
                          "ARRAY[[0, 6], [5, 8]]", sqlstate="22023")  # fmt: skip
-    if radius is None or not 0 < radius <= 10:
-        raise StoreError(f"arrival_radius is {radius}: give metres above 0, at most 10",
-                         sqlstate="22023")  # fmt: skip
-    graph, models, rig = load(db, graph_name)
+    if radius is None or not 0 < radius <= MAX_ARRIVAL_RADIUS_M:
+        raise StoreError(f"arrival_radius is {radius}: give metres above 0, at most "
+                         f"{MAX_ARRIVAL_RADIUS_M:g}", sqlstate="22023")  # fmt: skip
+    graph, models, rig = load(db, graph_name, db.check_interrupts)
     try:
-        synthesis = Synthesis(graph, models, rig, goals, seconds, seed, radius).run()
+        synthesis = Synthesis(graph, models, rig, goals, seconds, seed, radius,
+                              db.check_interrupts).run()  # fmt: skip
     except ValueError as e:
         raise StoreError(f'graph "{graph_name}": {e}', sqlstate="22023") from None
     rotations, translations = synthesis.frames()
-    return [(
+    del models, synthesis.models  # the prepared models and the steps' frames: garbage from here
+    result = [(
         synthesis.fps,
         len(rotations),
         rotations.astype(np.float32).tolist(),
         translations.astype(np.float32).tolist() if translations.shape[1] else None,
         json.dumps(synthesis.report()),
     )]  # fmt: skip
+    del synthesis, rotations, translations
+    memory.release()  # each call's documents and frames go back to the system, not the session
+    return result

@@ -212,10 +212,12 @@ def draw_scores(mixture, n, seed):
     return out
 
 
-def sample(model, n, seed):
-    """n motions [(rotations, translations, time function)] drawn from the model."""
+def sample(model, n, seed, interrupts=lambda: None):
+    """n motions [(rotations, translations, time function)] drawn from the model; interrupts() is
+    called before each (the server's lets a cancel in)."""
     split = len(model["spatial"]["components"])
-    return [
-        frames_from_scores(model, scores[:split], scores[split:])
-        for scores in draw_scores(model["mixture"], n, seed)
-    ]
+    out = []
+    for scores in draw_scores(model["mixture"], n, seed):
+        interrupts()
+        out.append(frames_from_scores(model, scores[:split], scores[split:]))
+    return out

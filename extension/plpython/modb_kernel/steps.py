@@ -11,8 +11,9 @@ than MIN_CONTACT_S is none. A touchdown is the first frame of a contact that sta
 
 A step is the swing between two touchdowns of alternate feet: a `left_step` runs from a touchdown of
 the right foot to the next touchdown of the left (the left foot swings), both frames its keyframes;
-at most MAX_STEP_S long (longer is a pause, not a step). A mirrored clip gives the mirrored
-steps."""
+at least MIN_STEP_S long (a sprinter's steps take about 0.2 s: shorter is a foot found planted
+twice, not a step) and at most MAX_STEP_S (longer is a pause, not a step). A mirrored clip gives
+the mirrored steps."""
 
 import numpy as np
 
@@ -22,6 +23,7 @@ SPEED_LEGS_PER_S = 0.5
 HEIGHT_LEGS = 0.1
 GAP_S = 0.1
 MIN_CONTACT_S = 0.05
+MIN_STEP_S = 0.2
 MAX_STEP_S = 1.5
 VELOCITY_SPAN_S = 1.0 / 60
 SIDES = ("left", "right")
@@ -110,12 +112,22 @@ def touchdowns(contact):
 
 
 def steps_from(contact, fps):
-    """[(name, start, end)]: the steps between touchdowns of alternate feet, in frame order."""
+    """[(name, start, end)]: the steps between touchdowns of alternate feet, in frame order. A foot
+    may touch down twice before the other does (a contact broken mid-stance): the step then starts
+    at the later touchdown, or at the earlier one where the later leaves less than MIN_STEP_S."""
     events = sorted((f, s) for s in SIDES for f in touchdowns(contact[s]))
+    runs = []  # [side, [its touchdowns before the other foot's next]]
+    for frame, side in events:
+        if runs and runs[-1][0] == side:
+            runs[-1][1].append(frame)
+        else:
+            runs.append([side, [frame]])
     out = []
-    for (start, planted), (end, landed) in zip(events, events[1:]):
-        if planted != landed and (end - start) / fps <= MAX_STEP_S:
-            out.append((f"{landed}_step", start, end))
+    for (planted, starts), (landed, ends) in zip(runs, runs[1:]):
+        end = ends[0]
+        fits = [f for f in starts if MIN_STEP_S <= (end - f) / fps <= MAX_STEP_S]
+        if fits:
+            out.append((f"{landed}_step", fits[-1], end))
     return out
 
 

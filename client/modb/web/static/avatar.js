@@ -114,6 +114,7 @@ const handlers = {
     if (state.rig && state.skeletonId === m.id) return; // posed already (the standing avatar's)
     state.skeletonId = m.id;
     state.rig = new Rig(m.hierarchy, m.pelvis);
+    state.lastPose = null; // the frames of this skeleton from here
     state.framed = false;
     state.character = null;
     stage.setCharacter(null);
@@ -121,6 +122,8 @@ const handlers = {
     loadCharacter(m.id, m.hierarchy.translated).then((character) => {
       if (state.rig === null || state.rig.joints !== m.hierarchy.joints) return; // a newer skeleton came
       state.character = character;
+      // posed as the rig now stands (the standing avatar waits for a click: no frame may come soon)
+      if (state.lastPose) character.pose(...state.lastPose);
       stage.setCharacter(character);
       stage.showSkeleton($('show-skeleton').checked);
     }).catch(() => {});
@@ -133,6 +136,7 @@ const handlers = {
   frame(m) {
     if (!state.rig) return;
     state.rig.pose(m.rotations, m.translations);
+    state.lastPose = [m.rotations, m.translations];
     if (state.character) state.character.pose(m.rotations, m.translations);
     const positions = state.rig.worldPositions();
     const pelvis = positions[state.rig.pelvis];
