@@ -375,12 +375,15 @@ def test_rest_lists_shows_samples_and_builds_with_a_loader_token(dsn, report):
         assert state["result"]["version"] == 2 and state["result"]["report"]["pass"], state
         # a generic replace of a model row is its next version, the old kept
         ident = listed[0]["id"]
-        replaced = client.put(f"/api/models/{ident}", json={"data": {"note": "by hand"}},
+        junk = client.put(f"/api/models/{ident}", json={"data": {"note": "by hand"}},
+                          headers=tokens["loader"])  # fmt: skip
+        assert junk.status_code == 400 and '"fps"' in junk.json()["error"], junk.text  # issue 58
+        data = client.get(f"/api/models/{ident}", headers=tokens["reader"]).json()["data"]
+        noted = {**data, "settings": {**data["settings"], "note": "by hand"}}
+        replaced = client.put(f"/api/models/{ident}", json={"data": noted},
                               headers=tokens["loader"])  # fmt: skip
         assert replaced.status_code == 201 and replaced.json()["previous"] == ident, replaced.text
-        assert client.get(f"/api/models/{ident}", headers=tokens["reader"]).json()["data"] != {
-            "note": "by hand"
-        }
+        assert client.get(f"/api/models/{ident}", headers=tokens["reader"]).json()["data"] == data
 
 
 def _offsets(dsn, answer):

@@ -76,6 +76,7 @@ def run(
         CannotWait,
         JobState,
         NotALoader,
+        NoWorker,
         TooManyQueued,
         run_and_wait,
         submit,
@@ -114,9 +115,12 @@ def run(
     try:
         state = run_and_wait(conn, resolve(args.dsn)[0], kind, who, shown,
                              quiet=getattr(args, "quiet", False), **arguments)  # fmt: skip
-    except TooManyQueued as e:
+    except (TooManyQueued, CannotWait, NotALoader) as e:
         print(f"modb {command}: {e}", file=sys.stderr)
         return 2
+    except NoWorker as e:  # queued, as --background leaves it
+        print(f"modb {command}: {e}", file=sys.stderr)
+        return 0
     finally:
         if bar is not None:
             bar.close()

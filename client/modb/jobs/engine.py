@@ -1,11 +1,11 @@
-"""The Procrastinate app for a database: its connector (every connection as modb_loader:
-connection.py) and modb's tasks."""
+"""The Procrastinate app for a database: its connector (every connection as modb_worker, naming
+this process: connection.py) and modb's tasks."""
 
 from __future__ import annotations
 
 import procrastinate
 
-from .connection import as_loader
+from .connection import as_worker
 
 
 def job_app(conninfo: str) -> procrastinate.App:
@@ -13,7 +13,7 @@ def job_app(conninfo: str) -> procrastinate.App:
 
     app = procrastinate.App(
         connector=procrastinate.PsycopgConnector(
-            conninfo=as_loader(conninfo), min_size=1, max_size=4
+            conninfo=as_worker(conninfo), min_size=1, max_size=4
         )
     )
     register(app)

@@ -18,7 +18,8 @@ ON CONFLICT (job_id) DO UPDATE SET
     unit = coalesce(%(unit)s::text, p.unit), log = p.log || coalesce(%(log)s::text[], '{}'),
     result = coalesce(%(result)s::jsonb, p.result), error = coalesce(%(error)s::text, p.error),
     updated_at = now()
-"""
+WHERE p.runner IS NOT DISTINCT FROM current_setting('modb_jobs.runner', true)
+"""  # (an attempt another worker has taken over since writes nothing more)
 MIN_INTERVAL_S = 0.5  # progress counts written at most this often (log lines, results: always)
 
 
@@ -29,10 +30,12 @@ class JobProgress:
         self._written = 0.0
         self.done, self.total = 0, None
         # A retried job starts again: its count, result and error; its log keeps the earlier lines.
+        # This process runs the attempt now (the connection names it: connection.as_worker).
         self._conn.execute(
-            "INSERT INTO modb_jobs.progress (job_id) VALUES (%s) ON CONFLICT (job_id) DO UPDATE "
+            "INSERT INTO modb_jobs.progress (job_id, runner) "
+            "VALUES (%s, current_setting('modb_jobs.runner', true)) ON CONFLICT (job_id) DO UPDATE "
             "SET done = 0, total = NULL, unit = NULL, result = NULL, error = NULL, "
-            "updated_at = now()",
+            "runner = excluded.runner, updated_at = now()",
             [job_id],
         )
 

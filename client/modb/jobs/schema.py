@@ -17,8 +17,8 @@ NO_TABLES = "this database has no job tables: `modb worker --init` (as a superus
 
 
 OLD_TABLES = (
-    "this database's job tables are older than this modb (no waiting for other jobs): "
-    "`modb worker --init` (as a superuser) brings them up to date"
+    "this database's job tables are older than this modb (jobs submitted through functions since "
+    "0.26.0): `modb worker --init` (as a superuser) brings them up to date"
 )
 
 
@@ -27,8 +27,11 @@ def installed(conn: psycopg.Connection) -> bool:
 
 
 def current(conn: psycopg.Connection) -> bool:
-    """Whether the job tables are this modb's (modb_jobs.waits came with 0.20.0)."""
-    return conn.execute("SELECT to_regclass('modb_jobs.waits') IS NOT NULL").fetchone()[0]
+    """Whether the job tables are this modb's (the job functions came with 0.26.0)."""
+    return conn.execute(
+        "SELECT to_regprocedure('modb_jobs.submit(text, text, text, jsonb, bigint[], text)') "
+        "IS NOT NULL"
+    ).fetchone()[0]
 
 
 def install(conn: psycopg.Connection) -> bool:

@@ -15,14 +15,13 @@ from typing import Any
 import psycopg
 from psycopg.types.json import Jsonb
 
-from .connection import LOADER_ROLE
+from .connection import LOADER_ROLE, WORKER_ROLE
 from .tasks import QUEUES
 from .worker import STALLED_AFTER_S, run_one
 
 FINISHED = ("done", "failed", "cancelled")
 # Jobs that must not run at once (the engine runs one job of a lock at a time): builds of one graph.
 LOCKS = {"build_graph": lambda arguments: f"graph {arguments['name']}"}
-ENDED_BADLY = {"failed": "failed", "cancelled": "was cancelled", "aborted": "was cancelled"}
 POLL_S = 0.5
 
 
@@ -47,11 +46,15 @@ class TooManyQueued(RuntimeError):
     """The submitter's cap on queued jobs is reached."""
 
 
+class NoWorker(RuntimeError):
+    """No worker is running and this login may not run a job itself: the job waits."""
+
+
 class CannotWait(ValueError):
     """A job to wait for does not exist, or ended without being done."""
 
 
-MAX_QUEUED = 20  # queued (not yet running) jobs one submitter may have: one cannot flood the queue
+MAX_QUEUED = 20  # queued jobs one submitter may have (modb_jobs.submit's max_queued)
 
 
 def submitter(conn: psycopg.Connection) -> str:
@@ -67,96 +70,68 @@ def submitter(conn: psycopg.Connection) -> str:
     return who
 
 
-def _still_to_run(conn: psycopg.Connection, after: list[int]) -> list[int]:
-    """Of the jobs to wait for, those not done yet; their rows held until the submit commits, so
-    none ends unseen by the trigger that releases the jobs waiting for it."""
-    from .schema import OLD_TABLES, current
+# The job functions' own refusals (job_tables.sql), raised as these
+REFUSALS = {"MJ001": TooManyQueued, "MJ002": CannotWait}
 
-    if not current(conn):
-        raise CannotWait(OLD_TABLES)
-    rows = dict(
-        conn.execute(
-            "SELECT id, status::text FROM procrastinate_jobs WHERE id = ANY (%s) FOR SHARE",
-            [after],
-        ).fetchall()
-    )
-    missing = sorted(set(after) - set(rows))
-    if missing:
-        raise CannotWait(f"no job {missing[0]} to wait for (`modb jobs list` lists them)")
-    for job_id, status in sorted(rows.items()):
-        if status in ENDED_BADLY:
-            raise CannotWait(
-                f"job {job_id} {ENDED_BADLY[status]}, so a job waiting for it would never run: "
-                f"retry it first (`modb jobs retry {job_id}`)"
-            )
-    return sorted(job_id for job_id, status in rows.items() if status != "succeeded")
+
+def _refusals_in_words(call: Callable[[], Any]) -> Any:
+    try:
+        return call()
+    except psycopg.errors.InsufficientPrivilege as e:
+        raise NotALoader(e.diag.message_primary) from None
+    except psycopg.Error as e:
+        if e.sqlstate in REFUSALS:
+            raise REFUSALS[e.sqlstate](e.diag.message_primary) from None
+        raise
 
 
 def submit(
     conn: psycopg.Connection,
     kind: str,
-    who: str,
+    who: str | None = None,
     queue: str | None = None,
     after: list[int] | None = None,
     **arguments: Any,
 ) -> int:
-    """Queues a job of `kind` (a modb task: build_graph, retarget, ...) for `who` (see submitter)
-    in the connection's transaction, through the engine's own SQL function, on its kind's queue
-    unless `queue` names another, to run once the jobs `after` are done; returns its id. Refused
-    (TooManyQueued) when `who` has MAX_QUEUED jobs waiting already, (CannotWait) when a job of
-    `after` does not exist or failed."""
+    """Queues a job of `kind` (a modb task: build_graph, retarget, ...) through the job tables'
+    modb_jobs.submit, in the connection's transaction, on its kind's queue unless `queue` names
+    another, to run once the jobs `after` are done; returns its id. The database takes the
+    submitter from the session: `who` is a web token's name, which counts only for a web server's
+    writer (modb_web). Refused (TooManyQueued) when the submitter has 20 jobs waiting already,
+    (CannotWait) when a job of `after` does not exist or failed, (NotALoader)."""
+    from .schema import OLD_TABLES, current
+
+    if not current(conn):
+        raise CannotWait(OLD_TABLES)
     with conn.transaction():
-        # one submitter's submits queue here, so two at once cannot both pass the count
-        conn.execute("SELECT pg_advisory_xact_lock(hashtext('modb jobs of'), hashtext(%s))", [who])
-        waiting = conn.execute(
-            "SELECT count(*) FROM procrastinate_jobs "
-            "WHERE status = 'todo' AND args->>'submitter' = %s",
-            [who],
-        ).fetchone()[0]
-        if waiting >= MAX_QUEUED:
-            raise TooManyQueued(
-                f"{who} has {waiting} jobs waiting already (at most {MAX_QUEUED}): wait for them, "
-                "or cancel some (`modb jobs list`, `modb jobs cancel ID`)"
-            )
-        waits = _still_to_run(conn, after) if after else []
-        job_id = conn.execute(
-            "SELECT (procrastinate_defer_jobs_v1(ARRAY["
-            "ROW(%s, %s, 0, %s, NULL, %s, %s::timestamptz)"
-            "::procrastinate_job_to_defer_v1]))[1]",
-            [
-                queue or QUEUES[kind],
-                f"modb.{kind}",
-                LOCKS[kind](arguments) if kind in LOCKS else None,
-                Jsonb({"submitter": who, **arguments}),
-                "infinity" if waits else None,  # never fetched until released (job_tables.sql)
-            ],  # fmt: skip
-        ).fetchone()[0]
-        if waits:
-            conn.execute(
-                "INSERT INTO modb_jobs.waits (job_id, after_id) SELECT %s, unnest(%s::bigint[])",
-                [job_id, waits],
-            )
-        return job_id
+        return _refusals_in_words(lambda: conn.execute(
+            "SELECT modb_jobs.submit(%s, %s, %s, %s, %s, %s)",
+            [kind, queue or QUEUES[kind], LOCKS[kind](arguments) if kind in LOCKS else None,
+             Jsonb(arguments), after or [], who],
+        ).fetchone()[0])  # fmt: skip
 
 
 def cancel(conn: psycopg.Connection, job_id: int) -> bool:
     """A queued job cancelled, a running one asked to stop at its next step; False when it had
     already ended."""
-    return (
-        conn.execute("SELECT procrastinate_cancel_job_v1(%s, true, false)", [job_id]).fetchone()[0]
-        is not None
+    return _refusals_in_words(
+        lambda: conn.execute("SELECT modb_jobs.cancel(%s)", [job_id]).fetchone()[0]
     )
 
 
-def retry(conn: psycopg.Connection, job: dict, who: str) -> int:
-    """A failed job queued again (its id), or a cancelled one as a new job (the new id); so too a
-    failed job whose cancel was asked (the engine keeps it marked)."""
-    if job["state"] == "failed" and not job["cancel_requested"]:
-        conn.execute("SELECT procrastinate_retry_job_v2(%s, now(), NULL, NULL, NULL)", [job["id"]])
-        return job["id"]
-    return submit(
-        conn, job["kind"].removeprefix("modb."), who, after=job.get("waits_for"), **job["arguments"]
+def retry(conn: psycopg.Connection, job: dict, who: str | None = None) -> int:
+    """A failed job queued again (its id), or a cancelled one as a new job of this session's
+    submitter (the new id, `who` as in submit); so too a failed job whose cancel was asked."""
+    return _refusals_in_words(
+        lambda: conn.execute("SELECT modb_jobs.retry(%s, %s)", [job["id"], who]).fetchone()[0]
     )
+
+
+def may_run_jobs(conn: psycopg.Connection) -> bool:
+    """Whether this login may run a job itself (connect as the worker role)."""
+    return conn.execute(
+        "SELECT pg_has_role(session_user, %s, 'MEMBER')", [WORKER_ROLE]
+    ).fetchone()[0]
 
 
 def workers_alive(conn: psycopg.Connection, within_s: float = STALLED_AFTER_S) -> int:
@@ -193,9 +168,16 @@ def run_and_wait(
 ) -> JobState:
     """Submits a job and waits until it ends: run by a worker when one is alive, else in this
     process (said once, unless quiet), on a queue of its own so that this process runs this job
-    only. `shown` gets each state seen (a progress bar, log lines)."""
+    only; a login that may not run jobs (not in modb_worker) is refused that (NoWorker, the job
+    left queued for a worker). `shown` gets each state seen (a progress bar, log lines)."""
     runner, queue = None, None
     if not workers_alive(conn):
+        if not may_run_jobs(conn):
+            job_id = submit(conn, kind, who, **arguments)
+            raise NoWorker(
+                f"job {job_id} is queued, and no worker is running: `modb worker` (as a member of "
+                f"{WORKER_ROLE}) runs it; this login is not one, so it may not run it here"
+            )
         queue = f"{QUEUES[kind]}.{socket.gethostname()}.{os.getpid()}"[:128]  # the column's width
     job_id = submit(conn, kind, who, queue, **arguments)
 

@@ -15,7 +15,7 @@ from modb.database.connection import connect
 from modb.web import database_errors
 
 from . import clip_jobs
-from .connection import as_loader
+from .connection import as_loader, as_worker
 from .graph_build import build_here
 from .progress import JobProgress
 
@@ -37,7 +37,7 @@ def _run(context: procrastinate.JobContext, what: str, work: Work) -> dict[str, 
     """work(conn, progress, stop_when_asked) in a loader's connection, its progress, log, result or
     error kept with the job; a cancel stops it at its next item (what it finished stays)."""
     conninfo = context.additional_context["conninfo"]
-    progress = JobProgress(as_loader(conninfo), context.job.id)
+    progress = JobProgress(as_worker(conninfo), context.job.id)
     try:
         progress.log(what)
 
