@@ -7,6 +7,7 @@ from __future__ import annotations
 import os
 
 import httpx
+import psycopg.types.json
 import psycopg
 import pytest
 from support.browser import serving
@@ -248,3 +249,31 @@ def test_a_cancel_reaches_the_kernels_python_between_statements(dsn):
         conn.execute("SET statement_timeout = '300ms'")
         with pytest.raises(psycopg.errors.QueryCanceled):
             conn.execute(f"DO LANGUAGE plpython3u $py$\n{body}\n$py$")
+
+
+def test_a_retried_build_finds_the_version_it_stored(dsn):
+    """Issue 58, 2: a build's job killed after it stored its version, then run again, stores no
+    second version: the retry finds its own (marked with the job) and reports it."""
+    from modb.models.pipeline import build_model
+
+    job = 987_654
+    with connect(dsn) as conn:
+        (stored,) = conn.execute(
+            "INSERT INTO modb.models (name, kind, skeleton_id, collection_id, data, meta) "
+            "SELECT name, kind, skeleton_id, collection_id, data, meta || %s FROM modb.models "
+            "WHERE name = %s AND version = 1 RETURNING version",
+            [psycopg.types.json.Jsonb({"built_by_job": job}), MODEL],
+        ).fetchone()
+        before = _count(dsn, "SELECT count(*) FROM modb.models WHERE name = %s", MODEL)
+        said: list[str] = []
+        made = build_model(conn, MODEL, "cmu16", "left_step", say=said.append, job_id=job)
+    assert made["version"] == stored and any("kept, not built again" in s for s in said), said
+    assert _count(dsn, "SELECT count(*) FROM modb.models WHERE name = %s", MODEL) == before
+
+
+def test_costs_are_said_and_estimates_say_what_they_rest_on(dsn):
+    r = modb(dsn, "model", "build", "--help")
+    assert "twice as long as the build itself" in " ".join(r.stdout.split())
+    from modb.synthesis import graphs
+
+    assert "square of the snippets" in graphs.GROWTH and not hasattr(graphs, "build_seconds")

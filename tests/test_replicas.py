@@ -11,7 +11,6 @@ import os
 import shutil
 import subprocess
 import sys
-import tempfile
 import threading
 import time
 from pathlib import Path
@@ -22,29 +21,13 @@ import pytest
 from support.browser import get, serving
 from support.commands import run_modb
 from support.data import mocap
-from support.shared import NOT_DURABLE
+from support.shared import NOT_DURABLE, throwaway_folder
 
 from modb.database.cluster import Cluster
 from modb.database import read_nodes
 from modb.database.read_nodes import ReadNodes
 
 COURSE = ("--to=4,4", "--to=-3,9", "--to=2,14", "--to=-6,4")
-# Clusters thrown away after the module: in memory where there is room (/dev/shm), else in the
-# temporary folder. Their checkpoints and base backups sync every file they write; on a disk other
-# processes share that was most of this module's time.
-IN_MEMORY = Path("/dev/shm")
-IN_MEMORY_FREE = 4 * 2**30  # bytes: three nodes' data and WAL, several times over
-
-
-def throwaway_folder(prefix: str) -> Path:
-    """A new folder for clusters, in memory if there is room, which the clusters' OS user may pass
-    through (the `postgres` user, when run as root)."""
-    room = IN_MEMORY.is_dir() and shutil.disk_usage(IN_MEMORY).free > IN_MEMORY_FREE
-    folder = Path(tempfile.mkdtemp(prefix=prefix, dir=IN_MEMORY if room else None))
-    folder.chmod(0o711)
-    return folder
-
-
 def db_cli(home: Path, *args: str, process: bool = False) -> subprocess.CompletedProcess:
     """`modb db ...` on the embedded database in `home` (MODB_HOME), in this process unless
     `process` (as a user runs it)."""

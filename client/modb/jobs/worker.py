@@ -86,6 +86,7 @@ def run_one(
     if not wait:
         _run_worker(conninfo, queues, stalled_after, wait, keep_days)
         return
+    _say_an_outage_once()
     pause, down_since = RECONNECT_FIRST_S, None
     while True:
         started = time.monotonic()
@@ -106,6 +107,29 @@ def run_one(
             log.warning("the database answers again after %.0f s: taking jobs",
                         time.monotonic() - down_since)  # fmt: skip
             down_since, pause = None, RECONNECT_FIRST_S
+
+
+class _OutageOnce(logging.Filter):
+    """Drops what the engine and the connection pool log of a database gone away (a traceback
+    of each failed wait, a line per failed connection): the worker says it once, itself."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if record.name.startswith("psycopg.pool") and record.levelno < logging.ERROR:
+            return False
+        error = record.exc_info[1] if record.exc_info else None
+        return not isinstance(error, _unreachable_errors())
+
+
+def _say_an_outage_once() -> None:
+    """This process's log: messages on stderr (as Python prints them by default), an outage's
+    noise left out."""
+    handler = logging.StreamHandler()
+    handler.setFormatter(logging.Formatter("%(message)s"))
+    handler.addFilter(_OutageOnce())
+    root = logging.getLogger()
+    if not root.handlers:
+        root.addHandler(handler)
+        root.setLevel(logging.WARNING)
 
 
 def _answers(conninfo: str) -> bool:
