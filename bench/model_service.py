@@ -21,10 +21,10 @@ import time
 import numpy as np
 import psycopg
 
-from modb.models.store import describe, listing, load
+from modb.models.store import brief, listing, load
 
 NAMES, VERSIONS = 20, 5
-OLD_ROUNDS = 3
+OLD_ROUNDS = 1
 # what the listing read before 0.26.0 (the counts from the documents): the old database's query
 OLD_LISTING = """
 SELECT s.id, s.name, s.version, s.latest, s.collection, s.primitive, s.skeleton_id,
@@ -73,7 +73,10 @@ def main(old_dsn: str, new_dsn: str, rounds: int) -> None:
                 listed[label].append(_timed(lambda: conn.execute(OLD_LISTING).fetchall()))
             else:
                 listed[label].append(_timed(lambda: listing(conn)))
-            shown[label].append(_timed(lambda: describe(load(conn, "many 7"))))
+            # before 0.26.0 `show` read the whole version (data and tree) and summed it up here
+            show = (lambda: load(conn, "many 7")) if label == "old" else (
+                lambda: brief(conn, "many 7"))  # fmt: skip
+            shown[label].append(_timed(show))
     rows = len(listing(conns["new"]))
     for label in ("old", "new"):
         print(f"{versions[label]}: list {rows} versions {_figures(listed[label])}; "

@@ -14,6 +14,7 @@ about the models, not the command's process."""
 from __future__ import annotations
 
 import os
+import time
 
 import numpy as np
 import psycopg
@@ -344,6 +345,17 @@ def test_rest_lists_shows_samples_and_builds_with_a_loader_token(dsn, report):
                 "SELECT rotations FROM modb.sample_motion(%s, 2, 7, %s) ORDER BY sample",
                 [MODEL, shown["version"]],
             ).fetchall()
+        # the server's connection that sampled is closed, not kept growing (issue 58, 9)
+        for _ in range(50):
+            with psycopg.connect(dsn) as conn:
+                kept = conn.execute(
+                    "SELECT count(*) FROM pg_stat_activity WHERE state = 'idle' "
+                    "AND query LIKE '%%sample_motion%%' AND pid <> pg_backend_pid()"
+                ).fetchone()[0]
+            if kept == 0:
+                break
+            time.sleep(0.1)
+        assert kept == 0, "a server connection that sampled went back to the pool"
         for s, (rotations,) in zip(got["samples"], sql_rotations, strict=True):
             assert np.allclose(s["rotations"], rotations, atol=1e-6)
             positions = own_kinematics.world_positions(got["parents"], *_offsets(dsn, got),

@@ -205,6 +205,9 @@ CALLS: dict[str, Call] = {
     "modb.model_mixture_md5(jsonb)": Call(
         "SELECT modb.model_mixture_md5(m.data) FROM modb.models m WHERE m.kind = 'motion_primitive'"
     ),
+    "modb.tree_shape(jsonb)": Call(
+        "SELECT modb.tree_shape(m.meta) FROM modb.models m WHERE m.kind = 'motion_primitive'"
+    ),
     "modb.model_graph_problem(jsonb,bigint)": Call(
         # the stored graph is sound (NULL); without its transitions, a node no transition reaches
         "SELECT modb.model_graph_problem(g.data, g.skeleton_id) IS NULL,"

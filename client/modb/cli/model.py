@@ -177,9 +177,9 @@ def _list(conn: psycopg.Connection, args: argparse.Namespace) -> int:
 
 
 def _show(conn: psycopg.Connection, args: argparse.Namespace) -> int:
-    from modb.models.store import describe, load
+    from modb.models.store import brief
 
-    print(json.dumps(describe(load(conn, args.name, args.version)), indent=2))
+    print(json.dumps(brief(conn, args.name, args.version), indent=2))
     return 0
 
 

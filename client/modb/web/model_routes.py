@@ -69,11 +69,16 @@ def listing(conn: psycopg.Connection, request: Request) -> list[dict[str, Any]]:
 
 def show(conn: psycopg.Connection, request: Request) -> dict[str, Any]:
     """GET /api/motion-models/NAME[?version=N]: the version in brief (`modb model show`)."""
-    from modb.models.store import describe
+    from modb.models.store import ModelNotFound, brief
 
     q = _query(request, "version")
     version = _whole(q.get("version"), "version", 1, 2**31 - 1, None)
-    return describe(_load(conn, _name(request), version))
+    if conn.execute("SELECT to_regclass('modb.model_status') IS NULL").fetchone()[0]:
+        raise NotFound("the database's modb extension is older than 0.22.0: no motion models")
+    try:
+        return brief(conn, _name(request), version)
+    except ModelNotFound as e:
+        raise NotFound(str(e)) from None
 
 
 def _frames(motion: Motion) -> dict[str, Any]:
@@ -116,7 +121,12 @@ def samples(conn: psycopg.Connection, request: Request) -> dict[str, Any]:
 
     name, n, seed, version = samples_args(request)
     row = _load(conn, name, version)
-    motions = sample_motions(conn, name, n, seed, row["version"])
+    try:
+        motions = sample_motions(conn, name, n, seed, row["version"])
+    finally:
+        # A server process keeps about 1.4 MB of each call's Python memory (BENCHMARKS.md, issue
+        # 58): the connection is closed, not pooled again, so that no reader's process grows.
+        conn.close()
     answer = _motions_answer(row, motions, "samples", lambda k, m: {"sample": k + 1})
     return {**answer, "seed": seed}
 
