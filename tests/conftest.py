@@ -36,6 +36,7 @@ FIRST = (
     "test_models.py",
     "test_catalog_edits.py",
     "test_replicas.py",
+    "test_worker_outage.py",
     "test_avatar_models_web.py",
     "test_jobs.py",
     "test_export_roundtrip.py",

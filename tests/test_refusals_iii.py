@@ -141,7 +141,7 @@ def test_a_write_that_takes_no_body_refuses_one(dsn, rest):
 def test_an_upload_names_its_collection_as_a_collection_is_named(dsn, rest):
     from support.data import mocap
 
-    amc = mocap("cmu", "16", "16_01.amc")
+    amc = mocap("cmu", "16", "16_08.amc")
     asf = mocap("cmu", "16", "16.asf")
     files = [("file", (p.name, p.read_bytes())) for p in (asf, amc)]
     made = rest.post("/api/collections", json={"path": "/abs"})

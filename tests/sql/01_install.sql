@@ -8,7 +8,8 @@ SELECT has_schema('modb');
 SELECT tables_are('modb', ARRAY['collections', 'skeletons', 'clips', 'clip_versions', 'models', 'graphs',
                                'snippet_sources', 'terminators', 'snippets', 'match_profiles', 'graph_snippets',
                                'graph_transitions', 'graph_names', 'snippet_blocks', 'generations', 'access_tokens',
-                               'audit_log', 'clip_segments', 'edit_scripts', 'repaired_rows', 'processed_data']);
+                               'audit_log', 'clip_segments', 'edit_scripts', 'repaired_rows', 'processed_data',
+                               'model_inputs']);
 SELECT views_are('modb', ARRAY['current_clips', 'processed_data_status', 'model_status']);
 SELECT functions_are('modb', ARRAY[
     'skeleton_identity', 'unit_quaternions_ok', 'finite_ok', 'skeleton_joint_names', 'joint_map_ok', 'mirror_pairs_ok',
@@ -30,7 +31,9 @@ SELECT functions_are('modb', ARRAY[
     '_apply_edit_script', 'joint_axes_problem', 'skeletons_check_documents', 'edit_script_problems',
     'edit_scripts_check_commands', 'collections_check_name', 'terminators_updated',
     'select_snippet_ending_reference', 'annotate_steps', '_annotate_steps', 'align_primitive', '_align_primitive',
-    'models_version_rules', 'sample_motion', '_sample_motion', 'model_graph_problem', 'model_graphs_check',
+    'models_version_rules', 'model_document_problems', 'model_mixture_md5', 'models_check_documents',
+    'models_keep_inputs', 'models_keep_what_graphs_name', 'tree_shape', 'sample_motion', '_sample_motion',
+    'model_graph_problem', 'model_graphs_check',
     'synthesize_from_models', '_synthesize_from_models']);
 SELECT is((SELECT o.opcname::text FROM pg_index i JOIN pg_opclass o ON o.oid = i.indclass[0]
             WHERE i.indexrelid = 'modb.snippets_begin_features_idx'::regclass), 'cube_feature_ops',
@@ -47,8 +50,9 @@ SELECT is((SELECT count(*) FROM pg_class WHERE relnamespace = 'modb'::regnamespa
             AND obj_description(oid, 'pg_class') IS NULL), 0::bigint, 'every table and view has a COMMENT');
 -- Parallel labels: tests/test_parallel_safety.py runs every PARALLEL SAFE function in a parallel worker.
 SELECT is((SELECT count(*) FROM pg_proc WHERE pronamespace = 'modb'::regnamespace AND prosecdef
-             AND proname NOT IN ('token_grant', 'delete_collection', 'delete_clip', 'delete_clip_version')), 0::bigint,
-    'no SECURITY DEFINER function but token_grant and the deleting functions');
+             AND proname NOT IN ('token_grant', 'delete_collection', 'delete_clip', 'delete_clip_version',
+                                 'models_keep_inputs')), 0::bigint,
+    'no SECURITY DEFINER function but token_grant, the deleting functions and the trigger keeping model_inputs');
 SELECT ok((SELECT l.lanname = 'sql' AND p.proconfig = ARRAY['search_path=pg_catalog, pg_temp']
              FROM pg_proc p JOIN pg_language l ON l.oid = p.prolang WHERE p.oid = 'modb.token_grant(bytea)'::regprocedure),
           'token_grant (SECURITY DEFINER: it answers for one hash, so no role reads the tokens) is SQL with a fixed search_path');
