@@ -32,6 +32,11 @@ class ModelNotFound(LookupError):
     pass
 
 
+def _not_found(name: str, version: int | None) -> ModelNotFound:
+    which = "" if version is None else f" version {version}"
+    return ModelNotFound(f'no motion model "{name}"{which} (modb model list names them)')
+
+
 def build_document(inputs: Inputs, collection: str, seed: int, variance: float) -> dict[str, Any]:
     """The model of the inputs with what it was built from and how (a seeded build is the same)."""
     document = B.build(inputs.examples, rig_of(inputs.skeleton), inputs.fps, inputs.keyframes,
@@ -72,13 +77,16 @@ def stored_by_job(conn: psycopg.Connection, name: str, job_id: int
     ).fetchone()
 
 
-def _store_tree(conn: psycopg.Connection, ident: int, tree: dict[str, Any]) -> None:
+def _store_tree(conn: psycopg.Connection, ident: int, tree: dict[str, Any],
+                stamped: bool = False) -> bool:  # fmt: skip
     """Writes the tree into the version's meta, where the database stamps it with the mixture it
-    was drawn from (modb.models_check_documents)."""
-    conn.execute(
-        "UPDATE modb.models SET meta = meta || jsonb_build_object('tree', %s::jsonb) WHERE id = %s",
-        [Jsonb(tree), ident],
-    )
+    was drawn from (modb.models_check_documents); a tree `stamped` already (from a file) only when
+    its stamp is this version's mixture. Returns whether it was written."""
+    return conn.execute(
+        "UPDATE modb.models SET meta = meta || jsonb_build_object('tree', %s::jsonb) "
+        "WHERE id = %s AND (NOT %s OR %s = modb.model_mixture_md5(data))",
+        [Jsonb(tree), ident, stamped, tree.get("mixture_md5")],
+    ).rowcount == 1
 
 
 def listing(conn: psycopg.Connection, collection: str | None = None) -> list[dict[str, Any]]:
@@ -98,8 +106,7 @@ def load(conn: psycopg.Connection, name: str, version: int | None = None) -> dic
             [name, KIND, version, version],
         ).fetchone()
     if row is None:
-        which = "" if version is None else f" version {version}"
-        raise ModelNotFound(f'no motion model "{name}"{which} (modb model list names them)')
+        raise _not_found(name, version)
     return row
 
 
@@ -130,8 +137,7 @@ def brief(conn: psycopg.Connection, name: str, version: int | None = None) -> di
     with conn.cursor(row_factory=psycopg.rows.dict_row) as cur:
         row = cur.execute(BRIEF, [name, KIND, version, version]).fetchone()
     if row is None:
-        which = "" if version is None else f" version {version}"
-        raise ModelNotFound(f'no motion model "{name}"{which} (modb model list names them)')
+        raise _not_found(name, version)
     weights = row.pop("weights")
     row["mixture"] = {"components": len(weights), "weights": weights,
                       "covariance": row.pop("covariance"), "bic": row.pop("bic")}  # fmt: skip
@@ -200,11 +206,7 @@ def import_document(conn: psycopg.Connection, document: Any, name: str | None = 
         [name, KIND, found[0], collection_id, Jsonb(data), Jsonb(meta)],
     ).fetchone()  # the database refuses a document that cannot be sampled, saying why
     # the file's tree only when the database finds it drawn from this very mixture
-    kept = isinstance(tree, dict) and conn.execute(
-        "UPDATE modb.models SET meta = meta || jsonb_build_object('tree', %s::jsonb) "
-        "WHERE id = %s AND %s = modb.model_mixture_md5(data)",
-        [Jsonb(tree), ident, tree.get("mixture_md5")],
-    ).rowcount == 1
+    kept = isinstance(tree, dict) and _store_tree(conn, ident, tree, stamped=True)
     return ident, version, name, kept
 
 
