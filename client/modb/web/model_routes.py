@@ -124,7 +124,7 @@ def samples(conn: psycopg.Connection, request: Request) -> dict[str, Any]:
     try:
         motions = sample_motions(conn, name, n, seed, row["version"])
     finally:
-        # A server process keeps about 1.4 MB of each call's Python memory (BENCHMARKS.md, issue
+        # A server process keeps about 1.1-1.4 MB of each call's Python memory (BENCHMARKS.md, issue
         # 58): the connection is closed, not pooled again, so that no reader's process grows.
         conn.close()
     answer = _motions_answer(row, motions, "samples", lambda k, m: {"sample": k + 1})
