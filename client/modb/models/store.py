@@ -82,11 +82,14 @@ def _store_tree(conn: psycopg.Connection, ident: int, tree: dict[str, Any],
     """Writes the tree into the version's meta, where the database stamps it with the mixture it
     was drawn from (modb.models_check_documents); a tree `stamped` already (from a file) only when
     its stamp is this version's mixture. Returns whether it was written."""
-    return conn.execute(
-        "UPDATE modb.models SET meta = meta || jsonb_build_object('tree', %s::jsonb) "
-        "WHERE id = %s AND (NOT %s OR %s = modb.model_mixture_md5(data))",
-        [Jsonb(tree), ident, stamped, tree.get("mixture_md5")],
-    ).rowcount == 1
+    # two statements, not one with an OR: a build against an extension older than 0.26.0 (no
+    # modb.model_mixture_md5) must still parse
+    write = ("UPDATE modb.models SET meta = meta || jsonb_build_object('tree', %s::jsonb) "
+             "WHERE id = %s")
+    if not stamped:
+        return conn.execute(write, [Jsonb(tree), ident]).rowcount == 1
+    return conn.execute(write + " AND %s = modb.model_mixture_md5(data)",
+                        [Jsonb(tree), ident, tree.get("mixture_md5")]).rowcount == 1
 
 
 def listing(conn: psycopg.Connection, collection: str | None = None) -> list[dict[str, Any]]:
