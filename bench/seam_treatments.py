@@ -1,6 +1,7 @@
 """Seam treatments side by side (docs/synthesis.md, seams): the same seeded courses synthesized
-with no treatment, the linear blend, inertialization, and inertialization with foot locking, on the
-default graph, and the figures:
+with no treatment, the linear blend, inertialization, and inertialization with stance feet held
+(the default since 0.27.0: modb_kernel.foot_hold; the others without it), on the default graph, and
+the figures:
 seams rougher than a natural step (r > 1), their 99th percentile of r, the worst pose jump, and foot
 skating, beside the source clips' own.
 
@@ -15,7 +16,6 @@ import numpy as np
 from modb.bench.synth import seeded_course
 from modb.database.connection import connect
 from modb.synthesis.avatar import Settings
-from modb.synthesis.foot_lock import lock_feet
 from modb.synthesis.quality import NaturalSteps, measure
 from modb.synthesis.synth import source_motions, synthesize
 
@@ -36,18 +36,18 @@ def main(dsn: str, seconds: float, seeds: list[int]) -> None:
             rows = []
             for seed in seeds:
                 goals = seeded_course(seed, n_goals=int(seconds // 5) + 1)
-                result = synthesize(conn, goals, seconds, Settings(seam=seam, blend_frames=frames))
+                settings = Settings(seam=seam, blend_frames=frames, foot_hold=locked)
+                result = synthesize(conn, goals, seconds, settings)
                 if natural is None:
                     first = result.chain[0].snippet_id
                     natural = NaturalSteps.of(source_motions(conn, first, result.collection))
-                strip = lock_feet(result.strip) if locked else result.strip
-                rep = measure(strip, result.chain, goals, natural, 1.0)
+                rep = measure(result.strip, result.chain, goals, natural, 1.0)
                 rows.append(
                     (rep.seam_share_over_one, rep.seam_r_p99, rep.pose_jump_max, rep.foot_skating)
                 )
             a = np.array(rows)
             label = f"{seam}, {frames} frames" if frames else seam
-            label += ", foot lock" if locked else ""
+            label += ", feet held" if locked else ""
             print(
                 f"| {label} | {a[:, 0].mean():.1%} | {a[:, 1].mean():.2f} | "
                 f"{100 * a[:, 2].max():.1f} cm | {100 * a[:, 3].mean():.1f} cm/s |"

@@ -211,11 +211,20 @@ static GucStringCheckHook hooks[N_KNOBS] = {
 	check_knob_7, check_knob_8, check_knob_9, check_knob_10, check_knob_11, check_knob_12, check_knob_13,
 };
 
+/* modb.foot_hold: read by synthesis from models (the kernel's foot_hold), not a match knob. */
+static bool foot_hold = true;
+
 /* Called from _PG_init: defines the knobs and reserves the prefix (earlier placeholders are checked then). */
 void
 modb_define_settings(void)
 {
 	MemoryContext old = MemoryContextSwitchTo(TopMemoryContext);	/* the descriptions are not copied */
+
+	DefineCustomBoolVariable("modb.foot_hold",
+							 "Synthesis from models holds each stance foot where it touched down, at its source's height.",
+							 "modb.synthesize_from_models reads it (docs/synthesis.md \"Feet on the ground\"); off shows "
+							 "the seams' treatment alone, for comparison.",
+							 &foot_hold, true, PGC_USERSET, 0, NULL, NULL, NULL);
 
 	for (int i = 0; i < N_KNOBS; i++)
 	{

@@ -2,12 +2,16 @@
 -- once the library is loaded), and every change of what sessions cache takes a new generation.
 BEGIN;
 CREATE EXTENSION IF NOT EXISTS pgtap;
-SELECT plan(10);
+SELECT plan(12);
 
 LOAD 'modb';  -- what session_preload_libraries does for the embedded cluster
-SELECT set_eq($$SELECT substr(name, 6) FROM pg_settings WHERE name LIKE 'modb.%'$$,
+SELECT set_eq($$SELECT substr(name, 6) FROM pg_settings WHERE name LIKE 'modb.%' AND name <> 'modb.foot_hold'$$,
               $$SELECT unnest(modb.match_knobs())$$, 'every knob is listed in pg_settings');
-SELECT is((SELECT count(*) FROM pg_settings WHERE name LIKE 'modb.%' AND short_desc NOT LIKE '%profile%'), 0::bigint,
+SELECT is((SELECT vartype || ' ' || boot_val FROM pg_settings WHERE name = 'modb.foot_hold'), 'bool on',
+          'modb.foot_hold, the one setting beside the knobs: a boolean, on by default');
+SELECT throws_ok($$SET modb.foot_hold = 'sometimes'$$, '22023', NULL, 'modb.foot_hold takes a boolean only');
+SELECT is((SELECT count(*) FROM pg_settings WHERE name LIKE 'modb.%' AND name <> 'modb.foot_hold'
+                                              AND short_desc NOT LIKE '%profile%'), 0::bigint,
           'each says how to get the profile''s value');
 SELECT is((SELECT short_desc LIKE '%(metres)%' FROM pg_settings WHERE name = 'modb.position_threshold'), true,
           'a threshold states its unit');

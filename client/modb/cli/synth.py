@@ -142,9 +142,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     synth.add_argument(
         "--foot-lock",
-        action="store_true",
-        help="hold each standing foot where it stood (two-bone IK on the legs): less foot "
-        "skating, seams as rough as without (selected snippets only, not with --models)",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="hold each stance foot where it touched down, at the height its source holds it "
+        "(the kernel's two-bone IK on the legs), in both families: the default; "
+        "--no-foot-lock shows the seams' treatment alone, for comparison",
     )
     synth.add_argument(
         "--in-place",
@@ -201,7 +203,6 @@ def run(args: argparse.Namespace) -> int:
     # numpy, scipy and synthesis on them (about 300 ms): not for `modb --help`
     from modb.provenance import as_meta, strip_sources
     from modb.resample import at_fps
-    from modb.synthesis.foot_lock import lock_feet
     from modb.synthesis.root_motion import with_root_motion
     from modb.synthesis.source_frames import UnplaceableSkeleton
     from modb.synthesis.synth import clip_names, report, synthesize
@@ -247,6 +248,7 @@ def run(args: argparse.Namespace) -> int:
             lead_time=args.lead_time or 0.0,
             blend_frames=args.blend or 0,
             seam=args.seam or ("blend" if args.blend else "inertialize"),
+            foot_hold=args.foot_lock,
         )
     except ValueError as e:  # named by the setting: --lead-time is lead_time
         print(f"modb synth: {e}", file=sys.stderr)
@@ -272,8 +274,6 @@ def run(args: argparse.Namespace) -> int:
             return 1
         for note in result.notes:
             print(f"modb synth: {note}", file=sys.stderr)
-        if args.foot_lock:
-            result = dataclasses.replace(result, strip=lock_feet(result.strip))
         strip = result.strip if args.in_place else with_root_motion(result.strip)
         if args.fps:
             strip = at_fps(strip, args.fps)
@@ -328,10 +328,6 @@ def run_models(args: argparse.Namespace, goals: list[Goal]) -> int:
               "a walk on a graph of models (--models) has no use for "
               f"{'it' if len(given) == 1 else 'them'}", file=sys.stderr)  # fmt: skip
         return 2
-    if args.foot_lock:
-        print("modb synth: --foot-lock locks the feet of selected snippets; a walk on a graph of "
-              "models (--models) plants its own", file=sys.stderr)  # fmt: skip
-        return 2
     if args.arrival_radius > MAX_ARRIVAL_RADIUS_M:
         print(f"modb synth: --arrival-radius {args.arrival_radius:g}: a walk on a graph of models "
               f"takes at most {MAX_ARRIVAL_RADIUS_M:g} m", file=sys.stderr)  # fmt: skip
@@ -342,6 +338,8 @@ def run_models(args: argparse.Namespace, goals: list[Goal]) -> int:
               f"{MAX_MODEL_SECONDS:g} s", file=sys.stderr)  # fmt: skip
         return 2
     with connect(args) as conn:
+        if not args.foot_lock:
+            conn.execute("SELECT set_config('modb.foot_hold', 'off', false)")
         try:
             strip = synthesize(conn, args.models, [(g[0], g[-1]) for g in goals], args.seconds,
                                seed, args.arrival_radius)  # fmt: skip

@@ -26,6 +26,7 @@ from modb.validation import checked_number
 
 from .blend import blend_seam
 from .inertialize import Seams
+from .feet import FootHold, feet_held
 from .chain import (
     MAX_ID,
     Choice,
@@ -172,12 +173,14 @@ class Avatar:
             pending: Future | None = executor.submit(self._choose, *asked)
             played: list[Frame] = []  # the last two frames played: a seam's left side
             seams: Seams | None = None
+            hold: FootHold | None = None
             while True:
                 started = time.perf_counter()
                 choice, rotations, translations = self._answer(pending, asked)
                 waited = (time.perf_counter() - started) * 1000.0
                 choice = replace(choice, waited_ms=waited if self.choices else 0.0)
                 self.choices.append(choice)
+                reference = rotations, translations  # as placed: the feet's contacts and heights
                 treatment = self.settings.seam
                 if treatment == "inertialize" and len(played) == 2:
                     if seams is None:  # a chain has one skeleton
@@ -191,14 +194,22 @@ class Avatar:
                         played[-1], rotations, translations, self.settings.blend_frames
                     )
                 skip = 0 if choice.step == 0 else 1
+                shown = rotations
+                if self.settings.foot_hold:
+                    if hold is None:  # a chain has one skeleton and rate
+                        hold = feet_held(self.library.get(choice.clip_id, choice.version,
+                                                          choice.mirrored).skeleton, choice.fps)
+                    shown = rotations.copy()
+                    shown[skip:] = hold.feed(rotations[skip:], translations[skip:],
+                                             (reference[0][skip:], reference[1][skip:]))
                 lead_frames = int(round(self.settings.lead_time * choice.fps))
                 pending = None
                 for k in range(skip, choice.n_frames):
-                    frame = Frame(
-                        choice.start_frame + k, choice.step, rotations[k], translations[k]
-                    )
+                    frame = Frame(choice.start_frame + k, choice.step, shown[k], translations[k])
                     yield frame
-                    played = [*played[-1:], frame]
+                    # the next seam joins the strip before its feet were held: the hold is
+                    # continuous on its own, and its changes are not a seam's to carry
+                    played = [*played[-1:], replace(frame, rotations=rotations[k])]
                     if pending is None and choice.n_frames - 1 - k <= lead_frames:
                         asked = (choice, self._request(choice))
                         pending = executor.submit(self._choose, *asked)

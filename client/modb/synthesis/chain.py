@@ -47,6 +47,9 @@ class Settings:
     # spread linearly over blend_frames frames) or "none" (the snippets as captured)
     seam: str = "inertialize"
     blend_frames: int = 0
+    # stance feet held from touchdown to lift-off, at the height their snippets hold them
+    # (modb_kernel.foot_hold); False shows the seams' treatment alone
+    foot_hold: bool = True
     # SET modb.<knob> for this avatar's session (modb.match_knobs())
     knobs: dict[str, str] = field(default_factory=dict)
     # report each choice's modb.candidates_examined (one more query, after it)

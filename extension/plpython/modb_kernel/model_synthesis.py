@@ -21,7 +21,7 @@ import json
 
 import numpy as np
 
-from . import inertialization, memory, motion_model, quaternion
+from . import foot_hold, inertialization, memory, motion_model, quaternion
 from .database import Statement, StoreError
 from .step_search import Rig, StepModel, hip_heading, rotate_y, wrap
 
@@ -109,9 +109,10 @@ def placed(rig, rotations, translations, yaw, shift):
 
 class Synthesis:
     def __init__(self, graph, models, rig, goals, seconds, seed, radius=ARRIVAL_RADIUS_M,
-                 interrupts=no_interrupts):  # fmt: skip
+                 interrupts=no_interrupts, hold_feet=True):  # fmt: skip
         """graph: the graph document; models: node name -> StepModel; goals: [(x, z)];
-        interrupts: called before each piece of work (a step, a successor's search)."""
+        interrupts: called before each piece of work (a step, a successor's search); hold_feet:
+        stance feet held from touchdown to lift-off (foot_hold)."""
         if not 0 < seconds <= MAX_SECONDS:
             raise SynthesisError(f"seconds is {seconds}: give more than 0, at most {MAX_SECONDS:g}")
         rates = {m.model["fps"] for m in models.values()}
@@ -127,6 +128,8 @@ class Synthesis:
         self.rng = np.random.default_rng(seed)
         self.seams = inertialization.Seams(rig.parents, rig.offsets, rig.translated, rig.pelvis)
         self.body = Body(rig)
+        self.hold = foot_hold.FootHold(rig.parents, rig.offsets, rig.translated, rig.names,
+                                       rig.joint_map, self.fps) if hold_feet else None  # fmt: skip
         self.steps, self.notes = [], []
         self.node = None  # the node of the last step
         self.goal = 0  # index of the current goal
@@ -238,6 +241,7 @@ class Synthesis:
         yaw = body.heading - first
         shift = at - rotate_y(anchor, yaw)
         rotations, translations = placed(rig, rotations, translations, yaw, shift)
+        reference = rotations, translations  # the step as placed: its feet's heights and contacts
         if body.rotations:
             old_r, old_t = body.last_two()
             planted = rig.positions(rotations, translations)
@@ -247,6 +251,9 @@ class Synthesis:
                 foot = rig.ankle[stance]
                 self.keep_planted(rotations, translations, foot, planted[:, foot])
             rotations, translations = rotations[1:], translations[1:]
+            reference = reference[0][1:], reference[1][1:]
+        if self.hold is not None:
+            rotations = self.hold.feed(rotations, translations, reference)
         body.rotations.append(rotations)
         body.translations.append(translations)
         end = rig.positions(rotations[-1:], translations[-1:])[0]
@@ -354,6 +361,16 @@ MODELS = Statement(
 )
 
 
+FOOT_HOLD = Statement("SELECT current_setting('modb.foot_hold', true) AS value")
+
+
+def foot_hold_on(db):
+    """The session's modb.foot_hold (on when never set; a value SET before the library was
+    loaded is read as PostgreSQL reads a boolean)."""
+    value = (db.run(FOOT_HOLD)[0]["value"] or "on").strip().lower()
+    return value not in ("off", "of", "false", "fals", "fal", "fa", "f", "no", "n", "0")
+
+
 def load(db, graph_name, interrupts=no_interrupts):
     """(graph document, node name -> StepModel, Rig) of the stored graph of models."""
     found = db.run(GRAPH, [graph_name])
@@ -412,7 +429,7 @@ def synthesize_stored(db, graph_name, goals, seconds, seed, radius=ARRIVAL_RADIU
     graph, models, rig = load(db, graph_name, db.check_interrupts)
     try:
         synthesis = Synthesis(graph, models, rig, goals, seconds, seed, radius,
-                              db.check_interrupts).run()  # fmt: skip
+                              db.check_interrupts, foot_hold_on(db)).run()  # fmt: skip
     except ValueError as e:
         raise StoreError(f'graph "{graph_name}": {e}', sqlstate="22023") from None
     rotations, translations = synthesis.frames()

@@ -47,6 +47,7 @@ class Rig:
         hierarchy, joint_map = skeleton_row["hierarchy"], skeleton_row["joint_map"]
         joints = hierarchy["joints"]
         self.names = [j["name"] for j in joints]
+        self.joint_map = dict(joint_map)
         self.parents = [j["parent"] for j in joints]
         self.offsets = np.array([j["offset"] for j in joints], dtype=np.float64)
         self.translated = list(hierarchy.get("translated", []))

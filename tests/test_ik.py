@@ -1,0 +1,192 @@
+"""The kernel's inverse kinematics (issue 59) on real rigs (Bandai's BVH, CMU's ASF/AMC), judged by
+the test's own forward kinematics (scipy's rotations): reachable targets met within 1 mm, bone
+lengths kept, an unreachable target met at the nearest point the limb reaches, the knee bent
+the way the motion bends it, the foot's world orientation kept, and a change spread by a falloff
+that is 1 at its frame and 0 outside its range."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+from support import own_kinematics
+from support.data import mocap
+
+from modb.loader.asf import read_amc, read_asf
+from modb.loader.bvh import read_bvh
+from modb_kernel import ik
+
+RNG = np.random.default_rng(59)
+
+
+def _rigs():
+    walk = mocap("bandai-2-dev", "data", "dataset-2_walk_active_001.bvh")
+    asf = mocap("cmu", "16", "16.asf")
+    if not walk.exists() or not asf.exists():
+        pytest.skip(f"the shipped capture is not at {mocap()} (../shared/mocap beside the project)")
+    cmu = read_amc(str(mocap("cmu", "16", "16_15.amc")), read_asf(str(asf)))
+    return {"bandai": read_bvh(str(walk)), "cmu": cmu}
+
+
+@pytest.fixture(scope="module", params=["bandai", "cmu"])
+def motion(request):
+    m = _rigs()[request.param]
+    return replace(m, rotations=m.rotations[::7], translations=m.translations[::7])  # every 7th
+
+
+def positions(motion, rotations):
+    sk = motion.skeleton
+    return own_kinematics.world_positions(sk.parents, sk.offsets, sk.translated, rotations,
+                                          motion.translations)  # fmt: skip
+
+
+def world_rotations(motion, rotations, joint):
+    """scipy's world rotation of one joint: the product of the local ones from the top down."""
+    sk = motion.skeleton
+    chain, j = [], joint
+    while j >= 0:
+        chain.append(j)
+        j = sk.parents[j]
+    out = Rotation.identity(len(rotations))
+    for j in reversed(chain):
+        out = out * own_kinematics.rotations_of(rotations[:, j])
+    return out
+
+
+def leg(motion, side="left"):
+    sk = motion.skeleton
+    return [sk.index(sk.joint_map[f"{side}_{part}"]) for part in ("hip", "knee", "ankle")]
+
+
+def bone_lengths(p, joints):
+    return np.linalg.norm(p[:, joints[1:]] - p[:, joints[:-1]], axis=-1)
+
+
+def solve_two_bone(motion, chain, targets, **options):
+    sk = motion.skeleton
+    return ik.two_bone(sk.parents, sk.offsets, motion.rotations, motion.translations,
+                       sk.translated, chain, targets, **options)  # fmt: skip
+
+
+def test_two_bone_meets_reachable_targets_keeping_bones_foot_and_knee_side(motion):
+    chain = leg(motion)
+    before = positions(motion, motion.rotations)
+    # targets a few cm from the ankle in any direction, drawn a tenth of the way toward the hip
+    # (a walking leg is nearly straight: most of them lie within its reach)
+    ankle, hip = before[:, chain[2]], before[:, chain[0]]
+    targets = ankle + (hip - ankle) * 0.1 + RNG.normal(size=(motion.n_frames, 3)) * 0.05
+    rotations, reached, miss = solve_two_bone(motion, chain, targets)
+    after = positions(motion, rotations)
+    upper_lower = bone_lengths(before, chain)
+    room = np.linalg.norm(targets - before[:, chain[0]], axis=-1) < upper_lower.sum(1) * 0.999
+    assert room.mean() > 0.8
+    assert np.abs(after[room, chain[2]] - targets[room]).max() < 1e-3
+    assert np.allclose(after[:, chain[2]], reached, atol=1e-9)
+    assert np.abs(miss[room]).max() < 1e-3
+    # every bone of the skeleton keeps its length (the leg's and all others)
+    sk = motion.skeleton
+    kids = [j for j, p in enumerate(sk.parents) if p >= 0]
+    parents = [sk.parents[j] for j in kids]
+    length = lambda p: np.linalg.norm(p[:, kids] - p[:, parents], axis=-1)  # noqa: E731
+    assert np.abs(length(after) - length(before)).max() < 1e-9
+    # the foot keeps its world orientation; nothing above the hip moves
+    foot_change = (world_rotations(motion, rotations, chain[2])
+                   * world_rotations(motion, motion.rotations, chain[2]).inv()).magnitude()
+    assert foot_change.max() < 1e-6
+    above = [j for j in range(len(sk.parents)) if j not in _subtree(sk.parents, chain[0])]
+    assert np.abs(after[:, above] - before[:, above]).max() < 1e-9
+    # the knee stays on the side it bent to: the bend direction turns by less than 90 degrees
+    assert (_bend(after, chain) * _bend(before, chain)).sum(-1)[room].min() > 0
+
+
+def _subtree(parents, root):
+    out = {root}
+    for j, p in enumerate(parents):
+        if p in out:
+            out.add(j)
+    return out
+
+
+def _bend(p, chain):
+    a, b, c = (p[:, j] for j in chain)
+    line = (c - a) / np.linalg.norm(c - a, axis=-1, keepdims=True)
+    bend = (b - a) - ((b - a) * line).sum(-1, keepdims=True) * line
+    return bend / np.linalg.norm(bend, axis=-1, keepdims=True)
+
+
+def test_two_bone_out_of_reach_ends_at_the_nearest_reachable_point(motion):
+    chain = leg(motion, "right")
+    before = positions(motion, motion.rotations)
+    hip = before[:, chain[0]]
+    length = bone_lengths(before, chain).sum(1)
+    direction = RNG.normal(size=(motion.n_frames, 3))
+    direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+    targets = hip + direction * (length * 1.5)[:, None]
+    rotations, reached, miss = solve_two_bone(motion, chain, targets)
+    after = positions(motion, rotations)
+    # the nearest point of the ball the leg reaches: on the line toward the target, at full length
+    nearest = hip + direction * length[:, None]
+    assert np.abs(after[:, chain[2]] - nearest).max() < 1e-3
+    assert np.allclose(miss, length * 0.5, atol=1e-3)
+
+
+def test_two_bone_takes_a_pole_and_an_end_orientation(motion):
+    chain = leg(motion)
+    before = positions(motion, motion.rotations)
+    targets = before[:, chain[2]] + [0.0, 0.05, 0.03]
+    pole = np.array([1.0, 0.0, 0.0])  # the knee to the character's... +X, whatever it was
+    turned = Rotation.from_euler("y", 30, degrees=True) * world_rotations(motion, motion.rotations,
+                                                                         chain[2])  # fmt: skip
+    wxyz = np.roll(turned.as_quat(), 1, axis=1)
+    rotations, _, _ = solve_two_bone(motion, chain, targets, poles=pole, end_orientations=wxyz)
+    after = positions(motion, rotations)
+    assert np.abs(after[:, chain[2]] - targets).max() < 1e-3
+    # the middle joint bends toward the pole: its offset from the limb's line points along +X
+    assert (_bend(after, chain) @ pole).min() > 0.99
+    change = (world_rotations(motion, rotations, chain[2]) * turned.inv()).magnitude()
+    assert change.max() < 1e-6
+
+
+def test_ccd_meets_targets_along_a_longer_chain(motion):
+    sk = motion.skeleton
+    chain = [sk.index(sk.joint_map[n]) for n in ("chest", "left_wrist")]
+    before = positions(motion, motion.rotations)
+    targets = before[:, chain[1]] + RNG.normal(size=(motion.n_frames, 3)) * 0.08
+    rotations, reached, miss = ik.ccd(sk.parents, sk.offsets, motion.rotations, motion.translations,
+                                      sk.translated, chain, targets)  # fmt: skip
+    after = positions(motion, rotations)
+    assert np.abs(np.linalg.norm(after[:, chain[1]] - targets, axis=-1)).max() < 1e-3
+    kids = [j for j, p in enumerate(sk.parents) if p >= 0]
+    parents = [sk.parents[j] for j in kids]
+    length = lambda p: np.linalg.norm(p[:, kids] - p[:, parents], axis=-1)  # noqa: E731
+    assert np.abs(length(after) - length(before)).max() < 1e-9
+    assert np.allclose(miss, np.linalg.norm(after[:, chain[1]] - targets, axis=-1), atol=1e-9)
+    hand = (world_rotations(motion, rotations, chain[1])
+            * world_rotations(motion, motion.rotations, chain[1]).inv()).magnitude()
+    assert hand.max() < 1e-6
+
+
+def test_the_falloff_is_a_cubic_b_spline_bump_and_spread_keeps_frames_outside():
+    w = ik.falloff(41, 20, 8, 12)
+    # the independent cubic B-spline: the uniform cardinal one, (2-|x|)^3/6 - 4(1-|x|)^3_+/6
+    def cardinal(x):
+        x = abs(x)
+        return ((2 - x) ** 3 - 4 * max(0.0, 1 - x) ** 3) / 6 if x < 2 else 0.0
+
+    own = [cardinal(2 * (t - 20) / (8 if t < 20 else 12)) / cardinal(0) for t in range(41)]
+    assert np.allclose(w, own, atol=1e-12)
+    assert w[20] == 1.0 and w[:13].max() == 0.0 and w[32:].max() == 0.0
+    assert np.all(np.diff(w[12:21]) > 0) and np.all(np.diff(w[20:33]) < 0)
+    rotations = Rotation.random(41 * 3, random_state=1).as_quat().reshape(41, 3, 4)
+    rotations = np.roll(rotations, 1, axis=-1)
+    wanted = Rotation.from_rotvec([0.0, 0.6, 0.0]) * own_kinematics.rotations_of(rotations[20, 1])
+    pose = rotations[20].copy()
+    pose[1] = np.roll(wanted.as_quat(), 1)
+    out = ik.spread_from(rotations, 20, pose, [1], w)
+    assert np.allclose(np.abs((out[:, [0, 2]] * rotations[:, [0, 2]]).sum(-1)), 1.0)
+    assert np.allclose(np.abs((out[w == 0, 1] * rotations[w == 0, 1]).sum(-1)), 1.0)
+    rot = own_kinematics.rotations_of
+    got = rot(out[:, 1]) * rot(rotations[:, 1]).inv()
+    assert np.allclose(got.magnitude(), 0.6 * w, atol=1e-9)
