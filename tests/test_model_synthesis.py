@@ -26,6 +26,7 @@ from support.bvh_oracle import bvhio_world_positions
 from support.commands import run_modb_here as modb
 from support.data import mocap
 from support.databases import scratch_database
+from support.feet_oracle import Body, Capture, check_targets
 from support.gltf_validator import validate
 
 from modb.database import pgarray
@@ -370,3 +371,45 @@ def test_both_families_are_compared_alike(walks, tmp_path):
     source = np.concatenate([features(rig.fk(np.asarray(r), np.asarray(t)))[::2] for r, t in clips])
     nearest = np.array([np.sqrt(((source - f) ** 2).sum(axis=1)).min() for f in strip])
     assert 100 * np.median(nearest) == pytest.approx(demo["models"]["novelty_median_cm"], abs=0.05)
+    # the feet's figures (issue 59), against the test's own rule on its own kinematics
+    body, capture = own_capture(rig, [(r, t, fps) for r, t in clips])
+    own = capture.judge(body, rig.fk(np.asarray(rotations), np.asarray(translations)), fps)
+    feet = demo["models"]["feet"]
+    assert feet["sliding_x_source"] == pytest.approx(own["sliding_x"], rel=0.01)
+    assert feet["toe_dip_cm"] == pytest.approx(own["dip_cm"], abs=0.01)
+    assert feet["clearance_x_source"] == pytest.approx(own["clearance_x"], rel=0.01)
+
+
+def own_capture(rig, clips):
+    """The test's own measure of feet (support.feet_oracle) for the rig, and the capture's."""
+    body = Body(rig.parents, rig.offsets, rig.translated, rig.names,
+                {k: rig.names[j] for k, j in rig.at.items()})  # fmt: skip
+    return body, Capture.of(body, [(np.asarray(r), np.asarray(t), f) for r, t, f in clips])
+
+
+def test_stance_feet_are_held_by_default_and_meet_the_targets(walks):
+    """Issue 59: the same course walked with the feet held (the default) and with modb.foot_hold
+    off, judged against the collection's capture by the test's own kinematics and contact rule:
+    stance sliding at most the capture's, the toe never more than 1 cm below its lowest, swing
+    clearance within 15%, no new pose jump above its p99.9."""
+    name, dsn = walks
+    rig = Rig(dsn)
+    runs = ("16_08", "16_57")  # CMU 16's two runs: its walks are the capture the steps came from
+    clips = [(np.asarray(r), np.asarray(t), f) for r, t, f, n in query(
+        dsn, "SELECT v.rotations, v.translations, v.fps, k.name FROM modb.current_clips c "
+        "JOIN modb.clip_versions v USING (clip_id, version) JOIN modb.clips k ON k.id = c.clip_id "
+        "WHERE c.collection = %s", [name]) if n not in runs]  # fmt: skip
+    body, capture = own_capture(rig, clips)
+    figures = {}
+    for hold in ("on", "off"):
+        with psycopg.connect(dsn) as conn:
+            pgarray.register(conn)
+            conn.execute("SELECT set_config('modb.foot_hold', %s, false)", [hold])
+            with conn.cursor(binary=True) as cur:
+                fps, rotations, translations = cur.execute(
+                    "SELECT fps, rotations, translations FROM modb.synthesize_from_models(%s, "
+                    "%s::float8[], %s, 0)", [GRAPH, [list(g) for g in COURSES[name]], SECONDS]
+                ).fetchone()  # fmt: skip
+        p = rig.fk(np.asarray(rotations), np.asarray(translations))
+        figures[hold] = capture.judge(body, p, fps)
+    check_targets(figures["on"], figures["off"], capture)

@@ -210,6 +210,9 @@ def _models_and_their_outputs(db, dsn) -> list:
 
 
 def _model_outputs(db) -> list:
+    """Two samples and a walk of the step models; the walk with modb.foot_hold off (0.27.0 holds
+    stance feet by default; off, it walks as the versions before did)."""
+    db.execute("SELECT set_config('modb.foot_hold', 'off', false)")
     samples = db.execute(
         "SELECT sample, fps, n_frames, rotations, translations "
         "FROM modb.sample_motion('left steps', 2, 7) ORDER BY sample"
@@ -217,8 +220,21 @@ def _model_outputs(db) -> list:
     synthesized = db.execute(
         "SELECT * FROM modb.synthesize_from_models('steps', ARRAY[[0, 3], [2, 4]]::float8[], 3, 5)"
     ).fetchall()
+    db.execute("RESET modb.foot_hold")
     assert len(samples) == 2 and len(synthesized) == 1
     return samples + synthesized
+
+
+def _feet_held_after_the_update(db, unheld) -> None:
+    """0.27.0's walk with the feet held (the default) keeps the walk's course and length and
+    changes its frames; the walk 0.26.0 made is what modb.foot_hold = off gives (_model_outputs)."""
+    held = db.execute(
+        "SELECT * FROM modb.synthesize_from_models('steps', ARRAY[[0, 3], [2, 4]]::float8[], 3, 5)"
+    ).fetchone()
+    assert held[:2] == unheld[:2]  # fps, n_frames
+    r_held, r_unheld = np.asarray(held[2]), np.asarray(unheld[2])
+    assert np.abs(r_held - r_unheld).max() > 1e-3
+    assert len(held[4]["steps"]) == len(unheld[4]["steps"])
 
 
 def _models_0_26_0_refuses(db) -> None:
@@ -321,8 +337,9 @@ def test_update_keeps_the_data(fresh_db, db, old, fresh_load):
         collection, models_before = _step_models(db, fresh_db)
     # 0.24.0: the kernel installed beside modb.so, no longer pasted; 0.25.0: the kernel computes
     # faster (graphs, cuts) and models build on one thread; 0.26.0: the kernel lets cancels in and
-    # gives memory back: what they give stays the same
-    if old in ("0.23.0", "0.24.0", "0.25.0"):
+    # gives memory back; 0.27.0 holds stance feet unless modb.foot_hold is off: what they give
+    # stays the same
+    if old in ("0.23.0", "0.24.0", "0.25.0", "0.26.0"):
         outputs_before = _models_and_their_outputs(db, fresh_db)
     if old == "0.25.0":  # 0.26.0 checks model documents: what it refuses is repaired
         _models_0_26_0_refuses(db)
@@ -361,7 +378,9 @@ def test_update_keeps_the_data(fresh_db, db, old, fresh_load):
         _graph_of_the_models(db, fresh_db, collection, models_before)
     if old == "0.25.0":
         _models_repaired(db)
-    if old in ("0.23.0", "0.24.0", "0.25.0"):
+    if old == "0.26.0":  # 0.27.0: the same walk with its stance feet held, by default
+        _feet_held_after_the_update(db, outputs_before[-1])
+    if old in ("0.23.0", "0.24.0", "0.25.0", "0.26.0"):
         _same_outputs(_model_outputs(db), outputs_before)  # this session, after the update
         with psycopg.connect(fresh_db) as new_session:
             _same_outputs(_model_outputs(new_session), outputs_before)

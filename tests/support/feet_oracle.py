@@ -6,7 +6,7 @@ within 3 cm of the capture's lowest toe (its 0.5th percentile), and what slides 
 - sliding: the mean ground speed (m/s, central differences) of the lower toe while on the floor;
 - dip: how far the lowest toe goes below the capture's lowest (m);
 - clearance: the toes' 95th-percentile height (m);
-- pose jumps: per frame step, the largest move of a body joint relative to the pelvis's ground point.
+- pose jumps: per frame step, the largest move of a body joint relative to the pelvis on the ground.
 """
 
 from __future__ import annotations

@@ -11,6 +11,9 @@ judged by the same code against the same source, the collection's captured clips
   and the share of frames above the source's p99;
 - foot sliding on contact frames: quality.foot_skating (an ankle or toe within 2 cm of its lowest
   and not rising);
+- feet on the ground by a rule of their own (synthesis.feet, the toes' heights against the
+  capture's): stance sliding of the lower toe near the floor, how far a toe goes below the
+  capture's lowest, and swing clearance (the toes' 95th percentile), each against the capture's;
 - root motion: the largest step of the top joint on the ground against its median step (a seam's
   jump in the travel shows as a spike);
 - novelty: each frame's distance to the nearest frame of the source (RMS over the body's joints,
@@ -35,6 +38,7 @@ from modb.clips import read_motion
 from modb.database import pgarray
 from modb.motion import Motion
 from modb.synthesis.chain import Settings
+from modb.synthesis.feet import Ground
 from modb.synthesis.from_models import first_frames
 from modb.synthesis.from_models import synthesize as synthesize_models
 from modb.synthesis.quality import foot_skating, pose_jumps
@@ -58,6 +62,7 @@ class Source:
     pose_jump_p99: float
     walking_speed: float  # m/s, median pelvis speed over 1 s windows of moving frames
     index: cKDTree
+    ground: Ground
 
     @classmethod
     def of(cls, conn: psycopg.Connection, collection: str) -> Source:
@@ -76,7 +81,8 @@ class Source:
         moving = speeds[speeds > 0.3]
         features = np.concatenate([pose_features(m)[::NOVELTY_STRIDE] for m in motions])
         return cls(float(np.percentile(jumps, 99)),
-                   float(np.median(moving)) if len(moving) else 1.0, cKDTree(features))  # fmt: skip
+                   float(np.median(moving)) if len(moving) else 1.0, cKDTree(features),
+                   Ground.of(motions))  # fmt: skip
 
 
 def _pelvis(motion: Motion) -> np.ndarray:
@@ -141,6 +147,7 @@ def measure(motion: Motion, goals, seconds_spent: float, source: Source) -> dict
         "pose_jump_max_cm": 100 * float(jumps.max()),
         "share_above_source_p99": float(np.mean(jumps > source.pose_jump_p99)),
         "foot_sliding_cm_s": 100 * foot_skating(walked)[0],
+        "feet": source.ground.judge(walked),
         "root_step_max_over_median": float(root_steps.max() / max(np.median(root_steps), 1e-9)),
         "novelty_median_cm": 100 * float(np.median(distances)),
         "novelty_p95_cm": 100 * float(np.percentile(distances, 95)),
@@ -178,6 +185,9 @@ ROWS = (
     ("worst pose jump, cm", lambda f: f"{f['pose_jump_max_cm']:.1f}"),
     ("frames above the source's p99", lambda f: f"{100 * f['share_above_source_p99']:.2f}%"),
     ("foot sliding, cm/s", lambda f: f"{f['foot_sliding_cm_s']:.1f}"),
+    ("stance sliding (toes), x capture", lambda f: f"{f['feet']['sliding_x_source']:.2f}"),
+    ("toe below the capture's lowest, cm", lambda f: f"{f['feet']['toe_dip_cm']:.1f}"),
+    ("swing clearance (toe p95), x capture", lambda f: f"{f['feet']['clearance_x_source']:.2f}"),
     ("root motion, largest step / median", lambda f: f"{f['root_step_max_over_median']:.2f}"),
     ("novelty, median / p95, cm",
      lambda f: f"{f['novelty_median_cm']:.1f} / {f['novelty_p95_cm']:.1f}"),

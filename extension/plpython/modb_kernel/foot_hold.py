@@ -33,7 +33,7 @@ REACH = 0.98  # of the leg's length
 CONTEXT_S = 2.0  # seconds of reference frames the contact rule reads (its ground, its speeds)
 RELEASE_S = 0.05  # the half-life of a hold's offset after lift-off (s)
 SEAM_S = HALFLIFE_S / 4  # the half-life of a piece's jump in the reference's heights
-FLOOR_PERCENTILE = 50  # a foot's point never lower than this percentile of its standing heights
+FLOOR_PERCENTILE = 25  # a foot's point never lower than this percentile of its standing heights
 SIDES = steps.SIDES
 
 
@@ -49,7 +49,9 @@ class _Foot:
 
 
 class FootHold:
-    def __init__(self, parents, offsets, translated, names, joint_map, fps):
+    def __init__(self, parents, offsets, translated, names, joint_map, fps, floors=None):
+        """floors: {(side, "ankle" or "toe"): metres} the capture's floors where known (a motion
+        model's "stance", stance_heights), else each is estimated from the reference."""
         self.parents, self.offsets = list(parents), np.asarray(offsets, dtype=np.float64)
         self.translated, self.fps = list(translated), float(fps)
         self.index = steps.joint_indices(list(names), joint_map)
@@ -60,6 +62,7 @@ class FootHold:
         self.last_height = {}  # (side, joint) -> the reference's last height of it
         self.down_weight = {}  # side -> how much the foot was down at the last frame
         self.floors = {}  # (side, point) -> its floor at the last frame
+        self.known_floors = dict(floors or {})
 
     @property
     def _points(self):
@@ -78,6 +81,9 @@ class FootHold:
             self.parents, self.offsets, reference[0], reference[1], self.translated)  # fmt: skip
         down, pivots, floors = self._contacts(ref[:, self._points])
         out = rotations
+        across = positions[:, self.index["left_hip"]] - positions[:, self.index["right_hip"]]
+        across[:, 1] = 0.0
+        across /= np.maximum(np.linalg.norm(across, axis=-1, keepdims=True), 1e-12)
         for side in SIDES:
             ankle, toe = self.index[f"{side}_ankle"], self.index[f"{side}_toe"]
             offsets = self._offsets(self.feet[side], down[side], pivots[side],
@@ -92,7 +98,7 @@ class FootHold:
                 weight = self._down_weight(side, down[side])
                 free = np.maximum(positions[:, toe, 1] + offsets[:, 1], floors[f"{side}_toe"])
                 toe_y = weight * heights[1] + (1 - weight) * free
-                foot = quaternion.multiply(_pitched(shown, toe_y - heights[0]), foot)
+                foot = quaternion.multiply(_pitched(shown, toe_y - heights[0], across), foot)
             out = self._reach(out, translations, side, positions, offsets, foot)
         return out
 
@@ -113,7 +119,8 @@ class FootHold:
             pivots[s] = (toe < ankle).astype(int)  # the slower point carries the foot
             for p in ("ankle", "toe"):
                 standing = seen[found[s], index[f"{s}_{p}"], 1]
-                floor = np.percentile(standing, FLOOR_PERCENTILE) if len(standing) else -np.inf
+                floor = self.known_floors.get((s, p), np.percentile(standing, FLOOR_PERCENTILE)
+                                              if len(standing) else -np.inf)  # fmt: skip
                 # from the last piece's floor to this one's over the piece: no step in it
                 last = self.floors.get((s, p), floor)
                 self.floors[(s, p)] = floor
@@ -192,19 +199,30 @@ class FootHold:
         return done
 
 
-def _pitched(foot, rise):
-    """The rotations (frames, 4) turning foot vectors (ankle to toe) up or down toward a toe
-    `rise` above the ankle: the shortest turn onto the vector raised or lowered by the difference
-    (exact for a foot that points forward; a foot that points down, as CMU's, turns little and
-    never about a swinging axis)."""
-    length = np.linalg.norm(foot, axis=-1)
-    rise = np.clip(rise, -0.99 * length, 0.99 * length)
-    wanted = foot + (rise - foot[:, 1])[:, None] * np.array([0.0, 1.0, 0.0])
-    return ik.arc(foot, wanted)
+def _pitched(foot, rise, across):
+    """The rotations (frames, 4) about the body's horizontal axis `across` (hip to hip) that put
+    the toe `rise` above the ankle (as nearly as the foot's length allows), foot: ankle to toe.
+    Turning v about a horizontal unit axis a by t gives the height v_y cos t + (a x v)_y sin t;
+    of the two turns that reach `rise`, the smaller. (About an axis of the foot's own, a foot that
+    points down, as CMU's does, would swing with the axis.)"""
+    p = foot[:, 1]
+    q = np.cross(across, foot)[:, 1]
+    size = np.maximum(np.hypot(p, q), 1e-12)
+    phase = np.arctan2(q, p)
+    spread = np.arccos(np.clip(rise / size, -1.0, 1.0))
+    turns = np.stack([phase - spread, phase + spread])
+    turns = (turns + np.pi) % (2 * np.pi) - np.pi
+    turn = np.take_along_axis(turns, np.argmin(np.abs(turns), axis=0)[None], 0)[0]
+    return quaternion.from_rotation_vector(across * turn[:, None])
 
 
-def hold_feet(parents, offsets, translated, names, joint_map, fps, rotations, translations,
-              reference=None):  # fmt: skip
-    """A whole strip's rotations with its stance feet held (FootHold on one piece)."""
-    hold = FootHold(parents, offsets, translated, names, joint_map, fps)
-    return hold.feed(rotations, translations, reference)
+def stance_heights(parents, offsets, translated, names, joint_map, side, clips):
+    """{"ankle": m, "toe": m}: the FLOOR_PERCENTILE-th percentile of the heights of the `side`
+    foot's ankle and toe over clips [(rotations, translations)] on which it stands throughout
+    (a step's examples and their stance foot): the floors a FootHold keeps that foot above."""
+    index = steps.joint_indices(list(names), joint_map)
+    joints = [index[f"{side}_ankle"], index[f"{side}_toe"]]
+    heights = np.concatenate([kinematics.world_positions(parents, offsets, r, t, translated)[
+        :, joints, 1] for r, t in clips])  # fmt: skip
+    floors = np.percentile(heights, FLOOR_PERCENTILE, axis=0)
+    return {"ankle": float(floors[0]), "toe": float(floors[1])}

@@ -141,6 +141,14 @@ def _check(doc):
         degrees = _array(limits.get("degrees"), "limits.degrees", (n_joints,))
         if degrees.min() < 0 or degrees.max() > 180:
             raise _Problem("limits.degrees must be angles from 0 to 180")
+    stance = doc.get("stance")
+    if stance is not None:
+        if not isinstance(stance, dict) or set(stance) - {"ankle", "toe"}:
+            raise _Problem('"stance" must be an object of "ankle" and "toe" heights in metres')
+        for point, height in stance.items():
+            if isinstance(height, bool) or not isinstance(height, (int, float)):
+                raise _Problem(f"stance.{point} must be a number (metres)")
+            _array(height, f"stance.{point}", ())
     inputs = doc.get("inputs")
     if inputs is not None and not (
         isinstance(inputs, list) and all(isinstance(i, dict) for i in inputs)

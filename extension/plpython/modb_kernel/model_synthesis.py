@@ -54,6 +54,19 @@ def no_interrupts():
     client); the server passes one that lets a cancel or a statement timeout in."""
 
 
+def stance_floors(models):
+    """{(side, point): metres}: the floors of the stance feet the step models' captures stood on
+    (their documents' "stance", from 0.27.0; the median where several models stand on one foot)."""
+    found = {}
+    for model in models:
+        stance = model.model.get("stance")
+        if stance and model.swing is not None:
+            side = "right" if model.swing == "left" else "left"
+            for point, height in stance.items():
+                found.setdefault((side, point), []).append(height)
+    return {key: float(np.median(values)) for key, values in found.items()}
+
+
 def start_node(graph, rng):
     """A start node (one drawn with rng when several), else the first standard node."""
     types = node_types(graph)
@@ -129,7 +142,8 @@ class Synthesis:
         self.seams = inertialization.Seams(rig.parents, rig.offsets, rig.translated, rig.pelvis)
         self.body = Body(rig)
         self.hold = foot_hold.FootHold(rig.parents, rig.offsets, rig.translated, rig.names,
-                                       rig.joint_map, self.fps) if hold_feet else None  # fmt: skip
+                                       rig.joint_map, self.fps,
+                                       stance_floors(models.values())) if hold_feet else None
         self.steps, self.notes = [], []
         self.node = None  # the node of the last step
         self.goal = 0  # index of the current goal
