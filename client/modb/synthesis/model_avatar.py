@@ -104,7 +104,7 @@ class ModelAvatar:
         while self.walking and len(self._queue) < QUEUE_SECONDS * self.fps:
             self.synthesis.walk_step()
             record = self.synthesis.steps[-1]
-            rotations, translations = body.rotations[-1], body.translations[-1]
+            rotations, translations = body.shown[-1], body.translations[-1]
             step = len(self.synthesis.steps)
             first = self._shown + len(self._queue)
             for r, t in zip(rotations, translations, strict=True):
@@ -115,8 +115,7 @@ class ModelAvatar:
                 record["candidates"], record["error_m"],
                 record["tree_error_m"], record["random_error_m"], record["goal"],
             ))  # fmt: skip
-            body.dropped += sum(len(r) for r in body.rotations[:-1])
-            del body.rotations[:-1], body.translations[:-1]
+            body.drop_all_but_the_last_step()
 
     def frames(self) -> Iterator[Frame]:
         """The walk, a frame at a time, forever: queued frames, else the last pose again."""

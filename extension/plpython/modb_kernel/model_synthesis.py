@@ -84,7 +84,8 @@ class Body:
 
     def __init__(self, rig):
         self.rig = rig
-        self.rotations, self.translations = [], []
+        self.rotations, self.translations = [], []  # as the seams joined them
+        self.shown = []  # the rotations played: the stance feet held, where they are
         self.dropped = 0  # frames no longer kept (an avatar keeps the last step's only)
         self.feet = {}  # side -> (x, z) where that ankle stood at the last frame
         self.heading = 0.0  # the last frame's hip heading
@@ -92,6 +93,11 @@ class Body:
     @property
     def n_frames(self):
         return self.dropped + sum(len(r) for r in self.rotations)
+
+    def drop_all_but_the_last_step(self):
+        """Frames no longer needed (an avatar has played them): the next seam needs the last."""
+        self.dropped += sum(len(r) for r in self.rotations[:-1])
+        del self.rotations[:-1], self.translations[:-1], self.shown[:-1]
 
     def last_two(self):
         r = np.concatenate(self.rotations[-2:])[-2:]
@@ -266,10 +272,13 @@ class Synthesis:
                 self.keep_planted(rotations, translations, foot, planted[:, foot])
             rotations, translations = rotations[1:], translations[1:]
             reference = reference[0][1:], reference[1][1:]
-        if self.hold is not None:
-            rotations = self.hold.feed(rotations, translations, reference)
+        # The hold's changes are not a seam's to carry: the body keeps the frames as joined, for
+        # the next seam and the next step's placement, beside the frames shown.
+        shown = rotations if self.hold is None else self.hold.feed(rotations, translations,
+                                                                   reference)  # fmt: skip
         body.rotations.append(rotations)
         body.translations.append(translations)
+        body.shown.append(shown)
         end = rig.positions(rotations[-1:], translations[-1:])[0]
         body.heading = float(hip_heading(end, rig.left_hip, rig.right_hip))
         body.feet = {side: end[joint][[0, 2]] for side, joint in rig.ankle.items()}
@@ -321,6 +330,7 @@ class Synthesis:
             hold = self.wanted_frames - self.body.n_frames
             self.body.rotations.append(np.repeat(r[-1:], hold, axis=0))
             self.body.translations.append(np.repeat(t[-1:], hold, axis=0))
+            self.body.shown.append(np.repeat(self.body.shown[-1][-1:], hold, axis=0))
             when = f"{self.stood_from / self.fps:.2f} s"
             self.notes.append(
                 f'after the end node "{ends[0]}" the character stands in its last pose from {when}'
@@ -331,7 +341,7 @@ class Synthesis:
     def frames(self):
         """(rotations, translations) of the strip, cut to the seconds asked for."""
         n = self.wanted_frames
-        return np.concatenate(self.body.rotations)[:n], np.concatenate(self.body.translations)[:n]
+        return np.concatenate(self.body.shown)[:n], np.concatenate(self.body.translations)[:n]
 
     def report(self):
         return {
