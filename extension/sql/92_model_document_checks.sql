@@ -3,7 +3,7 @@
 -- acceleration tree must be drawn from its own mixture. As 99_stored_document_checks.sql: a trigger,
 -- in words, on what a statement writes; the upgrade to 0.26.0 repaired the rows stored before.
 
-CREATE FUNCTION modb.model_document_problems(data jsonb)
+CREATE OR REPLACE FUNCTION modb.model_document_problems(data jsonb)
 RETURNS text[]
 LANGUAGE plpython3u IMMUTABLE STRICT PARALLEL SAFE
 AS $py$
