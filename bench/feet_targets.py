@@ -12,7 +12,6 @@ CMU 16's runs 16_08,16_57 beside its walks).
 import sys
 from pathlib import Path
 
-import numpy as np
 import psycopg
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
@@ -44,8 +43,8 @@ def main(dsn, collection, graph, left_out=""):
               f"sliding {100 * capture.sliding:.1f} cm/s, clearance {100 * capture.clearance:.1f} "
               f"cm, pose jump p99 {100 * capture.jump_p99:.1f} cm, p99.9 "
               f"{100 * capture.jump_p999:.1f} cm\n")  # fmt: skip
-        print("| course | family | feet | sliding, x capture | lowest toe below the capture's, cm "
-              "| clearance, x capture | worst pose jump, cm | frames over the capture's p99 |")
+        print("| course | family | feet | sliding, x | toe below capture's, cm | clearance, x "
+              "| worst jump, cm | over p99 |")
         print("|---|---|---|---|---|---|---|---|")
         for course, goals in COURSES.items():
             for family in ("motion matching", "models"):
