@@ -39,7 +39,8 @@ def main(dsn, collection, graph, left_out=""):
         clips = [read_motion(conn, c, v) for c, v in rows]
         body = Body.of(clips[0].skeleton)
         capture = Capture.of(body, [(m.rotations, m.translations, m.fps) for m in clips])
-        print(f"{collection}: {len(clips)} clips; capture: lowest toe {100 * capture.floor:.1f} cm, "
+        print(f"{collection}: {len(clips)} clips; capture: lowest toe {100 * capture.floor:.1f} cm,"
+              " "
               f"sliding {100 * capture.sliding:.1f} cm/s, clearance {100 * capture.clearance:.1f} "
               f"cm, pose jump p99 {100 * capture.jump_p99:.1f} cm, p99.9 "
               f"{100 * capture.jump_p999:.1f} cm\n")  # fmt: skip
