@@ -99,6 +99,17 @@ def test_two_bone_meets_reachable_targets_keeping_bones_foot_and_knee_side(motio
     assert np.abs(after[:, above] - before[:, above]).max() < 1e-9
     # the knee stays on the side it bent to: the bend direction turns by less than 90 degrees
     assert (_bend(after, chain) * _bend(before, chain)).sum(-1)[room].min() > 0
+    # and bends as a hinge: its own rotation changes about the normal of the leg's plane
+    knee_old = world_rotations(motion, motion.rotations, chain[1])
+    change = own_kinematics.rotations_of(motion.rotations[:, chain[1]]).inv() * \
+        own_kinematics.rotations_of(rotations[:, chain[1]])
+    a, b, c = (before[:, j] for j in chain)
+    normal = knee_old.inv().apply(np.cross(b - a, c - b))
+    axis = change.as_rotvec()
+    turned = np.linalg.norm(axis, axis=1) > np.radians(1)
+    size = np.linalg.norm(axis, axis=1) * np.linalg.norm(normal, axis=1)
+    cosine = np.abs((axis * normal).sum(1)) / size
+    assert cosine[turned & room].min() > np.cos(np.radians(2))
 
 
 def _subtree(parents, root):
