@@ -12,7 +12,8 @@ decide, and the legs follow by ik.two_bone (the knee bending the way the motion 
   carries the weight, the toe once the ankle moves faster than it (the foot rolls over its toes),
   each from where the strip shows it when it takes over, so nothing jumps. A hold that would take
   the foot more than UNLOCK_M from the strip's is let go until the foot lifts. After lift-off the
-  offset dies away like a seam's (critically damped, HALFLIFE_S): the foot leaves as it moved.
+  offset dies away from rest (critically damped, RELEASE_S: soon after lift-off, while the foot is
+  still slow; later, or carrying the hold's own speed, it hurried the swing).
 - at what height, down or not: the ankle and the toe at the reference's heights (the foot pitched
   to put the toe there), never below the FLOOR_PERCENTILE-th percentile of their heights while
   down; where one piece starts higher or lower than the last left off, that jump is taken away and
@@ -31,21 +32,21 @@ from .inertialization import HALFLIFE_SECONDS as HALFLIFE_S, decay
 UNLOCK_M = 0.15  # metres: a hold this far from the strip's foot is let go
 REACH = 0.98  # of the leg's length
 CONTEXT_S = 2.0  # seconds of reference frames the contact rule reads (its ground, its speeds)
-RELEASE_S = 0.05  # the half-life of a hold's offset after lift-off (s)
+RELEASE_S = HALFLIFE_S / 2  # the half-life of a hold's offset after lift-off
 SEAM_S = HALFLIFE_S / 4  # the half-life of a piece's jump in the reference's heights
 FLOOR_PERCENTILE = 25  # a foot's point never lower than this percentile of its standing heights
 SIDES = steps.SIDES
 
 
 class _Foot:
-    """One foot's hold: the offset (3,) from the strip's ankle to where the held foot's ankle goes,
-    its velocity, the point held (pivot 0 ankle, 1 toe, and where), and the last lift-off."""
+    """One foot's hold: the ground offset (3,) from the strip's ankle to where the held foot's
+    ankle goes, the point held (pivot 0 ankle, 1 toe, and where), and the last lift-off."""
 
     def __init__(self):
-        self.offset, self.velocity = np.zeros(3), np.zeros(3)
+        self.offset = np.zeros(3)
         self.pivot, self.point = None, None
         self.let_go = False
-        self.released = None  # (frames since lift-off, offset, velocity at lift-off)
+        self.released = None  # [frames since lift-off, the offset at lift-off]
 
 
 class FootHold:
@@ -114,8 +115,8 @@ class FootHold:
         n = len(points)
         pivots, floors = {}, {}
         for s in SIDES:
-            ankle = steps._speeds(seen[:, index[f"{s}_ankle"]], self.fps)[-n:]
-            toe = steps._speeds(seen[:, index[f"{s}_toe"]], self.fps)[-n:]
+            ankle = steps.speeds(seen[:, index[f"{s}_ankle"]], self.fps)[-n:]
+            toe = steps.speeds(seen[:, index[f"{s}_toe"]], self.fps)[-n:]
             pivots[s] = (toe < ankle).astype(int)  # the slower point carries the foot
             for p in ("ankle", "toe"):
                 standing = seen[found[s], index[f"{s}_{p}"], 1]
@@ -165,21 +166,19 @@ class FootHold:
                     foot.point = shown[t, foot.pivot] + foot.offset  # from where it is shown
                 wanted = (foot.point - shown[t, foot.pivot]) * (1.0, 0.0, 1.0)
                 if np.hypot(wanted[0], wanted[2]) <= UNLOCK_M:
-                    foot.velocity = (wanted - foot.offset) * self.fps
                     foot.offset, foot.released = wanted, None
                     out[t] = wanted
                     continue
-                # too far: the foot goes as the strip's until it lifts
-                foot.let_go, foot.velocity = True, np.zeros(3)
+                foot.let_go = True  # too far: the foot goes as the strip's until it lifts
             if down[t]:  # let go while down: the offset stays, sliding no more than the strip's
                 out[t] = foot.offset
                 continue
             foot.let_go, foot.pivot = False, None
             if foot.released is None:
-                foot.released = [0, foot.offset.copy(), np.zeros(3)]  # from rest
+                foot.released = [0, foot.offset.copy()]
             foot.released[0] += 1
-            k, offset0, velocity0 = foot.released
-            foot.offset = decay(offset0, velocity0, k * dt, RELEASE_S)[0]
+            k, offset0 = foot.released
+            foot.offset = decay(offset0, np.zeros(3), k * dt, RELEASE_S)[0]  # from rest
             out[t] = foot.offset
         return out
 

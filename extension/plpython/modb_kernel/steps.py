@@ -58,7 +58,7 @@ def leg_length(parents, offsets, index):
     return float(np.mean(lengths))
 
 
-def _speeds(points, fps):
+def speeds(points, fps):
     """|velocity| (m/s) of (frames, 3) points by central differences over about VELOCITY_SPAN_S."""
     n = len(points)
     k = max(1, int(round(VELOCITY_SPAN_S * fps / 2)))
@@ -97,8 +97,8 @@ def contacts(positions, index, leg, fps):
     out = {}
     for s in SIDES:
         speed = np.minimum(
-            _speeds(positions[:, index[f"{s}_ankle"]], fps),
-            _speeds(positions[:, index[f"{s}_toe"]], fps),
+            speeds(positions[:, index[f"{s}_ankle"]], fps),
+            speeds(positions[:, index[f"{s}_toe"]], fps),
         )
         planted = (speed < SPEED_LEGS_PER_S * leg) & (low[s] < ground + HEIGHT_LEGS * leg)
         out[s] = _cleaned(planted, fps)
