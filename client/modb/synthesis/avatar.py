@@ -5,7 +5,9 @@ snippet with the goal in world coordinates, places that snippet where the previo
 yields its frames at the source rate. The next selection is issued `lead_time` seconds before the
 current snippet ends (the paper's latency hiding): the query runs while the last frames play, and
 input that arrives after it started is not seen by that choice. Rules (goals, arrival, exclusion)
-are those of modb.synthesize, so with lead time zero both give the same chain.
+are those of modb.synthesize, so with lead time zero both give the same chain. Seams are treated as
+settings.seam says, then each snippet's stance feet are held (modb_kernel.foot_hold, unless
+settings.foot_hold is False) before its frames are yielded.
 """
 
 from __future__ import annotations
