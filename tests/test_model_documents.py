@@ -84,6 +84,8 @@ BROKEN = [
      "mixture.means"),  # fmt: skip
     ("lever arm 0", _set("spatial.weights.0", 0.0), "spatial.weights"),
     ("a joint limit of 400 degrees", _set("limits.degrees.0", 400.0), "limits.degrees"),
+    ("a stance height as text", _set("stance", {"toe": "4 cm"}), "stance.toe"),
+    ("a stance of another point", _set("stance", {"heel": 0.04}), '"stance"'),
 ]
 
 

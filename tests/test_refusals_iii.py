@@ -13,6 +13,7 @@ import pytest
 from support.browser import serving
 from support.commands import run_modb_here as modb
 
+from modb.cli.common import write_motion_file
 from modb.database.connection import connect
 
 MODEL = "cmu16_left_step"
@@ -96,6 +97,26 @@ def test_synth_on_models_refuses_what_it_cannot_do(dsn, tmp_path):
     assert not out.exists()
     r = modb(dsn, "synth", "--help")
     assert "with --models at most 10" in " ".join(r.stdout.split())
+
+
+def test_synth_no_foot_lock_walks_as_the_seams_leave_it(dsn, tmp_path):
+    """Issue 59: feet held by default in both families; --no-foot-lock shows the seams alone, the
+    same walk as modb.synthesize_from_models with modb.foot_hold off."""
+    from modb.synthesis.from_models import synthesize
+
+    walks = {}
+    for flag in ("--foot-lock", "--no-foot-lock"):
+        out = tmp_path / f"w{flag}.bvh"
+        r = modb(dsn, "synth", "--models", "walk", "--to", "0,3", "--seconds", "3", "--in-place",
+                 "--out", out, flag)  # fmt: skip
+        assert r.returncode == 0, r.stderr
+        walks[flag] = out.read_text()
+    assert walks["--foot-lock"] != walks["--no-foot-lock"]
+    with connect(dsn) as conn:
+        conn.execute("SET modb.foot_hold = off")
+        unheld = synthesize(conn, "walk", [(0.0, 3.0)], 3.0).motion
+    assert write_motion_file("test", unheld, str(tmp_path / "sql.bvh"))
+    assert (tmp_path / "sql.bvh").read_text() == walks["--no-foot-lock"]
 
 
 def test_a_graph_build_says_which_versions_it_took(dsn):

@@ -235,6 +235,19 @@ def _feet_held_after_the_update(db, unheld) -> None:
     r_held, r_unheld = np.asarray(held[2]), np.asarray(unheld[2])
     assert np.abs(r_held - r_unheld).max() > 1e-3
     assert len(held[4]["steps"]) == len(unheld[4]["steps"])
+    # the same walk (placed on the frames as joined, so the travel is the same to the bit); the
+    # hold turns the legs only: the joints from the hips down
+    assert np.array_equal(np.asarray(held[3]), np.asarray(unheld[3]))
+    hierarchy, joint_map = db.execute(
+        "SELECT s.hierarchy, s.joint_map FROM modb.graphs g JOIN modb.skeletons s "
+        "ON s.id = g.skeleton_id WHERE g.name = 'steps'").fetchone()  # fmt: skip
+    names = [j["name"] for j in hierarchy["joints"]]
+    legs = {names.index(joint_map[f"{side}_hip"]) for side in ("left", "right")}
+    for k, j in enumerate(hierarchy["joints"]):
+        if j["parent"] in legs:
+            legs.add(k)
+    changed = set(np.flatnonzero(np.abs(r_held - r_unheld).max(axis=(0, 2)) > 1e-6).tolist())
+    assert changed and changed <= legs, (changed, legs)
 
 
 def _models_0_26_0_refuses(db) -> None:

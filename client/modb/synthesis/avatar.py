@@ -182,7 +182,8 @@ class Avatar:
                 waited = (time.perf_counter() - started) * 1000.0
                 choice = replace(choice, waited_ms=waited if self.choices else 0.0)
                 self.choices.append(choice)
-                reference = rotations, translations  # as placed: the feet's contacts and heights
+                # as placed: the feet's contacts and heights (a blend changes the frames in place)
+                reference = rotations.copy(), translations.copy()
                 treatment = self.settings.seam
                 if treatment == "inertialize" and len(played) == 2:
                     if seams is None:  # a chain has one skeleton

@@ -49,9 +49,11 @@ class ModelAvatar:
     def __init__(self, conn: psycopg.Connection, graph: str, seed: int = 0,
                  radius: float = MS.ARRIVAL_RADIUS_M) -> None:  # fmt: skip
         self.graph_name = graph
-        self.graph, models, self.rig = MS.load(WorkerDatabase(conn), graph)
+        database = WorkerDatabase(conn)
+        self.graph, models, self.rig = MS.load(database, graph)
+        # the session's modb.foot_hold, as modb.synthesize_from_models reads it
         self.synthesis = MS.Synthesis(self.graph, models, self.rig, [], MS.MAX_SECONDS, seed,
-                                      radius)  # fmt: skip
+                                      radius, hold_feet=MS.foot_hold_on(database))  # fmt: skip
         self.fps = self.synthesis.fps
         self.skeleton = conn.execute(
             "SELECT s.id, s.hierarchy, s.joint_map->>'pelvis' FROM modb.graphs g "

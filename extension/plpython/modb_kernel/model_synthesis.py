@@ -261,7 +261,9 @@ class Synthesis:
         yaw = body.heading - first
         shift = at - rotate_y(anchor, yaw)
         rotations, translations = placed(rig, rotations, translations, yaw, shift)
-        reference = rotations, translations  # the step as placed: its feet's heights and contacts
+        # the step as placed: its feet's heights and contacts (kept apart from what the seam and
+        # keep_planted change, in place where a step is too short to inertialize)
+        reference = rotations.copy(), translations.copy()
         if body.rotations:
             old_r, old_t = body.last_two()
             planted = rig.positions(rotations, translations)
