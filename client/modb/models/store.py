@@ -11,7 +11,7 @@ from typing import Any
 import psycopg
 from modb_kernel.foot_hold import stance_heights
 from modb_kernel.model_samples import KIND
-from modb_kernel.step_search import swing_side
+from modb_kernel.step_search import stance_side, swing_side
 from psycopg.types.json import Jsonb
 
 from . import build as B
@@ -39,12 +39,6 @@ def _not_found(name: str, version: int | None) -> ModelNotFound:
     return ModelNotFound(f'no motion model "{name}"{which} (modb model list names them)')
 
 
-def stance_side(primitive: str) -> str | None:
-    """The foot a step primitive stands on (the other than it swings), None for another kind."""
-    swing = swing_side(primitive)
-    return None if swing is None else ("right" if swing == "left" else "left")
-
-
 def build_document(inputs: Inputs, collection: str, seed: int, variance: float) -> dict[str, Any]:
     """The model of the inputs with what it was built from and how (a seeded build is the same)."""
     document = B.build(inputs.examples, rig_of(inputs.skeleton), inputs.fps, inputs.keyframes,
@@ -57,7 +51,7 @@ def build_document(inputs: Inputs, collection: str, seed: int, variance: float) 
         **document,
         "inputs": inputs.rows,
     }  # fmt: skip
-    stance = stance_side(inputs.primitive)
+    stance = stance_side(swing_side(inputs.primitive))
     if stance is not None:  # where the capture holds the foot the step stands on
         sk = inputs.skeleton
         out["stance"] = stance_heights(sk.parents, sk.offsets, sk.translated, sk.names,

@@ -23,7 +23,7 @@ import numpy as np
 
 from . import foot_hold, inertialization, memory, motion_model, quaternion
 from .database import Statement, StoreError
-from .step_search import Rig, StepModel, hip_heading, rotate_y, wrap
+from .step_search import Rig, StepModel, hip_heading, rotate_y, stance_side, wrap
 
 MAX_SECONDS = 600.0
 MAX_COORDINATE = 1e6  # metres from the origin, as the snippet chain's goals
@@ -61,7 +61,7 @@ def stance_floors(models):
     for model in models:
         stance = model.model.get("stance")
         if stance and model.swing is not None:
-            side = "right" if model.swing == "left" else "left"
+            side = stance_side(model.swing)
             for point, height in stance.items():
                 found.setdefault((side, point), []).append(height)
     return {key: float(np.median(values)) for key, values in found.items()}
@@ -251,7 +251,7 @@ class Synthesis:
                                                                      scores[split:])  # fmt: skip
         positions = rig.positions(rotations[:1], translations[:1])[0]
         first = float(hip_heading(positions, rig.left_hip, rig.right_hip))
-        stance = None if model.swing is None else ("right" if model.swing == "left" else "left")
+        stance = stance_side(model.swing)
         if not body.rotations:  # the first step: its pelvis above the origin, facing +Z
             anchor, at = positions[rig.pelvis][[0, 2]], np.zeros(2)
         elif stance is None:

@@ -93,6 +93,11 @@ def swing_side(primitive):
     return sides[0] if len(sides) == 1 else None
 
 
+def stance_side(swing):
+    """The foot a step stands on: the other than the one it swings (None for None)."""
+    return None if swing is None else ("right" if swing == "left" else "left")
+
+
 class StepModel:
     """A motion model prepared for the search: its decoding of first and last frames, its mixture
     in whitened form, its tree, and the spread of its samples' steps."""
@@ -168,7 +173,7 @@ class StepModel:
         if self.swing is None:
             landing = travel
         else:
-            stance = "right" if self.swing == "left" else "left"
+            stance = stance_side(self.swing)
             feet = positions[..., [0, 2]]
             moved = feet[:, 1, at[rig.ankle[self.swing]]] - feet[:, 0, at[rig.ankle[stance]]]
             landing = rotate_y(moved, -first)
