@@ -1,3 +1,0 @@
--- 0.27.0: stance feet held in synthesis from models (the kernel's foot_hold and its inverse kinematics,
--- ik; modb.foot_hold, a setting of the library, turns it off) (issue 59). No table changes: the PL/Python
--- functions are re-created with 0.27.0's kernel.

@@ -1,0 +1,4 @@
+-- 0.28.0: a character that starts, turns, stops and stands (issue 60): the steps' annotation also
+-- finds starts, stops, idle and turning steps; synthesis from models settles into a standing idle
+-- and its planner widens before a goal inside its turning circle. The PL/Python functions are
+-- re-created with 0.28.0's kernel.
