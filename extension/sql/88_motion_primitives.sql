@@ -1,6 +1,6 @@
 -- Motion primitives (0.21.0): steps found from foot contacts and written as annotation segments, and a
 -- primitive's examples aligned in time to a reference example, kept as processed data (the input of
--- statistical motion models). The kernel does the work (steps.py and step_annotations.py; align.py and
+-- statistical motion models). The kernel does the work (steps.py, primitives.py and step_annotations.py; align.py and
 -- processed.py), here and in job workers.
 
 CREATE OR REPLACE FUNCTION modb._annotate_steps(clip bigint)
@@ -34,7 +34,7 @@ EXCEPTION WHEN OTHERS THEN  -- the error again, in words (15_errors_in_words.sql
 END
 $$;
 COMMENT ON FUNCTION modb.annotate_steps(bigint) IS
-    'Finds the steps of the clip''s current version from its feet''s contacts (FK ankles and toes: slower than half a leg length a second and within a tenth of one of the ground) and writes them as annotation segments left_step (from a right foot''s touchdown to the left''s next one) and right_step, marked "auto" with both touchdowns as keyframes; replaces the version''s automatic segments and keeps every other. Returns the segments written';
+    'Finds the primitives of the clip''s current version from its feet''s contacts (FK ankles and toes: slower than half a leg length a second and within a tenth of one of the ground) and writes them as annotation segments marked "auto" with their keyframes: left_step (from a right foot''s touchdown to the left''s next one) and right_step; left_turning_step / right_turning_step over the same frames where the step turns more than 20 degrees; left_start / right_start (standing to the first touchdown, named by the foot that moves first), left_stop / right_stop (the last swing to standing, named by the foot that moves last) and idle (standing still at least 0.5 s, in pieces of about 1 s). Replaces the version''s automatic segments and keeps every other. Returns the segments written';
 REVOKE EXECUTE ON FUNCTION modb.annotate_steps(bigint) FROM PUBLIC;
 GRANT EXECUTE ON FUNCTION modb.annotate_steps(bigint) TO modb_loader;
 

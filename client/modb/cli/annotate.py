@@ -48,7 +48,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     annotate.add_argument(
         "--steps",
         action="store_true",
-        help="find the steps from the feet's contacts: left_step and right_step segments, marked "
+        help="find the steps from the feet's contacts: left_step and right_step segments, and "
+        "turning steps, starts, stops and idle where the clip has them, marked "
         "automatic (a run again replaces those, never a person's)",
     )
     annotate.add_argument("-q", "--quiet", action="store_true", help="with --steps: no progress")
@@ -81,18 +82,22 @@ def steps(args: argparse.Namespace) -> int:
                         "SELECT version, name FROM modb.annotate_steps(%s)", [clip]
                     ).fetchall()
                 version = rows[0][0] if rows else None
-                found.append((clip, version, {n: sum(r[1] == n for r in rows) for n in STEPS}))
+                counts = dict.fromkeys(STEPS, 0)
+                for _, name in rows:
+                    counts[name] = counts.get(name, 0) + 1
+                found.append((clip, version, counts))
+    kinds = list(STEPS) + sorted({n for _, _, c in found for n in c} - set(STEPS))
     for clip, version, counts in found:
         print(
             f"clip {clip}" + (f" version {version}" if version else "") + ": "
-            + ", ".join(f"{counts.get(n, 0)} {n}" for n in STEPS)
+            + ", ".join(f"{counts[n]} {n}" for n in kinds if counts.get(n) or n in STEPS)
         )  # fmt: skip
-    totals = {n: sum(c.get(n, 0) for _, _, c in found) for n in STEPS}
-    print(f"{len(found)} clips: " + ", ".join(f"{totals[n]} {n}" for n in STEPS))
+    totals = {n: sum(c.get(n, 0) for _, _, c in found) for n in kinds}
+    print(f"{len(found)} clips: " + ", ".join(f"{totals[n]} {n}" for n in kinds))
     return 0
 
 
-STEPS = ("left_step", "right_step")
+STEPS = ("left_step", "right_step")  # always counted; the other primitives where found
 
 
 def run(args: argparse.Namespace) -> int:

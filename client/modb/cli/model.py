@@ -70,17 +70,24 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     tree.add_argument("--seed", type=SEED, default=0, help="the samples' seed (0)")
     graph = actions.add_parser(
         "graph",
-        help="graphs of models: NAME --collection C builds one for the collection's step models; "
-        "list, show NAME, export NAME --out FILE, import FILE, delete NAME",
+        help="graphs of models: NAME --collection C builds the models of the character's "
+        "primitives the collection lacks and the graph of them; list, show NAME, export NAME "
+        "--out FILE, import FILE, delete NAME",
     )
     graph.add_argument("target", metavar="NAME|list|show|export|import|delete")
     graph.add_argument("argument", nargs="?", metavar="NAME|FILE")
-    graph.add_argument("--collection", help="NAME: the collection whose step models it joins")
+    graph.add_argument("--collection",
+                       help="NAME: the collection whose primitives (modb annotate --steps) it "
+                       "models and joins")  # fmt: skip
     graph.add_argument("--out", metavar="FILE", help="export: the JSON file ('-': stdout)")
     graph.add_argument("--name", help="import: store it under this name (default: its own)")
     graph.add_argument("--model", action="append", metavar="MODEL",
                        help="NAME: use this model for its primitive where the collection has "
                        "several (repeatable)")  # fmt: skip
+    graph.add_argument("--seed", type=SEED, default=0,
+                       help="NAME: the seed of the models it builds (0)")  # fmt: skip
+    graph.add_argument("-q", "--quiet", action="store_true", help="NAME: no progress")
+    as_job.add_options(graph, "NAME --collection C")
     model.set_defaults(func=run)
 
 
@@ -294,7 +301,30 @@ def _graph(conn: psycopg.Connection, args: argparse.Namespace) -> int:
     else:
         if argument is not None or not args.collection:
             raise G.GraphError("build a graph with: modb model graph NAME --collection C")
-        print(G.build(conn, action, args.collection, args.model).describe())
+        return _family(conn, args, action)
+    return 0
+
+
+def _family(conn: psycopg.Connection, args: argparse.Namespace, name: str) -> int:
+    """The family graph: the models the collection lacks, then the graph (a job where the
+    database runs them)."""
+    from modb.models.family import build_family, summary
+
+    as_a_job = as_job.usable(conn, args, "model graph", "0.22.0")
+    if as_a_job is None:
+        return 2
+    arguments = {"name": name, "collection": args.collection, "chosen": args.model or [],
+                 "seed": args.seed}  # fmt: skip
+    if as_a_job:
+        done = as_job.run(conn, args, "model graph", "build_family", arguments)
+        if done is None or isinstance(done, int):
+            return done or 0
+        made = done.result
+    else:
+        made = build_family(conn, **arguments, say=lambda line: None if args.quiet else print(
+            line, file=sys.stderr))  # fmt: skip
+    for line in summary(made):
+        print(line)
     return 0
 
 

@@ -113,7 +113,9 @@ def split_by_annotation(
 def annotate_steps(conn, progress, clips, stop_when_asked) -> list[dict[str, Any]]:
     def one(db: WorkerDatabase, clip: int) -> dict[str, Any]:
         version, made = step_annotations.annotate(db, clip)
-        counts = {n: sum(s["name"] == n for s in made) for n in ("left_step", "right_step")}
+        counts = {n: 0 for n in ("left_step", "right_step")}
+        for s in made:
+            counts[s["name"]] = counts.get(s["name"], 0) + 1
         return {"clip_id": clip, "version": version, "steps": counts}
 
     return each_clip(conn, progress, clips, stop_when_asked, one)

@@ -28,6 +28,7 @@ QUEUES = {
     "annotate_steps": "clips",
     "align": "primitives",
     "build_model": "primitives",
+    "build_family": "primitives",
 }
 
 Work = Callable[..., dict[str, Any]]
@@ -187,6 +188,28 @@ def build_model(
                 f"{submitter}", work)  # fmt: skip
 
 
+def build_family(
+    context,
+    submitter: str,
+    name: str,
+    collection: str,
+    chosen: list[str] | None = None,
+    seed: int = 0,
+) -> dict[str, Any]:
+    from modb.models.family import build_family as build
+
+    def work(conn, progress, stop_when_asked):
+        def advance(done: int, total: int) -> None:
+            stop_when_asked()
+            progress.advance(done, total, "models")
+
+        return build(conn, name, collection, chosen, seed, progress.log, advance,
+                     job_id=context.job.id)  # fmt: skip
+
+    return _run(context, f"building the family graph {name!r} of {collection!r} for {submitter}",
+                work)  # fmt: skip
+
+
 KINDS = {
     "build_graph": build_graph,
     "retarget": retarget,
@@ -195,6 +218,7 @@ KINDS = {
     "annotate_steps": annotate_steps,
     "align": align,
     "build_model": build_model,
+    "build_family": build_family,
 }
 
 

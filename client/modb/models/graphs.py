@@ -1,7 +1,15 @@
 """Graphs of motion models (modb.graphs kind 'models'): nodes naming models, the transitions allowed
-between them, each node's type (start, end, idle, standard) and action. Built for the step models
-of a collection, listed, exported and imported as JSON; the database checks every graph written
-(modb.model_graph_problem), so a broken one is refused with its reason whoever writes it."""
+between them, each node's type (start, end, idle, standard) and action. Built for the models of a
+collection (family.py builds those it lacks first), listed, exported and imported as JSON; the
+database checks every graph written (modb.model_graph_problem), so a broken one is refused with
+its reason whoever writes it.
+
+A primitive's node type comes from its name as `modb annotate --steps` names them
+(modb_kernel.primitives.node_type): `left_start` / `right_start` are start nodes, `left_stop` /
+`right_stop` end nodes, `idle` an idle node, steps and turning steps standard nodes; another
+primitive whose name says start (begin), end (stop) or idle (stand) takes that type. Transitions
+alternate the feet: a primitive swinging the left foot is followed by one swinging the right (a
+primitive whose name names no side follows and is followed by any)."""
 
 from __future__ import annotations
 
@@ -12,11 +20,15 @@ from typing import Any
 import psycopg
 from psycopg.types.json import Jsonb
 
+from modb_kernel.primitives import node_type
+from modb_kernel.step_search import swing_side
+
 from .store import KIND as MODEL_KIND
 
 KIND = "models"
 FORMAT = "modb graph of models"
 STEPS = ("left_step", "right_step")
+WALKING = STEPS + ("left_turning_step", "right_turning_step")
 # other primitives a walk graph takes in, by what their name says they are
 ROLES = (("start", re.compile(r"start|begin", re.I)), ("end", re.compile(r"stop|end", re.I)),
          ("idle", re.compile(r"idle|stand", re.I)))  # fmt: skip
@@ -62,34 +74,49 @@ def _model_words(node: dict[str, Any]) -> str:
     return f"model id {node['model_id']}"
 
 
-def step_graph(models: list[dict[str, Any]], collection: str) -> dict[str, Any]:
-    """The document of a walk: left_step <-> right_step, a start node leading to both, both to an
-    end node, the end node to an idle node that repeats, where models of such primitives exist."""
+def role(primitive: str) -> str | None:
+    """The node type of a primitive in a walk (None: it is not part of one, e.g. an action)."""
+    kind = node_type(primitive)
+    if kind != "standard" or primitive in WALKING:
+        return kind
+    for named, pattern in ROLES:
+        if pattern.search(primitive):
+            return named
+    return None
+
+
+def step_graph(models: list[dict[str, Any]], collection: str,
+               standing: dict[str, Any] | None = None) -> dict[str, Any]:  # fmt: skip
+    """The document of a character: steps and turning steps alternating feet, start nodes
+    leading into them, stop (end) nodes after them, an idle node after the stops (after the
+    steps where there are none: the synthesis settles into standing) that repeats and leads to
+    the starts; `standing` (captured standing frames) where there is no idle model."""
     by_primitive = {m["primitive"]: m for m in models}
     missing = [p for p in STEPS if p not in by_primitive]
     if missing:
         raise GraphError(f'collection "{collection}" has no current model of '
                          f"{' or '.join(missing)}: build them first (modb model build NAME "
                          f"--collection {collection} --primitive {missing[0]})")  # fmt: skip
-    nodes = {p: _node(by_primitive[p], "standard") for p in STEPS}
-    transitions = [{"from": "left_step", "to": "right_step"},
-                   {"from": "right_step", "to": "left_step"}]  # fmt: skip
-    for role, pattern in ROLES:
-        for primitive, m in sorted(by_primitive.items()):
-            if primitive in nodes or not pattern.search(primitive):
-                continue
-            nodes[primitive] = _node(m, role)
-            if role == "start":
-                transitions += [{"from": primitive, "to": s} for s in STEPS]
-            elif role == "end":
-                transitions += [{"from": s, "to": primitive} for s in STEPS]
-            break
-    ends = [n for n, v in nodes.items() if v["type"] == "end"]
-    idles = [n for n, v in nodes.items() if v["type"] == "idle"]
+    nodes = {p: _node(m, role(p)) for p, m in sorted(by_primitive.items()) if role(p)}
+    sides = {n: swing_side(n) for n in nodes}
+
+    def of(kind: str) -> list[str]:
+        return [n for n, v in nodes.items() if v["type"] == kind]
+
+    def joined(ends: list[str], to: list[str]) -> list[dict[str, str]]:
+        """Every transition from ends to to that alternates the feet."""
+        return [{"from": a, "to": b} for a in ends for b in to
+                if sides[a] is None or sides[b] is None or sides[a] != sides[b]]  # fmt: skip
+
+    standard, starts, ends, idles = of("standard"), of("start"), of("end"), of("idle")
+    transitions = joined(standard, standard) + joined(starts, standard) + joined(standard, ends)
     for idle in idles:
-        transitions += [{"from": e, "to": idle} for e in ends or STEPS]
-        transitions.append({"from": idle, "to": idle})
-    return {"nodes": nodes, "transitions": transitions, "collection": collection}
+        transitions += [{"from": e, "to": idle} for e in ends or standard]
+        transitions += [{"from": idle, "to": idle}] + [{"from": idle, "to": s} for s in starts]
+    data = {"nodes": nodes, "transitions": transitions, "collection": collection}
+    if standing is not None and not idles:
+        data["standing"] = standing
+    return data
 
 
 def _node(model: dict[str, Any], role: str) -> dict[str, Any]:
@@ -98,10 +125,12 @@ def _node(model: dict[str, Any], role: str) -> dict[str, Any]:
 
 
 def build(conn: psycopg.Connection, name: str, collection: str,
-          chosen: list[str] | None = None) -> ModelGraph:  # fmt: skip
+          chosen: list[str] | None = None,
+          standing: dict[str, Any] | None = None) -> ModelGraph:  # fmt: skip
     """Stores (or replaces) the graph `name` of the latest versions of the collection's models,
     one per primitive: the only one there is, or the one `chosen` names (refused, naming them,
-    when several models of a primitive could serve)."""
+    when several models of a primitive could serve); standing: captured standing frames for a
+    graph without an idle model (family.standing_frames)."""
     with conn.cursor(row_factory=psycopg.rows.dict_row) as cur:
         found = cur.execute(LATEST_MODELS, [MODEL_KIND, collection]).fetchall()
     unknown = sorted(set(chosen or ()) - {m["name"] for m in found})
@@ -110,6 +139,8 @@ def build(conn: psycopg.Connection, name: str, collection: str,
                          "(modb model list --collection names them)")  # fmt: skip
     models = []
     for primitive in dict.fromkeys(m["primitive"] for m in found):
+        if role(primitive) is None:
+            continue  # not part of a walk (an action's model)
         these = [m for m in found if m["primitive"] == primitive]
         picked = [m for m in these if m["name"] in (chosen or ())] or these
         if len(picked) > 1:
@@ -117,7 +148,7 @@ def build(conn: psycopg.Connection, name: str, collection: str,
                              f"{', '.join(m['name'] for m in picked)}): say which with --model "
                              "NAME")  # fmt: skip
         models.append(picked[0])
-    data = step_graph(models, collection)
+    data = step_graph(models, collection, standing)
     skeletons = {m["skeleton_id"] for m in models if m["primitive"] in data["nodes"]}
     if len(skeletons) != 1:
         raise GraphError(f'the step models of "{collection}" are of {len(skeletons)} skeletons')

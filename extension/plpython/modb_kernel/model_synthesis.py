@@ -10,26 +10,32 @@ heading is the last step's last; the pose's jump at the seam (the step's first f
 the last one played) decays over the new frames (inertialization), and meanwhile the pelvis is moved
 on the ground so that the stance foot keeps to the step's own path: the contact foot stays planted.
 
-Each step's constraints: the swing foot lands where the step, turned toward the current goal by up
-to what the model's steps turn, would put it; the body ends facing that way. A goal is reached when
-the pelvis comes within the arrival radius on the ground. After the last goal the graph's end node
-(type "end") plays once where the current one leads to one, then its idle node (type "idle") over
-and over; without those, the character finishes its step and stands in that pose.
+Each step's constraints: the swing foot lands where the step, turned by what leaves the shortest
+path to the current goal (course.py: the sharpest turn the graph's steps make bounds the path's
+curvature, so a goal inside the turning circle is approached by widening first), would put it; the
+body ends facing that way. Of the successors the graph allows (steps, turning steps), the one whose
+step leaves the shortest path (plus its constraint error) plays. A goal is reached when the pelvis
+comes within the arrival radius on the ground. After the last goal the graph's end node (a stop)
+plays where the last step leads to one; then the character comes to rest and stands (standing.py):
+from the idle node's model, else from the graph's captured "standing" frames; without either it
+finishes its step and stands in that pose.
 """
 
 import json
 
 import numpy as np
 
-from . import foot_hold, inertialization, memory, motion_model, quaternion
+from . import course, foot_hold, inertialization, memory, motion_model, standing
 from .database import Statement, StoreError
+from .placement import placed
 from .step_search import Rig, StepModel, hip_heading, rotate_y, stance_side, wrap
 
 MAX_SECONDS = 600.0
 MAX_COORDINATE = 1e6  # metres from the origin, as the snippet chain's goals
 ARRIVAL_RADIUS_M = 0.5
 MAX_ARRIVAL_RADIUS_M = 10.0
-TURN_REACH = 1.0  # a step asks at most the turn 95% of the model's steps make
+MIN_TRAVEL_M = 0.2  # a primitive travelling less has no direction of travel
+LEAST_TURN = np.radians(3.0)  # a model turning less than this per step is taken to turn this much
 
 
 class SynthesisError(ValueError):
@@ -79,6 +85,34 @@ def start_node(graph, rng):
     return standard[0]
 
 
+def travel_angle(model):
+    """The angle of the model's usual travel from its heading (a step's sways with the foot it
+    swings); 0 for one that hardly travels (a start, idle), whose travel has no direction."""
+    if np.linalg.norm(model.usual_travel) < MIN_TRAVEL_M:
+        return 0.0
+    return float(np.arctan2(*model.usual_travel))
+
+
+def turning_radius(models, types):
+    """The radius (metres) the graph's standard steps turn on at their sharpest, the wider of
+    the two ways: a stride (a step of each foot, the best of each side's models that way) travels
+    its steps' travel and turns their turns that way (at least LEAST_TURN a step). Each way is
+    counted over both feet: a step's own turn sways with the foot it swings."""
+    standard = [m for name, m in models.items() if types.get(name) == "standard"]
+    if not standard:
+        return 1.0
+    radii = []
+    for way in (1.0, -1.0):
+        travel, turn = 0.0, 0.0
+        for side in ("left", "right"):
+            these = [m for m in standard if m.swing in (side, None)] or standard
+            best = max(these, key=lambda m: way * m.turn_range[0 if way < 0 else 1])
+            travel += float(np.linalg.norm(best.usual_travel))
+            turn += max(way * best.turn_range[0 if way < 0 else 1], LEAST_TURN)
+        radii.append(travel / turn)
+    return float(max(radii))
+
+
 class Body:
     """The motion so far: frames, and where the body stands at the end of the last step."""
 
@@ -109,23 +143,6 @@ class Body:
         return self.rig.positions(r[-1:], t[-1:])[0, self.rig.pelvis][[0, 2]]
 
 
-def placed(rig, rotations, translations, yaw, shift):
-    """The frames turned by yaw about +Y and moved by shift (x, z) on the ground: the top joints
-    carry it (a skeleton whose top joint has no translation cannot travel)."""
-    turn = quaternion.about_axis("Y", yaw)
-    rotations, translations = rotations.copy(), translations.copy()
-    for j, parent in enumerate(rig.parents):
-        if parent >= 0:
-            continue
-        if j not in rig.translated:
-            raise SynthesisError(f"top joint {rig.names[j]} has no translation: it cannot travel")
-        k = rig.translated.index(j)
-        rotations[:, j] = quaternion.multiply(turn[None], rotations[:, j])
-        moved = quaternion.rotate(np.broadcast_to(turn, (len(translations), 4)), translations[:, k])
-        translations[:, k] = moved + np.array([shift[0], 0.0, shift[1]])
-    return quaternion.canonical(rotations), translations
-
-
 class Synthesis:
     def __init__(self, graph, models, rig, goals, seconds, seed, radius=ARRIVAL_RADIUS_M,
                  interrupts=no_interrupts, hold_feet=True):  # fmt: skip
@@ -152,6 +169,11 @@ class Synthesis:
                                        stance_floors(models.values())) if hold_feet else None
         self.steps, self.notes = [], []
         self.node = None  # the node of the last step
+        self.walked = None  # the last standard node played (a walk resumes after it)
+        self.turning_radius = turning_radius(models, self.types)
+        self.spot = None  # where the character stands while it rests (standing.Spot)
+        self.rested_from = None  # the frame its settle ends
+        self.captured = None  # the graph's captured standing frames, once read
         self.goal = 0  # index of the current goal
         self.reached = {}  # goal index -> frame reached
         self.closest = np.inf  # metres: the pelvis's least distance to the current goal so far
@@ -175,12 +197,22 @@ class Synthesis:
         return self
 
     def walk_step(self):
-        """One more step toward the current goal: from a start node first, then from the graph's
-        transitions (an avatar calls this as its queue of frames runs low)."""
-        node, search = (start_node(self.graph, self.rng), None) if self.node is None else (
-            self.next_node(self.node))  # fmt: skip
+        """One more step toward the current goal: from a start node first (and again after a
+        rest, where the graph has one; else the step after the last walked), then from the
+        graph's transitions (an avatar calls this as its queue of frames runs low)."""
+        if self.node is None or (self.spot is not None and self.walked is None):
+            node, search = start_node(self.graph, self.rng), None
+        elif self.spot is not None:
+            starts = [n for n, t in self.types.items() if t == "start"]
+            node, search = ((starts[self.rng.integers(len(starts))], None) if starts
+                            else self.next_node(self.walked))  # fmt: skip
+        else:
+            node, search = self.next_node(self.node)
+        self.spot = None
         self.step(node, search=search)
         self.node = node
+        if self.types[node] == "standard":
+            self.walked = node
 
     def next_node(self, node):
         """(the successor whose tree search meets the next step's constraints best, that search's
@@ -195,26 +227,51 @@ class Synthesis:
         searched = []
         for n in choices:
             self.interrupts()
-            target = self.target(self.models[n])
-            found, examined = self.models[n].search(target, self.rng)
-            searched.append((float(self.models[n].errors(found, target)[0]), n,
-                             (found, examined)))  # fmt: skip
+            model = self.models[n]
+            target = self.target(model)
+            found, examined = model.search(target, self.rng)
+            score = float(model.errors(found, target)[0]) + self.left_after(model, found)
+            searched.append((score, n, (found, examined)))
         _, best, search = min(searched, key=lambda row: row[0])
         return best, search  # the search that chose it is the step's
 
+    def goal_now(self):
+        return self.goals[self.goal] if self.goal < len(self.goals) else None
+
+    def left_after(self, model, scores):
+        """The path still to walk to the current goal after the step of scores (0 without one)."""
+        goal = self.goal_now()
+        if goal is None:
+            return 0.0
+        _, turn, travel = model.features(scores)
+        where = self.body.pelvis() if self.body.rotations else np.zeros(2)
+        heading = self.body.heading + travel_angle(model)
+        moved = rotate_y(travel[0], -travel_angle(model))  # in the frame of the way it travels
+        return course.left_after(where, heading, goal, moved, float(turn[0]),
+                                 self.turning_radius, self.radius)  # fmt: skip
+
     def target(self, model, toward=None):
         """(landing x, z, turn) in the step's frame: the model's usual step turned toward the
-        current goal, by at most TURN_REACH times what its steps turn."""
+        current goal (or the planner's way), within the turns its steps make."""
         if toward is None and self.goal < len(self.goals):
             toward = self.goals[self.goal]
         turn = 0.0
         if toward is not None:
             where = self.body.pelvis() if self.body.rotations else np.zeros(2)
             to_goal = toward - where
-            travel = self.body.heading + np.arctan2(*model.usual_travel)
-            wanted = wrap(np.arctan2(to_goal[0], to_goal[1]) - travel)
-            reach = TURN_REACH * model.turn_reach
-            turn = float(np.clip(wanted, -reach, reach))
+            heading = self.body.heading + travel_angle(model)  # the way it travels
+            wanted = wrap(np.arctan2(to_goal[0], to_goal[1]) - heading)
+            low, high = (t - model.usual_turn for t in model.turn_range)
+            aimed = float(np.clip(wanted, low, high))
+            travel = np.array([0.0, np.linalg.norm(model.usual_travel)])
+            widened = course.best_turn(where, heading, toward, travel, low, high,
+                                       self.turning_radius, self.radius)  # fmt: skip
+            # straight at the goal where that is as short (it is wherever the goal lies
+            # outside the turning circle), else the planner's turn
+            ways = [(course.left_after(where, heading, toward, rotate_y(travel, t / 2), t,
+                                       self.turning_radius, self.radius), k, t)
+                    for k, t in enumerate((aimed, widened))]  # fmt: skip
+            turn = min(ways)[2]
         landing = rotate_y(model.usual_landing, turn / 2)
         return np.array([landing[0], landing[1], model.usual_turn + turn])
 
@@ -274,6 +331,12 @@ class Synthesis:
                 self.keep_planted(rotations, translations, foot, planted[:, foot])
             rotations, translations = rotations[1:], translations[1:]
             reference = reference[0][1:], reference[1][1:]
+        self.append(rotations, translations, reference)
+
+    def append(self, rotations, translations, reference=None):
+        """New frames after the body's last, as joined; reference: the same frames as placed,
+        before the seams (the hold reads its contacts there; None: these frames)."""
+        rig, body = self.rig, self.body
         # The hold's changes are not a seam's to carry: the body keeps the frames as joined, for
         # the next seam and the next step's placement, beside the frames shown.
         shown = rotations if self.hold is None else self.hold.feed(rotations, translations,
@@ -312,20 +375,20 @@ class Synthesis:
                 self.closest = np.inf
 
     def finish(self, node):
-        """After the last goal: the end node and then the idle node where the graph has them,
-        else the last pose held."""
+        """After the last goal: the end node (a stop) where the last step leads to one, then
+        standing until the end (rest); with nothing to stand with, the last pose held."""
         types, after = self.types, self.successors
-        ends = [n for n in after[node] if types[n] == "end"]
+        ends = [n for n in after.get(node, []) if types[n] == "end"] if node else []
         if ends:
             self.step(ends[0], toward=None)
+            self.node = ends[0]
             self.notes.append(f'the end node "{ends[0]}" played after the last goal')
-            idles = [n for n in after[ends[0]] if types[n] == "idle"]
-        else:
-            idles = [n for n in after[node] if types[n] == "idle"]
-        while idles and self.body.n_frames < self.wanted_frames:
-            self.step(idles[0], toward=None)
-        if idles:
-            self.notes.append(f'the idle node "{idles[0]}" played until the end')
+        if self.standing_source() is not None:
+            while self.body.n_frames < self.wanted_frames:
+                self.rest()
+            self.notes.append(f"the character comes to rest at {self.rested_from / self.fps:.2f} s"
+                              f" and stands ({self.standing_words()})")  # fmt: skip
+            return
         if self.body.n_frames < self.wanted_frames:
             self.stood_from = self.body.n_frames - 1
             r, t = self.body.last_two()
@@ -336,9 +399,93 @@ class Synthesis:
             when = f"{self.stood_from / self.fps:.2f} s"
             self.notes.append(
                 f'after the end node "{ends[0]}" the character stands in its last pose from {when}'
-                if ends else f'the graph has no end or idle node after "{node}": the character '
-                f"finished its step and stands in that pose from {when}"
+                if ends else f'the graph has no idle node or standing frames after "{node}": the '
+                f"character finished its step and stands in that pose from {when}"
             )  # fmt: skip
+
+    def standing_source(self):
+        """The idle node (the first of the graph's), else the graph's captured standing frames
+        (standing.CapturedStanding), else None."""
+        idles = [n for n, t in self.types.items() if t == "idle"]
+        if idles:
+            return idles[0]
+        if self.captured is None and self.graph.get("standing"):
+            try:
+                self.captured = standing.CapturedStanding(self.graph["standing"], self.rig)
+            except standing.StandingError as e:
+                raise SynthesisError(str(e)) from None
+        return self.captured
+
+    def standing_words(self):
+        source = self.standing_source()
+        return (f'the idle node "{source}"' if isinstance(source, str)
+                else "the graph's captured standing frames")  # fmt: skip
+
+    def standing_piece(self):
+        """(rotations, translations) of the next piece of standing, as the source gives them."""
+        source = self.standing_source()
+        self.interrupts()
+        if isinstance(source, str):
+            model = self.models[source].model
+            split = len(model["spatial"]["components"])
+            scores = motion_model.draw_scores(model["mixture"], 1,
+                                              int(self.rng.integers(2**31)))[0]  # fmt: skip
+            frames = motion_model.frames_from_scores(model, scores[:split], scores[split:])
+            return frames[0], frames[1]
+        return source.piece(self.rng)
+
+    def rest(self):
+        """One more piece of standing: the first comes to rest from the walk (the settle), every
+        piece stands on the spot the settle chose (an avatar calls this while it has no goal)."""
+        rig, body = self.rig, self.body
+        rotations, translations = self.standing_piece()
+        if not body.rotations:  # standing from the first frame: above the origin, facing +Z
+            self.spot = standing.Spot(np.zeros(2), 0.0)
+        if self.spot is None:
+            r, t = body.last_two()
+            heading = standing.travel_heading(rig, body.rotations[-1], body.translations[-1],
+                                              body.heading)  # fmt: skip
+            planted = self.leading_foot(heading)
+            self.spot = standing.settle_spot(rig, rotations, translations, planted,
+                                             body.feet[planted], heading)  # fmt: skip
+            piece = standing.on_spot(rig, rotations, translations, self.spot)
+            *joined, self.spot.feet = standing.settle(rig, self.legs, self.seams, (r, t), piece,
+                                                      planted, self.fps)  # fmt: skip
+            self.rested_from = body.n_frames + min(len(piece[0]) - 1,
+                                                   int(round(standing.SETTLE_S * self.fps)))
+            reference = None  # the settle's own feet: the trailing one moves, then lands
+        else:
+            piece = standing.on_spot(rig, rotations, translations, self.spot)
+            joined = piece
+            if body.rotations:
+                joined = self.seams.inertialize(*body.last_two(), *piece, self.fps)
+            if self.spot.feet is None:  # standing from the start: the feet where the first has them
+                self.spot.feet = standing.feet_at(rig, *piece)
+            joined = (standing.pinned(self.legs, joined[0], joined[1], self.spot.feet), joined[1])
+            reference = piece
+        start = 1 if body.rotations else 0  # the first frame stands in for the last one played
+        first = body.n_frames
+        self.append(joined[0][start:], joined[1][start:],
+                    None if reference is None else (reference[0][start:], reference[1][start:]))
+        if self.rested_from is None:
+            self.rested_from = first
+        self.steps.append({"node": self.standing_source() if isinstance(
+            self.standing_source(), str) else "standing", "rest": True, "first_frame": first,
+            "n_frames": body.n_frames - first})  # fmt: skip
+
+    @property
+    def legs(self):
+        if not hasattr(self, "_legs"):
+            try:
+                self._legs = standing.Legs(self.rig)
+            except standing.StandingError as e:
+                raise SynthesisError(str(e)) from None
+        return self._legs
+
+    def leading_foot(self, heading):
+        """The foot further along heading: the one the walk last put down (the other trails)."""
+        forward = np.array([np.sin(heading), np.cos(heading)])
+        return max(self.body.feet, key=lambda side: float(self.body.feet[side] @ forward))
 
     def frames(self):
         """(rotations, translations) of the strip, cut to the seconds asked for."""
@@ -353,6 +500,7 @@ class Synthesis:
             "reached": {str(k + 1): v for k, v in self.reached.items()},
             "steps": self.steps,
             "stood_from_frame": self.stood_from,
+            "rested_from_frame": self.rested_from,
             "notes": self.notes,
         }
 

@@ -1,13 +1,15 @@
-"""A clip's steps written as annotation segments of its current version: what
-modb.annotate_steps does in the server and a job worker does in its own process (database.py runs
-the statements on either side; steps.py finds the steps). Segments it writes are marked automatic
-("auto": true) and carry their contact frames as keyframes; a run replaces the automatic segments
+"""A clip's steps and the other primitives found from its feet (starts, stops, idle, turning
+steps) written as annotation segments of its current version: what modb.annotate_steps does in the
+server and a job worker does in its own process (database.py runs the statements on either side;
+primitives.py finds them). Segments it writes are marked automatic ("auto": true) and carry their
+keyframes (a step's: its touchdowns); a run replaces the automatic segments
 of the version and keeps every other (a person's, or one a person edited: the editor drops the
 mark)."""
 
 import json
 
 from . import memory
+from . import primitives
 from . import steps as S
 from .database import Statement, StoreError
 
@@ -25,8 +27,8 @@ SET_META = Statement(
 )
 
 
-def segment(name, start, end):
-    return {"name": name, "start": start, "end": end, "keyframes": [start, end], "auto": True}
+def segment(name, start, end, keyframes):
+    return {"name": name, "start": start, "end": end, "keyframes": keyframes, "auto": True}
 
 
 def annotate(db, clip):
@@ -43,7 +45,7 @@ def annotate(db, clip):
     h = json.loads(row["hierarchy"])
     joints = h["joints"]
     try:
-        found, _ = S.find(
+        found = primitives.find(
             [j["parent"] for j in joints],
             [j["offset"] for j in joints],
             row["rotations"],
@@ -58,7 +60,7 @@ def annotate(db, clip):
             f"clip {clip}: skeleton {row['skeleton_id']}: {e}",
             hint="complete modb.skeletons.joint_map for it, then find its steps again",
         ) from None
-    made = [segment(name, start, end) for name, start, end in found]
+    made = [segment(*found_one) for found_one in found]
     meta = json.loads(row["meta"])
     before = json.dumps(meta, sort_keys=True)
     kept = [a for a in meta.get("annotations", []) if not a.get("auto")]

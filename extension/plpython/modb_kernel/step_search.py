@@ -18,6 +18,7 @@ HEADING_WEIGHT_M = 0.5  # metres of constraint error per radian of heading error
 PRIOR_WEIGHT_M = 0.02  # metres of constraint error per unit of Mahalanobis distance
 BEAM = 4  # nodes kept per level of the tree
 CHOICES = 8  # the best leaf samples the search draws one from
+TURN_PERCENTILES = (5, 95)  # the turns a model's steps make: from the one to the other
 QUICKEST_SHARE = 25  # percent: the quickest steps of a model, passed by the search
 RANDOM_BASELINE = 300  # random samples the search is measured against
 
@@ -124,7 +125,9 @@ class StepModel:
         # the model's ordinary step: its median landing and turn, and how far its turns reach
         self.usual_landing = np.median(landing, axis=0)
         self.usual_turn = float(np.median(turn))
-        self.turn_reach = float(np.percentile(np.abs(turn - self.usual_turn), 95))
+        # the turns its steps make, both ways (a turning model's are two-sided: open and crossing
+        # steps): the planner asks no turn beyond them
+        self.turn_range = tuple(float(v) for v in np.percentile(turn, TURN_PERCENTILES))
         self.usual_travel = np.median(travel, axis=0)
         # the quickest quarter of the model's steps swing their limbs fastest: drawn with far-out
         # shapes, a frame jumped more than any capture (Bandai at 30 fps); the search passes them

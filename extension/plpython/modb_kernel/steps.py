@@ -58,17 +58,17 @@ def leg_length(parents, offsets, index):
     return float(np.mean(lengths))
 
 
-def speeds(points, fps):
-    """|velocity| (m/s) of (frames, 3) points by central differences over about VELOCITY_SPAN_S."""
+def speeds(points, fps, span=VELOCITY_SPAN_S):
+    """|velocity| (m/s) of (frames, 3) points by central differences over about span seconds."""
     n = len(points)
-    k = max(1, int(round(VELOCITY_SPAN_S * fps / 2)))
+    k = max(1, int(round(span * fps / 2)))
     before = np.clip(np.arange(n) - k, 0, n - 1)
     after = np.clip(np.arange(n) + k, 0, n - 1)
     span = np.maximum(after - before, 1) / fps
     return np.linalg.norm(points[after] - points[before], axis=-1) / span
 
 
-def _cleaned(contact, fps):
+def cleaned(contact, fps):
     """Gaps shorter than GAP_S filled, then contacts shorter than MIN_CONTACT_S dropped."""
     out = contact.copy()
     for value, longest in ((False, GAP_S), (True, MIN_CONTACT_S)):
@@ -101,7 +101,7 @@ def contacts(positions, index, leg, fps):
             speeds(positions[:, index[f"{s}_toe"]], fps),
         )
         planted = (speed < SPEED_LEGS_PER_S * leg) & (low[s] < ground + HEIGHT_LEGS * leg)
-        out[s] = _cleaned(planted, fps)
+        out[s] = cleaned(planted, fps)
     return out
 
 

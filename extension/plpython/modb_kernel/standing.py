@@ -1,0 +1,199 @@
+"""Coming to rest and standing, for synthesis from models where the graph has no stop to play (the
+shipped walks hold none): the trailing foot is carried beside the planted one by the kernel's IK
+while the body blends into standing frames, and then standing goes on from captured standing.
+
+Standing comes in pieces: a sample of the graph's idle model, or the graph's captured "standing"
+frames (a still stretch of the collection's capture), played forward and backward in turn. Every
+piece stands on one spot: its feet's midpoint on the spot's centre, its hip heading the spot's, so
+the character does not drift while it idles; pieces are joined by the seams' inertialization.
+
+The settle: the first piece is placed so that its foot on the planted side stands where the walk's
+planted foot is, facing the way the last step travelled. Its frames are joined to the walk by a
+seam of SETTLE_HALFLIFE_S (slower than a step's: the body decelerates into standing), and its legs
+are set by two-bone IK: the planted foot stays and turns flat over PLANT_S; the trailing foot
+lifts by LIFT_LEGS of the leg, moves and lands beside it within SWING_SHARE of SETTLE_S. From then
+on the feet stay where they are (every later piece's legs set by the same IK): the pieces' pelvis,
+spine and arms move as standing people do, the feet do not shuffle between pieces."""
+
+import numpy as np
+
+from . import ik, kinematics, quaternion
+from .placement import placed
+from .step_search import hip_heading, rotate_y
+
+SETTLE_S = 0.8
+SETTLE_HALFLIFE_S = 0.2
+PLANT_S = 0.2
+SWING_SHARE = 0.7
+LIFT_LEGS = 0.05
+MIN_STANDING_S = 0.5  # captured standing shorter than this is no idle
+
+
+class StandingError(ValueError):
+    pass
+
+
+def smooth(u):
+    u = np.clip(u, 0.0, 1.0)
+    return u * u * (3.0 - 2.0 * u)
+
+
+def slerp(a, b, w):
+    """Per row: from quaternion a toward b by w (0..1)."""
+    step = quaternion.canonical(quaternion.multiply(quaternion.conjugate(a), b))
+    return quaternion.canonical(quaternion.multiply(a, quaternion.power(step, w[:, None])))
+
+
+class Spot:
+    """Where the character stands: the feet's midpoint (x, z), the hip heading, and once it has
+    settled where each ankle is and how it is turned ({side: (position, orientation)})."""
+
+    def __init__(self, centre, heading):
+        self.centre, self.heading = np.asarray(centre, dtype=np.float64), float(heading)
+        self.feet = None
+
+
+def feet_centre(rig, positions):
+    return (positions[rig.ankle["left"]][[0, 2]] + positions[rig.ankle["right"]][[0, 2]]) / 2
+
+
+def on_spot(rig, rotations, translations, spot):
+    """The piece turned and moved so that its first frame stands on the spot."""
+    first = rig.positions(rotations[:1], translations[:1])[0]
+    yaw = spot.heading - float(hip_heading(first, rig.left_hip, rig.right_hip))
+    return placed(rig, rotations, translations, yaw, spot.centre - rotate_y(
+        feet_centre(rig, first), yaw))  # fmt: skip
+
+
+def settle_spot(rig, rotations, translations, planted, at, heading):
+    """The spot of a first piece whose `planted` ankle stands at `at` (x, z), facing heading."""
+    first = rig.positions(rotations[:1], translations[:1])[0]
+    yaw = heading - float(hip_heading(first, rig.left_hip, rig.right_hip))
+    shift = at - rotate_y(first[rig.ankle[planted]][[0, 2]], yaw)
+    return Spot(rotate_y(feet_centre(rig, first), yaw) + shift, heading)
+
+
+class Legs:
+    """The leg chains (hip, knee, ankle) of a rig, by its joint map."""
+
+    def __init__(self, rig):
+        index = {name: rig.names.index(joint) for name, joint in rig.joint_map.items()
+                 if joint in rig.names}  # fmt: skip
+        try:
+            self.chains = {side: tuple(index[f"{side}_{p}"] for p in ("hip", "knee", "ankle"))
+                           for side in ("left", "right")}  # fmt: skip
+        except KeyError as e:
+            raise StandingError(f"the joint map lacks {e.args[0]}: no legs to stand on") from None
+        self.rig = rig
+        rest = rig.positions(np.tile([1.0, 0.0, 0.0, 0.0], (1, len(rig.names), 1)),
+                             np.zeros((1, len(rig.translated), 3)))[0]  # fmt: skip
+        hip, knee, ankle = self.chains["left"]
+        self.length = float(np.linalg.norm(rest[hip] - rest[knee])
+                            + np.linalg.norm(rest[knee] - rest[ankle]))  # fmt: skip
+
+    def set(self, rotations, translations, side, targets, orientations):
+        rig = self.rig
+        out, _, _ = ik.two_bone(rig.parents, rig.offsets, rotations, translations,
+                                rig.translated, self.chains[side], targets,
+                                end_orientations=orientations)  # fmt: skip
+        return out
+
+
+def feet_paths(rig, legs, last, piece, planted, fps):
+    """{side: (targets (frames, 3), orientations (frames, 4))} over the piece's frames: the
+    planted foot from where it stands to where the piece has it, the trailing one stepping beside
+    it; both then stay where the piece has them at the settle's end."""
+    n = len(piece[0])
+    end = min(n, int(round(SETTLE_S * fps))) - 1
+    before_p, before_o = kinematics.world_transforms(rig.parents, rig.offsets, last[0][-1:],
+                                                      last[1][-1:], rig.translated)  # fmt: skip
+    held = np.minimum(np.arange(n), end)
+    after_p, after_o = kinematics.world_transforms(rig.parents, rig.offsets, piece[0][held],
+                                                    piece[1][held], rig.translated)  # fmt: skip
+    k = np.arange(n) / fps
+    out = {}
+    for side, ankle in rig.ankle.items():
+        if side == planted:
+            w = smooth(k / PLANT_S)
+            lift = np.zeros(n)
+        else:
+            u = k / (SETTLE_S * SWING_SHARE)
+            w = smooth(u)
+            lift = LIFT_LEGS * legs.length * np.sin(np.pi * np.clip(u, 0.0, 1.0))
+        start, goal = before_p[0, ankle], after_p[:, ankle]
+        targets = start + (goal - start) * w[:, None]
+        targets[:, 1] += lift
+        turn = slerp(np.broadcast_to(before_o[0, ankle], (n, 4)), after_o[:, ankle], w)
+        out[side] = targets, turn
+    return out
+
+
+def feet_at(rig, rotations, translations, frame=0):
+    """{side: (ankle position, orientation)} at one frame."""
+    positions, orientations = kinematics.world_transforms(
+        rig.parents, rig.offsets, rotations[frame : frame + 1], translations[frame : frame + 1],
+        rig.translated)  # fmt: skip
+    return {side: (positions[0, j], orientations[0, j]) for side, j in rig.ankle.items()}
+
+
+def pinned(legs, rotations, translations, feet):
+    """The frames with each ankle set where feet has it: {side: (targets, orientations)}, one
+    per frame or one for all."""
+    n = len(rotations)
+    for side, (targets, turns) in feet.items():
+        rotations = legs.set(rotations, translations, side,
+                             np.broadcast_to(targets, (n, 3)), np.broadcast_to(turns, (n, 4)))
+    return rotations
+
+
+def settle(rig, legs, seams, last, piece, planted, fps):
+    """The first standing piece joined to the walk: (rotations, translations, feet): feet is
+    {side: (ankle position, orientation)} where the feet stand from the settle's end on. last:
+    the walk's last two frames (rotations, translations); piece: the piece placed on its spot."""
+    rotations, translations = seams.inertialize(last[0], last[1], piece[0], piece[1], fps,
+                                                SETTLE_HALFLIFE_S)  # fmt: skip
+    paths = feet_paths(rig, legs, last, piece, planted, fps)
+    rotations = pinned(legs, rotations, translations, paths)
+    return rotations, translations, {side: (p[0][-1], p[1][-1]) for side, p in paths.items()}
+
+
+def travel_heading(rig, rotations, translations, fallback):
+    """The heading of the pelvis's travel over the frames (the way the last step went), or
+    fallback where it hardly moved."""
+    ends = rig.positions(rotations[[0, -1]], translations[[0, -1]])[:, rig.pelvis][:, [0, 2]]
+    moved = ends[1] - ends[0]
+    if np.linalg.norm(moved) < 0.05:
+        return float(fallback)
+    return float(np.arctan2(moved[0], moved[1]))
+
+
+class CapturedStanding:
+    """The graph's "standing" frames as pieces, forward and backward in turn."""
+
+    def __init__(self, document, rig):
+        try:
+            rotations = np.asarray(document["rotations"], dtype=np.float64)
+            translations = np.asarray(document.get("translations") or np.zeros(
+                (len(rotations), 0, 3)), dtype=np.float64)  # fmt: skip
+            fps = float(document["fps"])
+        except (KeyError, TypeError, ValueError) as e:
+            raise StandingError(f'its "standing" frames are malformed ({e})') from None
+        shape_ok = (rotations.ndim == 3 and rotations.shape[1:] == (len(rig.names), 4)
+                    and translations.shape == (len(rotations), len(rig.translated), 3))  # fmt: skip
+        if not shape_ok or not np.all(np.isfinite(rotations)) or not np.all(
+                np.isfinite(translations)):  # fmt: skip
+            raise StandingError('its "standing" frames do not fit its skeleton: rebuild the graph '
+                                "(modb model graph NAME --collection C)")  # fmt: skip
+        if len(rotations) < max(2, MIN_STANDING_S * fps):
+            raise StandingError(f'its "standing" frames last under {MIN_STANDING_S:g} s')
+        self.rotations = quaternion.canonical(rotations)
+        self.translations, self.fps = translations, fps
+        self.played = 0
+
+    def piece(self, rng):
+        """The next piece: the frames forward, then backward, and so on."""
+        forward = self.played % 2 == 0
+        self.played += 1
+        order = slice(None) if forward else slice(None, None, -1)
+        return self.rotations[order].copy(), self.translations[order].copy()
+
