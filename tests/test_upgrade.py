@@ -251,6 +251,38 @@ def _feet_held_after_the_update(db, unheld) -> None:
     assert changed and changed <= legs, (changed, legs)
 
 
+def _planned_walk(after, before) -> None:
+    """0.28.0's planner: the same models walk the same course to the same goals, turned their own
+    way; the graph built before has no idle or standing, so the walk ends in its last pose."""
+    assert after[:2] == before[:2]  # fps, n_frames
+    assert sorted(after[4]["reached"]) == sorted(before[4]["reached"]) == ["1", "2"]
+    assert any("stands in that pose" in note for note in after[4]["notes"]), after[4]["notes"]
+
+
+def _family_after_the_update(db, dsn) -> None:
+    """Steps found again find the primitives beyond them and leave the step segments as they were:
+    the models built from them stay current; the family graph keeps them and builds what it can."""
+    status = "SELECT name, stale FROM modb.model_status ORDER BY name"
+    before = db.execute(status).fetchall()
+    assert [name for name, _ in before] == ["left steps", "right steps"]
+    annotations = "SELECT sum(jsonb_array_length(meta->'annotations')) FROM modb.clip_versions"
+    counted = db.execute(annotations).fetchone()[0]
+    for (clip,) in db.execute("SELECT id FROM modb.clips ORDER BY id").fetchall():
+        db.execute("SELECT * FROM modb.annotate_steps(%s)", [clip])
+    db.commit()
+    assert db.execute(annotations).fetchone()[0] >= counted
+    assert db.execute(status).fetchall() == before and all(s is None for _, s in before)
+    collection = db.execute(
+        "SELECT modb.collection_path(collection_id) FROM modb.clips WHERE id = 1").fetchone()[0]
+    r = run_modb(dsn, "model", "graph", "family", "--collection", collection, process=False)
+    assert r.returncode == 0, r.stderr
+    assert "kept (current): left steps, right steps" in r.stdout, r.stdout
+    fps, n_frames = db.execute(
+        "SELECT fps, n_frames FROM modb.synthesize_from_models('family', "
+        "ARRAY[[0, 3]]::float8[], 2)").fetchone()  # fmt: skip
+    assert n_frames == round(2 * fps) + 1
+
+
 def _models_0_26_0_refuses(db) -> None:
     """Two rows 0.25.0 stored and 0.26.0 refuses: a model with fps 0 (it broke sampling) and a
     model whose meta holds a tree of another mixture (one dimension short)."""
@@ -352,8 +384,8 @@ def test_update_keeps_the_data(fresh_db, db, old, fresh_load):
     # 0.24.0: the kernel installed beside modb.so, no longer pasted; 0.25.0: the kernel computes
     # faster (graphs, cuts) and models build on one thread; 0.26.0: the kernel lets cancels in and
     # gives memory back; 0.27.0 holds stance feet unless modb.foot_hold is off: what they give
-    # stays the same
-    if old in ("0.23.0", "0.24.0", "0.25.0", "0.26.0"):
+    # stays the same (0.28.0's planner turns the walk its own way: its samples stay the same)
+    if old in ("0.23.0", "0.24.0", "0.25.0", "0.26.0", "0.27.0"):
         outputs_before = _models_and_their_outputs(db, fresh_db)
     if old == "0.25.0":  # 0.26.0 checks model documents: what it refuses is repaired
         _models_0_26_0_refuses(db)
@@ -392,12 +424,16 @@ def test_update_keeps_the_data(fresh_db, db, old, fresh_load):
         _graph_of_the_models(db, fresh_db, collection, models_before)
     if old == "0.25.0":
         _models_repaired(db)
-    if old == "0.26.0":  # 0.27.0: the same walk with its stance feet held, by default
-        _feet_held_after_the_update(db, outputs_before[-1])
-    if old in ("0.23.0", "0.24.0", "0.25.0", "0.26.0"):
-        _same_outputs(_model_outputs(db), outputs_before)  # this session, after the update
+    if old in ("0.23.0", "0.24.0", "0.25.0", "0.26.0", "0.27.0"):
+        after = _model_outputs(db)  # this session, after the update
+        _same_outputs(after[:2], outputs_before[:2])  # the samples
+        _planned_walk(after[2], outputs_before[2])
+        if old == "0.26.0":  # 0.27.0: stance feet held by default, the legs alone turned
+            _feet_held_after_the_update(db, after[2])
         with psycopg.connect(fresh_db) as new_session:
-            _same_outputs(_model_outputs(new_session), outputs_before)
+            _same_outputs(_model_outputs(new_session), after)
+    if old == "0.27.0":  # 0.28.0: the primitives beyond steps, the family graph over the models
+        _family_after_the_update(db, fresh_db)
     if old == "0.19.0":
         stored_after = _retarget_and_edit(db)
         assert len(stored_before) == 2 and all(row[-1] for row in stored_before)

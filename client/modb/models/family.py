@@ -131,14 +131,13 @@ def build_family(
     with conn.cursor(row_factory=psycopg.rows.dict_row) as cur:
         segments = cur.execute(SEGMENTS, [collection, list(FAMILY)]).fetchall()
     segments, others = of_the_steps_skeleton(segments)
-    if others:
-        say(f"{len(others)} segments of clips on other skeletons left out: retarget those clips "
-            f"onto skeleton {segments[0]['skeleton_id']} to use them (modb retarget)")  # fmt: skip
+    mixed = sorted({s["primitive"] for s in others})  # a model learns from one skeleton only
     counts = examples(segments)
     current: dict[str, str] = {}
     for primitive, model in conn.execute(CURRENT, [collection]).fetchall():
         current.setdefault(primitive, model)
-    wanted = [p for p in FAMILY if counts[p] >= MIN_EXAMPLES and p not in current]
+    wanted = [p for p in FAMILY if counts[p] >= MIN_EXAMPLES and p not in current
+              and p not in mixed]  # fmt: skip
     too_few = {p: n for p, n in counts.items() if 0 < n < MIN_EXAMPLES and p not in current}
     built = []
     for k, primitive in enumerate(wanted):
@@ -150,7 +149,7 @@ def build_family(
         advance(k + 1, len(wanted) + 1)
     picked = list(chosen or []) + [m for p, m in current.items() if p in FAMILY]
     standing = None
-    if "idle" not in current and segments:
+    if "idle" not in current and segments and "idle" not in mixed:
         fps = float(segments[0]["fps"])
         stretch = standing_stretch(segments, fps)
         if stretch is not None:
@@ -163,6 +162,8 @@ def build_family(
         "built": built,
         "kept": sorted(m for p, m in current.items() if m not in built),
         "too_few": too_few,
+        "other_skeletons": {p: sum(s["primitive"] == p for s in others) for p in mixed},
+        "skeleton_id": segments[0]["skeleton_id"] if segments else None,
         "minimum": MIN_EXAMPLES,
         "standing": None if standing is None else standing["source"],
     }
@@ -177,6 +178,10 @@ def summary(made: dict[str, Any]) -> list[str]:
     for primitive, n in sorted(made["too_few"].items()):
         lines.append(f"not built: {primitive}: {n} example{'' if n == 1 else 's'}, a model needs "
                      f"at least {made['minimum']}")  # fmt: skip
+    for primitive, n in sorted(made.get("other_skeletons", {}).items()):
+        lines.append(f"not built: {primitive}: {n} of its segments are on other skeletons than "
+                     f"the steps' ({made['skeleton_id']}): retarget those clips onto it (modb "
+                     "retarget) or move them out of the collection")  # fmt: skip
     if made["standing"]:
         s = made["standing"]
         lines.append(f"standing: no idle model; captured standing from clip {s['clip_id']} version "

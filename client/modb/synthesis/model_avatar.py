@@ -1,8 +1,9 @@
 """The avatar on a graph of models: the kernel's synthesis from models (modb_kernel.model_synthesis,
 which modb.synthesize_from_models runs in the server) driven step by step as goals arrive, its
 frames played from a queue that is filled ahead of playback (at least QUEUE_SECONDS), so the
-character never waits for a step. Without a goal it stands, idle, in its last pose (at first: the
-start node's model's mean pose, its pelvis above the origin facing +Z).
+character never waits for a step. Without a goal it comes to rest and stands, idling, as the
+synthesis does after its last goal (the graph's idle node or captured standing frames; without
+either, in its last pose; at first: standing above the origin facing +Z).
 
 With the same graph, seed and goals given before the walk starts, the frames are those of
 `modb synth --models` (the same code, here with the client's numpy and scipy: equal within the
@@ -100,23 +101,31 @@ class ModelAvatar:
         return self.synthesis.goal < len(self.synthesis.goals)
 
     def _fill(self) -> None:
-        """Steps toward the current goal until QUEUE_SECONDS of frames wait in the queue; the
-        synthesis keeps only the last step's frames (the next seam needs them)."""
-        body = self.synthesis.body
-        while self.walking and len(self._queue) < QUEUE_SECONDS * self.fps:
-            self.synthesis.walk_step()
-            record = self.synthesis.steps[-1]
+        """Steps toward the current goal (or, without one, pieces of standing) until
+        QUEUE_SECONDS of frames wait in the queue; the synthesis keeps only the last piece's
+        frames (the next seam needs them)."""
+        synthesis, body = self.synthesis, self.synthesis.body
+        while len(self._queue) < QUEUE_SECONDS * self.fps:
+            if self.walking:
+                synthesis.walk_step()
+            elif synthesis.standing_source() is not None:
+                if not synthesis.stop_walking():  # the stop first, where the graph has one
+                    synthesis.rest()
+            else:
+                return
+            record = synthesis.steps[-1]
             rotations, translations = body.shown[-1], body.translations[-1]
-            step = len(self.synthesis.steps)
+            step = len(synthesis.steps)
             first = self._shown + len(self._queue)
             for r, t in zip(rotations, translations, strict=True):
                 self._queue.append(Frame(first, step, r, t))
                 first += 1
-            self.readouts.append(StepReadout(
-                step, record["node"], record["model"], record["first_frame"], record["n_frames"],
-                record["candidates"], record["error_m"],
-                record["tree_error_m"], record["random_error_m"], record["goal"],
-            ))  # fmt: skip
+            if not record.get("rest"):
+                self.readouts.append(StepReadout(
+                    step, record["node"], record["model"], record["first_frame"],
+                    record["n_frames"], record["candidates"], record["error_m"],
+                    record["tree_error_m"], record["random_error_m"], record["goal"],
+                ))  # fmt: skip
             body.drop_all_but_the_last_step()
 
     def frames(self) -> Iterator[Frame]:

@@ -375,14 +375,9 @@ class Synthesis:
                 self.closest = np.inf
 
     def finish(self, node):
-        """After the last goal: the end node (a stop) where the last step leads to one, then
-        standing until the end (rest); with nothing to stand with, the last pose held."""
-        types, after = self.types, self.successors
-        ends = [n for n in after.get(node, []) if types[n] == "end"] if node else []
-        if ends:
-            self.step(ends[0], toward=None)
-            self.node = ends[0]
-            self.notes.append(f'the end node "{ends[0]}" played after the last goal')
+        """After the last goal: the end node where the last step leads to one (stop_walking),
+        then standing until the end (rest); with nothing to stand with, the last pose held."""
+        self.stop_walking()
         if self.standing_source() is not None:
             while self.body.n_frames < self.wanted_frames:
                 self.rest()
@@ -398,10 +393,23 @@ class Synthesis:
             self.body.shown.append(np.repeat(self.body.shown[-1][-1:], hold, axis=0))
             when = f"{self.stood_from / self.fps:.2f} s"
             self.notes.append(
-                f'after the end node "{ends[0]}" the character stands in its last pose from {when}'
-                if ends else f'the graph has no idle node or standing frames after "{node}": the '
-                f"character finished its step and stands in that pose from {when}"
+                f'after the end node "{self.node}" the character stands in its last pose from '
+                f"{when}" if self.types.get(self.node) == "end" else "the graph has no idle node "
+                f'or standing frames after "{node}": the character finished its step and stands '
+                f"in that pose from {when}"
             )  # fmt: skip
+
+    def stop_walking(self):
+        """The end node (a stop) once, where the last step leads to one; whether it played."""
+        if self.node is None or self.types.get(self.node) != "standard" or self.spot is not None:
+            return False
+        ends = [n for n in self.successors[self.node] if self.types[n] == "end"]
+        if not ends:
+            return False
+        self.step(ends[0], toward=None)
+        self.node = ends[0]
+        self.notes.append(f'the end node "{ends[0]}" played after the last goal')
+        return True
 
     def standing_source(self):
         """The idle node (the first of the graph's), else the graph's captured standing frames
@@ -449,6 +457,7 @@ class Synthesis:
             self.spot = standing.settle_spot(rig, rotations, translations, planted,
                                              body.feet[planted], heading)  # fmt: skip
             piece = standing.on_spot(rig, rotations, translations, self.spot)
+            self.spot.pelvis = rig.positions(piece[0][:1], piece[1][:1])[0, rig.pelvis][[0, 2]]
             *joined, self.spot.feet = standing.settle(rig, self.legs, self.seams, (r, t), piece,
                                                       planted, self.fps)  # fmt: skip
             self.rested_from = body.n_frames + min(len(piece[0]) - 1,
@@ -461,6 +470,7 @@ class Synthesis:
                 joined = self.seams.inertialize(*body.last_two(), *piece, self.fps)
             if self.spot.feet is None:  # standing from the start: the feet where the first has them
                 self.spot.feet = standing.feet_at(rig, *piece)
+                self.spot.pelvis = rig.positions(piece[0][:1], piece[1][:1])[0, rig.pelvis][[0, 2]]
             joined = (standing.pinned(self.legs, joined[0], joined[1], self.spot.feet), joined[1])
             reference = piece
         start = 1 if body.rotations else 0  # the first frame stands in for the last one played

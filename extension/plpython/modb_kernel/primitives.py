@@ -32,7 +32,7 @@ from . import steps as S
 from .step_search import hip_heading, wrap
 
 STANDING_M_S = 0.15
-STILL_M_S = 0.3
+STILL_M_S = 0.15
 IDLE_MIN_S = 0.5
 IDLE_PIECE_S = 1.0
 TURN_DEGREES = 20.0

@@ -12,8 +12,9 @@ planted foot is, facing the way the last step travelled. Its frames are joined t
 seam of SETTLE_HALFLIFE_S (slower than a step's: the body decelerates into standing), and its legs
 are set by two-bone IK: the planted foot stays and turns flat over PLANT_S; the trailing foot
 lifts by LIFT_LEGS of the leg, moves and lands beside it within SWING_SHARE of SETTLE_S. From then
-on the feet stay where they are (every later piece's legs set by the same IK): the pieces' pelvis,
-spine and arms move as standing people do, the feet do not shuffle between pieces."""
+on the feet stay where they are (every later piece's legs set by the same IK) and every later
+piece starts with its pelvis where the first piece's started: the pieces' pelvis, spine and arms
+move as standing people do, the feet do not shuffle and the body does not wander between pieces."""
 
 import numpy as np
 
@@ -45,12 +46,14 @@ def slerp(a, b, w):
 
 
 class Spot:
-    """Where the character stands: the feet's midpoint (x, z), the hip heading, and once it has
-    settled where each ankle is and how it is turned ({side: (position, orientation)})."""
+    """Where the character stands: the feet's midpoint (x, z) and the hip heading; once it has
+    settled, where each ankle is and how it is turned ({side: (position, orientation)}) and where
+    each piece's pelvis starts (x, z)."""
 
     def __init__(self, centre, heading):
         self.centre, self.heading = np.asarray(centre, dtype=np.float64), float(heading)
         self.feet = None
+        self.pelvis = None
 
 
 def feet_centre(rig, positions):
@@ -58,9 +61,14 @@ def feet_centre(rig, positions):
 
 
 def on_spot(rig, rotations, translations, spot):
-    """The piece turned and moved so that its first frame stands on the spot."""
+    """The piece turned and moved so that its first frame stands on the spot: its pelvis where
+    every piece's starts once the spot has one (the feet are set by IK, pinned), else its feet's
+    midpoint on the spot's centre."""
     first = rig.positions(rotations[:1], translations[:1])[0]
     yaw = spot.heading - float(hip_heading(first, rig.left_hip, rig.right_hip))
+    if spot.pelvis is not None:
+        return placed(rig, rotations, translations, yaw, spot.pelvis - rotate_y(
+            first[rig.pelvis][[0, 2]], yaw))  # fmt: skip
     return placed(rig, rotations, translations, yaw, spot.centre - rotate_y(
         feet_centre(rig, first), yaw))  # fmt: skip
 
