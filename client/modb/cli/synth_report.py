@@ -196,6 +196,8 @@ def format_model_report(figures: dict, server_report: dict) -> str:
     lines = [f"graph of models {figures['graph']} (seed {figures['seed']}): "
              f"{figures['steps']} steps, {figures['seconds']:.1f} s"]  # fmt: skip
     for s in server_report["steps"]:
+        if s.get("rest"):
+            continue  # a piece of standing: the line after the goals says from when
         lines.append(
             f"  frame {s['first_frame']:>6}  {s['node']:<14} goal {s['goal'] or '-'}  constraint "
             f"error {100 * s['error_m']:5.1f} cm (tree {100 * s['tree_error_m']:5.1f}, best of 300 "
@@ -219,6 +221,8 @@ def format_model_report(figures: dict, server_report: dict) -> str:
     ]
     if figures["stood_from_seconds"] is not None:
         lines.append(f"stands in its last pose from {figures['stood_from_seconds']:.1f} s")
+    if figures.get("rested_from_seconds") is not None:
+        lines.append(f"comes to rest at {figures['rested_from_seconds']:.1f} s and stands, idling")
     lines += [f"aim {'met' if ok else 'MISSED' if ok is False else 'not judged'}: {aim}"
               for aim, ok in figures["aims"].items()]  # fmt: skip
     return "\n".join(lines)

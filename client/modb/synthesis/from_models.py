@@ -119,6 +119,7 @@ def measure(strip: ModelStrip, source: Source) -> dict[str, Any]:
     fps = motion.fps
     walked = report["stood_from_frame"]
     moving = motion if walked is None else first_frames(motion, walked + 1)
+    stepped = [r for r in report["steps"] if not r.get("rest")]  # not the pieces of standing
     # a step runs from the frame before its first (the seam: its stance foot touches down) on
     steps = [
         (
@@ -126,20 +127,22 @@ def measure(strip: ModelStrip, source: Source) -> dict[str, Any]:
             max(r["first_frame"] - 1, 0),
             min(r["first_frame"] + r["n_frames"], motion.n_frames) - 1,
         )
-        for r in report["steps"]
+        for r in stepped
         if (side := r["swing"])
     ]
     sliding = float(stance_sliding(motion, steps).mean()) if steps else 0.0
     jumps = pose_jumps(motion)
     errors = np.array([[s["tree_error_m"], s["error_m"], s["random_error_m"]]
-                       for s in report["steps"]])  # fmt: skip
+                       for s in stepped])  # fmt: skip
     goals = _goals(motion, strip.goals, report["reached"], source.walking_speed)
     out = {
         "graph": strip.graph,
         "seed": strip.seed,
         "seconds": (motion.n_frames - 1) / fps,
-        "steps": len(report["steps"]),
+        "steps": len(stepped),
         "stood_from_seconds": None if walked is None else walked / fps,
+        "rested_from_seconds": None if report.get("rested_from_frame") is None else (
+            report["rested_from_frame"] / fps),  # fmt: skip
         "notes": report["notes"],
         "goals": goals,
         "walking_speed": source.walking_speed,

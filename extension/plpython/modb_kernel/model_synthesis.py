@@ -333,14 +333,17 @@ class Synthesis:
             reference = reference[0][1:], reference[1][1:]
         self.append(rotations, translations, reference)
 
-    def append(self, rotations, translations, reference=None):
+    def append(self, rotations, translations, reference=None, hold=True):
         """New frames after the body's last, as joined; reference: the same frames as placed,
-        before the seams (the hold reads its contacts there; None: these frames)."""
+        before the seams (the hold reads its contacts there; None: these frames). hold False:
+        the frames' feet are set already (standing's IK): the hold follows them, shows them."""
         rig, body = self.rig, self.body
         # The hold's changes are not a seam's to carry: the body keeps the frames as joined, for
         # the next seam and the next step's placement, beside the frames shown.
         shown = rotations if self.hold is None else self.hold.feed(rotations, translations,
                                                                    reference)  # fmt: skip
+        if not hold:
+            shown = rotations
         body.rotations.append(rotations)
         body.translations.append(translations)
         body.shown.append(shown)
@@ -464,7 +467,8 @@ class Synthesis:
                                                    int(round(standing.SETTLE_S * self.fps)))
             reference = None  # the settle's own feet: the trailing one moves, then lands
         else:
-            piece = standing.on_spot(rig, rotations, translations, self.spot)
+            piece = standing.on_spot(rig, rotations, translations, self.spot, isinstance(
+                self.standing_source(), standing.CapturedStanding))  # fmt: skip
             joined = piece
             if body.rotations:
                 joined = self.seams.inertialize(*body.last_two(), *piece, self.fps)
@@ -476,7 +480,8 @@ class Synthesis:
         start = 1 if body.rotations else 0  # the first frame stands in for the last one played
         first = body.n_frames
         self.append(joined[0][start:], joined[1][start:],
-                    None if reference is None else (reference[0][start:], reference[1][start:]))
+                    None if reference is None else (reference[0][start:], reference[1][start:]),
+                    hold=False)  # fmt: skip
         if self.rested_from is None:
             self.rested_from = first
         self.steps.append({"node": self.standing_source() if isinstance(

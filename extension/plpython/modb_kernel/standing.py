@@ -54,23 +54,26 @@ class Spot:
         self.centre, self.heading = np.asarray(centre, dtype=np.float64), float(heading)
         self.feet = None
         self.pelvis = None
+        self.placement = None  # (yaw, shift) of the first piece: captured standing keeps it
 
 
 def feet_centre(rig, positions):
     return (positions[rig.ankle["left"]][[0, 2]] + positions[rig.ankle["right"]][[0, 2]]) / 2
 
 
-def on_spot(rig, rotations, translations, spot):
+def on_spot(rig, rotations, translations, spot, same_capture=False):
     """The piece turned and moved so that its first frame stands on the spot: its pelvis where
     every piece's starts once the spot has one (the feet are set by IK, pinned), else its feet's
-    midpoint on the spot's centre."""
+    midpoint on the spot's centre. Pieces of one capture (same_capture: captured standing played
+    forward and backward) are all placed as the first was, so each goes on where the last ended."""
+    if same_capture and spot.placement is not None:
+        return placed(rig, rotations, translations, *spot.placement)
     first = rig.positions(rotations[:1], translations[:1])[0]
     yaw = spot.heading - float(hip_heading(first, rig.left_hip, rig.right_hip))
-    if spot.pelvis is not None:
-        return placed(rig, rotations, translations, yaw, spot.pelvis - rotate_y(
-            first[rig.pelvis][[0, 2]], yaw))  # fmt: skip
-    return placed(rig, rotations, translations, yaw, spot.centre - rotate_y(
-        feet_centre(rig, first), yaw))  # fmt: skip
+    at, point = ((spot.pelvis, first[rig.pelvis][[0, 2]]) if spot.pelvis is not None
+                 else (spot.centre, feet_centre(rig, first)))  # fmt: skip
+    spot.placement = spot.placement or (yaw, at - rotate_y(point, yaw))
+    return placed(rig, rotations, translations, yaw, at - rotate_y(point, yaw))
 
 
 def settle_spot(rig, rotations, translations, planted, at, heading):
@@ -100,9 +103,14 @@ class Legs:
                             + np.linalg.norm(rest[knee] - rest[ankle]))  # fmt: skip
 
     def set(self, rotations, translations, side, targets, orientations):
+        """The leg's ankle set at targets, turned to orientations; the knee bends forward (a
+        standing leg is nearly straight: its own bend's direction is noise, and would flip)."""
         rig = self.rig
+        hips = rig.positions(rotations, translations)
+        heading = hip_heading(hips, rig.left_hip, rig.right_hip)
+        forward = np.stack([np.sin(heading), np.zeros_like(heading), np.cos(heading)], axis=-1)
         out, _, _ = ik.two_bone(rig.parents, rig.offsets, rotations, translations,
-                                rig.translated, self.chains[side], targets,
+                                rig.translated, self.chains[side], targets, poles=forward,
                                 end_orientations=orientations)  # fmt: skip
         return out
 
