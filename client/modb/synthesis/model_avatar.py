@@ -115,12 +115,13 @@ class ModelAvatar:
                 return
             record = synthesis.steps[-1]
             rotations, translations = body.shown[-1], body.translations[-1]
-            step = len(synthesis.steps)
+            # a step's frames carry its readout's number (from 1); standing's carry 0
+            step = 0 if record.get("rest") else len(self.readouts) + 1
             first = self._shown + len(self._queue)
             for r, t in zip(rotations, translations, strict=True):
                 self._queue.append(Frame(first, step, r, t))
                 first += 1
-            if not record.get("rest"):
+            if step:
                 self.readouts.append(StepReadout(
                     step, record["node"], record["model"], record["first_frame"],
                     record["n_frames"], record["candidates"], record["error_m"],

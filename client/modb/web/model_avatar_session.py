@@ -122,8 +122,9 @@ class ModelAvatarSession:
         self._send({"type": "goals", "goals": goals, "goal_index": index})
 
     def _play(self) -> None:
-        """The avatar's frames at its rate: the standing pose first, then each new frame (an idle
-        avatar repeats its last pose: not sent again); a step's readout as it starts to play."""
+        """The avatar's frames at its rate: the standing pose first, then each new frame (standing
+        frames too: it idles; where the graph has nothing to stand with it repeats its last pose,
+        not sent again); a step's readout as it starts to play, the goals served as it stands."""
         avatar = self._avatar
         fps = self.fps
         try:
@@ -145,13 +146,13 @@ class ModelAvatarSession:
                 if self._stopping.wait(max(0.0, due - time.monotonic())):
                     break
                 due += 1.0 / fps
-                if frame.rotations is shown.rotations:  # idle: the pose shown already
-                    if not idle:  # the walk's last frame played: every goal served
-                        self._send({"type": "goals", "goals": goals, "goal_index": index})
-                        idle = True
+                standing = frame.step == 0 or frame.rotations is shown.rotations
+                if standing and not idle:  # the walk's last frame played: every goal served
+                    self._send({"type": "goals", "goals": goals, "goal_index": index})
+                idle = standing
+                if frame.rotations is shown.rotations:  # the pose shown already
                     continue
-                idle = False
-                if frame.step != shown.step:  # the first frame of a new step
+                if not standing and frame.step != shown.step:  # the first frame of a new step
                     self._send(step_message(readouts, frame.step, goals))
                 self._send(frame_message(frame))
                 self._walk.append(frame)

@@ -164,9 +164,9 @@ class Synthesis:
         self.rng = np.random.default_rng(seed)
         self.seams = inertialization.Seams(rig.parents, rig.offsets, rig.translated, rig.pelvis)
         self.body = Body(rig)
+        self.floors = stance_floors(models.values())
         self.hold = foot_hold.FootHold(rig.parents, rig.offsets, rig.translated, rig.names,
-                                       rig.joint_map, self.fps,
-                                       stance_floors(models.values())) if hold_feet else None
+                                       rig.joint_map, self.fps, self.floors) if hold_feet else None
         self.steps, self.notes = [], []
         self.node = None  # the node of the last step
         self.walked = None  # the last standard node played (a walk resumes after it)
@@ -230,7 +230,7 @@ class Synthesis:
             model = self.models[n]
             target = self.target(model)
             found, examined = model.search(target, self.rng)
-            score = float(model.errors(found, target)[0]) + self.left_after(model, found)
+            score = float(model.errors(found, target)[0]) + self.left_after(model, target)
             searched.append((score, n, (found, examined)))
         _, best, search = min(searched, key=lambda row: row[0])
         return best, search  # the search that chose it is the step's
@@ -238,17 +238,19 @@ class Synthesis:
     def goal_now(self):
         return self.goals[self.goal] if self.goal < len(self.goals) else None
 
-    def left_after(self, model, scores):
-        """The path still to walk to the current goal after the step of scores (0 without one)."""
+    def left_after(self, model, target):
+        """The path still to walk to the current goal after the model's usual step turned as the
+        target asks (0 without a goal): what the model's step is for, not how far one sample
+        strides (a longer stride in the same time is a faster swing, not a better step)."""
         goal = self.goal_now()
         if goal is None:
             return 0.0
-        _, turn, travel = model.features(scores)
         where = self.body.pelvis() if self.body.rotations else np.zeros(2)
         heading = self.body.heading + travel_angle(model)
-        moved = rotate_y(travel[0], -travel_angle(model))  # in the frame of the way it travels
-        return course.left_after(where, heading, goal, moved, float(turn[0]),
-                                 self.turning_radius, self.radius)  # fmt: skip
+        turn = float(target[2] - model.usual_turn)
+        travel = rotate_y(np.array([0.0, np.linalg.norm(model.usual_travel)]), turn / 2)
+        return course.left_after(where, heading, goal, travel, turn, self.turning_radius,
+                                 self.radius)  # fmt: skip
 
     def target(self, model, toward=None):
         """(landing x, z, turn) in the step's frame: the model's usual step turned toward the
@@ -452,6 +454,7 @@ class Synthesis:
         rotations, translations = self.standing_piece()
         if not body.rotations:  # standing from the first frame: above the origin, facing +Z
             self.spot = standing.Spot(np.zeros(2), 0.0)
+            self.spot.lift = standing.floor_lift(rig, rotations, translations, self.floors)
         if self.spot is None:
             r, t = body.last_two()
             heading = standing.travel_heading(rig, body.rotations[-1], body.translations[-1],
@@ -459,6 +462,7 @@ class Synthesis:
             planted = self.leading_foot(heading)
             self.spot = standing.settle_spot(rig, rotations, translations, planted,
                                              body.feet[planted], heading)  # fmt: skip
+            self.spot.lift = standing.floor_lift(rig, rotations, translations, self.floors)
             piece = standing.on_spot(rig, rotations, translations, self.spot)
             self.spot.pelvis = rig.positions(piece[0][:1], piece[1][:1])[0, rig.pelvis][[0, 2]]
             *joined, self.spot.feet = standing.settle(rig, self.legs, self.seams, (r, t), piece,

@@ -7,6 +7,9 @@ frames (a still stretch of the collection's capture), played forward and backwar
 piece stands on one spot: its feet's midpoint on the spot's centre, its hip heading the spot's, so
 the character does not drift while it idles; pieces are joined by the seams' inertialization.
 
+Pieces are raised or lowered onto the floor the walk's step models stood on (their "stance"
+heights), as captures of standing and of walking may stand on floors a centimetre or two apart.
+
 The settle: the first piece is placed so that its foot on the planted side stands where the walk's
 planted foot is, facing the way the last step travelled. Its frames are joined to the walk by a
 seam of SETTLE_HALFLIFE_S (slower than a step's: the body decelerates into standing), and its legs
@@ -25,6 +28,7 @@ from .step_search import hip_heading, rotate_y
 SETTLE_S = 0.8
 SETTLE_HALFLIFE_S = 0.2
 PLANT_S = 0.2
+RAMP_S = 0.15  # the settle's IK takes the legs over from the walk's within this
 SWING_SHARE = 0.7
 LIFT_LEGS = 0.05
 MIN_STANDING_S = 0.5  # captured standing shorter than this is no idle
@@ -55,6 +59,7 @@ class Spot:
         self.feet = None
         self.pelvis = None
         self.placement = None  # (yaw, shift) of the first piece: captured standing keeps it
+        self.lift = 0.0  # metres every piece is raised: its feet on the walk's floor
 
 
 def feet_centre(rig, positions):
@@ -66,6 +71,7 @@ def on_spot(rig, rotations, translations, spot, same_capture=False):
     every piece's starts once the spot has one (the feet are set by IK, pinned), else its feet's
     midpoint on the spot's centre. Pieces of one capture (same_capture: captured standing played
     forward and backward) are all placed as the first was, so each goes on where the last ended."""
+    rotations, translations = raised(rig, rotations, translations, spot.lift)
     if same_capture and spot.placement is not None:
         return placed(rig, rotations, translations, *spot.placement)
     first = rig.positions(rotations[:1], translations[:1])[0]
@@ -74,6 +80,30 @@ def on_spot(rig, rotations, translations, spot, same_capture=False):
                  else (spot.centre, feet_centre(rig, first)))  # fmt: skip
     spot.placement = spot.placement or (yaw, at - rotate_y(point, yaw))
     return placed(rig, rotations, translations, yaw, at - rotate_y(point, yaw))
+
+
+def raised(rig, rotations, translations, lift):
+    """The frames moved up by lift metres (their top joints carry it)."""
+    if not lift:
+        return rotations, translations
+    translations = translations.copy()
+    for j, parent in enumerate(rig.parents):
+        if parent < 0 and j in rig.translated:
+            translations[:, rig.translated.index(j), 1] += lift
+    return rotations, translations
+
+
+def floor_lift(rig, rotations, translations, floors):
+    """How far to raise a piece of standing so that its feet stand on the floors the walk's
+    models stood on ({(side, "toe" or "ankle"): metres}, foot_hold's); 0 where none is known."""
+    first = rig.positions(rotations[:1], translations[:1])[0]
+    gaps = []
+    for side, ankle in rig.ankle.items():
+        toe = rig.joint_map.get(f"{side}_toe")
+        point, joint = ("toe", rig.names.index(toe)) if toe in rig.names else ("ankle", ankle)
+        if (side, point) in floors:
+            gaps.append(floors[(side, point)] - first[joint, 1])
+    return float(np.mean(gaps)) if gaps else 0.0
 
 
 def settle_spot(rig, rotations, translations, planted, at, heading):
@@ -169,8 +199,13 @@ def settle(rig, legs, seams, last, piece, planted, fps):
     rotations, translations = seams.inertialize(last[0], last[1], piece[0], piece[1], fps,
                                                 SETTLE_HALFLIFE_S)  # fmt: skip
     paths = feet_paths(rig, legs, last, piece, planted, fps)
-    rotations = pinned(legs, rotations, translations, paths)
-    return rotations, translations, {side: (p[0][-1], p[1][-1]) for side, p in paths.items()}
+    solved = pinned(legs, rotations, translations, paths)
+    # the IK's legs (their knees bend forward) taken over from the walk's within RAMP_S
+    joints = sorted({j for chain in legs.chains.values() for j in chain})
+    w = smooth(np.arange(len(rotations)) / (RAMP_S * fps))
+    for j in joints:
+        solved[:, j] = slerp(rotations[:, j], solved[:, j], w)
+    return solved, translations, {side: (p[0][-1], p[1][-1]) for side, p in paths.items()}
 
 
 def travel_heading(rig, rotations, translations, fallback):
