@@ -34,6 +34,7 @@ MAX_SECONDS = 600.0
 MAX_COORDINATE = 1e6  # metres from the origin, as the snippet chain's goals
 ARRIVAL_RADIUS_M = 0.5
 MAX_ARRIVAL_RADIUS_M = 10.0
+IDLE_SPREAD = 0.5  # an idle sample's scores this near its mixture component's mean
 MIN_TRAVEL_M = 0.2  # a primitive travelling less has no direction of travel
 LEAST_TURN = np.radians(3.0)  # a model turning less than this per step is taken to turn this much
 
@@ -133,8 +134,9 @@ class Body:
         self.dropped += sum(len(r) for r in self.rotations[:-1])
         del self.rotations[:-1], self.translations[:-1], self.shown[:-1]
 
-    def last_two(self):
-        r = np.concatenate(self.rotations[-2:])[-2:]
+    def last_two(self, shown=False):
+        """The last two frames as joined (shown: as played, the feet held)."""
+        r = np.concatenate((self.shown if shown else self.rotations)[-2:])[-2:]
         t = np.concatenate(self.translations[-2:])[-2:]
         return r, t
 
@@ -283,6 +285,11 @@ class Synthesis:
         target = self.target(model, toward)
         found, examined = model.search(target, self.rng) if search is None else search
         refined = model.refine(found, target)
+        # a refinement beyond where the model's own draws reach (a far-out shape, a foot faster
+        # than any capture's) gives way to the tree's sample
+        limit = model.model["mixture"].get("max_mahalanobis2")
+        if limit and float(model.mahalanobis(refined)[0][0]) ** 2 > limit:
+            refined = found
         record = {
             "node": node,
             "model": model.model.get("name"),
@@ -441,8 +448,9 @@ class Synthesis:
         if isinstance(source, str):
             model = self.models[source].model
             split = len(model["spatial"]["components"])
-            scores = motion_model.draw_scores(model["mixture"], 1,
-                                              int(self.rng.integers(2**31)))[0]  # fmt: skip
+            drawn = motion_model.draw_scores(model["mixture"], 1, int(self.rng.integers(2**31)))
+            mean = self.models[source].mixture_means[self.models[source].mahalanobis(drawn)[1][0]]
+            scores = mean + IDLE_SPREAD * (drawn[0] - mean)  # calm: nearer its component's mean
             frames = motion_model.frames_from_scores(model, scores[:split], scores[split:])
             return frames[0], frames[1]
         return source.piece(self.rng)
@@ -456,7 +464,10 @@ class Synthesis:
             self.spot = standing.Spot(np.zeros(2), 0.0)
             self.spot.lift = standing.floor_lift(rig, rotations, translations, self.floors)
         if self.spot is None:
-            r, t = body.last_two()
+            # from the frames as played (the feet held): the settle shows its own feet
+            r, t = body.last_two(shown=True)
+            rotations, translations = standing.at_least(
+                rotations, translations, int(round(standing.SETTLE_S * self.fps)) + 2)
             heading = standing.travel_heading(rig, body.rotations[-1], body.translations[-1],
                                               body.heading)  # fmt: skip
             planted = self.leading_foot(heading)

@@ -160,18 +160,31 @@ def feet_paths(rig, legs, last, piece, planted, fps):
     out = {}
     for side, ankle in rig.ankle.items():
         if side == planted:
-            w = smooth(k / PLANT_S)
+            w = turning = smooth(k / PLANT_S)
             lift = np.zeros(n)
-        else:
+        else:  # it leaves on its toes: flat again within the first half of its swing, so the
+            # toe rises as the ankle comes down
             u = k / (SETTLE_S * SWING_SHARE)
-            w = smooth(u)
+            w, turning = smooth(u), smooth(2 * u)
             lift = LIFT_LEGS * legs.length * np.sin(np.pi * np.clip(u, 0.0, 1.0))
         start, goal = before_p[0, ankle], after_p[:, ankle]
         targets = start + (goal - start) * w[:, None]
         targets[:, 1] += lift
-        turn = slerp(np.broadcast_to(before_o[0, ankle], (n, 4)), after_o[:, ankle], w)
+        turn = slerp(np.broadcast_to(before_o[0, ankle], (n, 4)), after_o[:, ankle], turning)
         out[side] = targets, turn
     return out
+
+
+def at_least(rotations, translations, n):
+    """The piece played forward, then backward, and so on, until it has at least n frames (each
+    turn starts at the frame the last ended on, which it leaves out)."""
+    r, t, forward = [rotations], [translations], False
+    while sum(len(x) for x in r) < n and len(rotations) > 1:
+        order = slice(1, None) if forward else slice(-2, None, -1)
+        r.append(rotations[order])
+        t.append(translations[order])
+        forward = not forward
+    return np.concatenate(r), np.concatenate(t)
 
 
 def feet_at(rig, rotations, translations, frame=0):

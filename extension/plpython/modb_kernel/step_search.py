@@ -18,7 +18,7 @@ HEADING_WEIGHT_M = 0.5  # metres of constraint error per radian of heading error
 PRIOR_WEIGHT_M = 0.02  # metres of constraint error per unit of Mahalanobis distance
 BEAM = 4  # nodes kept per level of the tree
 CHOICES = 8  # the best leaf samples the search draws one from
-TURN_PERCENTILES = (10, 90)  # the turns a model's steps make: from the one to the other
+TURN_PERCENTILES = (5, 95)  # the turns a model's steps make: from the one to the other
 QUICKEST_SHARE = 25  # percent: the quickest steps of a model, passed by the search
 RANDOM_BASELINE = 300  # random samples the search is measured against
 
