@@ -18,13 +18,13 @@ KINDS = ("left_step", "right_step", "left_turning_step", "right_turning_step", "
 
 def sources(root: Path):
     b1, b2 = root / "bandai-1" / "data", root / "bandai-2-dev" / "data"
-    yield "Bandai 1, all 174 clips", [read_bvh(str(p)) for p in sorted(b1.glob("*.bvh"))]
+    yield "Bandai 1, all", [read_bvh(str(p)) for p in sorted(b1.glob("*.bvh"))]
     for style in ("active", "elderly", "exhausted"):
         files = [p for kind in ("walk", "walk-turn-left", "walk-turn-right", "run")
                  for p in sorted(b2.glob(f"dataset-2_{kind}_{style}_*.bvh"))]  # fmt: skip
-        yield f"Bandai 2 {style}: walks, turns, runs", [read_bvh(str(p)) for p in files]
+        yield f"Bandai 2 {style} locomotion", [read_bvh(str(p)) for p in files]
     actions = sorted(b2.glob("dataset-2_raise-*.bvh")) + sorted(b2.glob("dataset-2_wave-*.bvh"))
-    yield "Bandai 2 active: hand actions", [read_bvh(str(p)) for p in actions]
+    yield "Bandai 2 hand actions", [read_bvh(str(p)) for p in actions]
     for subject in ("16", "131"):
         folder = root / "cmu" / subject
         asf = read_asf(str(folder / f"{subject}.asf"))
@@ -33,7 +33,9 @@ def sources(root: Path):
 
 def main() -> None:
     root = Path(sys.argv[1] if len(sys.argv) > 1 else "../shared/mocap")
-    print("| source | clips | " + " | ".join(KINDS) + " |")
+    short = [k.replace("left_", "L ").replace("right_", "R ").replace("_step", "").replace(
+        "turning", "turn") for k in KINDS]  # fmt: skip
+    print("| source | clips | " + " | ".join(short) + " |")
     print("|---|---:|" + "---:|" * len(KINDS))
     for name, motions in sources(root):
         found, clips = Counter(), Counter()
