@@ -67,13 +67,16 @@ def walk_graph(left: int, right: int) -> dict:
 @pytest.fixture(scope="module")
 def site(cmu16_walks):
     """CMU 16's trials with their steps found, a model of each side's steps (a copy of conftest's
-    cmu16_walks, less the graph of models it made), a graph of the two made in SQL, a loader's and
-    a reader's token, served."""
+    cmu16_walks, less the graph of models it made and its turning steps' models), a graph of the
+    two made in SQL, a loader's and a reader's token, served."""
     with cmu16_walks(f"model_graphs_web_{os.getpid()}") as dsn:
         with psycopg.connect(dsn, autocommit=True) as conn:
             ensure_writer_role(conn)
-        r = run_modb(dsn, "model", "graph", "delete", GRAPH, process=False)
-        assert r.returncode == 0, r.stderr
+        for args in (("model", "graph", "delete", GRAPH),
+                     ("model", "delete", "walk_left_turning_step"),
+                     ("model", "delete", "walk_right_turning_step")):  # fmt: skip
+            r = run_modb(dsn, *args, process=False)
+            assert r.returncode == 0, r.stderr
         tokens = {}
         for name, role in (("editor", "loader"), ("viewer", "reader")):
             r = run_modb(dsn, "token", "create", name, "--role", role, process=False)

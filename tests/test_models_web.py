@@ -23,9 +23,12 @@ MODEL = "cmu16_left_step"
 @pytest.fixture(scope="module")
 def site(cmu16_walks):
     """CMU subject 16's walks with their steps found and a model of the left steps, served: a copy
-    of conftest's cmu16_walks less its graph of models and its model of the right steps."""
+    of conftest's cmu16_walks less its graph of models and its other models (the right steps', and
+    the turning steps' the graph's family built)."""
     with cmu16_walks(f"models_web_{os.getpid()}") as dsn:
-        for args in (("model", "graph", "delete", "walk"), ("model", "delete", "cmu16_right_step")):
+        for args in (("model", "graph", "delete", "walk"), ("model", "delete", "cmu16_right_step"),
+                     ("model", "delete", "walk_left_turning_step"),
+                     ("model", "delete", "walk_right_turning_step")):  # fmt: skip
             r = run_modb(dsn, *args, process=False)
             assert r.returncode == 0, (args, r.stderr)
         with serving(dsn) as address:

@@ -18,6 +18,7 @@ import numpy as np
 import psycopg
 
 from modb.database import pgarray
+from modb_kernel import kinematics
 from modb_kernel.processed import MIN_EXAMPLES, other_side
 from modb_kernel.standing import MIN_STANDING_S
 
@@ -45,6 +46,12 @@ SELECT primitive, name FROM modb.model_status
  WHERE kind = 'motion_primitive' AND collection = %s AND latest AND stale IS NULL
  ORDER BY created_at DESC
 """
+SKELETON = """
+SELECT s.hierarchy, s.joint_map
+  FROM modb.clip_versions v JOIN modb.skeletons s ON s.id = v.skeleton_id
+ WHERE v.clip_id = %s AND v.version = %s
+"""
+STILL_M = 0.05  # captured standing: the pelvis within this of where it began on the ground
 FRAMES = """
 SELECT rotations[%s:%s], translations[%s:%s] FROM modb.clip_versions
  WHERE clip_id = %s AND version = %s
@@ -98,9 +105,23 @@ def standing_stretch(segments: list[dict[str, Any]], fps: float) -> dict[str, An
     return {"clip_id": s["clip_id"], "version": s["version"], "start": start, "end": end}
 
 
+def stillest(pelvis: np.ndarray, least: int) -> tuple[int, int]:
+    """(first, past the last) of the longest run of frames whose pelvis stays within STILL_M of
+    where the run began on the ground (a standing person shifting onto a foot before a start is no
+    longer still); the whole run where none lasts least frames."""
+    best = (0, len(pelvis))
+    longest = 0
+    for a in range(len(pelvis)):
+        away = np.linalg.norm(pelvis[a:] - pelvis[a], axis=1) > STILL_M
+        b = a + (int(np.argmax(away)) if away.any() else len(away))
+        if b - a > longest:
+            longest, best = b - a, (a, b)
+    return best if longest >= least else (0, len(pelvis))
+
+
 def standing_frames(conn: psycopg.Connection, stretch: dict[str, Any], fps: float
                     ) -> dict[str, Any]:  # fmt: skip
-    """The stretch's frames as the graph document's "standing"."""
+    """The stretch's frames as the graph document's "standing": its stillest part."""
     pgarray.register(conn)
     first, last = stretch["start"] + 1, stretch["end"] + 1  # SQL arrays count from 1
     with conn.cursor(binary=True) as cur:
@@ -108,10 +129,21 @@ def standing_frames(conn: psycopg.Connection, stretch: dict[str, Any], fps: floa
                                                        stretch["clip_id"],
                                                        stretch["version"]]).fetchone()  # fmt: skip
     rotations = np.asarray(rotations, dtype=np.float64)
+    hierarchy, joint_map = conn.execute(SKELETON, [stretch["clip_id"], stretch["version"]]
+                                        ).fetchone()  # fmt: skip
+    joints = hierarchy["joints"]
+    moved = np.zeros((len(rotations), 0, 3)) if translations is None else np.asarray(
+        translations, dtype=np.float64)  # fmt: skip
+    positions = kinematics.world_positions([j["parent"] for j in joints],
+                                           np.array([j["offset"] for j in joints]), rotations,
+                                           moved, hierarchy["translated"])  # fmt: skip
+    pelvis = positions[:, [j["name"] for j in joints].index(joint_map["pelvis"])][:, [0, 2]]
+    a, b = stillest(pelvis, int(np.ceil(MIN_STANDING_S * fps)))
+    rotations, moved = rotations[a:b], moved[a:b]
+    stretch = {**stretch, "start": stretch["start"] + a, "end": stretch["start"] + b - 1}
     return {"fps": fps, "source": stretch,
             "rotations": np.round(rotations, 6).tolist(),
-            "translations": None if translations is None else np.round(
-                np.asarray(translations, dtype=np.float64), 6).tolist()}  # fmt: skip
+            "translations": None if translations is None else np.round(moved, 6).tolist()}
 
 
 def build_family(

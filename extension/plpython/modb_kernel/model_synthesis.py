@@ -462,6 +462,7 @@ class Synthesis:
         rotations, translations = self.standing_piece()
         if not body.rotations:  # standing from the first frame: above the origin, facing +Z
             self.spot = standing.Spot(np.zeros(2), 0.0)
+            self.spot.pelvis = np.zeros(2)
             self.spot.lift = standing.floor_lift(rig, rotations, translations, self.floors)
         if self.spot is None:
             # from the frames as played (the feet held): the settle shows its own feet
@@ -489,7 +490,6 @@ class Synthesis:
                 joined = self.seams.inertialize(*body.last_two(), *piece, self.fps)
             if self.spot.feet is None:  # standing from the start: the feet where the first has them
                 self.spot.feet = standing.feet_at(rig, *piece)
-                self.spot.pelvis = rig.positions(piece[0][:1], piece[1][:1])[0, rig.pelvis][[0, 2]]
             joined = (standing.pinned(self.legs, joined[0], joined[1], self.spot.feet), joined[1])
             reference = piece
         start = 1 if body.rotations else 0  # the first frame stands in for the last one played
