@@ -358,8 +358,9 @@ def test_on_models_clicks_walk_the_avatar_to_its_goals_with_the_steps_readout(
             assert issues["numErrors"] == 0, issues["messages"]
             continue
         names, positions = bvhio_world_positions(str(path), rig.unit_m)
-        assert len(positions) == len(pelvis_at) == round(message["seconds"] * 120) + 1
-        read = positions[:, names.index(rig.names[rig.at["pelvis"]])]
+        # it idles on while the file is made: the file holds every frame shown before and more
+        assert len(positions) == round(message["seconds"] * 120) + 1 >= len(pelvis_at)
+        read = positions[: len(pelvis_at), names.index(rig.names[rig.at["pelvis"]])]
         shown = np.array([pelvis_at[str(k)] for k in range(len(read))])
         assert np.abs(read - shown).max() < 2e-3
     assert severe_console_entries(browser) == []
