@@ -499,9 +499,10 @@ class Synthesis:
                     hold=False)  # fmt: skip
         if self.rested_from is None:
             self.rested_from = first
-        self.steps.append({"node": self.standing_source() if isinstance(
-            self.standing_source(), str) else "standing", "rest": True, "first_frame": first,
-            "n_frames": body.n_frames - first})  # fmt: skip
+        source = self.standing_source()
+        self.steps.append({"node": source if isinstance(source, str) else "standing",
+                           "rest": True, "first_frame": first,
+                           "n_frames": body.n_frames - first})  # fmt: skip
 
     @property
     def legs(self):

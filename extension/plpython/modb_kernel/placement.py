@@ -9,9 +9,10 @@ class PlacementError(ValueError):
     pass
 
 
-def placed(rig, rotations, translations, yaw, shift):
-    """The frames turned by yaw about +Y and moved by shift (x, z) on the ground: the top joints
-    carry it (a skeleton whose top joint has no translation cannot travel)."""
+def placed(rig, rotations, translations, yaw, shift, lift=0.0):
+    """The frames turned by yaw about +Y, moved by shift (x, z) on the ground and raised by lift
+    metres: the top joints carry it (a skeleton whose top joint has no translation cannot
+    travel)."""
     turn = quaternion.about_axis("Y", yaw)
     rotations, translations = rotations.copy(), translations.copy()
     for j, parent in enumerate(rig.parents):
@@ -22,5 +23,5 @@ def placed(rig, rotations, translations, yaw, shift):
         k = rig.translated.index(j)
         rotations[:, j] = quaternion.multiply(turn[None], rotations[:, j])
         moved = quaternion.rotate(np.broadcast_to(turn, (len(translations), 4)), translations[:, k])
-        translations[:, k] = moved + np.array([shift[0], 0.0, shift[1]])
+        translations[:, k] = moved + np.array([shift[0], lift, shift[1]])
     return quaternion.canonical(rotations), translations

@@ -21,7 +21,7 @@ move as standing people do, the feet do not shuffle and the body does not wander
 
 import numpy as np
 
-from . import ik, kinematics, quaternion
+from . import ik, kinematics, quaternion, steps
 from .placement import placed
 from .step_search import hip_heading, rotate_y
 
@@ -71,26 +71,14 @@ def on_spot(rig, rotations, translations, spot, same_capture=False):
     every piece's starts once the spot has one (the feet are set by IK, pinned), else its feet's
     midpoint on the spot's centre. Pieces of one capture (same_capture: captured standing played
     forward and backward) are all placed as the first was, so each goes on where the last ended."""
-    rotations, translations = raised(rig, rotations, translations, spot.lift)
     if same_capture and spot.placement is not None:
-        return placed(rig, rotations, translations, *spot.placement)
+        return placed(rig, rotations, translations, *spot.placement, spot.lift)
     first = rig.positions(rotations[:1], translations[:1])[0]
     yaw = spot.heading - float(hip_heading(first, rig.left_hip, rig.right_hip))
     at, point = ((spot.pelvis, first[rig.pelvis][[0, 2]]) if spot.pelvis is not None
                  else (spot.centre, feet_centre(rig, first)))  # fmt: skip
     spot.placement = spot.placement or (yaw, at - rotate_y(point, yaw))
-    return placed(rig, rotations, translations, yaw, at - rotate_y(point, yaw))
-
-
-def raised(rig, rotations, translations, lift):
-    """The frames moved up by lift metres (their top joints carry it)."""
-    if not lift:
-        return rotations, translations
-    translations = translations.copy()
-    for j, parent in enumerate(rig.parents):
-        if parent < 0 and j in rig.translated:
-            translations[:, rig.translated.index(j), 1] += lift
-    return rotations, translations
+    return placed(rig, rotations, translations, yaw, at - rotate_y(point, yaw), spot.lift)
 
 
 def floor_lift(rig, rotations, translations, floors):
@@ -126,11 +114,9 @@ class Legs:
         except KeyError as e:
             raise StandingError(f"the joint map lacks {e.args[0]}: no legs to stand on") from None
         self.rig = rig
-        rest = rig.positions(np.tile([1.0, 0.0, 0.0, 0.0], (1, len(rig.names), 1)),
-                             np.zeros((1, len(rig.translated), 3)))[0]  # fmt: skip
-        hip, knee, ankle = self.chains["left"]
-        self.length = float(np.linalg.norm(rest[hip] - rest[knee])
-                            + np.linalg.norm(rest[knee] - rest[ankle]))  # fmt: skip
+        self.length = steps.leg_length(rig.parents, rig.offsets, {
+            f"{side}_{part}": j for side, chain in self.chains.items()
+            for part, j in zip(("hip", "knee", "ankle"), chain)})  # fmt: skip
 
     def set(self, rotations, translations, side, targets, orientations):
         """The leg's ankle set at targets, turned to orientations; the knee bends forward (a
