@@ -28,6 +28,7 @@ CREATE TABLE modb.snippet_blocks (
     term_codes    bytea,
     input_bounds  real[],
     end_speeds    real[],
+    end_bounds    real[],
     CONSTRAINT snippet_blocks_source_check CHECK (pack_order IS NOT NULL OR (clip_id IS NOT NULL
         AND version IS NOT NULL AND mirrored IS NOT NULL AND collection_id IS NOT NULL))
 ) WITH (toast_tuple_target = 8160);  -- a block (about 7.9 kB, one a page) stays uncompressed
@@ -47,11 +48,13 @@ COMMENT ON COLUMN modb.snippet_blocks.input_bounds IS
     'The least of each objective input over the block''s snippets (as in objective_inputs), then the greatest of each; NULL where one is not known: the block directory ranks blocks by the least objective they allow (0.18.0)';
 COMMENT ON COLUMN modb.snippet_blocks.end_speeds IS
     'Per snippet, its pelvis'' ground speed at its end (float4, as coming to rest computes it): coming to rest and setting off (modb.select_snippet_ending) pass over the snippets that cannot end as wanted without reading them (0.18.0)';
+COMMENT ON COLUMN modb.snippet_blocks.end_bounds IS
+    'The {x, z} bounds of the net translations of the block''s snippets that end standing (end speed below modb.rest_speed(); x low, z low, x high, z high; NaN: none), then of those that end walking (at least modb.walk_speed()): coming to rest and setting off pass over a block without such snippets unread and rank the others by them (0.29.0; NULL in a block written before)';
 CREATE INDEX snippet_blocks_source_idx ON modb.snippet_blocks (clip_id, version, mirrored);  -- ON DELETE CASCADE
 -- What a session's block directory holds (src/block_directory.c), read by an index-only scan of narrow
 -- tuples instead of a sequential scan of the blocks (about 8 kB each).
 CREATE INDEX snippet_blocks_directory_idx ON modb.snippet_blocks (pose_key, fps, pack_order)
-    INCLUDE (low, high, input_bounds);
+    INCLUDE (low, high, input_bounds, end_bounds);
 
 -- BEFORE (0.17.0): a writer takes the generation row before it locks any block, the order
 -- modb.pack_snippet_blocks takes them in, so a packing and a write (a delete of a clip's old blocks by

@@ -45,7 +45,8 @@
 #include "term_codes.h"
 
 #define SUPER_BLOCKS 32
-#define MaxBlockColumns 16		/* objective_inputs 12th, term_bounds 13th, term_codes 14th, end_speeds 16th */
+#define MaxBlockColumns 17		/* objective_inputs 12th, term_bounds 13th, term_codes 14th, end_speeds 16th,
+								 * end_bounds 17th */
 
 /* 8-bit bounds on the fixed scale met twice as many blocks as the float bounds; 16-bit ones, as many. */
 #define SCALE_STEPS 65535
@@ -65,6 +66,8 @@ typedef struct Entry
 	bool		inputs_known;	/* every snippet's objective inputs are finite (float4) */
 	float		inputs_lo[N_OBJECTIVE_INPUTS];	/* their bounds over the block's snippets */
 	float		inputs_hi[N_OBJECTIVE_INPUTS];
+	bool		ends_known;		/* end_bounds read (a block written by 0.29.0 or later) */
+	float		end_bounds[N_END_BOUNDS];
 } Entry;
 
 typedef struct PoseGroup
@@ -202,6 +205,7 @@ new_entry(text *pose_key, double fps, ItemPointer tid, bool packed, int32 order)
 	e->order = packed ? order : PG_INT32_MAX;
 	e->tid_order = g->count++;	/* its place in the scan: table order, or (pack_order, tid) in the index */
 	e->inputs_known = false;
+	e->ends_known = false;
 	directory.n_blocks++;
 	return e;
 }
@@ -247,6 +251,20 @@ bound_inputs(Entry *e, const float *x, int count)
 	}
 }
 
+/* An entry's end bounds (selection.h), where the block has them. */
+static void
+end_bounds_of(Entry *e, Datum array, bool isnull)
+{
+	ArrayType  *a;
+
+	if (isnull)
+		return;
+	a = DatumGetArrayTypeP(array);
+	e->ends_known = ARR_NDIM(a) == 1 && !ARR_HASNULL(a) && ARR_DIMS(a)[0] == N_END_BOUNDS;
+	if (e->ends_known)
+		memcpy(e->end_bounds, ARR_DATA_PTR(a), sizeof(float) * N_END_BOUNDS);
+}
+
 static void
 bound_inputs_of(Entry *e, Datum array, bool isnull)
 {
@@ -261,7 +279,7 @@ bound_inputs_of(Entry *e, Datum array, bool isnull)
 
 /*
  * The directory from snippet_blocks_directory_idx: (pose_key, fps, pack_order) INCLUDE (low, high,
- * input_bounds), an index-only scan under the caller's snapshot (a heap page not all-visible has its
+ * input_bounds, end_bounds) (0.18.0 to 0.28.0: without end_bounds), an index-only scan under the caller's snapshot (a heap page not all-visible has its
  * tuple's visibility checked there, as an Index Only Scan does). Blocks are never updated, only added and
  * deleted, so an index entry's tuple id is its block's. False when there is no such index.
  */
@@ -275,20 +293,22 @@ read_index(Relation rel)
 	Buffer		vm_buffer = InvalidBuffer;
 	ItemPointer tid;
 	MemoryContext per_block = AllocSetContextCreate(CurrentMemoryContext, "modb block", ALLOCSET_SMALL_SIZES);
+	int			natts;
 
 	if (!OidIsValid(index_oid))
 		return false;
 	index = index_open(index_oid, AccessShareLock);
-	if (RelationGetDescr(index)->natts != 6)
-		elog(ERROR, "modb: snippet_blocks_directory_idx has %d columns, not 6", RelationGetDescr(index)->natts);
+	natts = RelationGetDescr(index)->natts;
+	if (natts != 6 && natts != 7)
+		elog(ERROR, "modb: snippet_blocks_directory_idx has %d columns, not 6 or 7", natts);
 	slot = table_slot_create(rel, NULL);
 	scan = index_beginscan(rel, index, GetActiveSnapshot(), 0, 0);
 	scan->xs_want_itup = true;
 	index_rescan(scan, NULL, 0, NULL, 0);
 	while ((tid = index_getnext_tid(scan, ForwardScanDirection)) != NULL)
 	{
-		Datum		values[6];
-		bool		nulls[6];
+		Datum		values[7];
+		bool		nulls[7];
 		MemoryContext old;
 		Entry	   *e;
 
@@ -307,6 +327,8 @@ read_index(Relation rel)
 		code_box(e, values[3], values[4]);
 		/* input_bounds holds the lows, then the highs: the inputs of a block of two snippets */
 		bound_inputs_of(e, values[5], nulls[5]);
+		if (natts == 7)
+			end_bounds_of(e, values[6], nulls[6]);
 		MemoryContextReset(per_block);
 	}
 	if (vm_buffer != InvalidBuffer)
@@ -344,6 +366,8 @@ read_table(Relation rel)
 		code_box(e, values[7], values[8]);
 		if (desc->natts >= 12)
 			bound_inputs_of(e, values[11], nulls[11]);
+		if (desc->natts >= 17)
+			end_bounds_of(e, values[16], nulls[16]);
 		MemoryContextReset(per_block);
 	}
 	table_endscan(scan);
@@ -552,7 +576,8 @@ scan_block(const BlockSearch *search, HeapTuple tuple, BlockCandidate *out, int 
 
 BlockSearch *
 modb_block_search(Oid relid, int64 generation, const char *pose_key, double fps, const double *lo,
-				  const double *hi, const TermTest *test, BlockBound bound, void *arg, BlockStats *stats)
+				  const double *hi, const TermTest *test, BlockEnds ends, BlockBound bound, void *arg,
+				  BlockStats *stats)
 {
 	BlockSearch *search = palloc0(sizeof(BlockSearch));
 	int			capacity = 256;
@@ -599,11 +624,20 @@ modb_block_search(Oid relid, int64 generation, const char *pose_key, double fps,
 			for (int e = s * SUPER_BLOCKS; e < Min(g->count, (s + 1) * SUPER_BLOCKS); e++)
 			{
 				const Entry *entry = &g->entries[e];
+				const float *ending = NULL;	/* the net bounds of its snippets that end as asked */
+				float		inputs_lo[N_OBJECTIVE_INPUTS],
+							inputs_hi[N_OBJECTIVE_INPUTS];
 
 				if (!box_meets(&entry->box, from, to))
 					continue;
 				if (stats)
 					stats->blocks_met++;
+				if (ends != BLOCK_ENDS_ANY && entry->ends_known)
+				{
+					ending = &entry->end_bounds[ends == BLOCK_ENDS_STANDING ? 0 : 4];
+					if (isnan(ending[0]))
+						continue;	/* none of its snippets ends as asked */
+				}
 				if (search->n == capacity)
 				{
 					capacity *= 2;
@@ -611,8 +645,22 @@ modb_block_search(Oid relid, int64 generation, const char *pose_key, double fps,
 					search->bounds = repalloc(search->bounds, sizeof(double) * capacity);
 				}
 				search->entries[search->n] = entry;
-				search->bounds[search->n++] = entry->inputs_known
-					? bound(entry->inputs_lo, entry->inputs_hi, arg) : -INFINITY;
+				if (!entry->inputs_known)
+				{
+					search->bounds[search->n++] = -INFINITY;
+					continue;
+				}
+				memcpy(inputs_lo, entry->inputs_lo, sizeof(inputs_lo));
+				memcpy(inputs_hi, entry->inputs_hi, sizeof(inputs_hi));
+				if (ending != NULL)
+				{
+					/* net_translation's x and z: of the snippets that can answer */
+					inputs_lo[0] = ending[0];
+					inputs_lo[2] = ending[1];
+					inputs_hi[0] = ending[2];
+					inputs_hi[2] = ending[3];
+				}
+				search->bounds[search->n++] = bound(inputs_lo, inputs_hi, arg);
 			}
 		}
 	}

@@ -293,11 +293,11 @@ pack_group(Packing *p)
 
 /* Whether modb.snippet_blocks has term codes (0.18.0; not a database that is not updated yet). */
 static bool
-has_term_codes(void)
+has_column(const char *name)
 {
 	Oid			relid = RangeVarGetRelid(makeRangeVar("modb", "snippet_blocks", -1), NoLock, false);
 
-	return get_attnum(relid, "term_codes") != InvalidAttrNumber;
+	return get_attnum(relid, name) != InvalidAttrNumber;
 }
 
 Datum
@@ -319,12 +319,16 @@ modb_pack_snippet_blocks(PG_FUNCTION_ARGS)
 	if (SPI_execute("SELECT FROM modb.generations WHERE name = 'snippet_blocks' FOR UPDATE", false, 0) != SPI_OK_SELECT)
 		elog(ERROR, "modb: locking the snippet blocks failed");
 	read_units(p.unit);
-	/* A block without term codes (written before 0.18.0) counts as unpacked: a load derives it again. */
+	/*
+	 * A block without term codes (written before 0.18.0) or end bounds (before 0.29.0) counts as unpacked: a
+	 * load derives it again.
+	 */
 	if (SPI_execute(psprintf("SELECT b.pose_key, b.fps,"
 							 "       coalesce(sum(cardinality(b.snippets)) FILTER (WHERE b.pack_order IS NULL%s), 0),"
 							 "       sum(cardinality(b.snippets))"
 							 "  FROM modb.snippet_blocks b GROUP BY b.pose_key, b.fps ORDER BY b.pose_key, b.fps",
-							 has_term_codes() ? " OR b.term_codes IS NULL" : ""),
+							 has_column("end_bounds") ? " OR b.term_codes IS NULL OR b.end_bounds IS NULL"
+							 : has_column("term_codes") ? " OR b.term_codes IS NULL" : ""),
 					false, 0) != SPI_OK_SELECT)
 		elog(ERROR, "modb: reading the snippet blocks failed");
 	groups = SPI_tuptable;

@@ -998,7 +998,8 @@ fast_path(Request *r, Tuplestorestate *store, TupleDesc out, SelectionStats *sta
 
 		box_of(r, scale, lo, hi, lr.stats);
 		search = modb_block_search(r->blocks_relid, r->blocks_generation, r->pose_key, r->fps, lo, hi,
-								   testing ? &test : NULL, block_bound, &lr, lr.stats ? &lr.stats->blocks : NULL);
+								   testing ? &test : NULL, BLOCK_ENDS_ANY, block_bound, &lr,
+								   lr.stats ? &lr.stats->blocks : NULL);
 		lr.query = candidates_query(false, annotated);
 		run_level(&lr, search, NULL, 0, level, store, out, &emitted);
 		modb_block_search_end(search);
@@ -1199,6 +1200,7 @@ modb_select_snippet_ending(PG_FUNCTION_ARGS)
 		PG_ARGISNULL(4) ? (Datum) 0 : PG_GETARG_DATUM(4), PG_ARGISNULL(5) ? (Datum) 0 : PG_GETARG_DATUM(5)};
 		char		nulls[5] = {' ', ' ', ' ', PG_ARGISNULL(4) ? 'n' : ' ', PG_ARGISNULL(5) ? 'n' : ' '};
 		bool		isnull;
+		Datum		goal;
 		int			n_target = 0;
 		const double *target;
 
@@ -1215,19 +1217,22 @@ modb_select_snippet_ending(PG_FUNCTION_ARGS)
 					   5, types);
 		if (SPI_execute_plan(check, args, nulls, true, 1) != SPI_OK_SELECT || SPI_processed != 1)
 			elog(ERROR, "modb: checking a request to come to rest returned nothing");
-		target = float8_array(SPI_getbinval(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 1, &isnull), isnull,
-							  &n_target);
+		/* Read before it is tested: an argument's order of evaluation is the compiler's (0.28.0 and before
+		 * tested it first here, unset, and sent every call to the reference). */
+		goal = SPI_getbinval(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 1, &isnull);
+		target = float8_array(goal, isnull, &n_target);
 		fast = target != NULL && n_target >= 2 && !PG_ARGISNULL(4);
 		if (fast)
 		{
-			Datum		ids = SPI_getbinval(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 3, &isnull);
+			bool		no_ids;
+			Datum		ids = SPI_getbinval(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 3, &no_ids);
 
 			e.target[0] = target[0];
 			e.target[1] = target[1];
 			e.standing = PG_GETARG_BOOL(7);
 			e.rest_speed = DatumGetFloat8(SPI_getbinval(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 4, &isnull));
 			e.walk_speed = DatumGetFloat8(SPI_getbinval(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 5, &isnull));
-			if (!isnull && !PG_ARGISNULL(5))
+			if (!no_ids && !PG_ARGISNULL(5))
 			{
 				ArrayType  *a = DatumGetArrayTypeP(ids);
 				Datum	   *elements;
@@ -1247,9 +1252,13 @@ modb_select_snippet_ending(PG_FUNCTION_ARGS)
 	{
 		bool		annotated;
 		int			emitted = 0;
+		BlockEnds	ends = BLOCK_ENDS_ANY;
 
 		r.plan = modb_match_plan(PG_GETARG_TEXT_PP(4), r.plans_generation);
 		annotated = r.plan->annotations != NULL;
+		/* the blocks' end bounds sort snippets by the speeds of 0.29.0's modb.rest_speed and walk_speed */
+		if (e.standing ? e.rest_speed == BLOCK_REST_SPEED : e.walk_speed == BLOCK_WALK_SPEED)
+			ends = e.standing ? BLOCK_ENDS_STANDING : BLOCK_ENDS_WALKING;
 		for (int level = 0; level < N_LEVELS && emitted == 0; level++)
 		{
 			double		scale = (double) (1 << level);
@@ -1264,7 +1273,7 @@ modb_select_snippet_ending(PG_FUNCTION_ARGS)
 
 			box_of(&r, scale, lo, hi, NULL);
 			search = modb_block_search(r.blocks_relid, r.blocks_generation, r.pose_key, r.fps, lo, hi,
-									   testing ? &test : NULL, block_bound, &lr, NULL);
+									   testing ? &test : NULL, ends, block_bound, &lr, NULL);
 			modb_block_search_keep(search, ending_speed_may_pass, &e);
 			lr.query = ending_query(annotated);
 			run_level(&lr, search, NULL, 0, level, rsinfo->setResult, rsinfo->setDesc, &emitted);

@@ -60,6 +60,25 @@ typedef struct BlockSource
  */
 #define N_OBJECTIVE_INPUTS 7
 
+/*
+ * modb.rest_speed() and modb.walk_speed() (89_synthesis.sql, m/s), by which a block's end bounds sort its
+ * snippets (test_selection_ending holds them equal): end_bounds holds the {x, z} bounds of the net
+ * translations of the snippets that end standing (x low, z low, x high, z high; NaN: none), then of those
+ * that end walking, so that coming to rest and setting off pass over a block that has none without reading
+ * it, and rank the others by the snippets that can answer (0.29.0).
+ */
+#define BLOCK_REST_SPEED 0.1
+#define BLOCK_WALK_SPEED 0.5
+#define N_END_BOUNDS 8
+
+/* Which of a box's blocks a search keeps: all, or those that may hold a snippet ending standing or walking. */
+typedef enum BlockEnds
+{
+	BLOCK_ENDS_ANY,
+	BLOCK_ENDS_STANDING,
+	BLOCK_ENDS_WALKING
+} BlockEnds;
+
 typedef struct BlockCandidate
 {
 	int64		id;
@@ -91,16 +110,17 @@ struct TermTest;					/* term_codes.h */
 
 /*
  * A box search over the blocks (block_directory.c): the blocks of the pose and rate whose bounds meet the
- * box and whose term bounds the directory cannot reject (`test`: NULL, none), each with the least key
- * its snippets can have, which `bound` computes from the bounds of their objective inputs (-Infinity
- * where one is not known); a block is read when the caller asks, for its candidates.
+ * box and whose term bounds the directory cannot reject (`test`: NULL, none) and that may hold a snippet
+ * that ends as `ends` asks, each with the least key its snippets can have, which `bound` computes from the
+ * bounds of their objective inputs (of those ending as asked, where the block holds them; -Infinity where
+ * one is not known); a block is read when the caller asks, for its candidates.
  */
 typedef struct BlockSearch BlockSearch;
 typedef double (*BlockBound) (const float *inputs_lo, const float *inputs_hi, void *arg);
 
 extern BlockSearch *modb_block_search(Oid relid, int64 generation, const char *pose_key, double fps,
 									  const double *lo, const double *hi, const struct TermTest *test,
-									  BlockBound bound, void *arg, BlockStats *stats);
+									  BlockEnds ends, BlockBound bound, void *arg, BlockStats *stats);
 extern int	modb_block_search_count(const BlockSearch *search);
 extern double modb_block_search_bound(const BlockSearch *search, int i);
 /* Reads block i: its snippets in the box that its term codes do not reject, into out (BLOCK_SNIPPETS long). */

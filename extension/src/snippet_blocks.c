@@ -70,6 +70,42 @@ same_source(const BlockSource *a, const BlockSource *b)
 }
 
 /*
+ * A block's end bounds (selection.h): the {x, z} bounds of the net translations of its snippets that end
+ * standing, then of those that end walking, outward as float4; NaN where it has none, infinite where one of
+ * them has no net translation. A snippet within a billionth of a speed limit counts on both sides of it.
+ */
+static void
+end_bounds_of(const double (*inputs)[N_OBJECTIVE_INPUTS], const double *end_speeds, int n, Datum *out)
+{
+	for (int side = 0; side < 2; side++)
+	{
+		double		limit = side == 0 ? BLOCK_REST_SPEED : BLOCK_WALK_SPEED;
+		double		slack = 1e-9 * limit;
+		float		b[4] = {NAN, NAN, NAN, NAN};
+
+		for (int i = 0; i < n; i++)
+		{
+			double		speed = end_speeds[i];
+			bool		ends_so = side == 0 ? !(speed >= limit + slack) : !(speed < limit - slack);
+
+			if (!ends_so)
+				continue;
+			for (int a = 0; a < 2; a++)
+			{
+				double		v = inputs[i][2 * a];	/* net_translation x, then z */
+				float		low = isfinite(v) ? float_below(v) : -INFINITY;
+				float		high = isfinite(v) ? float_above(v) : INFINITY;
+
+				b[a] = isnan(b[a]) ? low : Min(b[a], low);
+				b[2 + a] = isnan(b[2 + a]) ? high : Max(b[2 + a], high);
+			}
+		}
+		for (int k = 0; k < 4; k++)
+			out[4 * side + k] = Float4GetDatum(b[k]);
+	}
+}
+
+/*
  * Stores one block: the snippets `ids` with their begin features `x`, of one clip source (`s`, with
  * pack_order < 0) or packed across the sources of s's pose and rate (pack_order its place in the packing,
  * and no clip source: pack_blocks.c).
@@ -82,14 +118,20 @@ modb_store_block(const int64 *ids, const double (*x)[N_FEATURES], const double (
 	static SPIPlanPtr insert_017;
 	static SPIPlanPtr insert_010;
 	Oid			relid = RangeVarGetRelid(makeRangeVar("modb", "snippet_blocks", -1), NoLock, false);
-	/* A 0.10.0 database (not updated yet) has neither packing nor objective inputs, 0.17.0 no term codes. */
+	static SPIPlanPtr insert_028;
+	/*
+	 * A 0.10.0 database (not updated yet) has neither packing nor objective inputs, 0.17.0 no term codes,
+	 * 0.28.0 no end bounds.
+	 */
 	bool		at_010 = get_attnum(relid, "objective_inputs") == InvalidAttrNumber;
 	bool		at_017 = !at_010 && get_attnum(relid, "term_codes") == InvalidAttrNumber;
-	Oid			types[16] = {INT8OID, INT4OID, BOOLOID, TEXTOID, FLOAT8OID, INT8OID, INT8ARRAYOID,
+	bool		at_028 = !at_010 && !at_017 && get_attnum(relid, "end_bounds") == InvalidAttrNumber;
+	Oid			types[17] = {INT8OID, INT4OID, BOOLOID, TEXTOID, FLOAT8OID, INT8OID, INT8ARRAYOID,
 	FLOAT4ARRAYOID, FLOAT4ARRAYOID, BYTEAOID, INT4OID, FLOAT4ARRAYOID, BYTEAOID, BYTEAOID, FLOAT4ARRAYOID,
-	FLOAT4ARRAYOID};
-	Datum		args[16];
-	char		nulls[16];
+	FLOAT4ARRAYOID, FLOAT4ARRAYOID};
+	Datum		args[17];
+	char		nulls[17];
+	Datum		end_bounds[N_END_BOUNDS];
 	Datum		speeds[BLOCK_SNIPPETS];
 	Datum		input_bounds[2 * N_OBJECTIVE_INPUTS];
 	bytea	   *term_bounds = palloc(VARHDRSZ + TERM_BOUNDS_BYTES);
@@ -166,6 +208,8 @@ modb_store_block(const int64 *ids, const double (*x)[N_FEATURES], const double (
 	for (int i = 0; i < n; i++)
 		speeds[i] = Float4GetDatum((float) end_speeds[i]);
 	args[15] = PointerGetDatum(construct_array(speeds, n, FLOAT4OID, 4, true, TYPALIGN_INT));
+	end_bounds_of(inputs, end_speeds, n, end_bounds);
+	args[16] = PointerGetDatum(construct_array(end_bounds, N_END_BOUNDS, FLOAT4OID, 4, true, TYPALIGN_INT));
 	SET_VARSIZE(term_bounds, VARHDRSZ + TERM_BOUNDS_BYTES);
 	SET_VARSIZE(term_codes, VARHDRSZ + n * TERM_CODE_BYTES);
 	modb_term_encode(begins, n, (uint8 *) VARDATA(term_bounds), (uint8 *) VARDATA(term_codes));
@@ -182,14 +226,22 @@ modb_store_block(const int64 *ids, const double (*x)[N_FEATURES], const double (
 					   " snippets, low, high, codes, pack_order, objective_inputs)"
 					   " VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12)",
 					   12, types);
-	else
-		modb_kept_plan(&insert,
+	else if (at_028)
+		modb_kept_plan(&insert_028,
 					   "INSERT INTO modb.snippet_blocks (clip_id, version, mirrored, pose_key, fps, collection_id,"
 					   " snippets, low, high, codes, pack_order, objective_inputs, term_bounds, term_codes, input_bounds,"
 					   " end_speeds)"
 					   " VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14, $15, $16)",
 					   16, types);
-	if (SPI_execute_plan(at_010 ? insert_010 : at_017 ? insert_017 : insert, args, nulls, false, 0) != SPI_OK_INSERT)
+	else
+		modb_kept_plan(&insert,
+					   "INSERT INTO modb.snippet_blocks (clip_id, version, mirrored, pose_key, fps, collection_id,"
+					   " snippets, low, high, codes, pack_order, objective_inputs, term_bounds, term_codes, input_bounds,"
+					   " end_speeds, end_bounds)"
+					   " VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14, $15, $16, $17)",
+					   17, types);
+	if (SPI_execute_plan(at_010 ? insert_010 : at_017 ? insert_017 : at_028 ? insert_028 : insert, args, nulls,
+						 false, 0) != SPI_OK_INSERT)
 		elog(ERROR, "modb: storing a snippet block failed");
 }
 

@@ -215,10 +215,11 @@ class Cluster:
 
             install_job_tables(conn)
             after = conn.execute(version).fetchone()[0]
-            if before < [0, 11, 0] <= after or before < [0, 18, 0] <= after:
+            if any(before < [0, v, 0] <= after for v in (11, 18, 29)):
                 # 0.11.0 packs the blocks of consecutive snippets that loads left (a few seconds);
-                # 0.18.0 derives every block again with its term codes (about 30 s a million
-                # snippets; they count as unpacked), outside the update, beside live selections.
+                # 0.18.0 derives every block again with its term codes, 0.29.0 with its end bounds
+                # (about 30 s a million snippets; they count as unpacked), outside the update,
+                # beside live selections.
                 # numpy, for the loader (90 ms): not for every `modb db` and connection
                 from modb.loader.ingest import pack_blocks
 
