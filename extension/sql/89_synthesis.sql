@@ -36,7 +36,10 @@ RETURNS TABLE (snippet_id bigint, clip_id bigint, version int, mirrored boolean,
 LANGUAGE sql STABLE PARALLEL SAFE
 AS $$
 -- The snippets of prev's pool that follow it within ratio `scale` (in that relaxed box) and end
--- standing (or walking), the smoothest level first, then the one ending nearest the goal.
+-- standing (or walking), the smoothest level first (the least L with ratio <= 2^L, compared as float8
+-- as the scale is, up to L = 3, the reference's widest; 0.28.0 and before took ceil(log(2,
+-- ratio::numeric)), of 15 digits, which put a ratio a rounding above 2^L at level L), then the one
+-- ending nearest the goal.
 WITH prev AS MATERIALIZED (
     SELECT s.pose_key, s.fps, e AS terminator, p AS plan,
            modb.check_world_request(snippets_ending_within."position", heading, target_world) AS target
@@ -47,7 +50,7 @@ WITH prev AS MATERIALIZED (
 )
 SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
        sqrt((c.net_translation[1] - prev.target[1]) ^ 2 + (c.net_translation[3] - prev.target[2]) ^ 2),
-       CASE WHEN r.ratio <= 1 THEN 0 ELSE ceil(log(2.0, r.ratio::numeric))::int END, r.ratio,
+       l.level, r.ratio,
        c.net_translation, c.net_rotation, c.net_heading
   FROM prev
   JOIN modb.snippets c ON c.begin_features <@ modb.match_box((prev.terminator).features, prev.plan, scale)
@@ -56,6 +59,8 @@ SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
   JOIN modb.terminators e ON e.id = c.end_terminator
  CROSS JOIN LATERAL (SELECT sqrt(e.velocities[1] ^ 2 + e.velocities[3] ^ 2) AS speed) v
  CROSS JOIN LATERAL (SELECT modb.continuity_ratio_native(prev.terminator, b, prev.plan) AS ratio) r
+ CROSS JOIN LATERAL (SELECT CASE WHEN r.ratio <= 1 THEN 0 WHEN r.ratio <= 2 THEN 1 WHEN r.ratio <= 4 THEN 2
+                                 WHEN r.ratio <= 8 THEN 3 ELSE ceil(log(2.0, r.ratio::numeric))::int END AS level) l
  WHERE (collection IS NULL OR c.collection_id = ANY (modb.collection_subtree(collection)))
    AND c.id <> ALL (coalesce(exclude, '{}'))
    AND CASE WHEN standing THEN v.speed < modb.rest_speed() ELSE v.speed >= modb.walk_speed() END

@@ -99,7 +99,6 @@ typedef struct Candidate
 {
 	const Row  *row;
 	int64		id;
-	int			level;			/* ranks first (coming to rest or setting off: the ratio's level; else 0) */
 	bool		has_key;
 	double		key;			/* objective + continuity_weight x ratio */
 	bool		has_proximity;
@@ -115,7 +114,6 @@ typedef struct Pending
 {
 	int64		id;				/* a block's: PG_INT64_MIN, first among equal bounds */
 	int			block;			/* the box search's block, or -1: a candidate */
-	int			level;			/* the least level it can have (Candidate.level) */
 	bool		hinted;			/* false: unknown (read first) */
 	bool		has_proximity;
 	double		bound;
@@ -408,8 +406,6 @@ candidate_order(const void *a, const void *b)
 	const Candidate *x = a,
 			   *y = b;
 
-	if (x->level != y->level)
-		return x->level < y->level ? -1 : 1;
 	if (x->has_key != y->has_key)
 		return x->has_key ? -1 : 1;		/* NULLs last */
 	if (x->has_key && x->key != y->key)
@@ -435,8 +431,7 @@ in_box(const Row *row, const double *lo, const double *hi)
 }
 
 /*
- * In the order candidates are read: unknown ones first, then by the least level and key they can have, NULLs
- * last.
+ * In the order candidates are read: unknown ones first, then by the least key they can have, NULLs last.
  */
 static int
 pending_order(const void *a, const void *b)
@@ -446,8 +441,6 @@ pending_order(const void *a, const void *b)
 
 	if (x->hinted != y->hinted)
 		return x->hinted ? 1 : -1;
-	if (x->level != y->level)
-		return x->level < y->level ? -1 : 1;	/* coming to rest ranks by level first */
 	if (x->has_proximity != y->has_proximity)
 		return x->has_proximity ? -1 : 1;
 	if (x->has_proximity && x->bound != y->bound)
@@ -481,7 +474,7 @@ keep_best(Candidate *best, int *n, int need, const Candidate *c)
 static bool
 may_beat(const Pending *p, const Candidate *last)
 {
-	Candidate	at_best = {.id = p->id, .level = p->level, .has_key = p->has_proximity, .key = p->bound};
+	Candidate	at_best = {.id = p->id, .has_key = p->has_proximity, .key = p->bound};
 
 	return !p->hinted || candidate_order(&at_best, last) <= 0;
 }
@@ -489,7 +482,10 @@ may_beat(const Pending *p, const Candidate *last)
 /*
  * Coming to rest or setting off (select_snippet_ending_reference, 89_synthesis.sql): among the snippets
  * that end standing (or walking), the least ratio level first, then the one whose net translation ends
- * nearest the goal; candidates are excluded by id only (not by the frames they play).
+ * nearest the goal; candidates are excluded by id only (not by the frames they play). Scale 2^L is
+ * searched only when the smaller ones found none, and a snippet within ratio 2^(L-1) lies in their box:
+ * so every candidate of scale 2^L has level L (0.29.0's rule: the least L with ratio <= 2^L), and they
+ * rank by their distance from the goal alone.
  */
 typedef struct Ending
 {
@@ -500,23 +496,6 @@ typedef struct Ending
 	const int64 *exclude;
 	int			n_exclude;
 } Ending;
-
-/* The level of a ratio as the reference's ceil(log(2.0, ratio::numeric)): of its 15 significant digits. */
-static int
-ending_level(double ratio)
-{
-	char		digits[32];
-	double		rounded;
-	int			level = 0;
-
-	if (!(ratio > 1))
-		return 0;
-	snprintf(digits, sizeof(digits), "%.15g", ratio);
-	rounded = strtod(digits, NULL);
-	while (level < 64 && rounded > ldexp(1.0, level))
-		level++;
-	return level;
-}
 
 /* A level's reading: its query, what the rows must pass, and the best found so far. */
 typedef struct LevelRead
@@ -643,10 +622,8 @@ read_and_check(LevelRead *lr, const Pending *pending, int n)
 			lr->stats->within++;
 		c.row = row;
 		c.id = DatumGetInt64(row_value(row, COL_ID, &isnull));
-		c.level = 0;
 		if (lr->ending)
 		{
-			c.level = ending_level(c.ratio);
 			c.has_proximity = c.has_key = ending_proximity(lr->ending, row, &c.proximity);
 			c.key = c.proximity;
 			keep_best(lr->best, &lr->n_best, lr->need, &c);
@@ -670,7 +647,6 @@ candidate_pending(const LevelRead *lr, const BlockCandidate *c, double least, Pe
 
 	p->id = c->id;
 	p->block = -1;
-	p->level = 0;
 	p->hinted = c->hinted;
 	p->has_proximity = false;
 	p->bound = 0;
@@ -682,7 +658,6 @@ candidate_pending(const LevelRead *lr, const BlockCandidate *c, double least, Pe
 		double		dx = inputs[0] - lr->ending->target[0],
 					dz = inputs[2] - lr->ending->target[1];
 
-		p->level = ending_level(p->least_ratio);
 		p->has_proximity = true;
 		p->bound = sqrt(dx * dx + dz * dz);
 		p->bound -= ldexp(2 * Max(fabs(inputs[0]), fabs(inputs[2])), -20) + 1e-12 * (1 + p->bound);
@@ -864,7 +839,7 @@ run_level(LevelRead *lr, BlockSearch *search, const int64 *stored_ids, int n_sto
 			values[j] = row_value(c->row, columns[j], &isnull[j]);
 		values[6] = Float8GetDatum(c->proximity);
 		isnull[6] = !c->has_proximity;
-		values[7] = Int32GetDatum(lr->ending ? c->level : level);
+		values[7] = Int32GetDatum(level);
 		isnull[7] = false;
 		values[8] = Float8GetDatum(c->ratio);
 		isnull[8] = false;
@@ -1269,7 +1244,7 @@ modb_select_snippet_ending(PG_FUNCTION_ARGS)
 			bool		testing = modb_term_test(&test, &r.end, &r.plan->thresholds, scale);
 			LevelRead	lr = {.r = &r, .ending = &e, .graph_id = (Datum) 0, .no_graph = true,
 				.annotations = annotated ? CStringGetTextDatum(r.plan->annotations) : (Datum) 0,
-				.lo = lo, .hi = hi, .low = -INFINITY, .high = scale};
+				.lo = lo, .hi = hi, .low = level == 0 ? -INFINITY : scale / 2, .high = scale};
 
 			box_of(&r, scale, lo, hi, NULL);
 			search = modb_block_search(r.blocks_relid, r.blocks_generation, r.pose_key, r.fps, lo, hi,

@@ -21,3 +21,4 @@ BEGIN
     END IF;
 END
 $$;
+--@include 89_synthesis.sql
