@@ -406,16 +406,23 @@ def test_a_terminator_edited_by_hand_brings_its_snippets_new_term_codes(cmu):
             assert fast == reference, args
 
 
+REFERENCE_CALLS = """
+SELECT coalesce(sum(calls), 0) FROM pg_stat_xact_user_functions
+ WHERE schemaname = 'modb' AND funcname = 'select_snippet_ending_reference'"""
+
+
 def test_coming_to_rest_and_setting_off_answer_as_their_reference(cmu):
     """select_snippet_ending (C, 0.18.0) returns what select_snippet_ending_reference (the SQL
     rule of coming to rest and setting off) returns: the same snippet, level, proximity and ratio,
-    or none."""
+    or none; at every level, each one the least L with ratio <= 2^L; and it answers by itself
+    (0.28.0 and before sent every call to the reference: the function statistics count its calls)."""
     rng = random.Random(41)
     call = "SELECT * FROM modb.{}(%s, %s, %s, %s, %s, NULL, %s, %s)"
-    answered = 0
+    levels = {}
     with connect(cmu) as conn:
+        conn.execute("SET track_functions = 'all'")
         ids = [r[0] for r in conn.execute("SELECT id FROM modb.snippets ORDER BY id")]
-        for _ in range(40):
+        for i in range(60):
             args = [
                 rng.choice(ids),
                 [round(rng.uniform(-3, 3), 2), 0.0, round(rng.uniform(-3, 3), 2)],
@@ -425,10 +432,18 @@ def test_coming_to_rest_and_setting_off_answer_as_their_reference(cmu):
                 rng.sample(ids, rng.choice((0, 3))) or None,
                 rng.random() < 0.6,
             ]
-            fast = conn.execute(call.format("select_snippet_ending"), args).fetchall()
+            _set_tightness(conn, (None, 0.5, 0.25)[i % 3])
+            with conn.transaction():  # pending counts: of earlier transactions too until flushed
+                before = conn.execute(REFERENCE_CALLS).fetchone()[0]
+                fast = conn.execute(call.format("select_snippet_ending"), args).fetchall()
+                assert conn.execute(REFERENCE_CALLS).fetchone()[0] == before, args
             reference = conn.execute(
                 call.format("select_snippet_ending_reference"), args
             ).fetchall()
             assert fast == reference, args
-            answered += bool(reference)
-    assert answered >= 10
+            for row in reference:
+                level, ratio = row[7], row[8]
+                assert level == next(k for k in range(4) if ratio <= 2.0**k), row
+                levels[level] = levels.get(level, 0) + 1
+        _set_tightness(conn, None)
+    assert sorted(levels) == [0, 1, 2, 3], levels

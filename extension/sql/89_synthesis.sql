@@ -50,7 +50,8 @@ WITH prev AS MATERIALIZED (
 )
 SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
        sqrt((c.net_translation[1] - prev.target[1]) ^ 2 + (c.net_translation[3] - prev.target[2]) ^ 2),
-       l.level, r.ratio,
+       CASE WHEN r.ratio <= 1 THEN 0 WHEN r.ratio <= 2 THEN 1 WHEN r.ratio <= 4 THEN 2 WHEN r.ratio <= 8 THEN 3
+            ELSE ceil(log(2.0, r.ratio::numeric))::int END, r.ratio,
        c.net_translation, c.net_rotation, c.net_heading
   FROM prev
   JOIN modb.snippets c ON c.begin_features <@ modb.match_box((prev.terminator).features, prev.plan, scale)
@@ -59,8 +60,6 @@ SELECT c.id, c.clip_id, c.version, c.mirrored, c.first_frame, c.n_frames,
   JOIN modb.terminators e ON e.id = c.end_terminator
  CROSS JOIN LATERAL (SELECT sqrt(e.velocities[1] ^ 2 + e.velocities[3] ^ 2) AS speed) v
  CROSS JOIN LATERAL (SELECT modb.continuity_ratio_native(prev.terminator, b, prev.plan) AS ratio) r
- CROSS JOIN LATERAL (SELECT CASE WHEN r.ratio <= 1 THEN 0 WHEN r.ratio <= 2 THEN 1 WHEN r.ratio <= 4 THEN 2
-                                 WHEN r.ratio <= 8 THEN 3 ELSE ceil(log(2.0, r.ratio::numeric))::int END AS level) l
  WHERE (collection IS NULL OR c.collection_id = ANY (modb.collection_subtree(collection)))
    AND c.id <> ALL (coalesce(exclude, '{}'))
    AND CASE WHEN standing THEN v.speed < modb.rest_speed() ELSE v.speed >= modb.walk_speed() END
