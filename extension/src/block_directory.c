@@ -42,6 +42,7 @@
 #include "utils/snapmgr.h"
 
 #include "selection.h"
+#include "shared_directory.h"
 #include "term_codes.h"
 
 #define SUPER_BLOCKS 32
@@ -70,6 +71,7 @@ typedef struct Entry
 	float		end_bounds[N_END_BOUNDS];
 } Entry;
 
+/* A group while the directory is read (in `building`), before it is laid out as an image. */
 typedef struct PoseGroup
 {
 	char	   *pose_key;
@@ -82,10 +84,6 @@ typedef struct PoseGroup
 
 typedef struct Directory
 {
-	bool		valid;
-	Oid			relid;
-	Oid			relfilenode;	/* a rewrite (VACUUM FULL, CLUSTER) moves every block */
-	int64		generation;
 	int			n_groups;
 	int			groups_capacity;
 	PoseGroup  *groups;
@@ -93,7 +91,37 @@ typedef struct Directory
 } Directory;
 
 static Directory directory;
-static MemoryContext directory_context;
+static MemoryContext building;
+
+/*
+ * The directory as calls use it: one block of memory without pointers (offsets from its start), so that
+ * it can be shared as it is (shared_directory.c).
+ */
+typedef struct ImageGroup
+{
+	Size		key_offset;		/* its pose_key, NUL-terminated */
+	double		fps;
+	int			count;
+	Size		entries_offset;
+	Size		supers_offset;
+} ImageGroup;
+
+typedef struct DirectoryImage
+{
+	Size		size;
+	Oid			relid;
+	Oid			relfilenode;	/* a rewrite (VACUUM FULL, CLUSTER) moves every block */
+	int64		generation;
+	int64		n_blocks;
+	int			n_groups;
+	ImageGroup	groups[FLEXIBLE_ARRAY_MEMBER];
+} DirectoryImage;
+
+static const DirectoryImage *image;	/* NULL: none yet */
+static bool image_shared;		/* mapped from shared memory, not this session's own */
+static MemoryContext image_context;	/* this session's own image */
+
+#define IMAGE_AT(offset) ((const char *) image + (offset))
 
 /* Each feature's fixed scale (build_sql.py's feature_range): code c covers min + c step. */
 static const double feature_ranges[N_FEATURES][2] = FEATURE_RANGES;
@@ -175,15 +203,15 @@ group_of(const char *pose_key, int length, double fps)
 		directory.groups_capacity = Max(8, 2 * directory.groups_capacity);
 		directory.groups = directory.groups
 			? repalloc(directory.groups, sizeof(PoseGroup) * directory.groups_capacity)
-			: MemoryContextAlloc(directory_context, sizeof(PoseGroup) * directory.groups_capacity);
+			: MemoryContextAlloc(building, sizeof(PoseGroup) * directory.groups_capacity);
 	}
 	g = &directory.groups[directory.n_groups++];
-	g->pose_key = MemoryContextAllocZero(directory_context, length + 1);
+	g->pose_key = MemoryContextAllocZero(building, length + 1);
 	memcpy(g->pose_key, pose_key, length);
 	g->fps = fps;
 	g->count = 0;
 	g->capacity = 256;
-	g->entries = MemoryContextAlloc(directory_context, sizeof(Entry) * g->capacity);
+	g->entries = MemoryContextAlloc(building, sizeof(Entry) * g->capacity);
 	g->supers = NULL;
 	return g;
 }
@@ -374,21 +402,62 @@ read_table(Relation rel)
 	MemoryContextDelete(per_block);
 }
 
-/* Reads every block visible to the caller's snapshot into the directory. */
-static void
+/* The directory read laid out as one block of memory in `context`. */
+static DirectoryImage *
+lay_out(MemoryContext context, Oid relid, Oid relfilenode, int64 generation)
+{
+	Size		size = MAXALIGN(offsetof(DirectoryImage, groups) + sizeof(ImageGroup) * directory.n_groups);
+	DirectoryImage *out;
+
+	for (int k = 0; k < directory.n_groups; k++)
+	{
+		PoseGroup  *g = &directory.groups[k];
+
+		size += MAXALIGN(strlen(g->pose_key) + 1) + MAXALIGN(sizeof(Entry) * g->count)
+			+ MAXALIGN(sizeof(Box16) * ((g->count + SUPER_BLOCKS - 1) / SUPER_BLOCKS));
+	}
+	out = MemoryContextAllocHuge(context, size);
+	out->size = size;
+	out->relid = relid;
+	out->relfilenode = relfilenode;
+	out->generation = generation;
+	out->n_blocks = directory.n_blocks;
+	out->n_groups = directory.n_groups;
+	size = MAXALIGN(offsetof(DirectoryImage, groups) + sizeof(ImageGroup) * directory.n_groups);
+	for (int k = 0; k < directory.n_groups; k++)
+	{
+		PoseGroup  *g = &directory.groups[k];
+		ImageGroup *to = &out->groups[k];
+		Size		n_supers = (g->count + SUPER_BLOCKS - 1) / SUPER_BLOCKS;
+
+		to->fps = g->fps;
+		to->count = g->count;
+		to->key_offset = size;
+		strcpy((char *) out + size, g->pose_key);
+		size += MAXALIGN(strlen(g->pose_key) + 1);
+		to->entries_offset = size;
+		memcpy((char *) out + size, g->entries, sizeof(Entry) * g->count);
+		size += MAXALIGN(sizeof(Entry) * g->count);
+		to->supers_offset = size;
+		memcpy((char *) out + size, g->supers, sizeof(Box16) * n_supers);
+		size += MAXALIGN(sizeof(Box16) * n_supers);
+	}
+	return out;
+}
+
+/* Reads every block visible to the caller's snapshot into this session's own image. */
+static DirectoryImage *
 read_directory(Relation rel, int64 generation)
 {
-	MemoryContext old,
-				reading;
+	MemoryContext old;
+	DirectoryImage *out;
 
-	if (directory_context == NULL)
-		directory_context = AllocSetContextCreate(TopMemoryContext, "modb block directory", ALLOCSET_DEFAULT_SIZES);
-	directory.valid = false;
-	MemoryContextReset(directory_context);
+	if (image_context == NULL)
+		image_context = AllocSetContextCreate(TopMemoryContext, "modb block directory", ALLOCSET_DEFAULT_SIZES);
+	/* What the reading allocates (and copies of what it reads) goes with this. */
+	building = AllocSetContextCreate(CurrentMemoryContext, "modb block directory reading", ALLOCSET_DEFAULT_SIZES);
 	memset(&directory, 0, sizeof(directory));
-	/* The scan's own allocations (and copies of what it reads) go with this; the directory's are its own. */
-	reading = AllocSetContextCreate(CurrentMemoryContext, "modb block directory reading", ALLOCSET_DEFAULT_SIZES);
-	old = MemoryContextSwitchTo(reading);
+	old = MemoryContextSwitchTo(building);
 	if (!read_index(rel))
 		read_table(rel);
 	for (int k = 0; k < directory.n_groups; k++)
@@ -397,10 +466,7 @@ read_directory(Relation rel, int64 generation)
 
 		/* Stable: blocks of consecutive snippets keep their table (clip) order. */
 		qsort(g->entries, g->count, sizeof(Entry), entry_order);
-		/* what the doubling left unused goes back (a session keeps these) */
-		g->entries = repalloc(g->entries, sizeof(Entry) * Max(g->count, 1));
-		g->supers = MemoryContextAlloc(directory_context,
-									   sizeof(Box16) * Max((g->count + SUPER_BLOCKS - 1) / SUPER_BLOCKS, 1));
+		g->supers = palloc(sizeof(Box16) * Max((g->count + SUPER_BLOCKS - 1) / SUPER_BLOCKS, 1));
 		for (int e = 0; e < g->count; e++)
 		{
 			Box16	   *box = &g->entries[e].box;
@@ -414,11 +480,51 @@ read_directory(Relation rel, int64 generation)
 		}
 	}
 	MemoryContextSwitchTo(old);
-	MemoryContextDelete(reading);
-	directory.relid = RelationGetRelid(rel);
-	directory.relfilenode = rel->rd_node.relNode;
-	directory.generation = generation;
-	directory.valid = true;
+	out = lay_out(image_context, RelationGetRelid(rel), rel->rd_node.relNode, generation);
+	MemoryContextDelete(building);
+	building = NULL;
+	return out;
+}
+
+/*
+ * The image for this call's blocks (relid at `generation`): the one the session holds, else the one shared
+ * at that generation, else read now (and shared where it can be).
+ */
+static void
+find_directory(Relation rel, int64 generation, BlockStats *stats)
+{
+	Oid			relid = RelationGetRelid(rel);
+	Oid			relfilenode = rel->rd_node.relNode;
+	const void *shared;
+	DirectoryImage *own;
+
+	if (image != NULL && image->relid == relid && image->generation == generation
+		&& image->relfilenode == relfilenode)
+		return;
+	/* Let go of the old one first: the one shared next may be it again. */
+	image = NULL;
+	modb_shared_directory_release();
+	if (image_context != NULL)
+		MemoryContextReset(image_context);
+	shared = modb_shared_directory_attach(relid, relfilenode, generation);
+	if (shared == NULL)
+	{
+		own = read_directory(rel, generation);
+		if (stats)
+			stats->read_directory = true;
+		shared = modb_shared_directory_publish(own, own->size, relid, relfilenode, generation);
+		if (shared != NULL)
+			MemoryContextReset(image_context);
+		else
+			image = own;
+	}
+	if (shared != NULL)
+	{
+		image = shared;
+		image_shared = true;
+	}
+	else
+		image_shared = false;
 }
 
 /* A box search: the blocks the directory could not reject, each with the least key its snippets can have. */
@@ -592,15 +698,12 @@ modb_block_search(Oid relid, int64 generation, const char *pose_key, double fps,
 	if (pg_class_aclcheck(relid, GetUserId(), ACL_SELECT) != ACLCHECK_OK)
 		aclcheck_error(ACLCHECK_NO_PRIV, OBJECT_TABLE, RelationGetRelationName(search->rel));
 	check_columns(RelationGetDescr(search->rel));
-	if (!directory.valid || directory.relid != relid || directory.generation != generation
-		|| directory.relfilenode != search->rel->rd_node.relNode)
-	{
-		read_directory(search->rel, generation);
-		if (stats)
-			stats->read_directory = true;
-	}
+	find_directory(search->rel, generation, stats);
 	if (stats)
-		stats->blocks = directory.n_blocks;
+	{
+		stats->blocks = image->n_blocks;
+		stats->shared_directory = image_shared;
+	}
 	search->lo = lo;
 	search->hi = hi;
 	search->test = test;
@@ -609,21 +712,23 @@ modb_block_search(Oid relid, int64 generation, const char *pose_key, double fps,
 	search->bounds = palloc(sizeof(double) * capacity);
 	for (int d = 0; d < N_FEATURES; d++)
 		code_range(lo[d], hi[d], scale_min(d), scale_step(d), SCALE_STEPS, &from[d], &to[d]);
-	for (int k = 0; k < directory.n_groups; k++)
+	for (int k = 0; k < image->n_groups; k++)
 	{
-		PoseGroup  *g = &directory.groups[k];
+		const ImageGroup *g = &image->groups[k];
+		const Entry *entries = (const Entry *) IMAGE_AT(g->entries_offset);
+		const Box16 *supers = (const Box16 *) IMAGE_AT(g->supers_offset);
 
-		if (g->fps != fps || strcmp(g->pose_key, pose_key) != 0)
+		if (g->fps != fps || strcmp(IMAGE_AT(g->key_offset), pose_key) != 0)
 			continue;
 		for (int s = 0; s * SUPER_BLOCKS < g->count; s++)
 		{
-			if (!box_meets(&g->supers[s], from, to))
+			if (!box_meets(&supers[s], from, to))
 				continue;
 			if (stats)
 				stats->supers_met++;
 			for (int e = s * SUPER_BLOCKS; e < Min(g->count, (s + 1) * SUPER_BLOCKS); e++)
 			{
-				const Entry *entry = &g->entries[e];
+				const Entry *entry = &entries[e];
 				const float *ending = NULL;	/* the net bounds of its snippets that end as asked */
 				float		inputs_lo[N_OBJECTIVE_INPUTS],
 							inputs_hi[N_OBJECTIVE_INPUTS];

@@ -1,12 +1,15 @@
 /*
  * The modb shared library: its magic block, and _PG_init, which defines the session knobs (settings.c)
- * when the library is loaded (session_preload_libraries, or the first call of one of its functions).
+ * when the library is loaded (session_preload_libraries, or the first call of one of its functions) and,
+ * when it is loaded at server start (shared_preload_libraries), asks for the shared block directory's
+ * registry (shared_directory.c).
  */
 #include "postgres.h"
 
 #include "fmgr.h"
 
 #include "modb.h"
+#include "shared_directory.h"
 
 PG_MODULE_MAGIC;
 
@@ -16,4 +19,5 @@ void
 _PG_init(void)
 {
 	modb_define_settings();
+	modb_shared_directory_init();
 }

@@ -102,9 +102,11 @@ modb_explain_selection(PG_FUNCTION_ARGS)
 				blocks_rejected += b->blocks_rejected[k];
 				candidates_rejected += b->candidates_rejected[k];
 			}
-			appendStringInfo(&line, "  Level %d, ratio <= %g: box over %lld blocks (directory %s): %lld super blocks, %lld blocks met it",
+			/* shared: the server's (shared_preload_libraries); else this session's copy */
+			appendStringInfo(&line, "  Level %d, ratio <= %g: box over %lld blocks (%s directory%s): %lld super blocks, %lld blocks met it",
 							 level, (double) (1 << level), (long long) b->blocks,
-							 b->read_directory ? "read now" : "cached", (long long) b->supers_met,
+							 b->shared_directory ? "shared" : "session's", b->read_directory ? ", read now" : "",
+							 (long long) b->supers_met,
 							 (long long) b->blocks_met);
 			EMIT();
 			appendStringInfo(&line, "    blocks: %lld read (least key first), %lld rejected by term bounds",

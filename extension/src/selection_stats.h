@@ -12,6 +12,7 @@
 typedef struct BlockStats
 {
 	bool		read_directory;	/* this call read the block directory (a new generation of blocks) */
+	bool		shared_directory;	/* the directory used is the server's shared one, not the session's copy */
 	int64		blocks;			/* blocks in the directory */
 	int64		supers_met;		/* super blocks (of 32 blocks) whose feature bounds met the box */
 	int64		blocks_met;		/* blocks of those whose feature bounds met the box */
