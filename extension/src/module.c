@@ -2,7 +2,7 @@
  * The modb shared library: its magic block, and _PG_init, which defines the session knobs (settings.c)
  * when the library is loaded (session_preload_libraries, or the first call of one of its functions) and,
  * when it is loaded at server start (shared_preload_libraries), asks for the shared block directory's
- * registry (shared_directory.c).
+ * registry (shared_directory.c) and the shared match plans (shared_plans.c).
  */
 #include "postgres.h"
 
@@ -10,6 +10,7 @@
 
 #include "modb.h"
 #include "shared_directory.h"
+#include "shared_plans.h"
 
 PG_MODULE_MAGIC;
 
@@ -20,4 +21,5 @@ _PG_init(void)
 {
 	modb_define_settings();
 	modb_shared_directory_init();
+	modb_shared_plans_init();
 }

@@ -73,6 +73,7 @@ typedef struct Request
 	Oid			blocks_relid;
 	int64		blocks_generation;
 	int64		plans_generation;	/* of the profiles and graphs (selection_plan.c) */
+	const char *extension_version;	/* with blocks_relid, what a plan shared between sessions is valid for */
 	/* filters */
 	Played	   *played;
 	int			n_played;
@@ -248,7 +249,8 @@ read_previous(Request *r)
 				   "       t.positions, t.rotations, t.velocities, t.angular_velocities,"
 				   "       (SELECT g.generation FROM modb.generations g WHERE g.name = 'snippet_blocks'),"
 				   "       to_regclass('modb.snippet_blocks')::oid,"
-				   "       (SELECT g.generation FROM modb.generations g WHERE g.name = 'match_plans')"
+				   "       (SELECT g.generation FROM modb.generations g WHERE g.name = 'match_plans'),"
+				   "       (SELECT x.extversion FROM pg_catalog.pg_extension x WHERE x.extname = 'modb')"
 				   "  FROM modb.snippets s JOIN modb.terminators t ON t.id = s.end_terminator WHERE s.id = $1",
 				   1, types);
 	if (SPI_execute_plan(query, args, NULL, true, 1) != SPI_OK_SELECT || SPI_processed != 1)
@@ -275,6 +277,7 @@ read_previous(Request *r)
 	r->blocks_generation = DatumGetInt64(SPI_getbinval(row, desc, 13, &isnull));
 	r->blocks_relid = DatumGetObjectId(SPI_getbinval(row, desc, 14, &isnull));
 	r->plans_generation = DatumGetInt64(SPI_getbinval(row, desc, 15, &isnull));
+	r->extension_version = SPI_getvalue(row, desc, 16);
 	return true;
 }
 
@@ -1050,7 +1053,8 @@ modb_select(FunctionCallInfo fcinfo, Tuplestorestate *store, TupleDesc out, Sele
 	}
 	else
 	{
-		r.plan = modb_match_plan(PG_ARGISNULL(3) ? NULL : PG_GETARG_TEXT_PP(3), r.plans_generation);
+		r.plan = modb_match_plan(PG_ARGISNULL(3) ? NULL : PG_GETARG_TEXT_PP(3), r.plans_generation, r.blocks_relid,
+								 r.extension_version);
 		if (stats)
 		{
 			INSTR_TIME_SET_CURRENT(now);
@@ -1229,7 +1233,7 @@ modb_select_snippet_ending(PG_FUNCTION_ARGS)
 		int			emitted = 0;
 		BlockEnds	ends = BLOCK_ENDS_ANY;
 
-		r.plan = modb_match_plan(PG_GETARG_TEXT_PP(4), r.plans_generation);
+		r.plan = modb_match_plan(PG_GETARG_TEXT_PP(4), r.plans_generation, r.blocks_relid, r.extension_version);
 		annotated = r.plan->annotations != NULL;
 		/* the blocks' end bounds sort snippets by the speeds of 0.29.0's modb.rest_speed and walk_speed */
 		if (e.standing ? e.rest_speed == BLOCK_REST_SPEED : e.walk_speed == BLOCK_WALK_SPEED)

@@ -31,13 +31,16 @@ typedef struct MatchPlan
 	char	   *annotations;	/* the annotation names candidates keep to, a text[] literal; NULL: none */
 	char	   *shown;			/* the plan as jsonb text, for explain_selection */
 	bool		cached;			/* taken from this session's cache, not resolved now */
+	bool		shared;			/* taken from the server's shared plans (then cached) */
 } MatchPlan;
 
 /*
  * The plan for `profile` (NULL: default) with this session's knobs, at this generation of the profiles and
- * graphs (modb.generations 'match_plans'); must be called inside SPI.
+ * graphs (modb.generations 'match_plans'), of the extension's version whose blocks are blocks_relid: this
+ * session's, else the server's shared one (shared_plans.c), else resolved now; must be called inside SPI.
  */
-extern const MatchPlan *modb_match_plan(text *profile, int64 generation);
+extern const MatchPlan *modb_match_plan(text *profile, int64 generation, Oid blocks_relid,
+										 const char *extension_version);
 
 /* snippet_blocks.c and block_directory.c: the box search over blocks of consecutive snippets. */
 #define BLOCK_SNIPPETS 32

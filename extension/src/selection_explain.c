@@ -61,7 +61,8 @@ modb_explain_selection(PG_FUNCTION_ARGS)
 	if (stats.plan)
 	{
 		appendStringInfo(&line, "  Profile: %s (%.3f ms)",
-						 stats.plan->cached ? "this session's cached plan" : "resolved by modb.match_plan",
+						 stats.plan->cached ? "this session's cached plan"
+						 : stats.plan->shared ? "the server's shared plan" : "resolved by modb.match_plan",
 						 stats.plan_ms);
 		if (verbose)
 			appendStringInfo(&line, ": %s", stats.plan->shown);

@@ -15,6 +15,7 @@
 #include "utils/memutils.h"
 
 #include "selection.h"
+#include "shared_plans.h"
 
 #define N_CACHED 8
 
@@ -112,29 +113,34 @@ resolve(text *profile, MatchPlan *plan)
 	plan->annotations = isnull ? NULL : MemoryContextStrdup(TopMemoryContext, SPI_getvalue(row, desc, 23));
 }
 
-/* What the plan depends on: the profile's name, the generation of profiles and graphs, the knobs. */
+/*
+ * What the plan depends on: the profile's name, the generation of profiles and graphs, the knobs; and, for
+ * a plan shared between sessions, the extension's version and its blocks' relation.
+ */
 static char *
-plan_key(text *profile, int64 generation)
+plan_key(text *profile, int64 generation, Oid blocks_relid, const char *extension_version)
 {
 	StringInfoData key;
 
 	initStringInfo(&key);
-	appendStringInfo(&key, "%s\x1e" INT64_FORMAT, profile ? text_to_cstring(profile) : "default", generation);
+	appendStringInfo(&key, "%s\x1e" INT64_FORMAT "\x1e%u\x1e%s", profile ? text_to_cstring(profile) : "default",
+					 generation, blocks_relid, extension_version ? extension_version : "");
 	for (int i = 0; i < N_KNOBS; i++)
 		appendStringInfo(&key, "\x1e%s", modb_knob_is_profile(modb_knob_value(i)) ? "" : modb_knob_value(i));
 	return key.data;
 }
 
 const MatchPlan *
-modb_match_plan(text *profile, int64 generation)
+modb_match_plan(text *profile, int64 generation, Oid blocks_relid, const char *extension_version)
 {
-	char	   *key = plan_key(profile, generation);
+	char	   *key = plan_key(profile, generation, blocks_relid, extension_version);
 	CachedEntry *entry;
 
 	for (int i = 0; i < N_CACHED; i++)
 		if (cache[i].key != NULL && strcmp(cache[i].key, key) == 0)
 		{
 			cache[i].plan.cached = true;
+			cache[i].plan.shared = false;
 			return &cache[i].plan;
 		}
 	entry = &cache[next_victim];
@@ -147,7 +153,14 @@ modb_match_plan(text *profile, int64 generation)
 			pfree(entry->plan.annotations);
 		entry->key = NULL;
 	}
-	resolve(profile, &entry->plan);		/* raises the profile's errors (no such profile included) */
+	if (modb_shared_plan_find(key, &entry->plan, TopMemoryContext))
+		entry->plan.shared = true;
+	else
+	{
+		resolve(profile, &entry->plan);	/* raises the profile's errors (no such profile included) */
+		entry->plan.shared = false;
+		modb_shared_plan_share(key, &entry->plan);
+	}
 	entry->key = MemoryContextStrdup(TopMemoryContext, key);
 	entry->plan.cached = false;
 	return &entry->plan;
