@@ -1,5 +1,6 @@
 """`modb bench tail`: select_next_snippet's tail on the user's path (0.18.0: every term of the
-rule bounded where the scan reads). Per database, with the server's settings and no SET:
+rule bounded where the scan reads). Per database, with the server's settings and no SET but
+the selection kinds' (below):
 
 - 10,000 seeded requests (a random previous snippet, a target within 5 m, the default profile)
   on each client path: psql one call per statement (\\timing), psycopg not prepared, psycopg
@@ -7,15 +8,20 @@ rule bounded where the scan reads). Per database, with the server's settings and
   and the share of requests each relaxation level answered;
 - pgbench with the shipped script at 1, 2 and 8 clients prepared, and 2 clients -M simple;
 - modb.explain_selection's stages (blocks met and read, candidates, rows read) on 500 requests;
-- every other selection kind on the same requests: k-best, exclusion list, coming to rest, setting
-  off, an annotation spec, and the newest transition graph with and without its cost-to-go;
+- every other selection kind on the same requests (k-best, exclusion list, coming to rest,
+  setting off, an annotation spec), each without a graph (SET modb.graph = 'none') and with the
+  transition graph --graph names (SET modb.graph; the previous snippets drawn from the graph's),
+  labelled "coming to rest, graph NAME", and the plain call with that graph with and without its
+  cost-to-go. --graph defaults to the database's newest transition graph (none: no graph rows
+  when it has none); `--graph none` times the kinds without a graph only; a name the database
+  lacks stops the run before anything is timed, naming the graphs it has;
 - exactness: seeded requests, every shipped profile and one of odd user thresholds, thresholds
   scaled down to reach every relaxation level, against the reference function (the rule), whose
   time per call is the baseline of the same run;
 - what the scan reads per snippet (the blocks' live bytes and the directory's index) and a
   session's memory (its block directory).
 
-    modb --dsn DSN bench tail --sizes 100000,all,1000000
+    modb --dsn DSN bench tail --sizes 100000,all,1000000 [--graph NAME|none]
 """
 
 from __future__ import annotations
@@ -25,6 +31,8 @@ import re
 import statistics
 import subprocess
 import time
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 import psycopg
@@ -164,80 +172,157 @@ def _exactness(dsn: str, n: int, seed: int) -> dict:
 
 
 # Every selection a user triggers (besides the plain call above), on the same requests: SQL per
-# kind, its parameters from (prev, target, excluded ids).
-KINDS = {
+# kind, its parameters from (prev, target, excluded ids), and its session settings.
+Params = Callable[[int, list[float], list[int]], list]
+PLAIN: tuple[str, Params] = (
+    "SELECT snippet_id FROM modb.select_next_snippet(%s, %s)",
+    lambda prev, target, excluded: [prev, target],
+)
+KINDS: dict[str, tuple[str, Params, dict[str, str]]] = {
     "k-best (k = 5)": (
         "SELECT snippet_id FROM modb.select_next_snippets(%s, %s, 5)",
         lambda prev, target, excluded: [prev, target],
+        {},
     ),
     "exclusion list (20 snippets)": (
         "SELECT snippet_id FROM modb.select_next_snippet(%s, %s, 'default', NULL, %s)",
         lambda prev, target, excluded: [prev, target, excluded],
+        {},
     ),
     "coming to rest": (
         "SELECT snippet_id FROM modb.select_synthesis_step(%s, '{0,0,0}', 0, %s, 'default', NULL, "
         "NULL, true)",
         lambda prev, target, excluded: [prev, target],
+        {},
     ),
     "setting off": (
         "SELECT snippet_id FROM modb.select_synthesis_step(%s, '{0,0,0}', 0, %s, 'default', NULL, "
         "NULL, false)",
         lambda prev, target, excluded: [prev, target],
+        {},
     ),
+    "annotations '!fall'": (*PLAIN, {"modb.annotations": "!fall"}),
 }
+NO_GRAPH = "none"  # --graph none: the kinds without a graph only (as SET modb.graph = 'none')
 
 
-def _graph_kinds(conn: psycopg.Connection) -> dict[str, dict[str, str]]:
-    """The newest transition graph's kinds (its cost-to-go ranking, and without it), if any."""
-    row = conn.execute(
-        "SELECT name FROM modb.graphs WHERE kind = 'transitions' ORDER BY id DESC LIMIT 1"
-    ).fetchone()
-    if row is None:
-        return {}
-    return {
-        f"graph {row[0]}, cost-to-go": {"modb.graph": row[0]},
-        f"graph {row[0]}, no cost-to-go": {"modb.graph": row[0], "modb.graph_cost_to_go": "off"},
-    }
+class UnknownGraph(ValueError):
+    """--graph names no transition graph of the database."""
 
 
-def kinds(dsn: str, requests: list, seed: int) -> dict[str, list[float]]:
-    """Each kind's times over the requests, prepared, after a first call (psycopg): KINDS, the
-    plain call under an annotation spec, and with the newest transition graph (its snippets as
-    the previous ones) when the database has one."""
+@dataclass(frozen=True)
+class KindRun:
+    """One row of the kinds' table: a kind's query, its settings and its requests."""
+
+    name: str
+    sql: str
+    params: Params
+    settings: dict[str, str]
+    requests: list[tuple[int, list[float]]]
+
+
+def transition_graphs(conn: psycopg.Connection) -> list[str]:
+    """The database's transition graphs, newest first."""
+    rows = conn.execute("SELECT name FROM modb.graphs WHERE kind = 'transitions' ORDER BY id DESC")
+    return [r[0] for r in rows]
+
+
+def graph_in_force(conn: psycopg.Connection, graph: str | None) -> str | None:
+    """The graph `--graph graph` times the kinds with: None (not given) the database's newest
+    transition graph, or no graph when it has none; NO_GRAPH no graph; a name that graph, which
+    the database must have (UnknownGraph names those it has)."""
+    names = transition_graphs(conn)
+    if graph is None:
+        return names[0] if names else None
+    if graph.strip().lower() == NO_GRAPH:
+        return None
+    if graph not in names:
+        has = ", ".join(names) if names else "none (`modb graph build NAME` builds one)"
+        raise UnknownGraph(
+            f"--graph {graph}: database {conn.info.dbname} has no transition graph of that name; "
+            f"its transition graphs: {has}"
+        )
+    return graph
+
+
+def _graph_requests(
+    conn: psycopg.Connection, graph: str, requests: list, rng: np.random.Generator
+) -> list[tuple[int, list[float]]]:
+    """The requests' targets, each after a random snippet the graph keeps (none if it keeps
+    none here)."""
+    kept = np.array(
+        [
+            r[0]
+            for r in conn.execute(
+                "SELECT snippet_id FROM modb.graph_snippets s JOIN modb.graphs g"
+                " ON g.id = s.graph_id WHERE g.name = %s AND g.kind = 'transitions' ORDER BY 1",
+                [graph],
+            )
+        ]
+    )
+    if not len(kept):
+        return []
+    return [(int(rng.choice(kept)), target) for _, target in requests]
+
+
+def _kind_runs(requests: list, graph: str | None, graph_requests: list) -> list[KindRun]:
+    """Every kind without a graph (SET modb.graph = 'none'), then, given a graph and requests
+    from its snippets, every kind with it ("coming to rest, graph cmu") and the plain call with
+    and without its cost-to-go."""
+    runs = [
+        KindRun(name, sql, params, {**settings, "modb.graph": NO_GRAPH}, requests)
+        for name, (sql, params, settings) in KINDS.items()
+    ]
+    if graph is None or not graph_requests:
+        return runs
+    in_force = {"modb.graph": graph}
+    runs += [
+        KindRun(f"{name}, graph {graph}", sql, params, {**settings, **in_force}, graph_requests)
+        for name, (sql, params, settings) in KINDS.items()
+    ]
+    off = {**in_force, "modb.graph_cost_to_go": "off"}
+    runs.append(KindRun(f"graph {graph}, cost-to-go", *PLAIN, in_force, graph_requests))
+    runs.append(KindRun(f"graph {graph}, no cost-to-go", *PLAIN, off, graph_requests))
+    return runs
+
+
+def _time_run(conn: psycopg.Connection, run: KindRun, excluded: list[list[int]]) -> list[float]:
+    """A kind's times over its requests, prepared, after a first call, its settings in force."""
+    for knob, value in run.settings.items():
+        conn.execute("SELECT set_config(%s, %s, false)", [knob, value])
+    prev, target = run.requests[0]
+    conn.execute(run.sql, run.params(prev, target, excluded[0]), prepare=True).fetchall()
+    ms = []
+    for (prev, target), x in zip(run.requests, excluded):
+        t = time.perf_counter()
+        conn.execute(run.sql, run.params(prev, target, x), prepare=True).fetchall()
+        ms.append((time.perf_counter() - t) * 1000)
+    for knob in run.settings:
+        conn.execute(f"RESET {knob}")
+    return ms
+
+
+def kinds(
+    dsn: str,
+    requests: list,
+    seed: int,
+    graph: str | None = None,
+    progress: Callable[[str], None] = print,
+) -> dict[str, list[float]]:
+    """Each kind's times over the requests, prepared, after a first call (psycopg): KINDS without
+    a graph, then with the graph `graph` names (graph_in_force: by default the newest transition
+    graph, NO_GRAPH none), the previous snippets drawn from its snippets, and the plain call with
+    and without its cost-to-go."""
     rng = np.random.default_rng(seed)
-    out: dict[str, list[float]] = {}
-    plain = ("SELECT snippet_id FROM modb.select_next_snippet(%s, %s)", lambda p, t, x: [p, t])
     with psycopg.connect(dsn, autocommit=True) as conn:
+        in_force = graph_in_force(conn, graph)
         ids = np.array([r[0] for r in conn.execute("SELECT id FROM modb.snippets ORDER BY id")])
         excluded = [[int(v) for v in rng.choice(ids, 20)] for _ in requests]
-        runs = [(name, query, {}, requests) for name, query in KINDS.items()]
-        runs.append(("annotations '!fall'", plain, {"modb.annotations": "!fall"}, requests))
-        for name, settings in _graph_kinds(conn).items():
-            kept = np.array(
-                [
-                    r[0]
-                    for r in conn.execute(
-                        "SELECT snippet_id FROM modb.graph_snippets s JOIN modb.graphs g"
-                        " ON g.id = s.graph_id WHERE g.name = %s ORDER BY 1",
-                        [settings["modb.graph"]],
-                    )
-                ]
-            )
-            graph_requests = [(int(rng.choice(kept)), target) for _, target in requests]
-            runs.append((name, plain, settings, graph_requests))
-        for name, (sql, params), settings, kind_requests in runs:
-            for knob, value in settings.items():
-                conn.execute("SELECT set_config(%s, %s, false)", [knob, value])
-            prev, target = kind_requests[0]
-            conn.execute(sql, params(prev, target, excluded[0]), prepare=True).fetchall()
-            out[name] = []
-            for (prev, target), x in zip(kind_requests, excluded):
-                t = time.perf_counter()
-                conn.execute(sql, params(prev, target, x), prepare=True).fetchall()
-                out[name].append((time.perf_counter() - t) * 1000)
-            for knob in settings:
-                conn.execute(f"RESET {knob}")
-    return out
+        graph_requests = [] if in_force is None else _graph_requests(conn, in_force, requests, rng)
+        if in_force is not None and not graph_requests:
+            progress(f"  graph {in_force} keeps no snippet in this database: no rows with it")
+        runs = _kind_runs(requests, in_force, graph_requests)
+        return {run.name: _time_run(conn, run, excluded) for run in runs}
 
 
 def _costs(dsn: str) -> dict:
@@ -262,6 +347,10 @@ def _costs(dsn: str) -> dict:
     }
 
 
+def _graph_words(graph: str | None) -> str:
+    return "without a graph only" if graph is None else f"without a graph and with graph {graph}"
+
+
 def bench_database(
     dsn: str,
     queries: int,
@@ -270,8 +359,10 @@ def bench_database(
     seed: int,
     pgbench_seconds: int,
     progress=print,
+    graph: str | None = None,
 ) -> dict:
     with psycopg.connect(dsn, autocommit=True) as conn:
+        in_force = graph_in_force(conn, graph)  # before the timings: an unknown name stops here
         requests = requests_for(conn, queries, seed)
     progress("  first calls of new sessions")
     first = _first_calls(dsn, requests, "default")
@@ -281,8 +372,12 @@ def bench_database(
     psql = _psql_ms(dsn, requests, "default")
     progress("  stages (explain_selection) on 500 of them")
     stage_figures = stages(dsn, requests[:500])
-    progress(f"  each selection kind on {kind_queries:,} of them")
-    kind_ms = kinds(dsn, requests[:kind_queries], seed) if kind_queries else {}
+    progress(f"  each selection kind on {kind_queries:,} of them, {_graph_words(in_force)}")
+    kind_ms = (
+        kinds(dsn, requests[:kind_queries], seed, in_force or NO_GRAPH, progress)
+        if kind_queries
+        else {}
+    )
     progress("  pgbench")
     tps = {f"{c} prepared": pgbench(dsn, c, pgbench_seconds) for c in (1, 2, 8)}
     tps["2 simple"] = pgbench(dsn, 2, pgbench_seconds, mode="simple")
@@ -353,7 +448,12 @@ def bench_tail(
     seed: int,
     pgbench_seconds: int,
     progress=print,
+    graph: str | None = None,
 ) -> list[tuple[str, dict]]:
+    """Each size's figures; `graph` is --graph (kinds). A graph the database (or a kept copy of
+    it) lacks raises UnknownGraph before anything is timed there."""
+    with psycopg.connect(dsn, autocommit=True) as conn:
+        graph_in_force(conn, graph)  # before the copies are made
     out = []
     for size in sizes:
         where = dsn if size is None else sized_database(dsn, size, seed, progress)
@@ -363,7 +463,7 @@ def bench_tail(
             (
                 name,
                 bench_database(
-                    where, queries, exact, kind_queries, seed, pgbench_seconds, progress
+                    where, queries, exact, kind_queries, seed, pgbench_seconds, progress, graph
                 ),
             )
         )

@@ -238,7 +238,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     tail = benchmarks.add_parser(
         "tail",
         help="select_next_snippet's tail on the user's path: p50 to max on each client path, first "
-        "calls, pgbench, stages, exactness against the reference, bytes read per snippet",
+        "calls, pgbench, stages, every other selection kind without a graph and with one, "
+        "exactness against the reference, bytes read per snippet",
     )
     tail.add_argument(
         "--sizes",
@@ -263,7 +264,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         type=TAIL_EXACT,
         default=2000,
         help="requests for each other selection kind (k-best, exclusion, coming to rest, setting "
-        f"off; {TAIL_EXACT.span}; default 2000, 0: none)",
+        f"off, annotations; each without a graph and with --graph's; {TAIL_EXACT.span}; "
+        "default 2000, 0: none)",
+    )
+    tail.add_argument(
+        "--graph",
+        metavar="NAME|none",
+        help="the transition graph each selection kind is also timed with (SET modb.graph; the "
+        "previous snippets drawn from its snippets), rows labelled 'coming to rest, graph NAME', "
+        "and the plain call with and without its cost-to-go (default: the database's newest "
+        "transition graph, if it has one; none: without a graph only)",
     )
     tail.add_argument(
         "--pgbench-seconds",
@@ -485,18 +495,23 @@ def run_scale(args: argparse.Namespace) -> int:
 
 
 def run_tail(args: argparse.Namespace) -> int:
-    from modb.bench.tail import bench_tail, report  # numpy (60 ms)
+    from modb.bench.tail import UnknownGraph, bench_tail, report  # numpy (60 ms)
 
-    results = bench_tail(
-        resolve(args.dsn)[0],
-        args.sizes,
-        args.queries,
-        args.exact,
-        args.kinds,
-        args.seed,
-        args.pgbench_seconds,
-        progress=lambda text: print(text, file=sys.stderr),
-    )
+    try:
+        results = bench_tail(
+            resolve(args.dsn)[0],
+            args.sizes,
+            args.queries,
+            args.exact,
+            args.kinds,
+            args.seed,
+            args.pgbench_seconds,
+            progress=lambda text: print(text, file=sys.stderr),
+            graph=args.graph,
+        )
+    except UnknownGraph as e:
+        print(f"modb bench tail: {e}", file=sys.stderr)
+        return 2
     print("\n\n".join(report(name, r) for name, r in results))
     return 0
 

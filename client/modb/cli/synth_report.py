@@ -57,7 +57,8 @@ def format_summary(result: Synthesis, rep: Report) -> str:
     lines = [
         f"strip: {rep.seconds:.1f} s, {rep.snippets} snippets, {rep.seams} seams"
         + (f" (ended early: {result.stopped})" if result.stopped else ""),
-        f"query latency: p50 {_ms(rep.latency_ms_p50)} ms, p99 {_ms(rep.latency_ms_p99)} ms",
+        f"query latency: p50 {_ms(rep.latency_ms_p50)} ms, p99 {_ms(rep.latency_ms_p99)} ms; "
+        + _selection_max(rep),
         "relaxation levels: "
         + ", ".join(f"{k}: {v}" for k, v in rep.levels.items())
         + f" (last level {rep.last_level_share:.1%})",
@@ -98,6 +99,14 @@ def format_summary(result: Synthesis, rep: Report) -> str:
         )
     )
     return "\n".join(lines)
+
+
+def _selection_max(rep: Report) -> str:
+    """The walk's slowest selection, the first and the last beside it."""
+    return (
+        f"selection max {_ms(rep.latency_ms_max)} ms (first {_ms(rep.latency_ms_first)} ms, "
+        f"last {_ms(rep.latency_ms_last)} ms)"
+    )
 
 
 def _goal_note(g: GoalReach, outcome: str) -> str:

@@ -312,6 +312,10 @@ class Report:
     natural_pose_jump_p999: float = 0.0
     foot_skating: float = 0.0  # m/s while standing (foot_skating)
     natural_foot_skating: float = 0.0
+    # the walk's slowest selection query, and its first and last (every choice that ran one)
+    latency_ms_max: float | None = None
+    latency_ms_first: float | None = None
+    latency_ms_last: float | None = None
 
     @property
     def aims(self) -> dict[str, bool | None]:
@@ -377,4 +381,17 @@ def measure(
         natural_pose_jump_p999=natural.pose_jump_p999,
         foot_skating=foot_skating(strip)[0],
         natural_foot_skating=natural.foot_skating,
+        **selection_extremes(latencies),
     )
+
+
+def selection_extremes(latencies: Sequence[float]) -> dict[str, float | None]:
+    """Report's latency_ms_max, _first and _last over a walk's selection times (ms, in order,
+    the first selection's included: its session's first call)."""
+    if not latencies:
+        return dict.fromkeys(("latency_ms_max", "latency_ms_first", "latency_ms_last"))
+    return {
+        "latency_ms_max": float(max(latencies)),
+        "latency_ms_first": float(latencies[0]),
+        "latency_ms_last": float(latencies[-1]),
+    }
