@@ -174,8 +174,25 @@ def _kernel_imports(match: re.Match, version: str) -> str:
     return "\n".join(lines)
 
 
+LIBRARY_CHECK = """-- modb {version} runs the modb.so built with it: fail now if this session runs an older one.
+DO $$
+BEGIN
+    IF string_to_array(modb.library_version(), '.')::int[] < '{{{parts}}}'::int[] THEN
+        RAISE EXCEPTION 'modb {version} needs the modb.so installed with it; this session runs %', modb.library_version()
+            USING ERRCODE = 'object_not_in_prerequisite_state',
+                  HINT = 'Restart the server (the embedded one: modb db stop, then modb db start; your own: pg_ctl restart or systemctl restart postgresql@15-main), then run this again in a new session.';
+    END IF;
+END
+$$;"""
+
+
+def library_check(version: str) -> str:
+    return LIBRARY_CHECK.format(version=version, parts=version.replace(".", ","))
+
+
 def _expand(text: str, version: str) -> str:
     text = KERNEL_LINE.sub(lambda m: _kernel_imports(m, version), text)
+    text = text.replace("{{VERSION}}", version).replace("{{LIBRARY_CHECK}}", library_check(version))
     for placeholder, value in _constants().items():
         text = text.replace(placeholder, value)
     return text
@@ -199,6 +216,8 @@ def build_upgrade(source: pathlib.Path) -> str:
         f"\\echo Use \"ALTER EXTENSION modb UPDATE TO '{version}'\" to load this file. \\quit\n",
         kernel_check(version),
     ]
+    if "--@include 01_library.sql" not in source.read_text().splitlines():
+        parts.append(library_check(version))  # modb.library_version exists from 0.29.0
     included = set()
     steps = source.read_text().splitlines()
     if "--@functions" not in steps:

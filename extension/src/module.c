@@ -7,6 +7,7 @@
 #include "postgres.h"
 
 #include "fmgr.h"
+#include "utils/builtins.h"
 
 #include "modb.h"
 #include "shared_directory.h"
@@ -15,6 +16,15 @@
 PG_MODULE_MAGIC;
 
 void		_PG_init(void);
+
+PG_FUNCTION_INFO_V1(modb_library_version);
+
+/* modb.library_version(): the extension version this library was built for (modb.control's). */
+Datum
+modb_library_version(PG_FUNCTION_ARGS)
+{
+	PG_RETURN_TEXT_P(cstring_to_text(MODB_LIBRARY_VERSION));
+}
 
 void
 _PG_init(void)

@@ -12,6 +12,7 @@ import os
 import pwd
 import shutil
 import subprocess
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -170,15 +171,19 @@ class Cluster:
                 # (a million
                 # snippets: an 800 MB index). A quarter of the memory, PostgreSQL's usual advice.
                 f"shared_buffers = {shared_buffers_mb()}MB\n"
-                # modb's settings (SET modb.<knob>) are checked at SET once its library is loaded.
-                "session_preload_libraries = 'modb'\n"
+                # Loaded at start: modb's settings are checked at SET, and sessions share the block
+                # directory and resolved match plans (0.29.0).
+                "shared_preload_libraries = 'modb'\n"
             )
 
     def start(self) -> None:
         """Create the cluster if needed, start it, and ensure database `modb` has the extension."""
         if not self.is_initialized():
             self.init()
+        started = not self.is_running()
         self.run_server()
+        if not self._preloads_modb():
+            self._preload_modb(restart=started)
         self.ensure_database(DATABASE)
 
     def run_server(self) -> None:
@@ -186,13 +191,28 @@ class Cluster:
         if not self.is_running():
             self._run(_bindir() / "pg_ctl", "start", "-w", "-D", self.datadir, "-l", self.logfile)
 
+    def _preloads_modb(self) -> bool:
+        with psycopg.connect(self.dsn("postgres"), autocommit=True) as conn:
+            preloaded = conn.execute("SHOW shared_preload_libraries").fetchone()[0]
+        return "modb" in [name.strip() for name in preloaded.split(",")]
+
+    def _preload_modb(self, restart: bool) -> None:
+        """Clusters made before 0.29.0 load modb per session: from their next start, at the
+        server's (sessions share the block directory and match plans). Restarted now if this call
+        started it."""
+        with psycopg.connect(self.dsn("postgres"), autocommit=True) as conn:
+            conn.execute("ALTER SYSTEM SET shared_preload_libraries = 'modb'")
+        if restart:
+            self._run(_bindir() / "pg_ctl", "restart", "-w", "-D", self.datadir, "-l", self.logfile)
+        else:
+            print(
+                "modb: this server loads modb per session; from its next start it loads it once "
+                "and its sessions share the block directory (modb db stop, then modb db start)",
+                file=sys.stderr,
+            )
+
     def ensure_database(self, dbname: str) -> None:
         with psycopg.connect(self.dsn("postgres"), autocommit=True) as conn:
-            preloaded = conn.execute("SHOW session_preload_libraries").fetchone()[0]
-            if "modb" not in [name.strip() for name in preloaded.split(",")]:
-                # Clusters made before 0.10.0: modb's settings are checked at SET from now on.
-                conn.execute("ALTER SYSTEM SET session_preload_libraries = 'modb'")
-                conn.execute("SELECT pg_reload_conf()")
             if not conn.execute(
                 "SELECT 1 FROM pg_database WHERE datname = %s", [dbname]
             ).fetchone():

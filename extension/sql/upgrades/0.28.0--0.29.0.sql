@@ -1,16 +1,26 @@
--- 0.29.0: coming to rest and setting off without a stall. Each snippet block gains end_bounds (the net
--- translations' {x, z} bounds of its snippets that end standing, and of those that end walking), which the
--- block directory holds: modb.select_snippet_ending passes over the blocks with no snippet ending as asked
--- without reading them. The update adds the column and the directory index's copy of it in seconds; the
--- blocks it finds have none (NULL) and answer as in 0.28.0 until modb.pack_snippet_blocks derives them
--- again, which `modb db start` does for the embedded database and a load does for the poses it packs.
+-- 0.29.0: no stall on the synthesis path (issue 61).
+-- modb.library_version() says which modb.so a session runs: where the server preloads it
+-- (shared_preload_libraries, which shares the block directory and the resolved match plans between
+-- sessions), the one loaded when the server started. This update needs 0.29.0's: with an older one it
+-- stops here, changing nothing, and says to restart the server.
+--@include 01_library.sql
 
+-- Coming to rest and setting off: each snippet block gains end_bounds (the net translations' {x, z}
+-- bounds of its snippets that end standing, and of those that end walking), which the block directory
+-- holds, so that modb.select_snippet_ending passes over the blocks with no snippet ending as asked without
+-- reading them. The update adds the column and the directory index's copy of it in seconds; the blocks it
+-- finds have none (NULL) and answer as in 0.28.0 until modb.pack_snippet_blocks derives them again, which
+-- `modb db start` does for the embedded database and a load does for the poses it packs.
 ALTER TABLE modb.snippet_blocks ADD COLUMN end_bounds real[];
 COMMENT ON COLUMN modb.snippet_blocks.end_bounds IS
     'The {x, z} bounds of the net translations of the block''s snippets that end standing (end speed below modb.rest_speed(); x low, z low, x high, z high; NaN: none), then of those that end walking (at least modb.walk_speed()): coming to rest and setting off pass over a block without such snippets unread and rank the others by them (0.29.0; NULL in a block written before)';
 DROP INDEX modb.snippet_blocks_directory_idx;
 CREATE INDEX snippet_blocks_directory_idx ON modb.snippet_blocks (pose_key, fps, pack_order)
     INCLUDE (low, high, input_bounds, end_bounds);
+
+-- The rule of coming to rest and setting off (modb.snippets_ending_within) puts a candidate at the least
+-- level L whose scale 2^L its ratio is within, compared as float8 as the scale is.
+--@include 89_synthesis.sql
 
 -- What to run next, where it is seen (an extension script shows WARNINGs, not NOTICEs).
 DO $$
@@ -21,4 +31,3 @@ BEGIN
     END IF;
 END
 $$;
---@include 89_synthesis.sql
