@@ -275,7 +275,8 @@ def _family_after_the_update(db, dsn) -> None:
     assert db.execute(annotations).fetchone()[0] >= counted
     assert db.execute(status).fetchall() == before and all(s is None for _, s in before)
     collection = db.execute(
-        "SELECT modb.collection_path(collection_id) FROM modb.clips WHERE id = 1").fetchone()[0]
+        "SELECT modb.collection_path(collection_id) FROM modb.clips WHERE id = 1"
+    ).fetchone()[0]
     r = run_modb(dsn, "model", "graph", "family", "--collection", collection, process=False)
     assert r.returncode == 0, r.stderr
     assert "kept (current): left steps, right steps" in r.stdout, r.stdout
@@ -366,6 +367,34 @@ def test_old_versions_install_through_the_chain(db):
     )
 
 
+ENDING = "SELECT * FROM modb.{}(%s, ARRAY[0, 0, 0]::float8[], 0.5, %s, 'default', NULL, NULL, %s)"
+
+
+def _endings(db) -> list:
+    """Coming to rest and setting off from every 40th snippet, by the reference (the rule)."""
+    ids = [r[0] for r in db.execute("SELECT id FROM modb.snippets ORDER BY id")][::40]
+    calls = [(i, [1.5 - k % 4, 2.0 + k % 3], k % 2 == 0) for k, i in enumerate(ids)]
+    rule = ENDING.format("select_snippet_ending_reference")
+    return [(c, db.execute(rule, c).fetchall()) for c in calls]
+
+
+def _endings_after_the_update(db, before: list) -> None:
+    """The blocks the update found have no end bounds and answer as before; derived again, every
+    block has them, and the fast path answers as the rule did before the update."""
+    unbounded = (
+        "SELECT count(*) FILTER (WHERE end_bounds IS NULL), count(*) FROM modb.snippet_blocks"
+    )
+    missing, blocks = db.execute(unbounded).fetchone()
+    assert blocks > 0 and missing == blocks
+    for packed in (False, True):
+        if packed:
+            db.execute("SELECT * FROM modb.pack_snippet_blocks(0)")
+            assert db.execute(unbounded).fetchone()[0] == 0
+        for call, rows in before:
+            assert db.execute(ENDING.format("select_snippet_ending"), call).fetchall() == rows, call
+    assert sum(bool(rows) for _, rows in before) >= len(before) // 2
+
+
 @pytest.mark.parametrize("old", OLD_VERSIONS)
 def test_update_keeps_the_data(fresh_db, db, old, fresh_load):
     current = db.execute(
@@ -419,7 +448,11 @@ def test_update_keeps_the_data(fresh_db, db, old, fresh_load):
         db.execute("SELECT modb.build_transition_graph('before', 'locomotion', NULL, 0)")
     if old == "0.19.0":  # the last in-server code: the oracle for the kernel's that workers run too
         stored_before = _retarget_and_edit(db)
+    if old == "0.28.0":  # 0.29.0: blocks' end bounds; the rule's level compared as float8
+        endings_before = _endings(db)
     db.execute("ALTER EXTENSION modb UPDATE")
+    if old == "0.28.0":
+        _endings_after_the_update(db, endings_before)
     if old == "0.21.0":
         _models_in_versions(db, fresh_db, processed_before)
     if old == "0.22.0":
