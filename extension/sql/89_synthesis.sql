@@ -110,9 +110,13 @@ COMMENT ON FUNCTION modb.select_snippet_ending(bigint, float8[], float8, float8[
 CREATE OR REPLACE FUNCTION modb.can_rest(collection text DEFAULT NULL)
 RETURNS boolean
 LANGUAGE sql STABLE PARALLEL SAFE
-RETURN EXISTS (SELECT FROM modb.snippets s
-                WHERE (collection IS NULL OR s.collection_id = ANY (modb.collection_subtree(collection)))
-                  AND modb.end_speed(s.id) < modb.rest_speed());
+-- From the collection's clips (a few) to their snippets by index, the subtree computed once (0.28.0 and
+-- before computed it again for every snippet: 3.7 s for collection cmu of all the shipped data).
+RETURN EXISTS (SELECT FROM modb.clips c
+                 JOIN modb.snippets s ON s.clip_id = c.id AND s.collection_id = c.collection_id
+                 JOIN modb.terminators e ON e.id = s.end_terminator
+                WHERE (collection IS NULL OR c.collection_id = ANY ((SELECT modb.collection_subtree(collection))::bigint[]))
+                  AND sqrt(e.velocities[1] ^ 2 + e.velocities[3] ^ 2) < modb.rest_speed());
 COMMENT ON FUNCTION modb.can_rest(text) IS
     'Whether the collection (NULL: every one) has a snippet that ends standing: synthesis comes to rest after its last goal only then';
 
