@@ -174,13 +174,16 @@ def _kernel_imports(match: re.Match, version: str) -> str:
     return "\n".join(lines)
 
 
-LIBRARY_CHECK = """-- modb {version} runs the modb.so built with it: fail now if this session runs an older one.
+LIBRARY_CHECK = """-- modb {version} runs the modb.so built with it: fail now on an older one.
 DO $$
 BEGIN
     IF string_to_array(modb.library_version(), '.')::int[] < '{{{parts}}}'::int[] THEN
-        RAISE EXCEPTION 'modb {version} needs the modb.so installed with it; this session runs %', modb.library_version()
+        RAISE EXCEPTION 'modb {version} needs the modb.so installed with it; this session runs %',
+                        modb.library_version()
             USING ERRCODE = 'object_not_in_prerequisite_state',
-                  HINT = 'Restart the server (the embedded one: modb db stop, then modb db start; your own: pg_ctl restart or systemctl restart postgresql@15-main), then run this again in a new session.';
+                  HINT = 'Restart the server (the embedded one: modb db stop, then modb db start; '
+                         'your own: pg_ctl restart or systemctl restart postgresql@15-main), '
+                         'then run this again in a new session.';
     END IF;
 END
 $$;"""

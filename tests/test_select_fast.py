@@ -415,7 +415,8 @@ def test_coming_to_rest_and_setting_off_answer_as_their_reference(cmu):
     """select_snippet_ending (C, 0.18.0) returns what select_snippet_ending_reference (the SQL
     rule of coming to rest and setting off) returns: the same snippet, level, proximity and ratio,
     or none; at every level, each one the least L with ratio <= 2^L; and it answers by itself
-    (0.28.0 and before sent every call to the reference: the function statistics count its calls)."""
+    (0.28.0 and before sent every call to the reference: the function statistics count its
+    calls)."""
     rng = random.Random(41)
     call = "SELECT * FROM modb.{}(%s, %s, %s, %s, %s, NULL, %s, %s)"
     levels = {}

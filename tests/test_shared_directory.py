@@ -1,8 +1,9 @@
 """Sessions share the block directory and the resolved match plans where modb.so is preloaded
-(0.29.0: src/shared_directory.c, src/shared_plans.c; the test clusters preload it as the embedded one
-does): a new session maps what another read at the generation its snapshot reads, a new generation
-is read once and shared, a transaction that wrote keeps its own; modb.explain_selection says which
-served. Every comparison with the reference elsewhere in the suite runs with sharing on."""
+(0.29.0: src/shared_directory.c, src/shared_plans.c; the test clusters preload it as the embedded
+one does): a new session maps what another read at the generation its snapshot reads, a new
+generation is read once and shared, a transaction that wrote keeps its own;
+modb.explain_selection says which served. Every comparison with the reference elsewhere in the
+suite runs with sharing on."""
 
 from __future__ import annotations
 
@@ -72,7 +73,8 @@ def test_a_new_generation_is_read_once_and_shared_and_answers_as_the_rule(walk):
     with psycopg.connect(walk, autocommit=True) as older:
         _explained(older, prev)  # maps the current generation
         with psycopg.connect(walk, autocommit=True) as writer:
-            writer.execute("SELECT * FROM modb.pack_snippet_blocks(0)")  # new blocks, a new generation
+            # new blocks, a new generation
+            writer.execute("SELECT * FROM modb.pack_snippet_blocks(0)")
         assert "(shared directory, read now)" in _in_new_session(walk, prev)[1]
         assert "(shared directory)" in _in_new_session(walk, prev)[1]
         # The session that mapped the old generation maps the new one, read by another.

@@ -65,7 +65,7 @@ typedef struct BlockSource
 
 /*
  * modb.rest_speed() and modb.walk_speed() (89_synthesis.sql, m/s), by which a block's end bounds sort its
- * snippets (test_selection_ending holds them equal): end_bounds holds the {x, z} bounds of the net
+ * snippets (a search uses them only where those functions return these): end_bounds holds the {x, z} bounds of the net
  * translations of the snippets that end standing (x low, z low, x high, z high; NaN: none), then of those
  * that end walking, so that coming to rest and setting off pass over a block that has none without reading
  * it, and rank the others by the snippets that can answer (0.29.0).
