@@ -65,10 +65,10 @@ typedef struct BlockSource
 
 /*
  * modb.rest_speed() and modb.walk_speed() (89_synthesis.sql, m/s), by which a block's end bounds sort its
- * snippets (a search uses them only where those functions return these): end_bounds holds the {x, z} bounds of the net
- * translations of the snippets that end standing (x low, z low, x high, z high; NaN: none), then of those
- * that end walking, so that coming to rest and setting off pass over a block that has none without reading
- * it, and rank the others by the snippets that can answer (0.29.0).
+ * snippets (a search uses them only where those functions return these): end_bounds holds the {x, z}
+ * bounds of the net translations of the snippets that end standing (x low, z low, x high, z high; NaN:
+ * none), then of those that end walking, so that coming to rest and setting off pass over a block that
+ * has none without reading it, and rank the others by the snippets that can answer (0.29.0).
  */
 #define BLOCK_REST_SPEED 0.1
 #define BLOCK_WALK_SPEED 0.5
