@@ -184,6 +184,12 @@ class Cluster:
         self.run_server()
         if not self._preloads_modb():
             self._preload_modb(restart=started)
+        elif self._runs_an_older_library():
+            # A preloaded library is the one loaded at the server's start: the update below needs
+            # the one installed since (modb.library_version), and this cluster is private.
+            print("modb: restarting the server: it runs an older modb.so than the one installed",
+                  file=sys.stderr)  # fmt: skip
+            self._run(_bindir() / "pg_ctl", "restart", "-w", "-D", self.datadir, "-l", self.logfile)
         self.ensure_database(DATABASE)
 
     def run_server(self) -> None:
@@ -195,6 +201,27 @@ class Cluster:
         with psycopg.connect(self.dsn("postgres"), autocommit=True) as conn:
             preloaded = conn.execute("SHOW shared_preload_libraries").fetchone()[0]
         return "modb" in [name.strip() for name in preloaded.split(",")]
+
+    def _runs_an_older_library(self) -> bool:
+        """Whether the library the server loaded is older than the extension installed on disk."""
+        probe = (
+            "CREATE FUNCTION pg_temp.modb_library_version() RETURNS text LANGUAGE c "
+            "AS '$libdir/modb', 'modb_library_version'"
+        )
+        with psycopg.connect(self.dsn("postgres"), autocommit=True) as conn:
+            (installed,) = conn.execute(
+                "SELECT string_to_array(default_version, '.')::int[] FROM pg_available_extensions "
+                "WHERE name = 'modb'"
+            ).fetchone()
+            try:
+                with conn.transaction(force_rollback=True):
+                    conn.execute(probe)
+                    (loaded,) = conn.execute(
+                        "SELECT string_to_array(pg_temp.modb_library_version(), '.')::int[]"
+                    ).fetchone()
+            except psycopg.errors.UndefinedFunction:
+                return True  # a library before 0.29.0
+        return loaded < installed
 
     def _preload_modb(self, restart: bool) -> None:
         """Clusters made before 0.29.0 load modb per session: from their next start, at the
