@@ -147,10 +147,39 @@ def test_fast_path_equals_the_reference_with_a_transition_graph(locomotion):
     assert stored >= 100  # level 0 read the graph's stored transitions and ranked by its cost-to-go
 
 
-def test_a_start_and_errors_are_the_references(cmu):
+def test_a_start_and_errors_are_the_references(cmu, locomotion):
+    """A start (no previous snippet; 0.29.0's fast path, every pose's blocks least objective first)
+    returns the reference's rows: targets near and far, k, profiles, a collection, excluded
+    snippets, an annotation spec and a transition graph; the errors are the reference's."""
+    rng = random.Random(7)
+    for dsn in (cmu, locomotion):
+        with connect(dsn) as conn:
+            ids = [r[0] for r in conn.execute("SELECT id FROM modb.snippets ORDER BY id")]
+            collections = [
+                r[0] for r in conn.execute("SELECT modb.collection_path(id) FROM modb.collections")
+            ]
+            graph = conn.execute(
+                "SELECT name FROM modb.graphs WHERE kind = 'transitions' LIMIT 1"
+            ).fetchone()
+            for i in range(12 if dsn == cmu else 8):  # the reference scans every snippet
+                args = [
+                    None,
+                    [round(rng.uniform(-8, 8), 2) for _ in range(rng.choice((2, 3)))],
+                    rng.choice((1, 3, 8)),
+                    rng.choice(PROFILES),
+                    rng.choice(collections) if i % 4 == 1 else None,
+                    rng.sample(ids, 20) if i % 4 == 2 else None,
+                ]
+                knob = {3: ("modb.annotations", "!fall"), 0: ("modb.graph", graph and graph[0])}
+                setting = knob.get(i % 4) if i % 8 < 4 else None
+                if setting and setting[1]:
+                    conn.execute("SELECT set_config(%s, %s, false)", list(setting))
+                fast, reference = _both(conn, args)
+                assert fast == reference and fast, (args, setting)
+                assert "the fast path" in _answered_by(conn, args), args
+                conn.execute("RESET modb.annotations")
+                conn.execute("RESET modb.graph")
     with connect(cmu) as conn:
-        args = [None, [1.0, 2.0], 3, "default", None, None]
-        assert _both(conn, args)[0] == _both(conn, args)[1]
         for bad, message in (
             ([1, [1.0], 1, "default", None, None], "target must be"),
             ([1, [1.0, 2.0], 0, "default", None, None], "k must be at least 1"),

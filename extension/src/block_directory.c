@@ -718,8 +718,8 @@ modb_block_search(Oid relid, int64 generation, const char *pose_key, double fps,
 		const Entry *entries = (const Entry *) IMAGE_AT(g->entries_offset);
 		const Box16 *supers = (const Box16 *) IMAGE_AT(g->supers_offset);
 
-		if (g->fps != fps || strcmp(IMAGE_AT(g->key_offset), pose_key) != 0)
-			continue;
+		if (pose_key != NULL && (g->fps != fps || strcmp(IMAGE_AT(g->key_offset), pose_key) != 0))
+			continue;			/* NULL: every pose and rate (a start) */
 		for (int s = 0; s * SUPER_BLOCKS < g->count; s++)
 		{
 			if (!box_meets(&supers[s], from, to))

@@ -295,7 +295,8 @@ read_excluded(Request *r, Datum exclude)
 				   1, types);
 	if (SPI_execute_plan(query, args, NULL, true, 0) != SPI_OK_SELECT)
 		elog(ERROR, "modb: reading the excluded snippets failed");
-	r->played = repalloc(r->played, sizeof(Played) * (r->n_played + SPI_processed));
+	r->played = r->played ? repalloc(r->played, sizeof(Played) * (r->n_played + SPI_processed))
+		: palloc(sizeof(Played) * Max(SPI_processed, 1));
 	for (uint64 i = 0; i < SPI_processed; i++)
 		r->played[r->n_played++] = played_of(SPI_tuptable->vals[i], SPI_tuptable->tupdesc);
 }
@@ -505,6 +506,7 @@ typedef struct LevelRead
 {
 	const Request *r;
 	const Ending *ending;		/* NULL: select_next_snippets' rule */
+	bool		start;			/* no previous snippet: every pose, ranked by the objective alone */
 	SPIPlanPtr	query;
 	Datum		graph_id;
 	bool		no_graph;
@@ -611,16 +613,20 @@ read_and_check(LevelRead *lr, const Pending *pending, int n)
 			continue;
 		if (lr->stats)
 			lr->stats->in_box++;
-		if (!stored && !same_pose_and_rate(r, row))
+		if (!stored && !lr->start && !same_pose_and_rate(r, row))
 			continue;
 		if (lr->ending ? !ending_filters(r, lr->ending, row) : !passes_filters(r, row))
 			continue;
 		if (lr->stats)
 			lr->stats->filtered++;
-		begin = terminator_of(&row->values[COL_POSITIONS - 1]);
-		c.ratio = modb_continuity(&r->end, &begin, &r->plan->thresholds);
-		if (!(c.ratio <= lr->high && c.ratio > lr->low))
-			continue;
+		c.ratio = NAN;			/* a start follows nothing */
+		if (!lr->start)
+		{
+			begin = terminator_of(&row->values[COL_POSITIONS - 1]);
+			c.ratio = modb_continuity(&r->end, &begin, &r->plan->thresholds);
+			if (!(c.ratio <= lr->high && c.ratio > lr->low))
+				continue;
+		}
 		if (lr->stats)
 			lr->stats->within++;
 		c.row = row;
@@ -636,7 +642,7 @@ read_and_check(LevelRead *lr, const Pending *pending, int n)
 			? graph_objective(r, row, &c.proximity)
 			: proximity_of(r, row, &c.proximity);
 		c.has_key = c.has_proximity;
-		c.key = c.proximity + r->plan->continuity_weight * c.ratio;
+		c.key = lr->start ? c.proximity : c.proximity + r->plan->continuity_weight * c.ratio;
 		keep_best(lr->best, &lr->n_best, lr->need, &c);
 	}
 }
@@ -682,7 +688,8 @@ candidate_pending(const LevelRead *lr, const BlockCandidate *c, double least, Pe
 			+ 1e-12 * (1 + fabs(p->bound));
 		/* x + y rounds monotonically in y: no key at this level is below this (nor, for a weight of
 		 * at least 0, below the weight times the least ratio its term codes allow) */
-		p->bound += weight >= 0 ? Max(least, weight * p->least_ratio) : least;
+		if (!lr->start)
+			p->bound += weight >= 0 ? Max(least, weight * p->least_ratio) : least;
 	}
 }
 
@@ -740,6 +747,8 @@ block_bound(const float *lo, const float *hi, void *arg)
 		+ heading_weight * turn;
 	bound -= ldexp(2 * largest + fabs(heading_weight) * Max(fabs(lo[6]), fabs(hi[6])), -20) + 1e-12 * (1 + fabs(bound))
 		+ 1e-9 * (1 + heading_weight);	/* sin, cos and atan2 of an end, against the row's own */
+	if (lr->start)
+		return bound;			/* the objective alone */
 	return bound + (weight >= 0 ? weight * Max(lr->low, 0.0) : weight * lr->high);
 }
 
@@ -845,7 +854,7 @@ run_level(LevelRead *lr, BlockSearch *search, const int64 *stored_ids, int n_sto
 		values[7] = Int32GetDatum(level);
 		isnull[7] = false;
 		values[8] = Float8GetDatum(c->ratio);
-		isnull[8] = false;
+		isnull[8] = lr->start;
 		values[9] = row_value(c->row, COL_NET_TRANSLATION, &isnull[9]);
 		values[10] = row_value(c->row, COL_NET_ROTATION, &isnull[10]);
 		values[11] = row_value(c->row, COL_NET_HEADING, &isnull[11]);
@@ -985,6 +994,56 @@ fast_path(Request *r, Tuplestorestate *store, TupleDesc out, SelectionStats *sta
 	return emitted >= r->k;
 }
 
+/* What a start reads instead of a previous snippet: the generations, the blocks' relation, the version. */
+static void
+read_generations(Request *r)
+{
+	static SPIPlanPtr query;
+	bool		isnull;
+
+	modb_kept_plan(&query,
+				   "SELECT (SELECT g.generation FROM modb.generations g WHERE g.name = 'snippet_blocks'),"
+				   "       to_regclass('modb.snippet_blocks')::oid,"
+				   "       (SELECT g.generation FROM modb.generations g WHERE g.name = 'match_plans'),"
+				   "       (SELECT x.extversion FROM pg_catalog.pg_extension x WHERE x.extname = 'modb')",
+				   0, NULL);
+	if (SPI_execute_plan(query, NULL, NULL, true, 1) != SPI_OK_SELECT || SPI_processed != 1)
+		elog(ERROR, "modb: reading the generations failed");
+	r->blocks_generation = DatumGetInt64(SPI_getbinval(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 1, &isnull));
+	r->blocks_relid = DatumGetObjectId(SPI_getbinval(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 2, &isnull));
+	r->plans_generation = DatumGetInt64(SPI_getbinval(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 3, &isnull));
+	r->extension_version = SPI_getvalue(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 4);
+}
+
+/*
+ * A start (no previous snippet; 0.29.0): the reference ranks every snippet that passes the filters, of any
+ * pose and rate, by its objective (modb.approach_cost) alone, level 0, no continuity. Answered from the
+ * blocks of every pose, read least objective bound first, as a level reads a box: the same rows.
+ */
+static void
+start_path(Request *r, Tuplestorestate *store, TupleDesc out, SelectionStats *stats)
+{
+	double		lo[N_FEATURES],
+				hi[N_FEATURES];
+	int			emitted = 0;
+	bool		annotated = r->plan->annotations != NULL;
+	BlockSearch *search;
+	LevelRead	lr = {.r = r, .start = true, .graph_id = Int64GetDatum(r->plan->graph_id),
+		.no_graph = !r->plan->has_graph, .annotations = annotated ? CStringGetTextDatum(r->plan->annotations) : (Datum) 0,
+		.lo = lo, .hi = hi, .low = -INFINITY, .high = INFINITY, .stats = stats ? &stats->levels[0] : NULL};
+
+	for (int i = 0; i < N_FEATURES; i++)
+	{
+		lo[i] = -INFINITY;
+		hi[i] = INFINITY;
+	}
+	search = modb_block_search(r->blocks_relid, r->blocks_generation, NULL, 0, lo, hi, NULL, BLOCK_ENDS_ANY,
+							   block_bound, &lr, lr.stats ? &lr.stats->blocks : NULL);
+	lr.query = candidates_query(false, annotated);
+	run_level(&lr, search, NULL, 0, 0, store, out, &emitted);
+	modb_block_search_end(search);
+}
+
 /* The rows of a reference function (its query, with the call's first nargs arguments), put into the store. */
 static void
 reference_rows(FunctionCallInfo fcinfo, SPIPlanPtr *slot, const char *query, int nargs, Oid *types,
@@ -1045,13 +1104,12 @@ modb_select(FunctionCallInfo fcinfo, Tuplestorestate *store, TupleDesc out, Sele
 	r.k = PG_GETARG_INT32(2);
 	r.prev = PG_ARGISNULL(0) ? 0 : PG_GETARG_INT64(0);
 	if (PG_ARGISNULL(0))
-		reason = "a start (no previous snippet) ranks every snippet";
+		read_generations(&r);
 	else if (!read_previous(&r))
 	{
 		check_request(fcinfo, NULL, NULL);	/* no snippet prev: its error */
 		elog(ERROR, "modb: no snippet " INT64_FORMAT, r.prev);
 	}
-	else
 	{
 		r.plan = modb_match_plan(PG_ARGISNULL(3) ? NULL : PG_GETARG_TEXT_PP(3), r.plans_generation, r.blocks_relid,
 								 r.extension_version);
@@ -1062,7 +1120,7 @@ modb_select(FunctionCallInfo fcinfo, Tuplestorestate *store, TupleDesc out, Sele
 			stats->plan = r.plan;
 			stats->plan_ms = INSTR_TIME_GET_MILLISEC(now);
 		}
-		if (r.plan->has_graph && r.plan->graph_lookahead && !r.plan->has_grid)
+		if (r.plan->has_graph && r.plan->graph_lookahead && !r.plan->has_grid && !PG_ARGISNULL(0))
 			reason = "graph_lookahead, with a graph that has no cost-to-go";
 		else
 		{
@@ -1070,7 +1128,9 @@ modb_select(FunctionCallInfo fcinfo, Tuplestorestate *store, TupleDesc out, Sele
 				read_excluded(&r, PG_GETARG_DATUM(5));
 			modb_aim_point(r.target, r.n, r.plan->has_lookahead, r.plan->lookahead, r.aim);
 			r.direction = modb_aim_direction(r.aim, r.n);
-			if (!fast_path(&r, store, out, stats))
+			if (PG_ARGISNULL(0))
+				start_path(&r, store, out, stats);	/* a start: every snippet, its objective alone */
+			else if (!fast_path(&r, store, out, stats))
 			{
 				tuplestore_clear(store);
 				reason = "levels 0-3 found fewer than k rows: level 4 (the nearest start) is needed";

@@ -112,7 +112,8 @@ extern void modb_block_row(HeapTuple row, TupleDesc desc, int features, int64 *i
 struct TermTest;					/* term_codes.h */
 
 /*
- * A box search over the blocks (block_directory.c): the blocks of the pose and rate whose bounds meet the
+ * A box search over the blocks (block_directory.c): the blocks of the pose and rate (pose_key NULL: of
+ * every one, for a start) whose bounds meet the
  * box and whose term bounds the directory cannot reject (`test`: NULL, none) and that may hold a snippet
  * that ends as `ends` asks, each with the least key its snippets can have, which `bound` computes from the
  * bounds of their objective inputs (of those ending as asked, where the block holds them; -Infinity where
