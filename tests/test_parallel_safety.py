@@ -108,6 +108,7 @@ CALLS: dict[str, Call] = {
         " a.target, a.heading_weight) FROM args a JOIN modb.snippets s ON s.id = a.snippet"
     ),
     "modb.can_rest(text)": Call("SELECT modb.can_rest(a.collection) FROM args a"),
+    "modb.library_version()": Call("SELECT modb.library_version() FROM args a"),
     "modb.candidates_examined(bigint,integer,text)": Call(
         "SELECT modb.candidates_examined(a.snippet, a.relax_level, a.profile) FROM args a"
     ),
