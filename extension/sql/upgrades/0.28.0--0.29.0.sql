@@ -9,7 +9,7 @@
 -- bounds of its snippets that end standing, and of those that end walking), which the block directory
 -- holds, so that modb.select_snippet_ending passes over the blocks with no snippet ending as asked without
 -- reading them. The update adds the column and the directory index's copy of it in seconds; the blocks it
--- finds have none (NULL) and answer as in 0.28.0 until modb.pack_snippet_blocks derives them again, which
+-- finds have none (NULL) and are all read until modb.pack_snippet_blocks derives them again, which
 -- `modb db start` does for the embedded database and a load does for the poses it packs.
 ALTER TABLE modb.snippet_blocks ADD COLUMN end_bounds real[];
 COMMENT ON COLUMN modb.snippet_blocks.end_bounds IS
@@ -26,7 +26,7 @@ CREATE INDEX snippet_blocks_directory_idx ON modb.snippet_blocks (pose_key, fps,
 DO $$
 BEGIN
     IF EXISTS (SELECT FROM modb.snippet_blocks) THEN
-        RAISE WARNING 'modb 0.29.0: the snippet blocks have no end bounds yet; coming to rest and setting off answer as in 0.28.0 until they are derived again'
+        RAISE WARNING 'modb 0.29.0: the snippet blocks have no end bounds yet; coming to rest and setting off read more blocks until they are derived again'
             USING HINT = 'Run SELECT * FROM modb.pack_snippet_blocks(0); once (it runs beside live selections: about 30 s a million snippets). modb db start does it by itself.';
     END IF;
 END
