@@ -327,10 +327,14 @@ class Avatar:
             }
             if request["prev"] is None:
                 row = self.conn.execute(_SELECT, query, prepare=True).fetchone()
+                latency = (time.perf_counter() - t) * 1000.0
+                # Asked now, before the first frames play, not when the walk comes to rest
+                # (a small collection of a large database: a quarter of a second).
+                self._can_rest(request["collection"])
             else:
                 query["resting"] = request["resting"] and self._can_rest(request["collection"])
                 row = self._step(query, previous)
-            latency = (time.perf_counter() - t) * 1000.0
+                latency = (time.perf_counter() - t) * 1000.0
             if row is not None and request["count_candidates"]:
                 candidates = self._candidates(query.get("prev"), row[6], request["profile"])
             if row is None and previous is None:
