@@ -1,9 +1,10 @@
 /*
  * The block directory: each snippet block's bounds, 16-bit on each feature's fixed physical scale, and the
- * bounds of its snippets' objective inputs, by (pose, rate) group, kept in this session's memory (about 270
- * bytes a block: 8.4 MiB at a million snippets), with a box over every SUPER_BLOCKS consecutive blocks above
- * them (packed blocks in the order of their packing, a subtree of its split each, then the others in
- * table order). A box search tests the groups, the super boxes and the blocks here and ranks the blocks
+ * bounds of its snippets' objective inputs and end bounds, by (pose, rate) group, laid out as one image
+ * without pointers (about 300 bytes a block: 9 MiB at a million snippets) that the server's sessions share
+ * where modb is preloaded (shared_directory.c), else kept in this session's memory; with a box over every
+ * SUPER_BLOCKS consecutive blocks above them (packed blocks in the order of their packing, a subtree of its
+ * split each, then the others in table order). A box search tests the groups, the super boxes and the blocks here and ranks the blocks
  * that meet the box by the least key their snippets can have; the caller reads them in that order, each
  * from modb.snippet_blocks (under the caller's snapshot, by its tuple id), whose snippets' feature codes
  * and term codes (term_codes.c) are tested: what passes is a superset of the snippets in the box whose
@@ -307,8 +308,9 @@ bound_inputs_of(Entry *e, Datum array, bool isnull)
 
 /*
  * The directory from snippet_blocks_directory_idx: (pose_key, fps, pack_order) INCLUDE (low, high,
- * input_bounds, end_bounds) (0.18.0 to 0.28.0: without end_bounds), an index-only scan under the caller's snapshot (a heap page not all-visible has its
- * tuple's visibility checked there, as an Index Only Scan does). Blocks are never updated, only added and
+ * input_bounds, end_bounds) (0.18.0 to 0.28.0: without end_bounds), an index-only scan under the caller's
+ * snapshot (a heap page not all-visible has its tuple's visibility checked there, as an Index Only Scan
+ * does). Blocks are never updated, only added and
  * deleted, so an index entry's tuple id is its block's. False when there is no such index.
  */
 static bool

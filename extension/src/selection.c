@@ -1029,7 +1029,8 @@ start_path(Request *r, Tuplestorestate *store, TupleDesc out, SelectionStats *st
 	bool		annotated = r->plan->annotations != NULL;
 	BlockSearch *search;
 	LevelRead	lr = {.r = r, .start = true, .graph_id = Int64GetDatum(r->plan->graph_id),
-		.no_graph = !r->plan->has_graph, .annotations = annotated ? CStringGetTextDatum(r->plan->annotations) : (Datum) 0,
+		.no_graph = !r->plan->has_graph,
+		.annotations = annotated ? CStringGetTextDatum(r->plan->annotations) : (Datum) 0,
 		.lo = lo, .hi = hi, .low = -INFINITY, .high = INFINITY, .stats = stats ? &stats->levels[0] : NULL};
 
 	for (int i = 0; i < N_FEATURES; i++)
