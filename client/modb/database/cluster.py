@@ -209,10 +209,12 @@ class Cluster:
             "AS '$libdir/modb', 'modb_library_version'"
         )
         with psycopg.connect(self.dsn("postgres"), autocommit=True) as conn:
-            (installed,) = conn.execute(
+            available = conn.execute(
                 "SELECT string_to_array(default_version, '.')::int[] FROM pg_available_extensions "
                 "WHERE name = 'modb'"
             ).fetchone()
+            if available is None:
+                return False  # not installed: CREATE EXTENSION below says so
             try:
                 with conn.transaction(force_rollback=True):
                     conn.execute(probe)
@@ -221,7 +223,7 @@ class Cluster:
                     ).fetchone()
             except psycopg.errors.UndefinedFunction:
                 return True  # a library before 0.29.0
-        return loaded < installed
+        return loaded < available[0]
 
     def _preload_modb(self, restart: bool) -> None:
         """Clusters made before 0.29.0 load modb per session: from their next start, at the
