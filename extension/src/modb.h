@@ -10,6 +10,14 @@
 /* settings.c: the session knobs, in modb.match_knobs() order. */
 #define N_KNOBS 14
 extern void modb_define_settings(void);
+
+/*
+ * Shared memory of the preloaded library (module.c): a named struct whose first member is the LWLock * that
+ * guards it, asked for at server start (from the request hook) and then set up, zeroed, with its lock named
+ * after it (from the startup hook).
+ */
+extern void modb_shared_request(const char *name, Size size);
+extern void *modb_shared_struct(const char *name, Size size);
 extern const char *modb_knob_value(int knob);
 extern const char *modb_knob_name(int knob);
 extern bool modb_knob_is_profile(const char *value);

@@ -232,6 +232,25 @@ played_of(HeapTuple row, TupleDesc desc)
 	return p;
 }
 
+/* What every call reads beside its request: the generations, the blocks' relation, the version. */
+#define GENERATION_COLUMNS \
+	"(SELECT g.generation FROM modb.generations g WHERE g.name = 'snippet_blocks')," \
+	" to_regclass('modb.snippet_blocks')::oid," \
+	" (SELECT g.generation FROM modb.generations g WHERE g.name = 'match_plans')," \
+	" (SELECT x.extversion FROM pg_catalog.pg_extension x WHERE x.extname = 'modb')"
+
+/* GENERATION_COLUMNS, from column `first` of a row. */
+static void
+generations_of(Request *r, HeapTuple row, TupleDesc desc, int first)
+{
+	bool		isnull;
+
+	r->blocks_generation = DatumGetInt64(SPI_getbinval(row, desc, first, &isnull));
+	r->blocks_relid = DatumGetObjectId(SPI_getbinval(row, desc, first + 1, &isnull));
+	r->plans_generation = DatumGetInt64(SPI_getbinval(row, desc, first + 2, &isnull));
+	r->extension_version = SPI_getvalue(row, desc, first + 3);
+}
+
 /* The previous snippet's end terminator and the frames it played; false when there is no such snippet. */
 static bool
 read_previous(Request *r)
@@ -246,11 +265,7 @@ read_previous(Request *r)
 
 	modb_kept_plan(&query,
 				   "SELECT s.clip_id, s.version, s.mirrored, s.first_frame, s.n_frames, s.pose_key, s.fps, t.features,"
-				   "       t.positions, t.rotations, t.velocities, t.angular_velocities,"
-				   "       (SELECT g.generation FROM modb.generations g WHERE g.name = 'snippet_blocks'),"
-				   "       to_regclass('modb.snippet_blocks')::oid,"
-				   "       (SELECT g.generation FROM modb.generations g WHERE g.name = 'match_plans'),"
-				   "       (SELECT x.extversion FROM pg_catalog.pg_extension x WHERE x.extname = 'modb')"
+				   "       t.positions, t.rotations, t.velocities, t.angular_velocities, " GENERATION_COLUMNS
 				   "  FROM modb.snippets s JOIN modb.terminators t ON t.id = s.end_terminator WHERE s.id = $1",
 				   1, types);
 	if (SPI_execute_plan(query, args, NULL, true, 1) != SPI_OK_SELECT || SPI_processed != 1)
@@ -274,10 +289,7 @@ read_previous(Request *r)
 			arrays[i] = SPI_getbinval(row, desc, 9 + i, &isnull);
 		r->end = terminator_of(arrays);
 	}
-	r->blocks_generation = DatumGetInt64(SPI_getbinval(row, desc, 13, &isnull));
-	r->blocks_relid = DatumGetObjectId(SPI_getbinval(row, desc, 14, &isnull));
-	r->plans_generation = DatumGetInt64(SPI_getbinval(row, desc, 15, &isnull));
-	r->extension_version = SPI_getvalue(row, desc, 16);
+	generations_of(r, row, desc, 13);
 	return true;
 }
 
@@ -994,25 +1006,16 @@ fast_path(Request *r, Tuplestorestate *store, TupleDesc out, SelectionStats *sta
 	return emitted >= r->k;
 }
 
-/* What a start reads instead of a previous snippet: the generations, the blocks' relation, the version. */
+/* What a start reads instead of a previous snippet. */
 static void
 read_generations(Request *r)
 {
 	static SPIPlanPtr query;
-	bool		isnull;
 
-	modb_kept_plan(&query,
-				   "SELECT (SELECT g.generation FROM modb.generations g WHERE g.name = 'snippet_blocks'),"
-				   "       to_regclass('modb.snippet_blocks')::oid,"
-				   "       (SELECT g.generation FROM modb.generations g WHERE g.name = 'match_plans'),"
-				   "       (SELECT x.extversion FROM pg_catalog.pg_extension x WHERE x.extname = 'modb')",
-				   0, NULL);
+	modb_kept_plan(&query, "SELECT " GENERATION_COLUMNS, 0, NULL);
 	if (SPI_execute_plan(query, NULL, NULL, true, 1) != SPI_OK_SELECT || SPI_processed != 1)
 		elog(ERROR, "modb: reading the generations failed");
-	r->blocks_generation = DatumGetInt64(SPI_getbinval(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 1, &isnull));
-	r->blocks_relid = DatumGetObjectId(SPI_getbinval(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 2, &isnull));
-	r->plans_generation = DatumGetInt64(SPI_getbinval(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 3, &isnull));
-	r->extension_version = SPI_getvalue(SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 4);
+	generations_of(r, SPI_tuptable->vals[0], SPI_tuptable->tupdesc, 1);
 }
 
 /*
@@ -1111,31 +1114,29 @@ modb_select(FunctionCallInfo fcinfo, Tuplestorestate *store, TupleDesc out, Sele
 		check_request(fcinfo, NULL, NULL);	/* no snippet prev: its error */
 		elog(ERROR, "modb: no snippet " INT64_FORMAT, r.prev);
 	}
+	r.plan = modb_match_plan(PG_ARGISNULL(3) ? NULL : PG_GETARG_TEXT_PP(3), r.plans_generation, r.blocks_relid,
+							 r.extension_version);
+	if (stats)
 	{
-		r.plan = modb_match_plan(PG_ARGISNULL(3) ? NULL : PG_GETARG_TEXT_PP(3), r.plans_generation, r.blocks_relid,
-								 r.extension_version);
-		if (stats)
+		INSTR_TIME_SET_CURRENT(now);
+		INSTR_TIME_SUBTRACT(now, start);
+		stats->plan = r.plan;
+		stats->plan_ms = INSTR_TIME_GET_MILLISEC(now);
+	}
+	if (r.plan->has_graph && r.plan->graph_lookahead && !r.plan->has_grid && !PG_ARGISNULL(0))
+		reason = "graph_lookahead, with a graph that has no cost-to-go";
+	else
+	{
+		if (!PG_ARGISNULL(5))
+			read_excluded(&r, PG_GETARG_DATUM(5));
+		modb_aim_point(r.target, r.n, r.plan->has_lookahead, r.plan->lookahead, r.aim);
+		r.direction = modb_aim_direction(r.aim, r.n);
+		if (PG_ARGISNULL(0))
+			start_path(&r, store, out, stats);	/* a start: every snippet, its objective alone */
+		else if (!fast_path(&r, store, out, stats))
 		{
-			INSTR_TIME_SET_CURRENT(now);
-			INSTR_TIME_SUBTRACT(now, start);
-			stats->plan = r.plan;
-			stats->plan_ms = INSTR_TIME_GET_MILLISEC(now);
-		}
-		if (r.plan->has_graph && r.plan->graph_lookahead && !r.plan->has_grid && !PG_ARGISNULL(0))
-			reason = "graph_lookahead, with a graph that has no cost-to-go";
-		else
-		{
-			if (!PG_ARGISNULL(5))
-				read_excluded(&r, PG_GETARG_DATUM(5));
-			modb_aim_point(r.target, r.n, r.plan->has_lookahead, r.plan->lookahead, r.aim);
-			r.direction = modb_aim_direction(r.aim, r.n);
-			if (PG_ARGISNULL(0))
-				start_path(&r, store, out, stats);	/* a start: every snippet, its objective alone */
-			else if (!fast_path(&r, store, out, stats))
-			{
-				tuplestore_clear(store);
-				reason = "levels 0-3 found fewer than k rows: level 4 (the nearest start) is needed";
-			}
+			tuplestore_clear(store);
+			reason = "levels 0-3 found fewer than k rows: level 4 (the nearest start) is needed";
 		}
 	}
 	if (reason != NULL)

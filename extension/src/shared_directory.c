@@ -15,10 +15,9 @@
 #include "access/xact.h"
 #include "miscadmin.h"
 #include "storage/dsm.h"
-#include "storage/ipc.h"
 #include "storage/lwlock.h"
-#include "storage/shmem.h"
 
+#include "modb.h"
 #include "shared_directory.h"
 
 #define SHARED_SLOTS 32			/* databases (and relations) whose directories are shared at once */
@@ -40,46 +39,21 @@ typedef struct SharedRegistry
 	SharedSlot	slots[SHARED_SLOTS];
 } SharedRegistry;
 
+#define REGISTRY "modb block directories"	/* the struct's name in shared memory, and its lock's */
+
 static SharedRegistry *registry;
-static shmem_request_hook_type previous_request;
-static shmem_startup_hook_type previous_startup;
 static dsm_segment *attached;	/* the segment this session maps, if any */
 
-static void
-request_shared(void)
+void
+modb_shared_directory_request(void)
 {
-	if (previous_request)
-		previous_request();
-	RequestAddinShmemSpace(MAXALIGN(sizeof(SharedRegistry)));
-	RequestNamedLWLockTranche("modb block directories", 1);
-}
-
-static void
-start_shared(void)
-{
-	bool		found;
-
-	if (previous_startup)
-		previous_startup();
-	LWLockAcquire(AddinShmemInitLock, LW_EXCLUSIVE);
-	registry = ShmemInitStruct("modb block directories", sizeof(SharedRegistry), &found);
-	if (!found)
-	{
-		memset(registry, 0, sizeof(SharedRegistry));
-		registry->lock = &(GetNamedLWLockTranche("modb block directories"))->lock;
-	}
-	LWLockRelease(AddinShmemInitLock);
+	modb_shared_request(REGISTRY, sizeof(SharedRegistry));
 }
 
 void
-modb_shared_directory_init(void)
+modb_shared_directory_start(void)
 {
-	if (!process_shared_preload_libraries_in_progress)
-		return;
-	previous_request = shmem_request_hook;
-	shmem_request_hook = request_shared;
-	previous_startup = shmem_startup_hook;
-	shmem_startup_hook = start_shared;
+	registry = modb_shared_struct(REGISTRY, sizeof(SharedRegistry));
 }
 
 bool

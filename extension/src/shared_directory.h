@@ -5,8 +5,9 @@
 #ifndef SHARED_DIRECTORY_H
 #define SHARED_DIRECTORY_H
 
-/* From _PG_init: asks for the registry's shared memory when the library is preloaded. */
-extern void modb_shared_directory_init(void);
+/* module.c's shared memory hooks, where the library is preloaded: the registry asked for, then set up. */
+extern void modb_shared_directory_request(void);
+extern void modb_shared_directory_start(void);
 extern bool modb_shared_directory_available(void);
 /* The shared image of modb.snippet_blocks (relid, relfilenode) at this generation, mapped; NULL: none. */
 extern const void *modb_shared_directory_attach(Oid relid, Oid relfilenode, int64 generation);

@@ -12,9 +12,7 @@
 
 #include "access/xact.h"
 #include "miscadmin.h"
-#include "storage/ipc.h"
 #include "storage/lwlock.h"
-#include "storage/shmem.h"
 
 #include "shared_plans.h"
 
@@ -40,45 +38,20 @@ typedef struct SharedPlans
 	SharedPlan	plans[SHARED_PLANS];
 } SharedPlans;
 
+#define PLANS "modb match plans"	/* the struct's name in shared memory, and its lock's */
+
 static SharedPlans *shared;
-static shmem_request_hook_type previous_request;
-static shmem_startup_hook_type previous_startup;
 
-static void
-request_shared(void)
+void
+modb_shared_plans_request(void)
 {
-	if (previous_request)
-		previous_request();
-	RequestAddinShmemSpace(MAXALIGN(sizeof(SharedPlans)));
-	RequestNamedLWLockTranche("modb match plans", 1);
-}
-
-static void
-start_shared(void)
-{
-	bool		found;
-
-	if (previous_startup)
-		previous_startup();
-	LWLockAcquire(AddinShmemInitLock, LW_EXCLUSIVE);
-	shared = ShmemInitStruct("modb match plans", sizeof(SharedPlans), &found);
-	if (!found)
-	{
-		memset(shared, 0, sizeof(SharedPlans));
-		shared->lock = &(GetNamedLWLockTranche("modb match plans"))->lock;
-	}
-	LWLockRelease(AddinShmemInitLock);
+	modb_shared_request(PLANS, sizeof(SharedPlans));
 }
 
 void
-modb_shared_plans_init(void)
+modb_shared_plans_start(void)
 {
-	if (!process_shared_preload_libraries_in_progress)
-		return;
-	previous_request = shmem_request_hook;
-	shmem_request_hook = request_shared;
-	previous_startup = shmem_startup_hook;
-	shmem_startup_hook = start_shared;
+	shared = modb_shared_struct(PLANS, sizeof(SharedPlans));
 }
 
 bool

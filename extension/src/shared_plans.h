@@ -7,8 +7,9 @@
 
 #include "selection.h"
 
-/* From _PG_init: asks for the shared memory when the library is preloaded. */
-extern void modb_shared_plans_init(void);
+/* module.c's shared memory hooks, where the library is preloaded: the plans asked for, then set up. */
+extern void modb_shared_plans_request(void);
+extern void modb_shared_plans_start(void);
 /* The plan shared under key in this database, into plan (its strings allocated in context); false: none. */
 extern bool modb_shared_plan_find(const char *key, MatchPlan *plan, MemoryContext context);
 /* Shares a plan resolved here under key, where this transaction has written nothing. */
