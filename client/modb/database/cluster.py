@@ -189,13 +189,16 @@ class Cluster:
             # the one installed since (modb.library_version), and this cluster is private.
             print("modb: restarting the server: it runs an older modb.so than the one installed",
                   file=sys.stderr)  # fmt: skip
-            self._run(_bindir() / "pg_ctl", "restart", "-w", "-D", self.datadir, "-l", self.logfile)
+            self._pg_ctl("restart")
         self.ensure_database(DATABASE)
 
     def run_server(self) -> None:
         """Start this server if it is not running."""
         if not self.is_running():
-            self._run(_bindir() / "pg_ctl", "start", "-w", "-D", self.datadir, "-l", self.logfile)
+            self._pg_ctl("start")
+
+    def _pg_ctl(self, action: str) -> None:
+        self._run(_bindir() / "pg_ctl", action, "-w", "-D", self.datadir, "-l", self.logfile)
 
     def _preloads_modb(self) -> bool:
         with psycopg.connect(self.dsn("postgres"), autocommit=True) as conn:
@@ -232,7 +235,7 @@ class Cluster:
         with psycopg.connect(self.dsn("postgres"), autocommit=True) as conn:
             conn.execute("ALTER SYSTEM SET shared_preload_libraries = 'modb'")
         if restart:
-            self._run(_bindir() / "pg_ctl", "restart", "-w", "-D", self.datadir, "-l", self.logfile)
+            self._pg_ctl("restart")
         else:
             print(
                 "modb: this server loads modb per session; from its next start it loads it once "
