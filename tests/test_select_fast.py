@@ -191,6 +191,57 @@ def test_a_start_and_errors_are_the_references(cmu, locomotion):
                 conn.execute(CALL.format("select_next_snippets"), bad)
 
 
+def _outside(lines: list[str]) -> int:
+    """The candidates explain_selection says were passed over as outside the graph or collection."""
+    found = [re.search(r"outside the graph or collection: (\d+)", line) for line in lines]
+    return sum(int(m.group(1)) for m in found if m)
+
+
+def test_a_graph_or_small_collection_is_known_before_rows_are_read(locomotion):
+    """0.29.0: a call naming a transition graph, or a collection of at most a quarter of the
+    snippets, passes over the candidates outside it when their block is read (their ids read once
+    a session, src/candidate_sets.c), not when their rows are: the rows stay the reference's for
+    starts, plain calls, coming to rest and setting off in collection demo/cmu/131 of the demo's
+    data, and starts in the demo's graph; and explain_selection counts those passed over."""
+    rng = random.Random(61)
+    small = "demo/cmu/131"
+    ending = "SELECT * FROM modb.{}(%s, %s, %s, %s, %s, %s, %s, %s)"
+    with connect(locomotion) as conn:
+        ids = [
+            r[0]
+            for r in conn.execute(
+                "SELECT id FROM modb.snippets"
+                " WHERE collection_id = ANY (modb.collection_subtree(%s)) ORDER BY id",
+                [small],
+            )
+        ]
+        (everything,) = conn.execute("SELECT count(*) FROM modb.snippets").fetchone()
+        assert len(ids) <= everything / 4, (len(ids), everything)  # small enough to be kept
+        outside = {"collection": 0, "graph": 0}
+        for i in range(14):
+            target = [round(rng.uniform(-6, 6), 2), round(rng.uniform(-6, 6), 2)]
+            prev = None if i % 7 == 0 else rng.choice(ids)
+            args = [prev, target, rng.choice((1, 3)), rng.choice(PROFILES), small, None]
+            fast, reference = _both(conn, args)
+            assert fast == reference and fast, args
+            outside["collection"] += _outside(_explain(conn, args))
+            if prev is not None:
+                asked = [prev, [0.0, 0.0, 0.0], 0.0, target, "default", small, None, i % 2 == 0]
+                fast = conn.execute(ending.format("select_snippet_ending"), asked).fetchall()
+                reference = conn.execute(
+                    ending.format("select_snippet_ending_reference"), asked
+                ).fetchall()
+                assert fast == reference, asked
+        conn.execute("SELECT set_config('modb.graph', %s, false)", [GRAPH])
+        for _ in range(2):  # starts in the graph (the reference scans every snippet)
+            args = [None, [round(rng.uniform(-6, 6), 2), 8.0], 1, "default", None, None]
+            fast, reference = _both(conn, args)
+            assert fast == reference and fast, args
+            outside["graph"] += _outside(_explain(conn, args))
+        conn.execute("RESET modb.graph")
+    assert all(n > 0 for n in outside.values()), outside
+
+
 def _explain(conn, args, verbose=False) -> list[str]:
     return [
         r[0]

@@ -92,6 +92,7 @@ COMMENT ON COLUMN modb.snippets.future_heading IS 'The heading change over the s
 
 CREATE INDEX snippets_clip_idx ON modb.snippets (clip_id, version, mirrored, first_frame);
 CREATE INDEX snippets_pose_key_idx ON modb.snippets (pose_key, fps);
+CREATE INDEX snippets_collection_idx ON modb.snippets (collection_id, id);  -- a collection's snippets (src/candidate_sets.c)
 -- For the foreign keys: deleting a clip version's terminators must not scan every snippet per row.
 CREATE INDEX snippets_begin_terminator_idx ON modb.snippets (begin_terminator);
 CREATE INDEX snippets_end_terminator_idx ON modb.snippets (end_terminator);

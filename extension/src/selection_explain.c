@@ -113,8 +113,8 @@ modb_explain_selection(PG_FUNCTION_ARGS)
 			appendStringInfo(&line, "    blocks: %lld read (least key first), %lld rejected by term bounds",
 							 (long long) b->blocks_read, (long long) blocks_rejected);
 			EMIT();
-			appendStringInfo(&line, "    snippets in the codes' box: %lld, rejected by term codes: %lld",
-							 (long long) b->in_codes, (long long) candidates_rejected);
+			appendStringInfo(&line, "    snippets in the codes' box: %lld, rejected by term codes: %lld, outside the graph or collection: %lld",
+							 (long long) b->in_codes, (long long) candidates_rejected, (long long) s->outside);
 			EMIT();
 			for (int half = 0; half < 2; half++)
 			{

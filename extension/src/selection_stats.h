@@ -33,6 +33,7 @@ typedef struct LevelStats
 	char	   *access;			/* how the rows were read (the kept plan's scan nodes) */
 	BlockStats	blocks;
 	int64		candidates;		/* the blocks' candidates (or the stored transitions) */
+	int64		outside;		/* of those: not in the graph or collection named, passed over unread */
 	int64		scanned;		/* of those: rows read (in the order of the least key they can have, until
 								 * none left can make the answer) */
 	int64		in_box;			/* of those: in the box (exactly) */

@@ -18,6 +18,10 @@ DROP INDEX modb.snippet_blocks_directory_idx;
 CREATE INDEX snippet_blocks_directory_idx ON modb.snippet_blocks (pose_key, fps, pack_order)
     INCLUDE (low, high, input_bounds, end_bounds);
 
+-- A selection that names a collection (or a graph) passes over the candidates outside it when their block
+-- is read, from the collection's snippet ids read once per session and generation by this index.
+CREATE INDEX snippets_collection_idx ON modb.snippets (collection_id, id);
+
 -- The rule of coming to rest and setting off (modb.snippets_ending_within) puts a candidate at the least
 -- level L whose scale 2^L its ratio is within, compared as float8 as the scale is.
 --@include 89_synthesis.sql
