@@ -287,6 +287,7 @@ modb_term_block(const TermTest *test, const uint8 *bytes, const uint8 *codes, Te
 	memcpy(lo, bytes, sizeof(lo));
 	memcpy(hi, bytes + sizeof(lo), sizeof(hi));
 	block->codes = codes;
+	block->split = false;
 	for (int t = 0; t < test->n_terms; t++)
 	{
 		int			first = test->joint[t] * TERM_JOINT_COMPONENTS + test->kind[t] * TERM_KIND_COMPONENTS;
@@ -320,14 +321,87 @@ modb_term_block(const TermTest *test, const uint8 *bytes, const uint8 *codes, Te
 	return -1;
 }
 
-int
-modb_term_snippet(const TermTest *test, const TermBlock *block, int i, double *least_ratio)
+/* The squared distance from x to the farthest point of [low, high]. */
+static inline double
+reach_sq(double x, double low, double high)
 {
-	double		largest = 0;
+	return Max((x - low) * (x - low), (high - x) * (high - x));
+}
 
-	/* one square root: each term's ratio squared is at least its least square times its factor */
+/*
+ * The greatest squared distance (the smaller chord to +-q for a rotation) a value within the block's
+ * bounds can have: every snippet's own least_sq is at most its value's (the value lies in its code's
+ * interval), which is at most this (the value lies in the block's bounds too).
+ */
+static double
+greatest_sq(const TermTest *test, int t, const TermBlock *block)
+{
+	int			first = test->joint[t] * TERM_JOINT_COMPONENTS + test->kind[t] * TERM_KIND_COMPONENTS;
+	const double *q = test->query + first;
+	const double *low = block->low + first,
+			   *high = block->high + first;
+
+	if (test->kind[t] != 1)
+		return reach_sq(q[0], low[0], high[0]) + reach_sq(q[1], low[1], high[1]) + reach_sq(q[2], low[2], high[2]);
+	if (block->step[first] == 0 || block->step[first + 1] == 0 || block->step[first + 2] == 0)
+		return 0;				/* least_sq is 0 for each of its snippets: none is rejected by it */
+	{
+		double		min_sq = 0,
+					max_sq = 0,
+					minus = 0,
+					plus = 0,
+					qw = test->query[TERM_COMPONENTS + test->joint[t]];
+		double		w_low,
+					w_high;
+
+		for (int a = 0; a < 3; a++)
+		{
+			double		l2 = low[a] * low[a],
+						h2 = high[a] * high[a];
+
+			min_sq += low[a] <= 0 && high[a] >= 0 ? 0 : Min(l2, h2);
+			max_sq += Max(l2, h2);
+			minus += reach_sq(q[a], low[a], high[a]);
+			plus += reach_sq(-q[a], low[a], high[a]);
+		}
+		w_low = sqrt(Max(0.0, 1.0 - UNIT_SLACK - max_sq));
+		w_high = sqrt(Max(0.0, 1.0 + UNIT_SLACK - min_sq));
+		minus += reach_sq(qw, w_low, w_high);
+		plus += reach_sq(-qw, w_low, w_high);
+		return Min(minus, plus);
+	}
+}
+
+/* Which terms the block's snippets are tested on (TermBlock.split). */
+static void
+split_terms(const TermTest *test, TermBlock *block)
+{
+	block->n_tested = 0;
+	block->untested_sq = 0;
 	for (int t = 0; t < test->n_terms; t++)
 	{
+		/* with room for the rounding of either side's arithmetic */
+		if (greatest_sq(test, t, block) * (1 + 1e-9) + 1e-12 <= test->limit_sq[t])
+			block->untested_sq = Max(block->untested_sq,
+									 least_sq(test, t, block, WHOLE_BLOCK) * test->ratio_factor[t]);
+		else
+			block->tested[block->n_tested++] = t;
+	}
+	block->split = true;
+}
+
+int
+modb_term_snippet(const TermTest *test, TermBlock *block, int i, double *least_ratio)
+{
+	double		largest;
+
+	if (!block->split)
+		split_terms(test, block);
+	largest = block->untested_sq;
+	/* one square root: each term's ratio squared is at least its least square times its factor */
+	for (int j = 0; j < block->n_tested; j++)
+	{
+		int			t = block->tested[j];
 		double		sq = least_sq(test, t, block, i);
 
 		if (sq > test->limit_sq[t])

@@ -45,6 +45,12 @@ typedef struct TermBlock
 	double		step[TERM_COMPONENTS];	/* of a 4-bit code; 0: the component is unbounded in this block */
 	double		high[TERM_COMPONENTS];
 	const uint8 *codes;
+	/* At its first snippet's test: the terms that every snippet of the block is within (none can reject
+	 * one) are left out of its snippets' tests; their least over the block still bounds the ratio. */
+	bool		split;
+	int			n_tested;
+	int16		tested[N_JOINTS * N_TERM_KINDS];	/* the test's terms a snippet's codes are tested on */
+	double		untested_sq;	/* the largest least square x ratio factor of the others over the block */
 } TermBlock;
 
 /*
@@ -57,6 +63,6 @@ extern int	modb_term_block(const TermTest *test, const uint8 *bytes, const uint8
  * Tests snippet i of a block: the kind of the first term that rejects it, or -1 and the least continuity
  * ratio its codes allow (a lower bound, for the order candidates are read in).
  */
-extern int	modb_term_snippet(const TermTest *test, const TermBlock *block, int i, double *least_ratio);
+extern int	modb_term_snippet(const TermTest *test, TermBlock *block, int i, double *least_ratio);
 
 #endif							/* TERM_CODES_H */
