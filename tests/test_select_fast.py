@@ -200,9 +200,10 @@ def _outside(lines: list[str]) -> int:
 def test_a_graph_or_small_collection_is_known_before_rows_are_read(locomotion):
     """0.29.0: a call naming a transition graph, or a collection of at most a quarter of the
     snippets, passes over the candidates outside it when their block is read (their ids read once
-    a session, src/candidate_sets.c), not when their rows are: the rows stay the reference's for
-    starts, plain calls, coming to rest and setting off in collection demo/cmu/131 of the demo's
-    data, and starts in the demo's graph; and explain_selection counts those passed over."""
+    a session after 64 rows refused, src/candidate_sets.c), not when their rows are: the rows stay
+    the reference's for starts, plain calls, coming to rest and setting off in collection
+    demo/cmu/131 of the demo's data, and starts in the demo's graph; and explain_selection counts
+    those passed over."""
     rng = random.Random(61)
     small = "demo/cmu/131"
     ending = "SELECT * FROM modb.{}(%s, %s, %s, %s, %s, %s, %s, %s)"

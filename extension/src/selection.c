@@ -79,10 +79,19 @@ typedef struct Request
 	int			n_played;
 	int64	   *collections;	/* NULL: every collection */
 	int			n_collections;
-	/* the snippets of the graph and of the collection (candidate_sets.c; NULL: not known, rows decide) */
+	/*
+	 * The snippets of the graph its rows are restricted to (graph_rows) and of the collection, once rows
+	 * read have been refused for being outside them (candidate_sets.c; NULL: not known, rows decide).
+	 */
+	bool		graph_rows;
+	int			refused;
+	bool		members_read;
 	const MemberSet *graph_members;
 	const MemberSet *collection_members;
 } Request;
+
+/* Rows refused by the graph or the filters before a call reads who is inside (a session's first only). */
+#define REFUSED_BEFORE_MEMBERS 64
 
 /* A candidate row, deformed once (SPI_getbinval walks the tuple from its start at every call). */
 typedef struct Row
@@ -522,7 +531,7 @@ typedef struct Ending
 /* A level's reading: its query, what the rows must pass, and the best found so far. */
 typedef struct LevelRead
 {
-	const Request *r;
+	Request    *r;				/* not const: it learns the graph's and collection's members */
 	const Ending *ending;		/* NULL: select_next_snippets' rule */
 	bool		start;			/* no previous snippet: every pose, ranked by the objective alone */
 	SPIPlanPtr	query;
@@ -595,11 +604,25 @@ ending_proximity(const Ending *e, const Row *row, double *proximity)
 	return true;
 }
 
+/*
+ * The member sets of the graph and collection a request names: read once rows have been refused (most
+ * calls that name a large collection, or none, never are), then kept by the session for its generation.
+ */
+static void
+read_members(Request *r)
+{
+	r->members_read = true;
+	if (r->graph_rows && r->plan->has_graph)
+		r->graph_members = modb_graph_members(r->plan->graph_id, r->plans_generation, r->blocks_generation);
+	if (r->collections != NULL)
+		r->collection_members = modb_collection_members(r->collections, r->n_collections, r->blocks_generation);
+}
+
 /* Reads the rows of ids[0..n) and checks each: the box, pose and rate, filters, ratio, objective. */
 static void
 read_and_check(LevelRead *lr, const Pending *pending, int n)
 {
-	const Request *r = lr->r;
+	Request    *r = lr->r;
 	bool		stored = lr->lo == NULL;
 	Datum	   *ids = palloc(sizeof(Datum) * n);
 	Datum		args[3];
@@ -619,6 +642,7 @@ read_and_check(LevelRead *lr, const Pending *pending, int n)
 	rows = palloc(sizeof(Row) * Max(SPI_processed, 1));
 	if (lr->stats)
 		lr->stats->scanned += SPI_processed;
+	r->refused += n - SPI_processed;	/* outside the graph (or the annotations) */
 	for (uint64 i = 0; i < SPI_processed; i++)
 	{
 		Row		   *row = &rows[i];
@@ -634,7 +658,10 @@ read_and_check(LevelRead *lr, const Pending *pending, int n)
 		if (!stored && !lr->start && !same_pose_and_rate(r, row))
 			continue;
 		if (lr->ending ? !ending_filters(r, lr->ending, row) : !passes_filters(r, row))
+		{
+			r->refused++;
 			continue;
+		}
 		if (lr->stats)
 			lr->stats->filtered++;
 		c.ratio = NAN;			/* a start follows nothing */
@@ -675,16 +702,6 @@ may_be_chosen(const Request *r, int64 id)
 {
 	return (r->graph_members == NULL || modb_members_hold(r->graph_members, id))
 		&& (r->collection_members == NULL || modb_members_hold(r->collection_members, id));
-}
-
-/* The member sets of the graph and collection a request names (after its plan and generations). */
-static void
-read_members(Request *r, bool graph)
-{
-	if (graph && r->plan->has_graph)
-		r->graph_members = modb_graph_members(r->plan->graph_id, r->plans_generation, r->blocks_generation);
-	if (r->collections != NULL)
-		r->collection_members = modb_collection_members(r->collections, r->n_collections, r->blocks_generation);
 }
 
 /* A candidate's place in the reading order, from the objective inputs and least ratio its block holds. */
@@ -868,7 +885,7 @@ static void
 run_level(LevelRead *lr, BlockSearch *search, const int64 *stored_ids, int n_stored, int level,
 		  Tuplestorestate *store, TupleDesc out, int *emitted)
 {
-	const Request *r = lr->r;
+	Request    *r = lr->r;
 	double		weight = r->plan->continuity_weight;
 	/* The least weight x ratio at this level: the ratio is at least 0, above low and at most high. */
 	double		least = weight >= 0 ? weight * Max(lr->low, 0.0) : weight * lr->high;
@@ -945,6 +962,12 @@ run_level(LevelRead *lr, BlockSearch *search, const int64 *stored_ids, int n_sto
 				binaryheap_add(heap, PointerGetDatum(p));
 				continue;
 			}
+			if (!may_be_chosen(r, p->id))
+			{
+				if (lr->stats)
+					lr->stats->outside++;	/* queued before the members were known */
+				continue;
+			}
 			hash_search(read, &p->id, HASH_ENTER, &seen);
 			if (!seen)
 				batch[n_batch++] = *p;
@@ -952,6 +975,8 @@ run_level(LevelRead *lr, BlockSearch *search, const int64 *stored_ids, int n_sto
 		if (n_batch == 0)
 			break;
 		read_and_check(lr, batch, n_batch);
+		if (!r->members_read && r->refused >= REFUSED_BEFORE_MEMBERS)
+			read_members(r);	/* the blocks read from here on pass over those outside */
 	}
 	for (int i = 0; i < lr->n_best; i++)
 	{
@@ -1142,6 +1167,9 @@ start_path(Request *r, Tuplestorestate *store, TupleDesc out, SelectionStats *st
 		lo[i] = -INFINITY;
 		hi[i] = INFINITY;
 	}
+	/* It reads the blocks of every pose before its first row: the graph's members are read first */
+	if (r->plan->has_graph)
+		r->graph_members = modb_graph_members(r->plan->graph_id, r->plans_generation, r->blocks_generation);
 	search = modb_block_search(r->blocks_relid, r->blocks_generation, NULL, 0, lo, hi, NULL, BLOCK_ENDS_ANY,
 							   block_bound, &lr, lr.stats ? &lr.stats->blocks : NULL);
 	lr.query = candidates_query(false, annotated);
@@ -1230,7 +1258,7 @@ modb_select(FunctionCallInfo fcinfo, Tuplestorestate *store, TupleDesc out, Sele
 	{
 		if (!PG_ARGISNULL(5))
 			read_excluded(&r, PG_GETARG_DATUM(5));
-		read_members(&r, true);
+		r.graph_rows = true;
 		modb_aim_point(r.target, r.n, r.plan->has_lookahead, r.plan->lookahead, r.aim);
 		r.direction = modb_aim_direction(r.aim, r.n);
 		if (PG_ARGISNULL(0))
@@ -1399,7 +1427,6 @@ modb_select_snippet_ending(PG_FUNCTION_ARGS)
 
 		r.plan = modb_match_plan(PG_GETARG_TEXT_PP(4), r.plans_generation, r.blocks_relid, r.extension_version);
 		annotated = r.plan->annotations != NULL;
-		read_members(&r, false);	/* no graph: an ending chooses among every snippet */
 		/* the blocks' end bounds sort snippets by the speeds of 0.29.0's modb.rest_speed and walk_speed */
 		if (e.standing ? e.rest_speed == BLOCK_REST_SPEED : e.walk_speed == BLOCK_WALK_SPEED)
 			ends = e.standing ? BLOCK_ENDS_STANDING : BLOCK_ENDS_WALKING;

@@ -393,15 +393,13 @@ split_terms(const TermTest *test, TermBlock *block)
 int
 modb_term_snippet(const TermTest *test, TermBlock *block, int i, double *least_ratio)
 {
-	double		largest;
+	double		largest = block->split ? block->untested_sq : 0;
+	int			n = block->split ? block->n_tested : test->n_terms;
 
-	if (!block->split)
-		split_terms(test, block);
-	largest = block->untested_sq;
 	/* one square root: each term's ratio squared is at least its least square times its factor */
-	for (int j = 0; j < block->n_tested; j++)
+	for (int j = 0; j < n; j++)
 	{
-		int			t = block->tested[j];
+		int			t = block->split ? block->tested[j] : j;
 		double		sq = least_sq(test, t, block, i);
 
 		if (sq > test->limit_sq[t])
@@ -412,5 +410,9 @@ modb_term_snippet(const TermTest *test, TermBlock *block, int i, double *least_r
 		largest = Max(largest, sq * test->ratio_factor[t]);
 	}
 	*least_ratio = sqrt(largest) * (1 - LIMIT_SLACK);
+	/* A block whose snippets are rejected early never pays for this; one with a snippet within every
+	 * term likely has more */
+	if (!block->split)
+		split_terms(test, block);
 	return -1;
 }

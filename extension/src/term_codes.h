@@ -45,8 +45,9 @@ typedef struct TermBlock
 	double		step[TERM_COMPONENTS];	/* of a 4-bit code; 0: the component is unbounded in this block */
 	double		high[TERM_COMPONENTS];
 	const uint8 *codes;
-	/* At its first snippet's test: the terms that every snippet of the block is within (none can reject
-	 * one) are left out of its snippets' tests; their least over the block still bounds the ratio. */
+	/* After its first snippet within every term: the terms that every snippet of the block is within
+	 * (none can reject one) are left out of its later snippets' tests; their least over the block
+	 * still bounds the ratio. */
 	bool		split;
 	int			n_tested;
 	int16		tested[N_JOINTS * N_TERM_KINDS];	/* the test's terms a snippet's codes are tested on */
