@@ -90,7 +90,7 @@ typedef struct Request
 	const MemberSet *collection_members;
 } Request;
 
-/* Rows refused by the graph or the filters before a call reads who is inside (a session's first only). */
+/* Rows a call may have refused (graph, filters) before it reads who is inside the graph and collection. */
 #define REFUSED_BEFORE_MEMBERS 64
 
 /* A candidate row, deformed once (SPI_getbinval walks the tuple from its start at every call). */
@@ -131,9 +131,6 @@ typedef struct Pending
 	bool		has_proximity;
 	double		bound;
 	double		least_ratio;	/* from its block's term codes (0: unknown) */
-	bool		provisional;	/* bound is the distance part alone: its turn is added when it is first due */
-	double		inputs[N_OBJECTIVE_INPUTS];	/* a provisional one's, for that */
-	double		least;			/* the level's least weight x ratio, for that */
 } Pending;
 
 static const float *
@@ -692,10 +689,6 @@ read_and_check(LevelRead *lr, const Pending *pending, int n)
 	}
 }
 
-static void provisional_bound(const LevelRead *lr, Pending *p);
-static void exact_bound(const LevelRead *lr, Pending *p);
-static double with_ratio(const LevelRead *lr, const Pending *p);
-
 /* Whether the graph and collection named hold snippet id, as far as their member sets are known. */
 static bool
 may_be_chosen(const Request *r, int64 id)
@@ -708,15 +701,15 @@ may_be_chosen(const Request *r, int64 id)
 static void
 candidate_pending(const LevelRead *lr, const BlockCandidate *c, double least, Pending *p)
 {
+	const Request *r = lr->r;
+	double		weight = r->plan->continuity_weight;
+
 	p->id = c->id;
 	p->block = -1;
 	p->hinted = c->hinted;
 	p->has_proximity = false;
-	p->provisional = false;
 	p->bound = 0;
 	p->least_ratio = c->least_ratio;
-	p->least = least;
-	memcpy(p->inputs, c->inputs, sizeof(p->inputs));
 	if (p->hinted && lr->ending)
 	{
 		/* the distance of its net translation's end from the goal, allowing for float4 as below */
@@ -729,86 +722,25 @@ candidate_pending(const LevelRead *lr, const BlockCandidate *c, double least, Pe
 		p->bound -= ldexp(2 * Max(fabs(inputs[0]), fabs(inputs[2])), -20) + 1e-12 * (1 + p->bound);
 	}
 	else if (p->hinted)
-		provisional_bound(lr, p);
-}
-
-/*
- * Most candidates a block brings are never due (a start queues every snippet of the blocks it reads): so
- * a candidate is first queued by the distance part of its objective alone, two square roots, a bound
- * below its key as the turn adds at least 0, with a margin for this arithmetic against the row's pow();
- * when it is first due, exact_bound adds the turn (three trigonometric calls) and queues it again.
- */
-static void
-provisional_bound(const LevelRead *lr, Pending *p)
-{
-	const Request *r = lr->r;
-	const double *in = p->inputs;
-	double		net,
-				future,
-				largest = 0;
-
-	for (int k = 0; k < N_OBJECTIVE_INPUTS; k++)
-		if (isnan(in[k]))
-		{
-			exact_bound(lr, p); /* NULLs: as the row's function has them */
-			return;
-		}
-	if (!(r->plan->heading_weight >= 0))
 	{
-		exact_bound(lr, p);
-		return;
+		const double *inputs = c->inputs;
+		double		largest = 0;
+
+		/* The row's function (proximity_of) on the float4 roundings of its values: a float4 is within
+		 * 2^-24 of its value, distances and the turn move by at most what their inputs do, so the
+		 * objective is within 2^-24 (sqrt(3) the largest translation + heading_weight x the heading):
+		 * allowed for sixteen times over, and the double arithmetic's own rounding. */
+		for (int k = 0; k < 6; k++)
+			largest = Max(largest, fabs(inputs[k]));
+		p->has_proximity = modb_approach_cost(inputs, inputs + 3, true, inputs[6], r->aim, r->n, r->direction,
+											  r->plan->heading_weight, &p->bound);
+		p->bound -= ldexp(2 * largest + fabs(r->plan->heading_weight) * fabs(inputs[6]), -20)
+			+ 1e-12 * (1 + fabs(p->bound));
+		/* x + y rounds monotonically in y: no key at this level is below this (nor, for a weight of
+		 * at least 0, below the weight times the least ratio its term codes allow) */
+		if (!lr->start)
+			p->bound += weight >= 0 ? Max(least, weight * p->least_ratio) : least;
 	}
-	for (int k = 0; k < 6; k++)
-		largest = Max(largest, fabs(in[k]));
-	net = r->n == 3
-		? sqrt((in[0] - r->aim[0]) * (in[0] - r->aim[0]) + (in[1] - r->aim[1]) * (in[1] - r->aim[1])
-			   + (in[2] - r->aim[2]) * (in[2] - r->aim[2]))
-		: sqrt((in[0] - r->aim[0]) * (in[0] - r->aim[0]) + (in[2] - r->aim[1]) * (in[2] - r->aim[1]));
-	future = r->n == 3
-		? sqrt((in[3] - r->aim[0]) * (in[3] - r->aim[0]) + (in[4] - r->aim[1]) * (in[4] - r->aim[1])
-			   + (in[5] - r->aim[2]) * (in[5] - r->aim[2]))
-		: sqrt((in[3] - r->aim[0]) * (in[3] - r->aim[0]) + (in[5] - r->aim[1]) * (in[5] - r->aim[1]));
-	p->has_proximity = true;
-	p->provisional = true;
-	p->bound = Min(net, future);
-	/* exact_bound's allowance twice (these products against pow()'s), and its share of the turn */
-	p->bound -= 2 * (ldexp(2 * largest + fabs(r->plan->heading_weight) * fabs(in[6]), -20)
-					 + 1e-12 * (1 + fabs(p->bound))) + 1e-11 * (1 + r->plan->heading_weight);
-	p->bound += with_ratio(lr, p);
-}
-
-/* The level's least weight x ratio for p: its term codes' least ratio where they know one. */
-static double
-with_ratio(const LevelRead *lr, const Pending *p)
-{
-	double		weight = lr->r->plan->continuity_weight;
-
-	/* x + y rounds monotonically in y: no key at this level is below this (nor, for a weight of at
-	 * least 0, below the weight times the least ratio its term codes allow) */
-	if (lr->start)
-		return 0;
-	return weight >= 0 ? Max(p->least, weight * p->least_ratio) : p->least;
-}
-
-/* A candidate's bound from all its objective: the row's function on the float4 roundings of its inputs. */
-static void
-exact_bound(const LevelRead *lr, Pending *p)
-{
-	const Request *r = lr->r;
-	const double *inputs = p->inputs;
-	double		largest = 0;
-
-	/* A float4 is within 2^-24 of its value, distances and the turn move by at most what their inputs
-	 * do, so the objective is within 2^-24 (sqrt(3) the largest translation + heading_weight x the
-	 * heading): allowed for sixteen times over, and the double arithmetic's own rounding. */
-	for (int k = 0; k < 6; k++)
-		largest = Max(largest, fabs(inputs[k]));
-	p->provisional = false;
-	p->has_proximity = modb_approach_cost(inputs, inputs + 3, true, inputs[6], r->aim, r->n, r->direction,
-										  r->plan->heading_weight, &p->bound);
-	p->bound -= ldexp(2 * largest + fabs(r->plan->heading_weight) * fabs(inputs[6]), -20)
-		+ 1e-12 * (1 + fabs(p->bound));
-	p->bound += with_ratio(lr, p);
 }
 
 /* The distance from the aim point to a box of translations (3 values), in the objective's coordinates. */
@@ -954,12 +886,6 @@ run_level(LevelRead *lr, BlockSearch *search, const int64 *stored_ids, int n_sto
 					candidate_pending(lr, &found[i], least, &more[i]);
 					binaryheap_add(heap, PointerGetDatum(&more[i]));
 				}
-				continue;
-			}
-			if (p->provisional)
-			{
-				exact_bound(lr, p);	/* due: with its turn, in its place again */
-				binaryheap_add(heap, PointerGetDatum(p));
 				continue;
 			}
 			if (!may_be_chosen(r, p->id))
