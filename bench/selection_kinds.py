@@ -5,11 +5,11 @@ what BENCHMARKS.md's A/B of two builds of modb.so runs once per build.
     .venv/bin/python bench/selection_kinds.py DSN N SEED start COLLECTION GRAPH
 
 Previous snippets are drawn uniformly from the database, goals 1-5 m away in any direction.
-Kinds: plain (select_next_snippet_world), rest and off (select_snippet_ending standing and
-walking), step (select_synthesis_step, not resting: a standing previous snippet sets off, any
-other walks), and start (no previous snippet, goals within 8 m, in COLLECTION with SET
-modb.graph = GRAPH). Prints p50, p90, p99, max and mean in ms per kind; the p99 of a few hundred
-is their few slowest, hence the mean.
+Kinds: plain (select_next_snippet_world), rest (select_synthesis_step resting: coming to rest),
+off (select_snippet_ending walking: setting off), step (select_synthesis_step, not resting: a
+standing previous snippet sets off, any other walks), and start (no previous snippet, goals
+within 8 m, in COLLECTION with SET modb.graph = GRAPH). Prints p50, p90, p99, max and mean in
+ms per kind; the p99 of a few hundred is their few slowest, hence the mean.
 """
 
 import sys
@@ -21,7 +21,7 @@ import psycopg
 ARGS = "%s, '{0,0,0}', 0, %s, 'default', NULL, NULL"
 QUERIES = {
     "plain": f"SELECT snippet_id FROM modb.select_next_snippet_world({ARGS})",
-    "rest": f"SELECT snippet_id FROM modb.select_snippet_ending({ARGS}, true)",
+    "rest": f"SELECT snippet_id FROM modb.select_synthesis_step({ARGS}, true)",
     "off": f"SELECT snippet_id FROM modb.select_snippet_ending({ARGS}, false)",
     "step": f"SELECT snippet_id FROM modb.select_synthesis_step({ARGS}, false)",
 }
