@@ -162,19 +162,27 @@ interval(const TermBlock *block, int c, int i, double *low, double *high)
 }
 
 
-/* The least squared distance (the smaller chord to +-q for a rotation) term t of snippet i can have. */
-static double
-least_sq(const TermTest *test, int t, const TermBlock *block, int i)
+/* The squared distance from x to the farthest point of [low, high]. */
+static inline double
+reach_sq(double x, double low, double high)
+{
+	return Max((x - low) * (x - low), (high - x) * (high - x));
+}
+
+/*
+ * Term t's squared distance (the smaller chord to +-q for a rotation) over the intervals [low, high] of its
+ * components, as `distance` measures it from a point to an interval: gap_sq for the least, reach_sq for
+ * the greatest.
+ */
+static inline double
+term_sq(const TermTest *test, int t, const TermBlock *block, const double *low, const double *high,
+		double (*distance) (double, double, double))
 {
 	int			first = test->joint[t] * TERM_JOINT_COMPONENTS + test->kind[t] * TERM_KIND_COMPONENTS;
 	const double *q = test->query + first;
-	double		low[3],
-				high[3];
 
-	for (int a = 0; a < 3; a++)
-		interval(block, first + a, i, &low[a], &high[a]);
 	if (test->kind[t] != 1)
-		return gap_sq(q[0], low[0], high[0]) + gap_sq(q[1], low[1], high[1]) + gap_sq(q[2], low[2], high[2]);
+		return distance(q[0], low[0], high[0]) + distance(q[1], low[1], high[1]) + distance(q[2], low[2], high[2]);
 	if (block->step[first] == 0 || block->step[first + 1] == 0 || block->step[first + 2] == 0)
 		return 0;				/* not a unit quaternion somewhere in the block: w is not known */
 	{
@@ -194,15 +202,41 @@ least_sq(const TermTest *test, int t, const TermBlock *block, int i)
 
 			min_sq += low[a] <= 0 && high[a] >= 0 ? 0 : Min(l2, h2);
 			max_sq += Max(l2, h2);
-			minus += gap_sq(q[a], low[a], high[a]);
-			plus += gap_sq(-q[a], low[a], high[a]);
+			minus += distance(q[a], low[a], high[a]);
+			plus += distance(-q[a], low[a], high[a]);
 		}
 		w_low = sqrt(Max(0.0, 1.0 - UNIT_SLACK - max_sq));
 		w_high = sqrt(Max(0.0, 1.0 + UNIT_SLACK - min_sq));
-		minus += gap_sq(qw, w_low, w_high);
-		plus += gap_sq(-qw, w_low, w_high);
+		minus += distance(qw, w_low, w_high);
+		plus += distance(-qw, w_low, w_high);
 		return Min(minus, plus);
 	}
+}
+
+/* The least squared distance (the smaller chord to +-q for a rotation) term t of snippet i can have. */
+static double
+least_sq(const TermTest *test, int t, const TermBlock *block, int i)
+{
+	int			first = test->joint[t] * TERM_JOINT_COMPONENTS + test->kind[t] * TERM_KIND_COMPONENTS;
+	double		low[3],
+				high[3];
+
+	for (int a = 0; a < 3; a++)
+		interval(block, first + a, i, &low[a], &high[a]);
+	return term_sq(test, t, block, low, high, gap_sq);
+}
+
+/*
+ * The greatest squared distance (the smaller chord to +-q for a rotation) a value within the block's
+ * bounds can have: every snippet's own least_sq is at most its value's (the value lies in its code's
+ * interval), which is at most this (the value lies in the block's bounds too).
+ */
+static double
+greatest_sq(const TermTest *test, int t, const TermBlock *block)
+{
+	int			first = test->joint[t] * TERM_JOINT_COMPONENTS + test->kind[t] * TERM_KIND_COMPONENTS;
+
+	return term_sq(test, t, block, block->low + first, block->high + first, reach_sq);
 }
 
 bool
@@ -319,57 +353,6 @@ modb_term_block(const TermTest *test, const uint8 *bytes, const uint8 *codes, Te
 			return test->kind[t];
 		}
 	return -1;
-}
-
-/* The squared distance from x to the farthest point of [low, high]. */
-static inline double
-reach_sq(double x, double low, double high)
-{
-	return Max((x - low) * (x - low), (high - x) * (high - x));
-}
-
-/*
- * The greatest squared distance (the smaller chord to +-q for a rotation) a value within the block's
- * bounds can have: every snippet's own least_sq is at most its value's (the value lies in its code's
- * interval), which is at most this (the value lies in the block's bounds too).
- */
-static double
-greatest_sq(const TermTest *test, int t, const TermBlock *block)
-{
-	int			first = test->joint[t] * TERM_JOINT_COMPONENTS + test->kind[t] * TERM_KIND_COMPONENTS;
-	const double *q = test->query + first;
-	const double *low = block->low + first,
-			   *high = block->high + first;
-
-	if (test->kind[t] != 1)
-		return reach_sq(q[0], low[0], high[0]) + reach_sq(q[1], low[1], high[1]) + reach_sq(q[2], low[2], high[2]);
-	if (block->step[first] == 0 || block->step[first + 1] == 0 || block->step[first + 2] == 0)
-		return 0;				/* least_sq is 0 for each of its snippets: none is rejected by it */
-	{
-		double		min_sq = 0,
-					max_sq = 0,
-					minus = 0,
-					plus = 0,
-					qw = test->query[TERM_COMPONENTS + test->joint[t]];
-		double		w_low,
-					w_high;
-
-		for (int a = 0; a < 3; a++)
-		{
-			double		l2 = low[a] * low[a],
-						h2 = high[a] * high[a];
-
-			min_sq += low[a] <= 0 && high[a] >= 0 ? 0 : Min(l2, h2);
-			max_sq += Max(l2, h2);
-			minus += reach_sq(q[a], low[a], high[a]);
-			plus += reach_sq(-q[a], low[a], high[a]);
-		}
-		w_low = sqrt(Max(0.0, 1.0 - UNIT_SLACK - max_sq));
-		w_high = sqrt(Max(0.0, 1.0 + UNIT_SLACK - min_sq));
-		minus += reach_sq(qw, w_low, w_high);
-		plus += reach_sq(-qw, w_low, w_high);
-		return Min(minus, plus);
-	}
 }
 
 /* Which terms the block's snippets are tested on (TermBlock.split). */
