@@ -4,7 +4,8 @@
  * start in a graph of half the data read thousands of rows only to have the graph refuse them; coming to
  * rest in a collection of a twentieth of the data likewise).
  *
- * Read under the call's snapshot and kept for the session by what they depend on: a graph's members by
+ * A call reads them once it has refused rows (selection.c's read_members; a start its graph's at once),
+ * under its snapshot, and the session keeps them by what they depend on: a graph's members by
  * its id and both generations (a graph is rebuilt under a new modb.graphs row, which takes a new plans
  * generation; its rows of deleted snippets go with the blocks', which take a new blocks generation), a
  * collection's by its ids (a move of a collection changes its subtree) and the blocks generation (every
