@@ -1,8 +1,8 @@
 /*
  * The snippets a call may choose among when it names a transition graph or a collection, as sorted ids,
  * so that a candidate outside them is passed over when its block is read instead of when its row is (a
- * start in a graph of half the data read thousands of rows only to have the graph refuse them; coming to
- * rest in a collection of a twentieth of the data likewise).
+ * start in a graph of half the data read thousands of rows only to have the graph refuse them; a call in
+ * a small collection reads the rows of other collections' candidates likewise).
  *
  * A call reads them once it has refused rows (selection.c's read_members; a start its graph's at once),
  * under its snapshot, and the session keeps them by what they depend on: a graph's members by
