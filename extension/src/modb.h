@@ -10,6 +10,9 @@
 /* settings.c: the session knobs, in modb.match_knobs() order. */
 #define N_KNOBS 14
 extern void modb_define_settings(void);
+extern const char *modb_knob_value(int knob);
+extern const char *modb_knob_name(int knob);
+extern bool modb_knob_is_profile(const char *value);
 
 /*
  * Shared memory of the preloaded library (module.c): a named struct whose first member is the LWLock * that
@@ -18,9 +21,6 @@ extern void modb_define_settings(void);
  */
 extern void modb_shared_request(const char *name, Size size);
 extern void *modb_shared_struct(const char *name, Size size);
-extern const char *modb_knob_value(int knob);
-extern const char *modb_knob_name(int knob);
-extern bool modb_knob_is_profile(const char *value);
 
 /* continuity.c: a seam's continuity ratio (modb.continuity_ratio). */
 typedef struct Terminator

@@ -601,6 +601,14 @@ ending_proximity(const Ending *e, const Row *row, double *proximity)
 	return true;
 }
 
+/* The member set of the graph a request's rows are restricted to (kept by the session per generation). */
+static void
+read_graph_members(Request *r)
+{
+	if (r->graph_rows && r->plan->has_graph)
+		r->graph_members = modb_graph_members(r->plan->graph_id, r->plans_generation, r->blocks_generation);
+}
+
 /*
  * The member sets of the graph and collection a request names: read once rows have been refused (most
  * calls that name a large collection, or none, never are), then kept by the session for its generation.
@@ -609,8 +617,7 @@ static void
 read_members(Request *r)
 {
 	r->members_read = true;
-	if (r->graph_rows && r->plan->has_graph)
-		r->graph_members = modb_graph_members(r->plan->graph_id, r->plans_generation, r->blocks_generation);
+	read_graph_members(r);
 	if (r->collections != NULL)
 		r->collection_members = modb_collection_members(r->collections, r->n_collections, r->blocks_generation);
 }
@@ -1093,9 +1100,7 @@ start_path(Request *r, Tuplestorestate *store, TupleDesc out, SelectionStats *st
 		lo[i] = -INFINITY;
 		hi[i] = INFINITY;
 	}
-	/* It reads the blocks of every pose before its first row: the graph's members are read first */
-	if (r->plan->has_graph)
-		r->graph_members = modb_graph_members(r->plan->graph_id, r->plans_generation, r->blocks_generation);
+	read_graph_members(r);		/* it reads every pose's blocks before its first row */
 	search = modb_block_search(r->blocks_relid, r->blocks_generation, NULL, 0, lo, hi, NULL, BLOCK_ENDS_ANY,
 							   block_bound, &lr, lr.stats ? &lr.stats->blocks : NULL);
 	lr.query = candidates_query(false, annotated);

@@ -128,13 +128,6 @@ extern BlockSearch *modb_block_search(Oid relid, int64 generation, const char *p
 extern int	modb_block_search_count(const BlockSearch *search);
 extern double modb_block_search_bound(const BlockSearch *search, int i);
 /* Reads block i: its snippets in the box that its term codes do not reject, into out (BLOCK_SNIPPETS long). */
-/* The snippets of a graph or a collection (candidate_sets.c); NULL where there are too many to keep. */
-typedef struct MemberSet MemberSet;
-extern const MemberSet *modb_graph_members(int64 graph_id, int64 plans_generation, int64 blocks_generation);
-extern const MemberSet *modb_collection_members(const int64 *collections, int n_collections,
-												int64 blocks_generation);
-extern bool modb_members_hold(const MemberSet *s, int64 id);
-
 extern int	modb_block_search_read(BlockSearch *search, int i, BlockCandidate *out);
 /* Candidates whose end speed `keep` refuses are passed over before their term test. */
 typedef bool (*BlockKeep) (float end_speed, const void *arg);
@@ -143,5 +136,12 @@ extern void modb_block_search_end(BlockSearch *search);
 
 /* Runs a selection into `store` (rows of select_next_snippets' result type); stats may be NULL. */
 extern void modb_select(FunctionCallInfo fcinfo, Tuplestorestate *store, TupleDesc desc, SelectionStats *stats);
+
+/* The snippets of a graph or a collection (candidate_sets.c); NULL where there are too many to keep. */
+typedef struct MemberSet MemberSet;
+extern const MemberSet *modb_graph_members(int64 graph_id, int64 plans_generation, int64 blocks_generation);
+extern const MemberSet *modb_collection_members(const int64 *collections, int n_collections,
+												int64 blocks_generation);
+extern bool modb_members_hold(const MemberSet *s, int64 id);
 
 #endif							/* SELECTION_H */
