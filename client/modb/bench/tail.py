@@ -286,7 +286,7 @@ def _kind_runs(requests: list, graph: str | None, graph_requests: list) -> list[
     return runs
 
 
-def _time_run(conn: psycopg.Connection, run: KindRun, excluded: list[list[int]]) -> list[float]:
+def time_run(conn: psycopg.Connection, run: KindRun, excluded: list[list[int]]) -> list[float]:
     """A kind's times over its requests, prepared, after a first call, its settings in force."""
     for knob, value in run.settings.items():
         conn.execute("SELECT set_config(%s, %s, false)", [knob, value])
@@ -322,7 +322,7 @@ def kinds(
         if in_force is not None and not graph_requests:
             progress(f"  graph {in_force} keeps no snippet in this database: no rows with it")
         runs = _kind_runs(requests, in_force, graph_requests)
-        return {run.name: _time_run(conn, run, excluded) for run in runs}
+        return {run.name: time_run(conn, run, excluded) for run in runs}
 
 
 def _costs(dsn: str) -> dict:
