@@ -25,10 +25,10 @@ import json
 
 import numpy as np
 
-from . import course, foot_hold, inertialization, memory, motion_model, standing
+from . import course, foot_hold, inertialization, memory, motion_model, prepared_models, standing
 from .database import Statement, StoreError
 from .placement import placed
-from .step_search import Rig, StepModel, hip_heading, rotate_y, stance_side, wrap
+from .step_search import hip_heading, rotate_y, stance_side, wrap
 
 MAX_SECONDS = 600.0
 MAX_COORDINATE = 1e6  # metres from the origin, as the snippet chain's goals
@@ -536,36 +536,10 @@ class Synthesis:
         }
 
 
-def step_models(graph, documents, rig, interrupts=no_interrupts):
-    """node name -> StepModel, from documents: model id -> (model document, its tree); nodes of
-    one model share its StepModel (prepared once)."""
-    prepared, out = {}, {}
-    for name, node in graph["nodes"].items():
-        ident = node["model_id"]
-        doc, tree = documents[ident]
-        if not tree:
-            raise SynthesisError(f'the model of node "{name}" has no acceleration tree: '
-                                 "rebuild it (modb model tree NAME)")  # fmt: skip
-        if ident not in prepared:
-            interrupts()
-            prepared[ident] = StepModel(doc, tree, rig)
-        out[name] = prepared[ident]
-    return out
-
-
 GRAPH = Statement(
     "SELECT data::text AS data, skeleton_id FROM modb.graphs WHERE name = $1 AND kind = 'models'",
     ("text",),
 )
-MODELS = Statement(
-    """SELECT m.id, m.name, m.version, m.data::text AS data, (m.meta->'tree')::text AS tree,
-              s.hierarchy::text AS hierarchy, s.joint_map::text AS joint_map
-         FROM modb.models m JOIN modb.skeletons s ON s.id = m.skeleton_id
-        WHERE m.id = ANY ($1)""",
-    ("bigint[]",),
-)
-
-
 FOOT_HOLD = Statement("SELECT current_setting('modb.foot_hold', true) AS value")
 
 
@@ -577,7 +551,8 @@ def foot_hold_on(db):
 
 
 def load(db, graph_name, interrupts=no_interrupts):
-    """(graph document, node name -> StepModel, Rig) of the stored graph of models."""
+    """(graph document, node name -> StepModel, Rig) of the stored graph of models: the graph read,
+    its models prepared once per process (prepared_models: read again only when changed)."""
     found = db.run(GRAPH, [graph_name])
     if not found:
         raise StoreError(f'no graph of models "{graph_name}"', sqlstate="P0002",
@@ -585,24 +560,28 @@ def load(db, graph_name, interrupts=no_interrupts):
                          "--collection C builds one")  # fmt: skip
     graph = json.loads(found[0]["data"])
     ids = sorted({int(n["model_id"]) for n in graph["nodes"].values()})
-    rows = {r["id"]: r for r in db.run(MODELS, [ids])}
-    missing = [i for i in ids if i not in rows]
+    keys = {r["id"]: r for r in db.run(prepared_models.KEYS, [ids])}
+    _refuse_gone(graph_name, ids, keys)
+    for name, node in graph["nodes"].items():
+        if not keys[int(node["model_id"])]["has_tree"]:
+            raise StoreError(f'graph "{graph_name}": the model of node "{name}" has no '
+                             "acceleration tree: rebuild it (modb model tree NAME)",
+                             sqlstate="22023")  # fmt: skip
+    try:
+        models = prepared_models.PREPARED.step_models(db, keys, interrupts)
+    except ValueError as e:
+        raise StoreError(f'graph "{graph_name}": {e}', sqlstate="22023") from None
+    _refuse_gone(graph_name, ids, models)  # one deleted since its key was read
+    nodes = {name: models[int(node["model_id"])] for name, node in graph["nodes"].items()}
+    return graph, nodes, models[ids[0]].rig
+
+
+def _refuse_gone(graph_name, ids, found):
+    missing = [i for i in ids if i not in found]
     if missing:
         raise StoreError(f'graph "{graph_name}" names motion model {missing[0]}, which is gone',
                          hint="build the graph again (modb model graph NAME --collection C)",
                          sqlstate="P0002")  # fmt: skip
-    documents = {}
-    for i, r in rows.items():
-        doc = json.loads(r["data"])
-        doc["name"], doc["version"] = r["name"], r["version"]
-        documents[i] = (doc, json.loads(r["tree"]) if r["tree"] else None)
-    first = rows[ids[0]]
-    try:
-        rig = Rig({"hierarchy": json.loads(first["hierarchy"]),
-                   "joint_map": json.loads(first["joint_map"])})  # fmt: skip
-        return graph, step_models(graph, documents, rig, interrupts), rig
-    except ValueError as e:
-        raise StoreError(f'graph "{graph_name}": {e}', sqlstate="22023") from None
 
 
 def _sound_goals(goals):

@@ -51,6 +51,7 @@ class Rig:
         self.joint_map = dict(joint_map)
         self.parents = [j["parent"] for j in joints]
         self.offsets = np.array([j["offset"] for j in joints], dtype=np.float64)
+        self.offsets.flags.writeable = False  # shared by the syntheses of its prepared models
         self.translated = list(hierarchy.get("translated", []))
         index = {k: self.names.index(v) for k, v in joint_map.items() if v in self.names}
         needed = ["pelvis", "left_hip", "right_hip", "left_ankle", "right_ankle"]
@@ -101,10 +102,13 @@ def stance_side(swing):
 
 class StepModel:
     """A motion model prepared for the search: its decoding of first and last frames, its mixture
-    in whitened form, its tree, and the spread of its samples' steps."""
+    in whitened form, its tree (its means and samples as arrays), and the spread of its samples'
+    steps. Read-only once made (its arrays are not writeable): syntheses running at once, in
+    threads, share one (prepared_models keeps it for the process)."""
 
     def __init__(self, model, tree, rig):
-        self.model, self.tree, self.rig = model, tree, rig
+        self.model, self.rig = model, rig
+        self.tree = {**tree, "root": _packed(tree["root"])} if tree else tree
         spatial = model["spatial"]
         self.split = len(spatial["components"])
         mean = np.asarray(spatial["mean"], dtype=np.float64)
@@ -133,6 +137,9 @@ class StepModel:
         # shapes, a frame jumped more than any capture (Bandai at 30 fps); the search passes them
         self.least_frames = float(np.percentile(self.durations(held), QUICKEST_SHARE))
         self.seconds = (model["n_frames"] - 1) / model["fps"]
+        for value in (*vars(self).values(), *self.whiteners):
+            if isinstance(value, np.ndarray):
+                value.flags.writeable = False
 
     def durations(self, scores):
         """Frames each row of scores lasts (motion_model.time_function's end, for many rows)."""
@@ -253,6 +260,19 @@ class StepModel:
         beat)."""
         draws = motion_model.draw_scores(self.model["mixture"], n, int(rng.integers(2**31)))
         return float(self.errors(draws, target).min())
+
+
+def _packed(node):
+    """The tree's node with its mean and samples as read-only float64 arrays (a search reads them
+    as arrays: converted once, not at every step), its children packed alike."""
+    out = dict(node)
+    for key in ("mean", "samples"):
+        if key in node:
+            out[key] = np.asarray(node[key], dtype=np.float64)
+            out[key].flags.writeable = False
+    if "children" in node:
+        out["children"] = [_packed(child) for child in node["children"]]
+    return out
 
 
 def _leaf_samples(root):

@@ -26,6 +26,9 @@ CREATE INDEX snippets_collection_idx ON modb.snippets (collection_id, id);
 -- level L whose scale 2^L its ratio is within, compared as float8 as the scale is.
 --@include 89_synthesis.sql
 
+-- Motion models prepared once per server process (issue 62): what a session's backend holds.
+--@include 96a_prepared_models.sql
+
 -- What to run next, where it is seen (an extension script shows WARNINGs, not NOTICEs).
 DO $$
 BEGIN
