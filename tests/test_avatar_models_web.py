@@ -428,3 +428,87 @@ def test_the_same_seed_and_goals_give_the_walk_synthesize_from_models_gives(serv
         assert s["error_m"] == pytest.approx(r["error_m"], abs=1e-6)
         assert s["random_error_m"] == pytest.approx(r["random_error_m"], abs=1e-6)
     assert severe_console_entries(browser) == []
+
+
+REACTION_SECONDS = 0.5  # a new goal answered: the heading turned 5 degrees toward it within this
+TURNED = np.radians(5)
+
+
+def reaction(rig: Rig, poses: list, click: dict) -> float:
+    """Seconds from the click to the hips' heading turning TURNED toward its goal for good (to the
+    last pose read: a stride's sway turns them a few degrees and back, a turn stays). The heading
+    at the click is the mean over the second before it: a stride, where the sway cancels."""
+    t = np.array([p["t"] for p in poses]) / 1000.0
+    positions = np.array([p["positions"] for p in poses])
+    heading = np.array([rig.heading(p) for p in positions])
+    clicked = click["t"] / 1000.0
+    before = (t < clicked) & (t >= clicked - 1.0)
+    assert before.sum() >= 10, "the poses of the second before the click were not kept"
+    h0 = np.arctan2(np.sin(heading[before]).mean(), np.cos(heading[before]).mean())
+    pelvis = positions[before][-1][rig.at["pelvis"]]
+    bearing = np.arctan2(click["x"] - pelvis[0], click["z"] - pelvis[2])
+    side = np.sign(np.angle(np.exp(1j * (bearing - h0))))
+    toward = side * np.angle(np.exp(1j * (heading - h0)))
+    after = np.flatnonzero(t >= clicked)
+    turned = [k for k in after if (toward[k:] >= TURNED).all()]
+    seen = np.degrees(toward[after][:: max(1, len(after) // 12)]).round(1).tolist()
+    assert turned, f"never turned {np.degrees(TURNED):g} degrees toward the goal for good: {seen}"
+    return float(t[turned[0]] - clicked)
+
+
+def walking(rig: Rig, driver) -> tuple[np.ndarray, float]:
+    """Where the pelvis is on the ground and the way the hips face, over the last second."""
+    poses = driver.execute_script("return window.modbAvatar.state.poses")
+    recent = [p for p in poses if p["t"] >= poses[-1]["t"] - 1000.0]
+    headings = np.array([rig.heading(p["positions"]) for p in recent])
+    facing = np.arctan2(np.sin(headings).mean(), np.cos(headings).mean())
+    return np.asarray(recent[-1]["positions"][rig.at["pelvis"]])[[0, 2]], float(facing)
+
+
+def ahead_and_aside(pelvis: np.ndarray, facing: float, ahead: float, aside: float) -> np.ndarray:
+    forward = np.array([np.sin(facing), np.cos(facing)])
+    across = np.array([np.cos(facing), -np.sin(facing)])
+    return pelvis + ahead * forward + aside * across
+
+
+@pytest.mark.parametrize("mode", [GRAPH, ""], ids=["models", "motion matching"])
+def test_a_new_goal_is_answered_within_half_a_second(server, browser, mode):
+    """Clicked while the avatar walks: its heading turns 5 degrees toward the new goal within
+    REACTION_SECONDS of the click, at three moments of the walk (a step plays to its end, the
+    queued ones are planned again; in motion matching the next snippet is asked for again)."""
+    address, dsn = server
+    rig = Rig(dsn)
+    open_page(browser, address)
+    if mode:
+        choose_mode(browser, mode)
+    browser.execute_script("window.modbAvatar.stage.look([0, 9, -3], [0, 0, 3])")
+    click_ground(browser, 0.0, 4.0)
+    frames = wait_until(browser, lambda s: len(s["trail"]) > 0, 20, "the walk")["frames"]
+    fps = 120.0  # CMU 16
+    times = []
+    for k, pause in enumerate((1.0, 1.27, 1.13)):  # other phases of a step at each click
+        # on a straight walk (a goal far ahead, sent as a click sends it) ...
+        pelvis, facing = walking(rig, browser)
+        far = ahead_and_aside(pelvis, facing, 8.0, 0.0)
+        browser.execute_script(
+            "window.modbAvatar.send({type: 'goal', x: arguments[0], z: arguments[1]})", *far
+        )
+        wait_until(browser, lambda s, f=frames: s["frames"] >= f + (0.5 + pause) * fps, 10, "on")
+        # ... a click 3 m to one side
+        pelvis, facing = walking(rig, browser)
+        x, z = ahead_and_aside(pelvis, facing, 1.0, 3.0 if k % 2 == 0 else -3.0)
+        browser.execute_script(
+            "window.modbAvatar.stage.look(arguments[0], arguments[1])",
+            [x, 10.0, z - 3.0],
+            [(x + pelvis[0]) / 2, 0.0, (z + pelvis[1]) / 2],
+        )
+        click_ground(browser, x, z)
+        time.sleep(1.5)
+        poses, clicks = browser.execute_script(
+            "const s = window.modbAvatar.state; return [s.poses, s.clicks]"
+        )
+        times.append(reaction(rig, poses, clicks[-1]))
+        frames = page_state(browser)["frames"]
+    print(f"{mode or 'motion matching'}: reactions {[round(t, 3) for t in times]} s")
+    assert max(times) <= REACTION_SECONDS, times
+    assert severe_console_entries(browser) == []

@@ -111,6 +111,7 @@ class Avatar:
         self._goal_index = 0
         # the current goal was reached (the queue moves on when one is added)
         self._goal_reached = False
+        self._course_changes = 0  # goals set or added so far: a query knows which it saw
         self._recent: list[tuple[int, int]] = []  # (snippet id, strip frame where its play ended)
         self._started = False
         self.library = FrameLibrary(self.conn)
@@ -131,14 +132,17 @@ class Avatar:
         self._graphs: dict[tuple[str | None, str, str | None], str] = {}
         self._rest_data: dict[str | None, bool] = {}  # collection: has motion that ends standing
 
-    # Goals may change at any time (from another thread too): they apply to the next query issued.
+    # Goals may change at any time (from another thread too): they apply to the next query issued,
+    # and a query issued for the next snippet before they came is issued again (frames()).
     def set_goal(self, goal: Goal) -> None:
         with self._lock:
             self._goals, self._goal_index, self._goal_reached = [checked_goal(goal)], 0, False
+            self._course_changes += 1
 
     def add_waypoint(self, goal: Goal) -> None:
         with self._lock:
             self._goals.append(checked_goal(goal))
+            self._course_changes += 1
 
     @property
     def goal(self) -> Goal | None:
@@ -171,6 +175,7 @@ class Avatar:
         self._started = True
         executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="modb-avatar")
         try:
+            seen = self._course_changes
             asked: tuple[Choice | None, dict] = (None, self._request(None))
             pending: Future | None = executor.submit(self._choose, *asked)
             played: list[Frame] = []  # the last two frames played: a seam's left side
@@ -213,7 +218,11 @@ class Avatar:
                     # the next seam joins the strip before its feet were held: the hold is
                     # continuous on its own, and its changes are not a seam's to carry
                     played = [*played[-1:], replace(frame, rotations=rotations[k])]
-                    if pending is None and choice.n_frames - 1 - k <= lead_frames:
+                    due = pending is None and choice.n_frames - 1 - k <= lead_frames
+                    # a goal came after the next snippet was asked for: asked again with it, so
+                    # the walk answers from the snippet playing (the first answer is dropped)
+                    if due or (pending is not None and self._course_changes != seen):
+                        seen = self._course_changes
                         asked = (choice, self._request(choice))
                         pending = executor.submit(self._choose, *asked)
         finally:
@@ -274,11 +283,10 @@ class Avatar:
         else:
             where = previous.end
             window = s.exclude_seconds * previous.fps
-            self._recent = [
-                (i, e)
-                for i, e in self._recent + [(previous.snippet_id, previous.end_frame)]
-                if previous.end_frame - e < window
-            ]
+            played = (previous.snippet_id, previous.end_frame)
+            # a snippet asked for again after a new goal is in the window once
+            recent = self._recent if played in self._recent else [*self._recent, played]
+            self._recent = [(i, e) for i, e in recent if previous.end_frame - e < window]
             exclude = [i for i, _ in self._recent]
         return {
             "prev": None if previous is None else previous.snippet_id,

@@ -1,9 +1,15 @@
 """The avatar on a graph of models: the kernel's synthesis from models (modb_kernel.model_synthesis,
-which modb.synthesize_from_models runs in the server) driven step by step as goals arrive, its
-frames played from a queue that is filled ahead of playback (at least QUEUE_SECONDS), so the
-character never waits for a step. Without a goal it comes to rest and stands, idling, as the
-synthesis does after its last goal (the graph's idle node or captured standing frames; without
-either, in its last pose; at first: standing above the origin facing +Z).
+which modb.synthesize_from_models runs in the server) driven piece by piece as goals arrive. Its
+frames wait in a queue filled ahead of playback (about QUEUE_SECONDS) by `fill`, which a producer
+thread calls, so playback never waits for a step. Without a goal it comes to rest and stands,
+idling, as the synthesis does after its last goal (the graph's idle node or captured standing
+frames; without either, in its last pose; at first: standing above the origin facing +Z).
+
+A new goal is answered from the piece playing: the queued pieces after it are dropped and planned
+again from the synthesis as it stood after that piece (kept for each queued piece). A step plays to
+its end (a step starts where a foot lands); a piece of standing is cut a moment after the frame
+playing and the start blends from there. So the walk turns toward a new goal about a step after
+the click, not a queue later.
 
 With the same graph, seed and goals given before the walk starts, the frames are those of
 `modb synth --models` (the same code, here with the client's numpy and scipy: equal within the
@@ -11,6 +17,8 @@ last digits)."""
 
 from __future__ import annotations
 
+import copy
+import threading
 from collections import deque
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -22,11 +30,15 @@ import psycopg
 from modb.jobs.kernel_database import WorkerDatabase
 from modb_kernel import model_synthesis as MS
 from modb_kernel import motion_model
+from modb_kernel.step_search import hip_heading
 
 from .chain import Frame, Goal
 
 QUEUE_SECONDS = 1.0  # frames synthesized ahead of the one shown
 MAX_GOALS = 100
+# A replan keeps at least this much of what is queued, so the next piece is ready before the queue
+# runs dry (a step takes 30-100 ms to synthesize on an idle machine).
+REPLAN_LEAD_SECONDS = 0.15
 
 
 @dataclass(frozen=True)
@@ -46,6 +58,22 @@ class StepReadout:
     goal: int | None
 
 
+@dataclass
+class _Piece:
+    """A step or a piece of standing in the queue: its frames' indices, the readouts up to it, and
+    the synthesis as it stood after it (a replan goes on from a copy of that)."""
+
+    first: int
+    n_frames: int
+    readouts: int
+    standing: bool
+    after: MS.Synthesis
+
+    @property
+    def end(self) -> int:
+        return self.first + self.n_frames
+
+
 class ModelAvatar:
     def __init__(self, conn: psycopg.Connection, graph: str, seed: int = 0,
                  radius: float = MS.ARRIVAL_RADIUS_M) -> None:  # fmt: skip
@@ -61,9 +89,15 @@ class ModelAvatar:
             "JOIN modb.skeletons s ON s.id = g.skeleton_id WHERE g.name = %s AND g.kind = 'models'",
             [graph],
         ).fetchone()
+        # What every copy of the synthesis shares: the models and what is read from them.
+        self._shared = [models, self.graph, self.rig, self.synthesis.types,
+                        self.synthesis.successors, self.synthesis.floors]  # fmt: skip
+        self._lock = threading.Lock()  # the queue and the goals: fill() and the page's thread
         self._queue: deque[Frame] = deque()
+        self._pieces: deque[_Piece] = deque()  # the queued pieces, oldest first
         self._shown = 0  # frames played so far
-        self._read = 0  # steps whose frames are queued
+        self._changes: list[tuple[str, np.ndarray]] = []  # goals set or added, not yet planned
+        self._goals: list[np.ndarray] = []  # the course as the page sees it
         self.readouts: list[StepReadout] = []
         self.standing = self._first_pose(models)
 
@@ -80,66 +114,151 @@ class ModelAvatar:
 
     @property
     def goals(self) -> list[Goal]:
-        return [tuple(float(v) for v in g) for g in self.synthesis.goals]
+        with self._lock:
+            return [tuple(float(v) for v in g) for g in self._goals]
 
     @property
     def goal_index(self) -> int:
-        return self.synthesis.goal
+        """The goal the piece playing serves (0 once a new goal is set)."""
+        with self._lock:
+            if any(kind == "set" for kind, _ in self._changes):
+                return 0
+            playing = self._playing()
+            synthesis = self.synthesis if playing is None else playing.after
+            return min(synthesis.goal, len(self._goals))
 
     def set_goal(self, goal: Goal) -> None:
-        """The new goal replaces the course (steps already queued still play)."""
-        self.synthesis.goals = [_ground(goal)]
-        self.synthesis.goal = 0
+        """The new goal replaces the course, from the piece playing on."""
+        with self._lock:
+            self._goals = [_ground(goal)]
+            self._changes.append(("set", self._goals[0]))
 
     def add_waypoint(self, goal: Goal) -> None:
-        if len(self.synthesis.goals) - self.synthesis.goal >= MAX_GOALS:
-            raise ValueError(f"at most {MAX_GOALS} goals ahead")
-        self.synthesis.goals.append(_ground(goal))
+        with self._lock:
+            if len(self._goals) >= MAX_GOALS:
+                raise ValueError(f"at most {MAX_GOALS} goals ahead")
+            self._goals.append(_ground(goal))
+            self._changes.append(("add", self._goals[-1]))
 
-    @property
-    def walking(self) -> bool:
-        return self.synthesis.goal < len(self.synthesis.goals)
-
-    def _fill(self) -> None:
-        """Steps toward the current goal (or, without one, pieces of standing) until
-        QUEUE_SECONDS of frames wait in the queue; the synthesis keeps only the last piece's
-        frames (the next seam needs them)."""
-        synthesis, body = self.synthesis, self.synthesis.body
-        while len(self._queue) < QUEUE_SECONDS * self.fps:
-            if self.walking:
-                synthesis.walk_step()
-            elif synthesis.standing_source() is not None:
-                if not synthesis.stop_walking():  # the stop first, where the graph has one
-                    synthesis.rest()
-            else:
-                return
-            record = synthesis.steps[-1]
-            rotations, translations = body.shown[-1], body.translations[-1]
+    def fill(self) -> bool:
+        """Plans the goals that came since, then adds a piece when the queue is short; whether
+        it did anything (a producer thread calls this in a loop, resting when it did not)."""
+        with self._lock:
+            changes, self._changes = self._changes, []
+            if changes:
+                self._replan(changes)
+            if len(self._queue) >= QUEUE_SECONDS * self.fps:
+                return bool(changes)
+            synthesis, first = self.synthesis, self._shown + len(self._queue)
+        frames, record = self._next_piece(synthesis)  # the slow part, unlocked
+        if frames is None:
+            return bool(changes)
+        after = self._copy(synthesis)
+        with self._lock:
+            if self.synthesis is not synthesis:  # replanned meanwhile: this piece is not wanted
+                return True
+            standing = bool(record.get("rest"))
             # a step's frames carry its readout's number (from 1); standing's carry 0
-            step = 0 if record.get("rest") else len(self.readouts) + 1
-            first = self._shown + len(self._queue)
-            for r, t in zip(rotations, translations, strict=True):
-                self._queue.append(Frame(first, step, r, t))
-                first += 1
-            if step:
+            step = 0 if standing else len(self.readouts) + 1
+            for k, (r, t) in enumerate(zip(*frames, strict=True)):
+                self._queue.append(Frame(first + k, step, r, t))
+            if not standing:
                 self.readouts.append(StepReadout(
                     step, record["node"], record["model"], record["first_frame"],
                     record["n_frames"], record["candidates"], record["error_m"],
                     record["tree_error_m"], record["random_error_m"], record["goal"],
                 ))  # fmt: skip
-            body.drop_all_but_the_last_step()
+            self._pieces.append(_Piece(first, len(frames[0]), len(self.readouts), standing, after))
+        return True
+
+    def _next_piece(self, synthesis: MS.Synthesis) -> tuple[Any, dict[str, Any]]:
+        """((rotations, translations) shown, its record) of the next piece: a step toward the
+        current goal or, without one, a piece of standing; (None, {}) when there is nothing to
+        add (no goal, and nothing to stand with: the last pose holds)."""
+        body = synthesis.body
+        if synthesis.goal < len(synthesis.goals):
+            synthesis.walk_step()
+        elif synthesis.standing_source() is not None:
+            if not synthesis.stop_walking():  # the stop first, where the graph has one
+                synthesis.rest()
+        else:
+            return None, {}
+        record = synthesis.steps[-1]
+        frames = (body.shown[-1], body.translations[-1])
+        body.drop_all_but_the_last_step()
+        del synthesis.steps[:-1]  # an avatar reads the last step's record only
+        return frames, record
+
+    def _playing(self) -> _Piece | None:
+        """The queued piece whose frame plays next (None when every queued frame has played)."""
+        for piece in self._pieces:
+            if piece.end > self._shown:
+                return piece
+        return None
+
+    def _replan(self, changes: list[tuple[str, np.ndarray]]) -> None:
+        """From the piece playing on (and the next, when little of it is left): the queue after
+        it dropped, the synthesis back to where it stood after it, the goals changed there. A
+        piece of standing is cut REPLAN_LEAD_SECONDS after the frame playing: the start blends
+        from there."""
+        lead = int(round(REPLAN_LEAD_SECONDS * self.fps))
+        keep = None
+        for piece in self._pieces:
+            if piece.end > self._shown + lead or piece is self._pieces[-1]:
+                keep = piece
+                break
+        if keep is not None:
+            n = self._shown + lead + 1 - keep.first  # the standing frames to keep
+            if keep.standing and 2 <= n < keep.n_frames:  # a seam joins the last two
+                self._cut(keep, n)
+            while self._pieces[-1] is not keep:
+                self._pieces.pop()
+            while self._queue and self._queue[-1].index >= keep.end:
+                self._queue.pop()
+            del self.readouts[keep.readouts :]
+            self.synthesis = self._copy(keep.after)
+        synthesis = self.synthesis
+        for kind, goal in changes:
+            if kind == "set":
+                synthesis.goals, synthesis.goal, synthesis.reached = [goal], 0, {}
+                synthesis.closest = np.inf
+            else:
+                synthesis.goals.append(goal)
+
+    def _cut(self, piece: _Piece, n: int) -> None:
+        """The piece of standing ends after its first n frames: what is queued of it, and the
+        synthesis after it (its last frames, where its feet stand and it faces)."""
+        while self._queue and self._queue[-1].index >= piece.first + n:
+            self._queue.pop()
+        body, rig = piece.after.body, self.rig
+        drop = piece.n_frames - n
+        for frames in (body.rotations, body.translations, body.shown):
+            frames[-1] = frames[-1][:-drop]
+        end = rig.positions(body.rotations[-1][-1:], body.translations[-1][-1:])[0]
+        body.heading = float(hip_heading(end, rig.left_hip, rig.right_hip))
+        body.feet = {side: end[joint][[0, 2]] for side, joint in rig.ankle.items()}
+        piece.n_frames = n
+
+    def _copy(self, synthesis: MS.Synthesis) -> MS.Synthesis:
+        """A copy to go on from: its own body, feet, seams and random state, the models shared."""
+        shared = [*self._shared, synthesis.captured, getattr(synthesis, "_legs", None)]
+        return copy.deepcopy(synthesis, {id(x): x for x in shared if x is not None})
 
     def frames(self) -> Iterator[Frame]:
-        """The walk, a frame at a time, forever: queued frames, else the last pose again."""
+        """The walk, a frame at a time, forever: queued frames, else the last pose again (fill()
+        adds them, from another thread)."""
         last = self.standing
         while True:
-            self._fill()
-            if self._queue:
-                last = self._queue.popleft()
-                self._shown += 1
-                yield last
-            else:
-                yield Frame(self._shown, last.step, last.rotations, last.translations)
+            with self._lock:
+                if self._queue:
+                    last = self._queue.popleft()
+                    self._shown += 1
+                    while self._pieces and self._pieces[0].end <= self._shown:
+                        self._pieces.popleft()  # played: a replan goes on from self.synthesis
+                    frame = last
+                else:
+                    frame = Frame(self._shown, last.step, last.rotations, last.translations)
+            yield frame
 
 
 def _ground(goal: Goal) -> np.ndarray:

@@ -35,6 +35,8 @@ log = logging.getLogger("modb.web")
 
 STATEMENT_TIMEOUT = "10s"  # an avatar's query that takes longer stops it (and frees its slot)
 KEEP_SECONDS = 300  # a download holds the last 5 min of the walk (frames: ~10 MB at 30 fps)
+# Late by less than this, playback catches up (frames sent at once); later, it goes on from now.
+CATCH_UP_SECONDS = 0.25
 
 Send = Callable[[dict[str, Any]], None]
 Check = Callable[[Settings], None]
@@ -218,7 +220,9 @@ class AvatarSession:
                         )
                     )
                 self._keep(frame, choice.fps)
-                due = max(due, time.monotonic())  # after a stall, on from now: no burst to catch up
+                # a frame a little late is made up at once (the rate holds); after a stall, on
+                # from now: no burst
+                due = max(due, time.monotonic() - CATCH_UP_SECONDS)
                 if self._stopping.wait(max(0.0, due - time.monotonic())):
                     break
                 self._send(frame_message(frame))

@@ -35,6 +35,9 @@ log = logging.getLogger("modb.web")
 KEEP_SECONDS = 300  # a download holds the last 5 min of the walk
 RECENT = 50  # the readout's medians: over the last this many steps
 MAX_SEED = 2**31 - 1  # modb.synthesize_from_models's seed is an int
+PRODUCER_REST_SECONDS = 0.02  # the queue full: the producer looks again after this
+# Late by less than this, playback catches up (frames sent at once); later, it goes on from now.
+CATCH_UP_SECONDS = 0.25
 
 Send = Callable[[dict[str, Any]], None]
 
@@ -65,6 +68,8 @@ class ModelAvatarSession:
         self._lock = threading.Lock()  # the avatar: goals from handle(), frames from the thread
         self._stopping = threading.Event()
         self._thread: threading.Thread | None = None
+        self._producer: threading.Thread | None = None
+        self._failed: Exception | None = None  # what stopped the producer
         # the walk's frames, for downloads: the last KEEP_SECONDS (the deque drops the oldest)
         self._walk: deque[Frame] = deque(maxlen=int(KEEP_SECONDS * self.fps) + 1)
 
@@ -77,8 +82,23 @@ class ModelAvatarSession:
         return {"models": self.graph, "seed": self.seed, "arrival_radius": radius}
 
     def start(self) -> None:
+        self._producer = threading.Thread(target=self._produce, daemon=True,
+                                          name="modb-model-avatar-steps")  # fmt: skip
+        self._producer.start()
         self._thread = threading.Thread(target=self._play, daemon=True, name="modb-model-avatar")
         self._thread.start()
+
+    def _produce(self) -> None:
+        """The walk's pieces, ahead of playback, in a thread of their own: a step's synthesis
+        (0.1-0.3 s on a busy machine) never holds back a frame."""
+        try:
+            while not self._stopping.is_set():
+                if not self._avatar.fill():
+                    self._stopping.wait(PRODUCER_REST_SECONDS)
+        except Exception as e:  # a bug, or a graph the walk cannot go on in: the log has it
+            if not self._stopping.is_set():
+                log.exception("model avatar stopped")
+                self._failed = e
 
     def handle(self, message: dict[str, Any]) -> None:
         kind = message.get("type") if isinstance(message, dict) else None
@@ -138,11 +158,15 @@ class ModelAvatarSession:
             idle = True  # standing, before any goal
             due = time.monotonic()
             while not self._stopping.is_set():
+                if self._failed is not None:
+                    raise self._failed
                 with self._lock:
                     frame = next(frames)
                     readouts = avatar.readouts
                     goals, index = avatar.goals, avatar.goal_index
-                due = max(due, time.monotonic())  # after a stall, on from now: no burst
+                # a frame a little late is made up at once (the rate holds); after a stall, on
+                # from now: no burst
+                due = max(due, time.monotonic() - CATCH_UP_SECONDS)
                 if self._stopping.wait(max(0.0, due - time.monotonic())):
                     break
                 due += 1.0 / fps
@@ -195,8 +219,9 @@ class ModelAvatarSession:
 
     def close(self) -> None:
         self._stopping.set()
-        if self._thread is not None:
-            self._thread.join(timeout=30)
+        for thread in (self._thread, self._producer):
+            if thread is not None:
+                thread.join(timeout=30)
 
 
 def step_message(readouts: list[StepReadout], step: int, goals: list[Goal]) -> dict[str, Any]:

@@ -14,6 +14,7 @@ const KEEP_CHOICES = 1000;
 const KEEP_FRAMES = 3000;
 const KEEP_MESSAGES = 20000; // all but frames, for checks: the older half goes when full
 const CLICK_SLOP_PX = 5; // a pointer that moved more than this between press and release dragged the view
+const KEEP_POSES = 600; // the last frames' joint positions and arrival times: how fast a click is answered
 
 const stage = new Stage($('view'));
 const course = new Course(stage.scene);
@@ -21,7 +22,7 @@ stage.look([0, 7, -7], [0, 0, 3]); // from above and behind the avatar, which st
 const state = {
   connected: false, settings: null, rig: null, character: null, framed: false, frames: 0, frame: null,
   choices: [], goals: [], goalIndex: 0, messages: [], closed: null, pelvisAt: {},
-  mode: { models: null, seed: null }, steps: [],
+  mode: { models: null, seed: null }, steps: [], poses: [], clicks: [],
 };
 
 function status(text, isError = false) {
@@ -151,6 +152,8 @@ const handlers = {
     state.frame = { index: m.index, step: m.step, pelvis };
     state.pelvisAt[m.index] = pelvis; // the recent frames' pelvis, for checks
     delete state.pelvisAt[m.index - KEEP_FRAMES];
+    state.poses.push({ t: performance.now(), index: m.index, positions });
+    if (state.poses.length > KEEP_POSES) state.poses.shift();
   },
   choice(m) {
     state.choices.push(m);
@@ -193,7 +196,9 @@ canvas.addEventListener('pointerdown', (e) => { pressed = [e.clientX, e.clientY]
 canvas.addEventListener('click', (e) => {
   if (!state.connected || !pressed || Math.hypot(e.clientX - pressed[0], e.clientY - pressed[1]) > CLICK_SLOP_PX) return;
   const point = stage.groundPointAt(e.clientX, e.clientY);
-  if (point) send({ type: 'goal', x: point.x, z: point.z, add: e.shiftKey });
+  if (!point) return;
+  state.clicks.push({ t: performance.now(), x: point.x, z: point.z, add: e.shiftKey });
+  send({ type: 'goal', x: point.x, z: point.z, add: e.shiftKey });
 });
 
 $('mode').addEventListener('change', chooseMode);
