@@ -46,7 +46,8 @@ DOCUMENTS = Statement(
                (m.meta->'tree')::text AS tree,
                s.hierarchy::text AS hierarchy, s.joint_map::text AS joint_map
           FROM modb.models m JOIN modb.skeletons s ON s.id = m.skeleton_id
-         WHERE m.id = ANY ($1)""",
+         WHERE m.id = ANY ($1)
+         ORDER BY m.id""",
     ("bigint[]",),
 )
 
