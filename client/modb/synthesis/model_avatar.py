@@ -5,11 +5,12 @@ thread calls, so playback never waits for a step. Without a goal it comes to res
 idling, as the synthesis does after its last goal (the graph's idle node or captured standing
 frames; without either, in its last pose; at first: standing above the origin facing +Z).
 
-A new goal is answered from the piece playing: the queued pieces after it are dropped and planned
-again from the synthesis as it stood after that piece (kept for each queued piece). A step plays to
-its end (a step starts where a foot lands); a piece of standing is cut a moment after the frame
-playing and the start blends from there. So the walk turns toward a new goal about a step after
-the click, not a queue later.
+A new goal is answered from the piece playing, not a queue later: the step playing is planned
+again toward it from where it began (the same foot planted) and its frames from a moment after the
+one playing are blended into the new step's; a piece of standing is cut there and the start blends
+from it. The queued pieces after it are dropped and planned again (each queued piece keeps the
+synthesis as it stood before and after it). So the walk turns toward a new goal within a few tenths
+of a second of the click.
 
 With the same graph, seed and goals given before the walk starts, the frames are those of
 `modb synth --models` (the same code, here with the client's numpy and scipy: equal within the
@@ -39,6 +40,7 @@ MAX_GOALS = 100
 # A replan keeps at least this much of what is queued, so the next piece is ready before the queue
 # runs dry (a step takes 30-100 ms to synthesize on an idle machine).
 REPLAN_LEAD_SECONDS = 0.15
+BLEND_SECONDS = 0.2  # a step planned again is blended into over this
 
 
 @dataclass(frozen=True)
@@ -61,12 +63,13 @@ class StepReadout:
 @dataclass
 class _Piece:
     """A step or a piece of standing in the queue: its frames' indices, the readouts up to it, and
-    the synthesis as it stood after it (a replan goes on from a copy of that)."""
+    the synthesis as it stood before and after it (a replan goes on from a copy of one)."""
 
     first: int
     n_frames: int
     readouts: int
     standing: bool
+    before: MS.Synthesis
     after: MS.Synthesis
 
     @property
@@ -145,31 +148,37 @@ class ModelAvatar:
         it did anything (a producer thread calls this in a loop, resting when it did not)."""
         with self._lock:
             changes, self._changes = self._changes, []
-            if changes:
-                self._replan(changes)
-            if len(self._queue) >= QUEUE_SECONDS * self.fps:
+            redo = self._replan(changes) if changes else None
+            if redo is None and len(self._queue) >= QUEUE_SECONDS * self.fps:
                 return bool(changes)
             synthesis, first = self.synthesis, self._shown + len(self._queue)
+        if redo is not None:
+            self._redo(*redo, changes)
+            return True
+        before = self._copy(synthesis)
         frames, record = self._next_piece(synthesis)  # the slow part, unlocked
         if frames is None:
             return bool(changes)
-        after = self._copy(synthesis)
         with self._lock:
-            if self.synthesis is not synthesis:  # replanned meanwhile: this piece is not wanted
-                return True
-            standing = bool(record.get("rest"))
-            # a step's frames carry its readout's number (from 1); standing's carry 0
-            step = 0 if standing else len(self.readouts) + 1
-            for k, (r, t) in enumerate(zip(*frames, strict=True)):
-                self._queue.append(Frame(first + k, step, r, t))
-            if not standing:
-                self.readouts.append(StepReadout(
-                    step, record["node"], record["model"], record["first_frame"],
-                    record["n_frames"], record["candidates"], record["error_m"],
-                    record["tree_error_m"], record["random_error_m"], record["goal"],
-                ))  # fmt: skip
-            self._pieces.append(_Piece(first, len(frames[0]), len(self.readouts), standing, after))
+            self._queue_piece(first, frames, record, before, self._copy(synthesis))
         return True
+
+    def _queue_piece(self, first: int, frames, record: dict[str, Any], before: MS.Synthesis,
+                     after: MS.Synthesis, step: int | None = None) -> None:  # fmt: skip
+        """A piece's frames (from frame `first` on), its readout and its piece, queued."""
+        standing = bool(record.get("rest"))
+        # a step's frames carry its readout's number (from 1); standing's carry 0
+        step = 0 if standing else step or len(self.readouts) + 1
+        for k, (r, t) in enumerate(zip(*frames, strict=True)):
+            self._queue.append(Frame(first + k, step, r, t))
+        if not standing:
+            self.readouts.append(StepReadout(
+                step, record["node"], record["model"], record["first_frame"],
+                record["n_frames"], record["candidates"], record["error_m"],
+                record["tree_error_m"], record["random_error_m"], record["goal"],
+            ))  # fmt: skip
+        n = len(frames[0])
+        self._pieces.append(_Piece(first, n, len(self.readouts), standing, before, after))
 
     def _next_piece(self, synthesis: MS.Synthesis) -> tuple[Any, dict[str, Any]]:
         """((rotations, translations) shown, its record) of the next piece: a step toward the
@@ -196,11 +205,26 @@ class ModelAvatar:
                 return piece
         return None
 
-    def _replan(self, changes: list[tuple[str, np.ndarray]]) -> None:
-        """From the piece playing on (and the next, when little of it is left): the queue after
-        it dropped, the synthesis back to where it stood after it, the goals changed there. A
-        piece of standing is cut REPLAN_LEAD_SECONDS after the frame playing: the start blends
-        from there."""
+    def _replan(self, changes: list[tuple[str, np.ndarray]]):
+        """The goals changed, from the piece playing on. The step that plays a moment after the
+        frame playing (REPLAN_LEAD_SECONDS), where enough of it is left, is planned again from
+        where it began and blended into from that moment: returns (that piece, that frame) for
+        _redo, which does it outside the lock.
+        Else (None) the queue after the piece playing (or the next, when little of it is left)
+        is dropped here and the synthesis goes on from after it, a piece of standing cut a
+        moment after the frame playing: the start blends from there."""
+        start = self._shown + int(round(REPLAN_LEAD_SECONDS * self.fps))
+        blend = int(round(BLEND_SECONDS * self.fps))
+        redone = next((p for p in self._pieces if p.first <= start < p.end), None)
+        # a seam needs the step's own last two frames
+        if redone is not None and not redone.standing and start + blend + 2 <= redone.end:
+            return redone, start
+        self._replan_after(changes)
+        return None
+
+    def _replan_after(self, changes: list[tuple[str, np.ndarray]]) -> None:
+        """The goals changed after the piece playing (or the next, when little of it is left):
+        what is queued after it dropped, the synthesis back to where it stood after it."""
         lead = int(round(REPLAN_LEAD_SECONDS * self.fps))
         keep = None
         for piece in self._pieces:
@@ -211,19 +235,56 @@ class ModelAvatar:
             n = self._shown + lead + 1 - keep.first  # the standing frames to keep
             if keep.standing and 2 <= n < keep.n_frames:  # a seam joins the last two
                 self._cut(keep, n)
-            while self._pieces[-1] is not keep:
-                self._pieces.pop()
-            while self._queue and self._queue[-1].index >= keep.end:
-                self._queue.pop()
-            del self.readouts[keep.readouts :]
+            self._drop_after(keep)
             self.synthesis = self._copy(keep.after)
-        synthesis = self.synthesis
-        for kind, goal in changes:
-            if kind == "set":
-                synthesis.goals, synthesis.goal, synthesis.reached = [goal], 0, {}
-                synthesis.closest = np.inf
-            else:
-                synthesis.goals.append(goal)
+        _change_goals(self.synthesis, changes)
+
+    def _drop_after(self, keep: _Piece) -> None:
+        """The pieces queued after `keep` dropped, with their frames and readouts."""
+        while self._pieces[-1] is not keep:
+            self._pieces.pop()
+        while self._queue and self._queue[-1].index >= keep.end:
+            self._queue.pop()
+        del self.readouts[keep.readouts :]
+
+    def _redo(self, piece: _Piece, start: int, changes: list[tuple[str, np.ndarray]]) -> None:
+        """The step playing planned again toward the new goals from where it began, and its
+        frames from `start` on blended into the new ones over BLEND_SECONDS (both leave the same
+        pose, with the same foot planted). When playback passed `start` meanwhile, or the new
+        step is too short to blend into, the old one plays to its end and the walk goes on from
+        there."""
+        synthesis = self._copy(piece.before)
+        _change_goals(synthesis, changes)
+        before = self._copy(synthesis)
+        frames, record = self._next_piece(synthesis)  # the slow part, unlocked
+        after = self._copy(synthesis)
+        with self._lock:
+            b = start - piece.first
+            n = 0 if frames is None else min(int(round(BLEND_SECONDS * self.fps)),
+                                             len(frames[0]) - b - 2)  # fmt: skip
+            if self._shown > start or n < 2 or piece not in self._pieces or record.get("rest"):
+                self._replan_after(changes)
+                return
+            old = [f for f in self._queue if piece.first <= f.index < piece.end]
+            old = old[start - old[0].index :]  # from `start` on
+            rotations, translations = (np.array(x) for x in frames)  # copies: blended here
+            w = (0.5 - 0.5 * np.cos(np.pi * np.arange(1, n + 1) / (n + 1)))[:, None, None]
+            for k in range(n):
+                q0, q1 = old[k].rotations, rotations[b + k]
+                q1 = q1 * np.where((q0 * q1).sum(-1, keepdims=True) < 0, -1.0, 1.0)
+                mixed = (1 - w[k]) * q0 + w[k] * q1
+                rotations[b + k] = mixed / np.linalg.norm(mixed, axis=-1, keepdims=True)
+                translations[b + k] = (1 - w[k]) * old[k].translations + w[k] * translations[b + k]
+            step = old[0].step  # the readout number the page knows the step by
+            while self._pieces.pop() is not piece:  # it and those after it: their frames too
+                pass
+            while self._queue and self._queue[-1].index >= start:
+                self._queue.pop()
+            del self.readouts[piece.readouts - 1 :]
+            self.synthesis = synthesis
+            self._queue_piece(start, (rotations[b:], translations[b:]), record, before, after,
+                              step)  # fmt: skip
+            self._pieces[-1].first, self._pieces[-1].n_frames = piece.first, len(rotations)
 
     def _cut(self, piece: _Piece, n: int) -> None:
         """The piece of standing ends after its first n frames: what is queued of it, and the
@@ -264,3 +325,13 @@ class ModelAvatar:
 def _ground(goal: Goal) -> np.ndarray:
     """(x, z) of a goal given as (x, z) or (x, y, z)."""
     return np.array([goal[0], goal[-1]], dtype=np.float64)
+
+
+def _change_goals(synthesis: MS.Synthesis, changes: list[tuple[str, np.ndarray]]) -> None:
+    """The goals set ("set": the course replaced) or added, in order, on this synthesis."""
+    for kind, goal in changes:
+        if kind == "set":
+            synthesis.goals, synthesis.goal, synthesis.reached = [goal], 0, {}
+            synthesis.closest = np.inf
+        else:
+            synthesis.goals.append(goal)
