@@ -7,7 +7,9 @@ across avatar sessions, shared by syntheses in threads, within its bounds."""
 
 from __future__ import annotations
 
+import json
 import os
+import sys
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -150,11 +152,22 @@ def test_the_web_servers_sessions_share_prepared_models_in_threads_within_bounds
         with pytest.raises(ValueError, match="read-only"):
             model.tree["root"]["children"][0]["mean"][0] = 0.0
 
+        # walks at once give what each gives alone, and leave the models as they were
+        state = [(dict(vars(m)), json.dumps(m.model)) for m in models.values()]
         alone = [walk(graph, models, rig, seed) for seed in (1, 2)]
-        with ThreadPoolExecutor(2) as pool:
-            together = list(pool.map(lambda seed: walk(graph, models, rig, seed), (1, 2)))
+        interval = sys.getswitchinterval()
+        sys.setswitchinterval(1e-5)  # threads take turns far more often than by default
+        try:
+            with ThreadPoolExecutor(2) as pool:
+                together = list(pool.map(lambda seed: walk(graph, models, rig, seed), (1, 2)))
+        finally:
+            sys.setswitchinterval(interval)
         for (r, t), (r2, t2) in zip(alone, together, strict=True):
             assert np.array_equal(r, r2) and np.array_equal(t, t2)
+        for m, (attributes, document) in zip(models.values(), state, strict=True):
+            assert vars(m).keys() == attributes.keys()
+            assert all(vars(m)[k] is v for k, v in attributes.items())
+            assert json.dumps(m.model) == document
 
         # bounded: the least recently used dropped, read again when wanted
         ids = sorted(set(nodes(conn).values()))
