@@ -156,25 +156,44 @@ def measure(motion: Motion, goals, seconds_spent: float, source: Source) -> dict
     }
 
 
+@dataclass
+class Walked:
+    """A strip one family walked, and the wall time its call took."""
+
+    motion: Motion
+    seconds_spent: float
+
+
+def result(source: Source, collection: str, graph: str, seconds: float, seed: int
+           ) -> dict[str, Any]:  # fmt: skip
+    """What run() returns, before its courses (compared() adds each)."""
+    return {"collection": collection, "graph": graph, "seconds": seconds, "seed": seed,
+            "source_pose_jump_p99_cm": 100 * source.pose_jump_p99,
+            "source_walking_speed": source.walking_speed, "courses": {}}  # fmt: skip
+
+
+def compared(goals, matched: Walked, modelled: Walked, source: Source) -> dict[str, Any]:
+    """One course as both families walked it, judged alike: {"goals", family: figures}."""
+    return {
+        "goals": goals,
+        "motion matching": measure(matched.motion, goals, matched.seconds_spent, source),
+        "models": measure(modelled.motion, goals, modelled.seconds_spent, source),
+    }
+
+
 def run(conn: psycopg.Connection, collection: str, graph: str, seconds: float = SECONDS,
         seed: int = 0, courses: dict[str, list] | None = None) -> dict[str, Any]:  # fmt: skip
     """Every course walked by both families: {..., "courses": {name: {family: figures}}}."""
     source = Source.of(conn, collection)
-    out: dict[str, Any] = {"collection": collection, "graph": graph, "seconds": seconds,
-                           "seed": seed, "source_pose_jump_p99_cm": 100 * source.pose_jump_p99,
-                           "source_walking_speed": source.walking_speed, "courses": {}}  # fmt: skip
+    out = result(source, collection, graph, seconds, seed)
     for name, goals in (courses or COURSES).items():
         t = time.perf_counter()
         snippets = synthesize_snippets(conn, goals, seconds, Settings(collection=collection))
-        matched = time.perf_counter() - t
+        matched = Walked(snippets.strip, time.perf_counter() - t)
         t = time.perf_counter()
         models = synthesize_models(conn, graph, goals, seconds, seed)
-        modelled = time.perf_counter() - t
-        out["courses"][name] = {
-            "goals": goals,
-            "motion matching": measure(snippets.strip, goals, matched, source),
-            "models": measure(models.motion, goals, modelled, source),
-        }
+        modelled = Walked(models.motion, time.perf_counter() - t)
+        out["courses"][name] = compared(goals, matched, modelled, source)
     return out
 
 

@@ -7,6 +7,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+import psycopg
+
 from modb.editing.meta import MetaNotFound, StaleMeta, read_meta, write_meta
 from modb.loader.annotations import (
     AnnotationError,
@@ -57,6 +59,41 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     annotate.set_defaults(func=run)
 
 
+Found = list[tuple[int, int | None, dict[str, int]]]  # per clip: id, version, count per primitive
+
+
+def find_steps(conn: psycopg.Connection, args: argparse.Namespace, clips: list[int]) -> Found | int:
+    """The steps of the clips, found as a job where the database runs them (args: --background,
+    --after, -q, as `modb annotate --steps` takes them), else here; an exit status when there is
+    nothing to print (queued) or it failed (said why)."""
+    as_a_job = as_job.usable(conn, args, "annotate --steps", "0.21.0")
+    if as_a_job is None:
+        return 2
+    if as_a_job:
+        done = as_job.run(conn, args, "annotate --steps", "annotate_steps", {"clips": clips})
+        if done is None or isinstance(done, int):
+            return done or 0
+        return [(c["clip_id"], c["version"], c["steps"]) for c in done.result["clips"]]
+    found = []
+    for clip in clips:
+        with conn.transaction():
+            rows = conn.execute(
+                "SELECT version, name FROM modb.annotate_steps(%s)", [clip]
+            ).fetchall()
+        counts = dict.fromkeys(STEPS, 0)
+        for _, name in rows:
+            counts[name] = counts.get(name, 0) + 1
+        found.append((clip, rows[0][0] if rows else None, counts))
+    return found
+
+
+def totals(found: Found) -> str:
+    """What was found, summed over the clips: '419 clips: 2059 left_step, ...'."""
+    kinds = list(STEPS) + sorted({n for _, _, c in found for n in c} - set(STEPS))
+    summed = {n: sum(c.get(n, 0) for _, _, c in found) for n in kinds}
+    return f"{len(found)} clips: " + ", ".join(f"{summed[n]} {n}" for n in kinds)
+
+
 def steps(args: argparse.Namespace) -> int:
     from modb.clips import ClipNotFound, clips_in
 
@@ -66,34 +103,16 @@ def steps(args: argparse.Namespace) -> int:
         except ClipNotFound as e:
             print(f"modb annotate: {e}", file=sys.stderr)
             return 2
-        as_a_job = as_job.usable(conn, args, "annotate --steps", "0.21.0")
-        if as_a_job is None:
-            return 2
-        if as_a_job:
-            done = as_job.run(conn, args, "annotate --steps", "annotate_steps", {"clips": clips})
-            if done is None or isinstance(done, int):
-                return done or 0
-            found = [(c["clip_id"], c["version"], c["steps"]) for c in done.result["clips"]]
-        else:
-            found = []
-            for clip in clips:
-                with conn.transaction():
-                    rows = conn.execute(
-                        "SELECT version, name FROM modb.annotate_steps(%s)", [clip]
-                    ).fetchall()
-                version = rows[0][0] if rows else None
-                counts = dict.fromkeys(STEPS, 0)
-                for _, name in rows:
-                    counts[name] = counts.get(name, 0) + 1
-                found.append((clip, version, counts))
+        found = find_steps(conn, args, clips)
+    if isinstance(found, int):
+        return found
     kinds = list(STEPS) + sorted({n for _, _, c in found for n in c} - set(STEPS))
     for clip, version, counts in found:
         print(
             f"clip {clip}" + (f" version {version}" if version else "") + ": "
             + ", ".join(f"{counts[n]} {n}" for n in kinds if counts.get(n) or n in STEPS)
         )  # fmt: skip
-    totals = {n: sum(c.get(n, 0) for _, _, c in found) for n in kinds}
-    print(f"{len(found)} clips: " + ", ".join(f"{totals[n]} {n}" for n in kinds))
+    print(totals(found))
     return 0
 
 

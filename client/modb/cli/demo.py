@@ -21,6 +21,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         default=".cache/demo",
         help="where downloaded demo data and the synthesized BVH are kept",
     )
+    demo.add_argument(
+        "--no-models",
+        action="store_true",
+        help="motion matching only: leave out the steps, the graph of motion models, the walk "
+        "from it and the comparison (minutes on a first run over ../shared/mocap)",
+    )
     demo.set_defaults(func=run)
 
 

@@ -8,6 +8,7 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import Any
 
 import psycopg
 
@@ -305,10 +306,12 @@ def _graph(conn: psycopg.Connection, args: argparse.Namespace) -> int:
     return 0
 
 
-def _family(conn: psycopg.Connection, args: argparse.Namespace, name: str) -> int:
-    """The family graph: the models the collection lacks, then the graph (a job where the
-    database runs them)."""
-    from modb.models.family import build_family, summary
+def family_graph(conn: psycopg.Connection, args: argparse.Namespace, name: str
+                 ) -> dict[str, Any] | int:  # fmt: skip
+    """The family graph NAME of args.collection: the models it lacks, then the graph, as a job where
+    the database runs them (args: --model, --seed, -q, --background, --after), else here. What
+    modb.models.family.build_family returns, or an exit status (queued, or failed: said why)."""
+    from modb.models.family import build_family
 
     as_a_job = as_job.usable(conn, args, "model graph", "0.22.0")
     if as_a_job is None:
@@ -317,12 +320,17 @@ def _family(conn: psycopg.Connection, args: argparse.Namespace, name: str) -> in
                  "seed": args.seed}  # fmt: skip
     if as_a_job:
         done = as_job.run(conn, args, "model graph", "build_family", arguments)
-        if done is None or isinstance(done, int):
-            return done or 0
-        made = done.result
-    else:
-        made = build_family(conn, **arguments, say=lambda line: None if args.quiet else print(
-            line, file=sys.stderr))  # fmt: skip
+        return done.result if done is not None and not isinstance(done, int) else done or 0
+    return build_family(conn, **arguments, say=lambda line: None if args.quiet else print(
+        line, file=sys.stderr))  # fmt: skip
+
+
+def _family(conn: psycopg.Connection, args: argparse.Namespace, name: str) -> int:
+    from modb.models.family import summary
+
+    made = family_graph(conn, args, name)
+    if isinstance(made, int):
+        return made
     for line in summary(made):
         print(line)
     return 0

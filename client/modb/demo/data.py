@@ -28,15 +28,26 @@ FILES = {  # member of the sdist -> (real name, sha256 of the CMU original)
 }
 
 
-LOCOMOTION = ("walk", "walk-turn-left", "walk-turn-right", "run")
+WALKING = ("walk", "walk-turn-left", "walk-turn-right")
+RUNNING = ("run",)
+LOCOMOTION = WALKING + RUNNING
+
+
+def content(name: str) -> str | None:
+    """The content of a Bandai dataset 2 take from its file or clip name,
+    dataset-2_<content>_<style>_<n>: "walk", "run", ...; None for a name of another form."""
+    parts = Path(name).name.split("_")
+    return parts[1] if len(parts) == 4 and parts[0] == "dataset-2" else None
+
+
+def is_run(name: str) -> bool:
+    """Whether the clip or file is one of Bandai's runs (the demo loads them beside the walks)."""
+    return content(name) in RUNNING
 
 
 def locomotion_files(folder: Path) -> list[Path]:
-    """Bandai dataset 2's walks, turns and runs in a folder, sorted.
-
-    Their file names are dataset-2_<content>_<style>_<n>.bvh.
-    """
-    return sorted(f for f in folder.glob("dataset-2_*.bvh") if f.name.split("_")[1] in LOCOMOTION)
+    """Bandai dataset 2's walks, turns and runs in a folder, sorted."""
+    return sorted(f for f in folder.glob("dataset-2_*.bvh") if content(f.stem) in LOCOMOTION)
 
 
 class DemoDataError(RuntimeError):
