@@ -13,6 +13,8 @@ from .common import PORT, whole
 UPLOAD_MB = whole(1, 4096)
 AVATARS = whole(1, 10000)
 
+PLAY_SWITCH_INTERVAL_SECONDS = 0.001
+
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     serve = sub.add_parser(
@@ -74,6 +76,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     # the web server stack (uvicorn, Starlette) and numpy (about 400 ms): not for `modb --help`
     import uvicorn
+
+    # Avatars' play threads wait on threads that synthesize (models) or place (snippets): on a busy
+    # machine the default 5 ms turns of the interpreter lock make a frame late; 1 ms ones do not.
+    sys.setswitchinterval(PLAY_SWITCH_INTERVAL_SECONDS)
 
     from modb.database.read_nodes import ReadNodes
     from modb.web.app import ThreeMissing, create_app
