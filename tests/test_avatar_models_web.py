@@ -530,3 +530,36 @@ def test_a_new_goal_is_answered_within_half_a_second(server, browser):
     print(f"reactions {[round(t, 3) for t in times]} s")
     assert np.median(times) <= REACTION_SECONDS and max(times) <= LATEST_SECONDS, times
     assert severe_console_entries(browser) == []
+
+
+def test_the_demos_graph_of_models_comes_first_and_its_link_starts_on_it(server, browser):
+    """`modb demo`'s graph of models (MODEL_GRAPH) is the first graph the selector offers, named as
+    the demo's, before one named ahead of it; /avatar?models=NAME (the link the demo prints) opens
+    walking on it."""
+    from modb.demo import MODEL_GRAPH
+    from modb.models import graphs
+
+    address, dsn = server
+    other = "a-walk"  # before the demo's by name
+    with psycopg.connect(dsn) as conn:  # GRAPH again under the demo's name, and another
+        walk = graphs.load(conn, GRAPH)
+        for name in (MODEL_GRAPH, other):
+            graphs.save(conn, name, walk.skeleton_id, walk.data)
+    try:
+        browser.get(f"http://{address}/avatar?models={MODEL_GRAPH}")
+        ready = browser.execute_async_script(
+            "const done = arguments[0]; window.modbAvatar.ready.then(done, (e) => done(String(e)))"
+        )
+        assert ready is True, ready
+        wait_until(browser, lambda s: s["mode"]["models"] == MODEL_GRAPH, 30, "the demo's graph")
+        options = browser.execute_script(
+            "return [...document.querySelectorAll('#mode option')].map((o) => o.textContent)"
+        )
+        assert options == ["motion matching: snippets",
+                           f"graph of models: {MODEL_GRAPH} (modb demo's)",
+                           f"graph of models: {other}", f"graph of models: {GRAPH}"]  # fmt: skip
+        assert severe_console_entries(browser) == []
+    finally:
+        with psycopg.connect(dsn) as conn:
+            for name in (MODEL_GRAPH, other):
+                graphs.delete(conn, name)

@@ -4,9 +4,10 @@ with the runs beside the walks.
 `modb annotate --steps` finds a run's strides as it finds a walk's (left_step, right_step: a
 touchdown to the next, whatever the gait), so step models of a collection that holds both learn
 both, and blend them: on Bandai dataset 2 (docs/models.md, "Runs and the family") such a family
-walked the demo's course with quicker, shorter steps than any captured walk and its stance feet
-slid 3.8 times as much as the family of the walks alone. The demo therefore annotates the walks
-and turns only; runs a user annotated stay annotated (the demo deletes nothing) and say so.
+walked the demo's course with quicker steps than any captured walk's, and its stance feet slid
+nearly four times as much as those of the family of the walks alone. The demo therefore
+annotates the walks and turns only; runs annotated before stay so (the demo deletes nothing),
+and it says so.
 """
 
 from __future__ import annotations

@@ -12,6 +12,7 @@ import numpy as np
 import psycopg
 from modb_kernel.joints import STANDARD_JOINTS
 
+from modb.demo import MODEL_GRAPH
 from modb.motion import Motion, Skeleton
 
 MAX_FRAMES = 20_000  # per request: a clip longer than this is fetched in pages (start, count)
@@ -247,7 +248,8 @@ def profiles(conn: psycopg.Connection) -> list[dict[str, Any]]:
 
 def avatar_choices(conn: psycopg.Connection) -> dict[str, Any]:
     """The avatar panel's choices: profiles, transition graphs newest first, collections, joints;
-    and the graphs of models it can walk on instead, by name."""
+    and the graphs of models it can walk on instead, by name, `modb demo`'s first (named in
+    demo_model_graph when the database has it)."""
     graphs = [
         r[0]
         for r in conn.execute(
@@ -255,12 +257,16 @@ def avatar_choices(conn: psycopg.Connection) -> dict[str, Any]:
             "ORDER BY created_at DESC, id DESC"
         )
     ]
-    models = conn.execute("SELECT name FROM modb.graphs WHERE kind = 'models' ORDER BY name")
+    models = conn.execute(
+        "SELECT name FROM modb.graphs WHERE kind = 'models' ORDER BY name <> %s, name",
+        [MODEL_GRAPH],
+    )
     model_graphs = [r[0] for r in models]
     return {
         "profiles": profiles(conn),
         "graphs": graphs,
         "model_graphs": model_graphs,
+        "demo_model_graph": MODEL_GRAPH if MODEL_GRAPH in model_graphs else None,
         "collections": [c["path"] for c in collections(conn)],
         "joints": list(STANDARD_JOINTS),
     }

@@ -82,13 +82,21 @@ const handlers = {
     state.connected = true;
     state.settings = m.settings;
     tuning.build(m);
+    // the demo's graph of models comes first (the server lists it so), named as the demo's
+    const demo = (name) => (name === m.demo_model_graph ? " (modb demo's)" : '');
     $('mode').append(...m.model_graphs.map((name) => Object.assign(document.createElement('option'), {
-      value: name, textContent: `graph of models: ${name}`,
+      value: name, textContent: `graph of models: ${name}${demo(name)}`,
     })));
     showMode(m.mode);
     m.standing.forEach((message) => handlers[message.type](message)); // the avatar, standing at the origin
     status('click the ground to set a goal');
     resolveReady(true);
+    // /avatar?models=NAME: on that graph of models from the start (the demo's last lines give the link)
+    const asked = new URLSearchParams(location.search).get('models');
+    if (asked && m.model_graphs.includes(asked)) {
+      $('mode').value = asked;
+      chooseMode();
+    } else if (asked) status(`no graph of models "${asked}" here: walking by motion matching`, true);
   },
   mode(m) {
     showMode({ models: m.models, seed: m.seed });
