@@ -34,7 +34,7 @@ SELECT functions_are('modb', ARRAY[
     'models_version_rules', 'model_document_problems', 'model_mixture_md5', 'models_check_documents',
     'models_keep_inputs', 'models_keep_what_graphs_name', 'tree_shape', 'sample_motion', '_sample_motion',
     'model_graph_problem', 'model_graphs_check',
-    'synthesize_from_models', '_synthesize_from_models', 'library_version']);
+    'synthesize_from_models', '_synthesize_from_models', 'prepared_models', 'library_version']);
 SELECT is((SELECT o.opcname::text FROM pg_index i JOIN pg_opclass o ON o.oid = i.indclass[0]
             WHERE i.indexrelid = 'modb.snippets_begin_features_idx'::regclass), 'cube_feature_ops',
           'the feature index uses modb''s operator class');
