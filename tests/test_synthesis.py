@@ -170,7 +170,9 @@ def test_the_strip_is_placed_where_the_chain_says(locomotion):
     assert steps[seam_steps(result.chain)].max() < 0.2  # metres in 1/30 s: no teleport at a seam
 
 
-def test_lead_time_hides_the_query_and_later_input_waits_for_the_next(locomotion):
+def test_lead_time_hides_the_query_and_a_later_goal_asks_again(locomotion):
+    """A goal set after the next snippet's query was issued (lead time 0.3 s) asks again: the next
+    snippet serves it, not the one after (0.28.0's avatar answered it a snippet later)."""
     old, new = (0.0, 30.0), (-30.0, 0.0)
     with connect(locomotion) as conn:
         avatar = Avatar(conn, goals=[old], settings=Settings(lead_time=0.3))
@@ -178,8 +180,8 @@ def test_lead_time_hides_the_query_and_later_input_waits_for_the_next(locomotion
         changed_at = None
         for frame in avatar.frames():
             current = avatar.choices[-1]
-            # The query for the next snippet is issued when `lead` frames remain: after that, a new
-            # goal is input that query did not see.
+            # The query for the next snippet is issued when `lead` frames remain: a new goal after
+            # that is asked for again from the same snippet.
             if (
                 current.step == 2
                 and changed_at is None
@@ -190,7 +192,8 @@ def test_lead_time_hides_the_query_and_later_input_waits_for_the_next(locomotion
             if len(avatar.choices) == 5:
                 break
     by_step = {c.step: c for c in avatar.choices}
-    assert by_step[3].target == old and by_step[4].target == new
+    assert by_step[2].target == old and by_step[3].target == new and by_step[4].target == new
+    assert by_step[3].placement == by_step[2].end  # from the same snippet: nothing skipped
     assert all(c.latency_ms is not None and c.latency_ms > 0 for c in avatar.choices)
 
 

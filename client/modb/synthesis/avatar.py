@@ -3,9 +3,10 @@
 It keeps its world placement (pelvis ground point and heading), asks the database for the next
 snippet with the goal in world coordinates, places that snippet where the previous one ended and
 yields its frames at the source rate. The next selection is issued `lead_time` seconds before the
-current snippet ends (the paper's latency hiding): the query runs while the last frames play, and
-input that arrives after it started is not seen by that choice. Rules (goals, arrival, exclusion)
-are those of modb.synthesize, so with lead time zero both give the same chain. Seams are treated as
+current snippet ends (the paper's latency hiding): the query runs while the last frames play, and a
+goal set or added after it started asks again, from the same snippet, with the new course (the first
+answer is dropped). Rules (goals, arrival, exclusion) are those of modb.synthesize, so with lead time
+zero both give the same chain. Seams are treated as
 settings.seam says, then each snippet's stance feet are held (modb_kernel.foot_hold, unless
 settings.foot_hold is False) before its frames are yielded.
 """
@@ -261,7 +262,7 @@ class Avatar:
         configure_for_selection(conn)
 
     def _request(self, previous: Choice | None) -> dict:
-        """The next query's arguments, fixed now: later input is not seen by this choice."""
+        """The next query's arguments, fixed now (later goals ask again: frames())."""
         with self._lock:
             if not self._goals:
                 raise ValueError("the avatar has no goal: call set_goal((x, z)) first")
