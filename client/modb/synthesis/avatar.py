@@ -3,12 +3,12 @@
 It keeps its world placement (pelvis ground point and heading), asks the database for the next
 snippet with the goal in world coordinates, places that snippet where the previous one ended and
 yields its frames at the source rate. The next selection is issued `lead_time` seconds before the
-current snippet ends (the paper's latency hiding): the query runs while the last frames play, and a
-goal set or added after it started asks again, from the same snippet, with the new course (the first
-answer is dropped). Rules (goals, arrival, exclusion) are those of modb.synthesize, so with lead time
-zero both give the same chain. Seams are treated as
-settings.seam says, then each snippet's stance feet are held (modb_kernel.foot_hold, unless
-settings.foot_hold is False) before its frames are yielded.
+current snippet ends (the paper's latency hiding): the query runs while the last frames play, and
+a goal set or added after it started asks again, from the same snippet, with the new course (the
+first answer is dropped). Rules (goals, arrival, exclusion) are those of modb.synthesize, so with
+lead time zero both give the same chain. Seams are treated as settings.seam says, then each
+snippet's stance feet are held (modb_kernel.foot_hold, unless settings.foot_hold is False) before
+its frames are yielded.
 """
 
 from __future__ import annotations

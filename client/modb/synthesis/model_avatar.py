@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import copy
 import threading
+import time
 from collections import deque
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -38,8 +39,10 @@ from .chain import Frame, Goal
 QUEUE_SECONDS = 1.0  # frames synthesized ahead of the one shown
 MAX_GOALS = 100
 # A replan keeps at least this much of what is queued, so the next piece is ready before the queue
-# runs dry (a step takes 30-100 ms to synthesize on an idle machine).
+# runs dry (a step takes 60-190 ms to synthesize on an idle machine), and at least LEAD_PER_PIECE
+# times the recent pieces' synthesis (a busy machine takes longer).
 REPLAN_LEAD_SECONDS = 0.15
+LEAD_PER_PIECE = 2.0
 BLEND_SECONDS = 0.2  # a step planned again is blended into over this
 
 
@@ -101,6 +104,7 @@ class ModelAvatar:
         self._shown = 0  # frames played so far
         self._changes: list[tuple[str, np.ndarray]] = []  # goals set or added, not yet planned
         self._goals: list[np.ndarray] = []  # the course as the page sees it
+        self._piece_seconds = 0.0  # the recent pieces' synthesis time, seconds
         self.readouts: list[StepReadout] = []
         self.standing = self._first_pose(models)
 
@@ -156,12 +160,22 @@ class ModelAvatar:
             self._redo(*redo, changes)
             return True
         before = self._copy(synthesis)
+        started = time.perf_counter()
         frames, record = self._next_piece(synthesis)  # the slow part, unlocked
         if frames is None:
             return bool(changes)
         with self._lock:
+            self._took(time.perf_counter() - started)
             self._queue_piece(first, frames, record, before, self._copy(synthesis))
         return True
+
+    def _took(self, seconds: float) -> None:
+        """A piece's synthesis time, into the recent pieces' (a moving average)."""
+        self._piece_seconds += 0.3 * (seconds - self._piece_seconds)
+
+    def _lead(self) -> int:
+        """Frames after the one playing that a replan leaves as they are: time to make the next."""
+        return int(round(max(REPLAN_LEAD_SECONDS, LEAD_PER_PIECE * self._piece_seconds) * self.fps))
 
     def _queue_piece(self, first: int, frames, record: dict[str, Any], before: MS.Synthesis,
                      after: MS.Synthesis, step: int | None = None) -> None:  # fmt: skip
@@ -207,13 +221,13 @@ class ModelAvatar:
 
     def _replan(self, changes: list[tuple[str, np.ndarray]]):
         """The goals changed, from the piece playing on. The step that plays a moment after the
-        frame playing (REPLAN_LEAD_SECONDS), where enough of it is left, is planned again from
+        frame playing (_lead), where enough of it is left, is planned again from
         where it began and blended into from that moment: returns (that piece, that frame) for
         _redo, which does it outside the lock.
         Else (None) the queue after the piece playing (or the next, when little of it is left)
         is dropped here and the synthesis goes on from after it, a piece of standing cut a
         moment after the frame playing: the start blends from there."""
-        start = self._shown + int(round(REPLAN_LEAD_SECONDS * self.fps))
+        start = self._shown + self._lead()
         blend = int(round(BLEND_SECONDS * self.fps))
         redone = next((p for p in self._pieces if p.first <= start < p.end), None)
         # a seam needs the step's own last two frames
@@ -225,7 +239,7 @@ class ModelAvatar:
     def _replan_after(self, changes: list[tuple[str, np.ndarray]]) -> None:
         """The goals changed after the piece playing (or the next, when little of it is left):
         what is queued after it dropped, the synthesis back to where it stood after it."""
-        lead = int(round(REPLAN_LEAD_SECONDS * self.fps))
+        lead = self._lead()
         keep = None
         for piece in self._pieces:
             if piece.end > self._shown + lead or piece is self._pieces[-1]:
@@ -256,9 +270,11 @@ class ModelAvatar:
         synthesis = self._copy(piece.before)
         _change_goals(synthesis, changes)
         before = self._copy(synthesis)
+        started = time.perf_counter()
         frames, record = self._next_piece(synthesis)  # the slow part, unlocked
         after = self._copy(synthesis)
         with self._lock:
+            self._took(time.perf_counter() - started)
             b = start - piece.first
             n = 0 if frames is None else min(int(round(BLEND_SECONDS * self.fps)),
                                              len(frames[0]) - b - 2)  # fmt: skip

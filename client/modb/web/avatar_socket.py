@@ -107,8 +107,9 @@ def parse_message(received: dict[str, Any]) -> Any:
 
 def _defaults() -> Settings:
     # The graph left to the Avatar: the newest current one over the data (modb.default_graph).
-    # A lead time of 0.1 s hides a selection (~20-30 ms with a graph) behind the last frames.
-    return Settings(lead_time=0.1)
+    # A lead time of 0.25 s hides a selection (~2-30 ms) behind the last frames, on a busy machine
+    # too; a goal after the query started asks again, so the lead delays no answer.
+    return Settings(lead_time=0.25)
 
 
 async def _authorized(websocket: WebSocket, tokens: Tokens) -> bool:
