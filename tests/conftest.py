@@ -123,7 +123,9 @@ def locomotion(cluster, tmp_path_factory):
     dataset 2 (419 files, collection COLLECTION, 57,616 snippets) with the transition graph GRAPH
     over them, beside CMU 01_01 and CMU 131; built once per run by the demo itself, shared by the
     synthesis and avatar tests (which only read it) and test_demo (which checks what the demo
-    printed and wrote: shared.kept("demo")): the same load and graph, built once."""
+    printed and wrote: shared.kept("demo")): the same load and graph, built once. The demo runs
+    with --no-models: its second half (the steps and graph of motion models of 3,075 steps) would
+    add two minutes of a core to the suite; test_demo runs it on CMU 01_01."""
     # development: a database this fixture filled before
     if os.environ.get("MODB_TEST_LOCOMOTION_DSN"):
         return os.environ["MODB_TEST_LOCOMOTION_DSN"]
@@ -132,7 +134,7 @@ def locomotion(cluster, tmp_path_factory):
 
     def build(dsn: str) -> None:
         cache = tmp_path_factory.mktemp("demo")
-        r = run_modb(dsn, "demo", "--data", MOCAP, "--cache", cache)  # the user's command
+        r = run_modb(dsn, "demo", "--data", MOCAP, "--cache", cache, "--no-models")
         assert r.returncode == 0, r.stderr
         shared.keep("demo", {"stdout": r.stdout, "stderr": r.stderr, "cache": str(cache)})
 

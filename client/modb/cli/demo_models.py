@@ -41,12 +41,16 @@ def _as_command(args: argparse.Namespace, collection: str) -> argparse.Namespace
                               collection=collection, model=None, seed=0)  # fmt: skip
 
 
+def _clips(n: int) -> str:
+    return f"{n} clip{'' if n == 1 else 's'}"
+
+
 def _steps(conn: psycopg.Connection, command: argparse.Namespace, collection: str) -> None:
     clips = StepClips.of(conn, collection)
     if not clips.to_annotate:
-        print(f"  steps of {len(clips.walking)} clips: annotated already")
+        print(f"  the steps of {_clips(len(clips.walking))}: annotated already")
     else:
-        print(f"  finding the steps of {len(clips.to_annotate)} clips (modb annotate --steps)...")
+        print(f"  finding the steps of {_clips(len(clips.to_annotate))} (modb annotate --steps)...")
         found = find_steps(conn, command, clips.to_annotate)
         if isinstance(found, int):
             raise FamilyNotBuilt("the steps were not annotated (said above)")
@@ -102,7 +106,7 @@ def show_models(
     print(
         f"\nThe other family: statistical motion models of the steps of {collection} "
         "(docs/models.md), kept from one run of the demo to the next. A first run builds a model "
-        "per primitive, about 20 s for thousands of steps (the steps and models are jobs: "
+        "per primitive, about 20 s for thousands of steps (as jobs where the database runs them: "
         "`modb jobs list`)..."
     )
     try:
