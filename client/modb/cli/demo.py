@@ -1,4 +1,4 @@
-"""`modb demo`: load real capture, synthesize a minute of motion through goals, print the report."""
+"""`modb demo`: load real capture, walk a minute through goals by both synthesis families."""
 
 from __future__ import annotations
 
@@ -11,7 +11,9 @@ from .load import load_paths
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     demo = sub.add_parser(
-        "demo", help="load real capture, synthesize a minute of motion through goals, report"
+        "demo",
+        help="load real capture, walk a minute through goals by motion matching, then by a graph "
+        "of motion models, and report both",
     )
     demo.add_argument(
         "--data", help="a mocap folder with cmu/ (and bandai-2-dev/); default: CMU 01_01 from PyPI"
