@@ -617,7 +617,7 @@ def synthesize_stored(db, graph_name, goals, seconds, seed, radius=ARRIVAL_RADIU
     except ValueError as e:
         raise StoreError(f'graph "{graph_name}": {e}', sqlstate="22023") from None
     rotations, translations = synthesis.frames()
-    del models, synthesis.models  # the prepared models and the steps' frames: garbage from here
+    del models, synthesis.models  # the call's hold on the models (prepared_models keeps them)
     result = [(
         synthesis.fps,
         len(rotations),
@@ -626,5 +626,5 @@ def synthesize_stored(db, graph_name, goals, seconds, seed, radius=ARRIVAL_RADIU
         json.dumps(synthesis.report()),
     )]  # fmt: skip
     del synthesis, rotations, translations
-    memory.release()  # each call's documents and frames go back to the system, not the session
+    memory.release()  # each call's frames go back to the system, not the session
     return result
