@@ -437,7 +437,8 @@ TURNED = np.radians(5)
 
 def reaction(rig: Rig, poses: list, click: dict) -> float:
     """Seconds from the click to the hips' heading turning TURNED toward its goal for good (to the
-    last pose read: a stride's sway turns them a few degrees and back, a turn stays). The heading
+    last pose read: a stride's sway turns them a few degrees and back, a turn stays; inf when it
+    did not). The heading
     at the click is the mean over the second before it: a stride, where the sway cancels."""
     t = np.array([p["t"] for p in poses]) / 1000.0
     positions = np.array([p["positions"] for p in poses])
@@ -452,9 +453,7 @@ def reaction(rig: Rig, poses: list, click: dict) -> float:
     toward = side * np.angle(np.exp(1j * (heading - h0)))
     after = np.flatnonzero(t >= clicked)
     turned = [k for k in after if (toward[k:] >= TURNED).all()]
-    seen = np.degrees(toward[after][:: max(1, len(after) // 12)]).round(1).tolist()
-    assert turned, f"never turned {np.degrees(TURNED):g} degrees toward the goal for good: {seen}"
-    return float(t[turned[0]] - clicked)
+    return float(t[turned[0]] - clicked) if turned else np.inf
 
 
 def walking(rig: Rig, driver) -> tuple[np.ndarray, float]:
@@ -488,21 +487,25 @@ def ahead_and_aside(pelvis: np.ndarray, facing: float, ahead: float, aside: floa
     return pelvis + ahead * forward + aside * across
 
 
-def test_a_new_goal_is_answered_within_half_a_second(server, browser):
-    """On models, clicked while the avatar walks straight: its heading turns 5 degrees toward
-    the new goal within REACTION_SECONDS of the click (the median of three clicks at other
-    moments of a step; each within LATEST_SECONDS, where the click lands in a step's last
-    moments and the next step turns). The step playing is planned again and blended into."""
-    mode = GRAPH
+@pytest.mark.parametrize("mode", [GRAPH, ""], ids=["models", "motion matching"])
+def test_a_new_goal_is_answered_within_half_a_second(server, browser, mode):
+    """Clicked while the avatar walks straight, at three moments of a step. On models its heading
+    turns 5 degrees toward the new goal within REACTION_SECONDS of the click (the median; each
+    within LATEST_SECONDS, where the click lands in a step's last moments and the next step turns):
+    the step playing is planned again and blended into. In motion matching the snippet chosen
+    toward the new goal (the one playing chosen again, or the next) reaches the page within
+    REACTION_SECONDS; how soon the walk turns is then the data's (printed, not asserted: CMU 16's
+    14 walks offer few turns at some moments)."""
     address, dsn = server
     rig = Rig(dsn)
     open_page(browser, address)
-    choose_mode(browser, mode)
+    if mode:
+        choose_mode(browser, mode)
     browser.execute_script("window.modbAvatar.stage.look([0, 9, -3], [0, 0, 3])")
     click_ground(browser, 0.0, 4.0)
     frames = wait_until(browser, lambda s: len(s["trail"]) > 0, 20, "the walk")["frames"]
     fps = 120.0  # CMU 16
-    times = []
+    times, answered = [], []
     for k, pause in enumerate((1.0, 1.27, 1.13)):  # other phases of a step at each click
         # on a straight walk (a goal far ahead, sent as a click sends it) ...
         pelvis, facing = walking(rig, browser)
@@ -526,9 +529,18 @@ def test_a_new_goal_is_answered_within_half_a_second(server, browser):
             "const s = window.modbAvatar.state; return [s.poses, s.clicks]"
         )
         times.append(reaction(rig, poses, clicks[-1]))
-        frames = page_state(browser)["frames"]
-    print(f"reactions {[round(t, 3) for t in times]} s")
-    assert np.median(times) <= REACTION_SECONDS and max(times) <= LATEST_SECONDS, times
+        state = page_state(browser)
+        chosen = [m["receivedAt"] for m in state["messages"] if m["type"] == "choice"
+                  and m["receivedAt"] >= clicks[-1]["t"]
+                  and np.allclose(m["target"], (clicks[-1]["x"], clicks[-1]["z"]))]
+        answered.append((chosen[0] - clicks[-1]["t"]) / 1000.0 if chosen else np.inf)
+        frames = state["frames"]
+    print(f"{mode or 'motion matching'}: heading turned after {np.round(times, 3)} s, "
+          f"{'' if mode else f'the new snippet came after {np.round(answered, 3)} s'}")
+    if mode:
+        assert np.median(times) <= REACTION_SECONDS and max(times) <= LATEST_SECONDS, times
+    else:
+        assert max(answered) <= REACTION_SECONDS, answered
     assert severe_console_entries(browser) == []
 
 

@@ -14,6 +14,7 @@ its frames are yielded.
 from __future__ import annotations
 
 import contextlib
+import copy
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -27,7 +28,7 @@ import psycopg
 from modb.database.connection import configure_for_selection
 from modb.validation import checked_number
 
-from .blend import blend_seam
+from .blend import blend_seam, cross_fade
 from .inertialize import Seams
 from .feet import FootHold, feet_held
 from .chain import (
@@ -85,6 +86,10 @@ SELECT s.id
 
 
 ASK_AGAIN = 3  # a choice cancelled by a standby's replay, or whose node stopped, is asked again
+# A new goal while a snippet plays: it is chosen again toward it, from the snippet before, and faded
+# into from this long after the frame playing (time for the query) over REPLACE_FADE_SECONDS.
+REPLACE_LEAD_SECONDS = 0.15
+REPLACE_FADE_SECONDS = 0.2
 
 
 @dataclass
@@ -180,49 +185,55 @@ class Avatar:
             asked: tuple[Choice | None, dict] = (None, self._request(None))
             pending: Future | None = executor.submit(self._choose, *asked)
             played: list[Frame] = []  # the last two frames played: a seam's left side
-            seams: Seams | None = None
-            hold: FootHold | None = None
+            joints = _Joins(self)
             while True:
                 started = time.perf_counter()
                 choice, rotations, translations = self._answer(pending, asked)
                 waited = (time.perf_counter() - started) * 1000.0
                 choice = replace(choice, waited_ms=waited if self.choices else 0.0)
                 self.choices.append(choice)
-                # as placed: the feet's contacts and heights (a blend changes the frames in place)
-                reference = rotations.copy(), translations.copy()
-                treatment = self.settings.seam
-                if treatment == "inertialize" and len(played) == 2:
-                    if seams is None:  # a chain has one skeleton
-                        source = self.library.get(choice.clip_id, choice.version, choice.mirrored)
-                        seams = Seams(source.skeleton)
-                    rotations, translations = seams.inertialize_after(
-                        (played[0], played[1]), rotations, translations, choice.fps
-                    )
-                elif treatment == "blend" and played:
-                    rotations, translations = blend_seam(
-                        played[-1], rotations, translations, self.settings.blend_frames
-                    )
+                previous, left = asked[0], (list(played), joints.hold_now())
+                rotations, translations, shown = joints.join(
+                    choice, rotations, translations, played
+                )
                 skip = 0 if choice.step == 0 else 1
-                shown = rotations
-                if self.settings.foot_hold:
-                    if hold is None:  # a chain has one skeleton and rate
-                        hold = feet_held(self.library.get(choice.clip_id, choice.version,
-                                                          choice.mirrored).skeleton, choice.fps)
-                    shown = rotations.copy()
-                    shown[skip:] = hold.feed(rotations[skip:], translations[skip:],
-                                             (reference[0][skip:], reference[1][skip:]))
                 lead_frames = int(round(self.settings.lead_time * choice.fps))
-                pending = None
-                for k in range(skip, choice.n_frames):
+                replace_lead = int(round(REPLACE_LEAD_SECONDS * choice.fps))
+                fade = int(round(REPLACE_FADE_SECONDS * choice.fps))
+                pending = replacing = None
+                k = skip
+                while k < choice.n_frames:
                     frame = Frame(choice.start_frame + k, choice.step, shown[k], translations[k])
                     yield frame
                     # the next seam joins the strip before its feet were held: the hold is
                     # continuous on its own, and its changes are not a seam's to carry
                     played = [*played[-1:], replace(frame, rotations=rotations[k])]
-                    due = pending is None and choice.n_frames - 1 - k <= lead_frames
+                    k += 1
+                    if replacing is not None and k >= replacing[1]:
+                        # the snippet playing, chosen again toward the new goal, faded into
+                        new, r, t = self._answer(replacing[0], replacing[2])
+                        if new.fps == choice.fps and k + fade + 2 <= min(new.n_frames,
+                                                                         choice.n_frames):
+                            joints.hold_was(left[1])
+                            r, t, s = joints.join(new, r, t, left[0])
+                            shown, translations = cross_fade((shown, translations), (s, t), k, fade)
+                            rotations, choice = r, new
+                            self.choices.append(choice)
+                        replacing = None
+                    changed = self._course_changes != seen
+                    if changed and previous is not None and replacing is None and (
+                            choice.n_frames - k >= replace_lead + fade + 2):  # fmt: skip
+                        # a new goal while enough of the snippet is left: it is chosen again
+                        # from the one before it, the new goal in view
+                        seen, pending = self._course_changes, None
+                        again = (previous, self._request(previous))
+                        replacing = (executor.submit(self._choose, *again), k + replace_lead, again)
+                        continue
+                    due = replacing is None and pending is None
+                    due = due and choice.n_frames - k <= lead_frames
                     # a goal came after the next snippet was asked for: asked again with it, so
                     # the walk answers from the snippet playing (the first answer is dropped)
-                    if due or (pending is not None and self._course_changes != seen):
+                    if due or (pending is not None and changed):
                         seen = self._course_changes
                         asked = (choice, self._request(choice))
                         pending = executor.submit(self._choose, *asked)
@@ -489,3 +500,49 @@ class Avatar:
             if self._knobs_set.get(knob, "") != value:
                 self.conn.execute("SELECT set_config(%s, %s, false)", [f"modb.{knob}", value])
         self._knobs_set = {k: v for k, v in wanted.items() if v != ""}
+
+
+class _Joins:
+    """How a chosen snippet's frames join the strip: the seam treatment (Settings.seam) after the
+    frames played, then its stance feet held (Settings.foot_hold), the hold fed piece by piece."""
+
+    def __init__(self, avatar: Avatar) -> None:
+        self.avatar = avatar
+        self.seams: Seams | None = None
+        self.hold: FootHold | None = None
+
+    def hold_now(self) -> FootHold | None:
+        """The hold as it stands, to feed a snippet chosen again in place of the next."""
+        return copy.deepcopy(self.hold)
+
+    def hold_was(self, hold: FootHold | None) -> None:
+        self.hold = copy.deepcopy(hold)
+
+    def join(self, choice: Choice, rotations: np.ndarray, translations: np.ndarray,
+             played: list[Frame]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+        """(rotations, translations) as joined after `played`, and the rotations shown."""
+        settings, library = self.avatar.settings, self.avatar.library
+        # as placed: the feet's contacts and heights (a blend changes the frames in place)
+        reference = rotations.copy(), translations.copy()
+        if settings.seam == "inertialize" and len(played) == 2:
+            if self.seams is None:  # a chain has one skeleton
+                source = library.get(choice.clip_id, choice.version, choice.mirrored)
+                self.seams = Seams(source.skeleton)
+            rotations, translations = self.seams.inertialize_after(
+                (played[0], played[1]), rotations, translations, choice.fps
+            )
+        elif settings.seam == "blend" and played:
+            rotations, translations = blend_seam(
+                played[-1], rotations, translations, settings.blend_frames
+            )
+        if not settings.foot_hold:
+            return rotations, translations, rotations
+        skip = 0 if choice.step == 0 else 1
+        if self.hold is None:  # a chain has one skeleton and rate
+            skeleton = library.get(choice.clip_id, choice.version, choice.mirrored).skeleton
+            self.hold = feet_held(skeleton, choice.fps)
+        shown = rotations.copy()
+        shown[skip:] = self.hold.feed(rotations[skip:], translations[skip:],
+                                      (reference[0][skip:], reference[1][skip:]))  # fmt: skip
+        return rotations, translations, shown
+

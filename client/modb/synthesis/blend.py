@@ -28,3 +28,24 @@ def blend_seam(
         )
         translations[k] = translations[k] + weight * shift
     return rotations, translations
+
+
+def cross_fade(
+    old: tuple[np.ndarray, np.ndarray],
+    new: tuple[np.ndarray, np.ndarray],
+    start: int,
+    n: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """A piece replaced while it plays: `new`'s (rotations, translations) with its frames start to
+    start + n - 1 faded in from `old`'s same frames (both from the same first frame), the weight
+    easing in on a half cosine; new's own frames before and after. The avatars use it when a new
+    goal replans the piece playing."""
+    rotations, translations = np.array(new[0]), np.array(new[1])  # copies: faded here
+    weight = 0.5 - 0.5 * np.cos(np.pi * np.arange(1, n + 1) / (n + 1))
+    for k, w in zip(range(start, start + n), weight, strict=True):
+        a, b = old[0][k], rotations[k]
+        b = b * np.where((a * b).sum(-1, keepdims=True) < 0, -1.0, 1.0)  # the nearer sign
+        mixed = (1 - w) * a + w * b
+        rotations[k] = mixed / np.linalg.norm(mixed, axis=-1, keepdims=True)
+        translations[k] = (1 - w) * old[1][k] + w * translations[k]
+    return rotations, translations

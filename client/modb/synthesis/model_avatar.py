@@ -34,15 +34,18 @@ from modb_kernel import model_synthesis as MS
 from modb_kernel import motion_model
 from modb_kernel.step_search import hip_heading
 
+from .blend import cross_fade
 from .chain import Frame, Goal
 
 QUEUE_SECONDS = 1.0  # frames synthesized ahead of the one shown
 MAX_GOALS = 100
 # A replan keeps at least this much of what is queued, so the next piece is ready before the queue
 # runs dry (a step takes 60-190 ms to synthesize on an idle machine), and at least LEAD_PER_PIECE
-# times the recent pieces' synthesis (a busy machine takes longer).
+# times the recent pieces' synthesis (a busy machine takes longer). A step planned again needs less:
+# when it comes too late to blend into, the old one plays on (no gap, a later answer).
 REPLAN_LEAD_SECONDS = 0.15
 LEAD_PER_PIECE = 2.0
+REDO_LEAD_PER_PIECE = 1.25
 BLEND_SECONDS = 0.2  # a step planned again is blended into over this
 
 
@@ -173,9 +176,9 @@ class ModelAvatar:
         """A piece's synthesis time, into the recent pieces' (a moving average)."""
         self._piece_seconds += 0.3 * (seconds - self._piece_seconds)
 
-    def _lead(self) -> int:
+    def _lead(self, per_piece: float = LEAD_PER_PIECE) -> int:
         """Frames after the one playing that a replan leaves as they are: time to make the next."""
-        return int(round(max(REPLAN_LEAD_SECONDS, LEAD_PER_PIECE * self._piece_seconds) * self.fps))
+        return int(round(max(REPLAN_LEAD_SECONDS, per_piece * self._piece_seconds) * self.fps))
 
     def _queue_piece(self, first: int, frames, record: dict[str, Any], before: MS.Synthesis,
                      after: MS.Synthesis, step: int | None = None) -> None:  # fmt: skip
@@ -227,7 +230,7 @@ class ModelAvatar:
         Else (None) the queue after the piece playing (or the next, when little of it is left)
         is dropped here and the synthesis goes on from after it, a piece of standing cut a
         moment after the frame playing: the start blends from there."""
-        start = self._shown + self._lead()
+        start = self._shown + self._lead(REDO_LEAD_PER_PIECE)
         blend = int(round(BLEND_SECONDS * self.fps))
         redone = next((p for p in self._pieces if p.first <= start < p.end), None)
         # a seam needs the step's own last two frames
@@ -283,14 +286,9 @@ class ModelAvatar:
                 return
             old = [f for f in self._queue if piece.first <= f.index < piece.end]
             old = old[start - old[0].index :]  # from `start` on
-            rotations, translations = (np.array(x) for x in frames)  # copies: blended here
-            w = (0.5 - 0.5 * np.cos(np.pi * np.arange(1, n + 1) / (n + 1)))[:, None, None]
-            for k in range(n):
-                q0, q1 = old[k].rotations, rotations[b + k]
-                q1 = q1 * np.where((q0 * q1).sum(-1, keepdims=True) < 0, -1.0, 1.0)
-                mixed = (1 - w[k]) * q0 + w[k] * q1
-                rotations[b + k] = mixed / np.linalg.norm(mixed, axis=-1, keepdims=True)
-                translations[b + k] = (1 - w[k]) * old[k].translations + w[k] * translations[b + k]
+            ahead = tuple(np.stack([getattr(f, a) for f in old[:n]])
+                          for a in ("rotations", "translations"))  # fmt: skip
+            rotations, translations = cross_fade(ahead, (frames[0][b:], frames[1][b:]), 0, n)
             step = old[0].step  # the readout number the page knows the step by
             while self._pieces.pop() is not piece:  # it and those after it: their frames too
                 pass
@@ -298,9 +296,8 @@ class ModelAvatar:
                 self._queue.pop()
             del self.readouts[piece.readouts - 1 :]
             self.synthesis = synthesis
-            self._queue_piece(start, (rotations[b:], translations[b:]), record, before, after,
-                              step)  # fmt: skip
-            self._pieces[-1].first, self._pieces[-1].n_frames = piece.first, len(rotations)
+            self._queue_piece(start, (rotations, translations), record, before, after, step)
+            self._pieces[-1].first, self._pieces[-1].n_frames = piece.first, len(frames[0])
 
     def _cut(self, piece: _Piece, n: int) -> None:
         """The piece of standing ends after its first n frames: what is queued of it, and the

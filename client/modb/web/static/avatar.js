@@ -186,7 +186,7 @@ const handlers = {
 
 socket.addEventListener('message', (event) => {
   const message = JSON.parse(event.data);
-  if (message.type !== 'frame') state.messages.push(message);
+  if (message.type !== 'frame') state.messages.push(Object.assign(message, { receivedAt: performance.now() }));
   if (state.messages.length > KEEP_MESSAGES) state.messages.splice(0, state.messages.length - KEEP_MESSAGES / 2);
   handlers[message.type](message);
 });
