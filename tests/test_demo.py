@@ -175,7 +175,9 @@ def test_demo_on_a_fresh_clone_downloads_cmu_01_01(fresh_db, db, tmp_path):
     # Then the other family on the same take (issue 62): its steps annotated and the graph of models
     # built (as jobs where the database runs them); the course walked from it, its report, and both
     # judged side by side
-    models, table = r.stdout.split("graph of models demo (seed 0): ")[1].split("| figure |")
+    assert "graph of models demo (seed 0): " in r.stdout, f"no models' report: {r.stdout[-2000:]}"
+    models, _, table = r.stdout.split("graph of models demo (seed 0): ")[1].partition("| figure |")
+    assert table, f"no comparison table: {models[-2000:]}"
     assert f"aim met: {REACH}" in models and "constraint error, median: " in models
     assert "Not met on the data of demo/cmu/01: " in models and "least a model takes" in models
     assert table.startswith(" demo: MM | demo: models |\n")
