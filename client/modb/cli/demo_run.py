@@ -1,5 +1,6 @@
 """`modb demo`: the job a user came for, in one command: real capture in, snippets built, a minute
-of motion synthesized through goals with turns, written as BVH, and the quality report printed."""
+of motion synthesized through goals with turns, written as BVH, and the quality report printed; then
+the same course walked by the other family, a graph of motion models (modb.cli.demo_models)."""
 
 from __future__ import annotations
 
