@@ -18,6 +18,8 @@ from modb.bvh_export import write_bvh_file
 from modb.demo import MODEL_GRAPH
 from modb.demo.runs import StepClips
 from modb.models import family
+from modb.models.examples import NoExamples
+from modb.models.graphs import GraphError
 from modb.synthesis.from_models import Source, measure, synthesize
 from modb.synthesis.root_motion import with_root_motion
 from modb_kernel.processed import MIN_EXAMPLES
@@ -47,7 +49,9 @@ def _clips(n: int) -> str:
 
 def _steps(conn: psycopg.Connection, command: argparse.Namespace, collection: str) -> None:
     clips = StepClips.of(conn, collection)
-    if not clips.to_annotate:
+    if not clips.walking:
+        print(f"  no clip to find steps in{', but runs' if clips.runs else ''}")
+    elif not clips.to_annotate:
         print(f"  the steps of {_clips(len(clips.walking))}: annotated already")
     else:
         print(f"  finding the steps of {_clips(len(clips.to_annotate))} (modb annotate --steps)...")
@@ -72,7 +76,12 @@ def _enough_steps(conn: psycopg.Connection, collection: str) -> None:
 
 
 def _family(conn: psycopg.Connection, command: argparse.Namespace) -> None:
-    made = family_graph(conn, command, MODEL_GRAPH)
+    try:
+        made = family_graph(conn, command, MODEL_GRAPH)
+    except (GraphError, NoExamples) as e:  # built here, refused (a job's refusal is said above)
+        raise FamilyNotBuilt(str(e)) from None
+    except psycopg.Error as e:
+        raise FamilyNotBuilt(e.diag.message_primary or str(e)) from None
     if isinstance(made, int):
         raise FamilyNotBuilt("the family's job did not finish (said above)")
     for line in family.summary(made):

@@ -60,15 +60,16 @@ class StepClips:
         """What the demo says of the runs (None: the collection holds none)."""
         if not self.runs:
             return None
+        runs = f"{self.runs} run{'' if self.runs == 1 else 's'}"
         if self.runs_annotated:
             return (
-                f"runs: {self.runs_annotated} of the {self.runs} runs of {collection} hold "
+                f"runs: {self.runs_annotated} of the {runs} of {collection} hold "
                 f"{self.run_steps} steps (annotated before): the step models learn them beside the "
                 'walks\' and blend the two gaits (docs/models.md, "Runs and the family")'
             )
         return (
-            f"runs: the {self.runs} runs of {collection} are left out of the family: "
-            "`modb annotate --steps` finds a run's strides as left and right steps, as it does a "
-            "walk's, and models learning both blend the gaits into quicker, sliding steps "
+            f"runs: the {runs} of {collection} {'is' if self.runs == 1 else 'are'} left out of the "
+            "family: `modb annotate --steps` finds a run's strides as left and right steps, as it "
+            "does a walk's, and models learning both blend the gaits into quicker, sliding steps "
             '(docs/models.md, "Runs and the family"); motion matching draws on them as on any clip'
         )
