@@ -20,6 +20,7 @@ from support.bvh_oracle import bvhio_world_positions
 from support.browser import module_page, serving, severe_console_entries
 from support.data import REPO
 from support.gltf_validator import validate
+from support.reaction import hips_heading, turn_reaction
 
 from modb.database import pgarray
 
@@ -79,8 +80,7 @@ class Rig:
 
     def heading(self, positions) -> float:
         """Where the hips face (0: +Z), from their world positions."""
-        axis = np.asarray(positions[self.at["left_hip"]]) - positions[self.at["right_hip"]]
-        return float(np.arctan2(-axis[2], axis[0]))
+        return float(hips_heading(np.asarray(positions), self.at["left_hip"], self.at["right_hip"]))
 
 
 def open_page(driver, address: str, follow: bool = False) -> None:
@@ -432,28 +432,15 @@ def test_the_same_seed_and_goals_give_the_walk_synthesize_from_models_gives(serv
 
 REACTION_SECONDS = 0.5  # a new goal answered: the heading turned 5 degrees toward it within this
 LATEST_SECONDS = 0.75  # ... at every click: one landing in a step's last 0.37 s waits for the next
-TURNED = np.radians(5)
 
 
 def reaction(rig: Rig, poses: list, click: dict) -> float:
-    """Seconds from the click to the hips' heading turning TURNED toward its goal for good (to the
-    last pose read: a stride's sway turns them a few degrees and back, a turn stays; inf when it
-    did not). The heading
-    at the click is the mean over the second before it: a stride, where the sway cancels."""
+    """turn_reaction on the poses the page kept (arrival times, the joints as it posed them)."""
     t = np.array([p["t"] for p in poses]) / 1000.0
     positions = np.array([p["positions"] for p in poses])
-    heading = np.array([rig.heading(p) for p in positions])
-    clicked = click["t"] / 1000.0
-    before = (t < clicked) & (t >= clicked - 1.0)
-    assert before.sum() >= 10, "the poses of the second before the click were not kept"
-    h0 = np.arctan2(np.sin(heading[before]).mean(), np.cos(heading[before]).mean())
-    pelvis = positions[before][-1][rig.at["pelvis"]]
-    bearing = np.arctan2(click["x"] - pelvis[0], click["z"] - pelvis[2])
-    side = np.sign(np.angle(np.exp(1j * (bearing - h0))))
-    toward = side * np.angle(np.exp(1j * (heading - h0)))
-    after = np.flatnonzero(t >= clicked)
-    turned = [k for k in after if (toward[k:] >= TURNED).all()]
-    return float(t[turned[0]] - clicked) if turned else np.inf
+    heading = hips_heading(positions, rig.at["left_hip"], rig.at["right_hip"])
+    pelvis = positions[:, rig.at["pelvis"]][:, [0, 2]]
+    return turn_reaction(t, heading, pelvis, click["t"] / 1000.0, (click["x"], click["z"]))
 
 
 def walking(rig: Rig, driver) -> tuple[np.ndarray, float]:
