@@ -28,7 +28,7 @@ import psycopg
 from modb.database.connection import configure_for_selection
 from modb.validation import checked_number
 
-from .blend import blend_seam, cross_fade
+from .blend import CROSS_FADE_SECONDS, blend_seam, cross_fade
 from .inertialize import Seams
 from .feet import FootHold, feet_held
 from .chain import (
@@ -87,9 +87,8 @@ SELECT s.id
 
 ASK_AGAIN = 3  # a choice cancelled by a standby's replay, or whose node stopped, is asked again
 # A new goal while a snippet plays: it is chosen again toward it, from the snippet before, and faded
-# into from this long after the frame playing (time for the query) over REPLACE_FADE_SECONDS.
+# into from this long after the frame playing (time for the query) over CROSS_FADE_SECONDS.
 REPLACE_LEAD_SECONDS = 0.15
-REPLACE_FADE_SECONDS = 0.2
 
 
 @dataclass
@@ -199,7 +198,7 @@ class Avatar:
                 skip = 0 if choice.step == 0 else 1
                 lead_frames = int(round(self.settings.lead_time * choice.fps))
                 replace_lead = int(round(REPLACE_LEAD_SECONDS * choice.fps))
-                fade = int(round(REPLACE_FADE_SECONDS * choice.fps))
+                fade = int(round(CROSS_FADE_SECONDS * choice.fps))
                 pending = replacing = None
                 k = skip
                 while k < choice.n_frames:
@@ -210,7 +209,12 @@ class Avatar:
                     played = [*played[-1:], replace(frame, rotations=rotations[k])]
                     k += 1
                     if replacing is not None and k >= replacing[1]:
-                        # the snippet playing, chosen again toward the new goal, faded into
+                        # the snippet playing, chosen again toward the new goal, faded into; a
+                        # query not answered by now is dropped (the next snippet takes the goal)
+                        if not replacing[0].done():
+                            replacing[0].cancel()
+                            replacing = None
+                            continue
                         new, r, t = self._answer(replacing[0], replacing[2])
                         if new.fps == choice.fps and k + fade + 2 <= min(new.n_frames,
                                                                          choice.n_frames):
@@ -225,6 +229,8 @@ class Avatar:
                             choice.n_frames - k >= replace_lead + fade + 2):  # fmt: skip
                         # a new goal while enough of the snippet is left: it is chosen again
                         # from the one before it, the new goal in view
+                        if pending is not None:
+                            pending.cancel()  # a query not started yet is not run for nothing
                         seen, pending = self._course_changes, None
                         again = (previous, self._request(previous))
                         replacing = (executor.submit(self._choose, *again), k + replace_lead, again)
@@ -234,6 +240,8 @@ class Avatar:
                     # a goal came after the next snippet was asked for: asked again with it, so
                     # the walk answers from the snippet playing (the first answer is dropped)
                     if due or (pending is not None and changed):
+                        if pending is not None:
+                            pending.cancel()
                         seen = self._course_changes
                         asked = (choice, self._request(choice))
                         pending = executor.submit(self._choose, *asked)

@@ -8,6 +8,8 @@ from modb_kernel import quaternion
 
 from .chain import Frame
 
+CROSS_FADE_SECONDS = 0.2  # a piece replaced while it plays fades into the new one over this
+
 
 def blend_seam(
     previous_last: Frame | None, rotations: np.ndarray, translations: np.ndarray, blend_frames: int

@@ -34,7 +34,7 @@ from modb_kernel import model_synthesis as MS
 from modb_kernel import motion_model
 from modb_kernel.step_search import hip_heading
 
-from .blend import cross_fade
+from .blend import CROSS_FADE_SECONDS, cross_fade
 from .chain import Frame, Goal
 
 QUEUE_SECONDS = 1.0  # frames synthesized ahead of the one shown
@@ -46,7 +46,6 @@ MAX_GOALS = 100
 REPLAN_LEAD_SECONDS = 0.15
 LEAD_PER_PIECE = 2.0
 REDO_LEAD_PER_PIECE = 1.25
-BLEND_SECONDS = 0.2  # a step planned again is blended into over this
 
 
 @dataclass(frozen=True)
@@ -66,7 +65,7 @@ class StepReadout:
     goal: int | None
 
 
-@dataclass
+@dataclass(eq=False)
 class _Piece:
     """A step or a piece of standing in the queue: its frames' indices, the readouts up to it, and
     the synthesis as it stood before and after it (a replan goes on from a copy of one)."""
@@ -137,6 +136,14 @@ class ModelAvatar:
             synthesis = self.synthesis if playing is None else playing.after
             return min(synthesis.goal, len(self._goals))
 
+    def recent_readouts(self, step: int, n: int) -> list[StepReadout]:
+        """The readouts of steps step - n + 1 to step (the last is that step's; [] when a replan
+        took it back meanwhile)."""
+        with self._lock:
+            if not 0 < step <= len(self.readouts):
+                return []
+            return self.readouts[max(0, step - n) : step]
+
     def set_goal(self, goal: Goal) -> None:
         """The new goal replaces the course, from the piece playing on."""
         with self._lock:
@@ -145,7 +152,8 @@ class ModelAvatar:
 
     def add_waypoint(self, goal: Goal) -> None:
         with self._lock:
-            if len(self._goals) >= MAX_GOALS:
+            reached = 0 if self._changes else min(self.synthesis.goal, len(self._goals))
+            if len(self._goals) - reached >= MAX_GOALS:
                 raise ValueError(f"at most {MAX_GOALS} goals ahead")
             self._goals.append(_ground(goal))
             self._changes.append(("add", self._goals[-1]))
@@ -155,6 +163,12 @@ class ModelAvatar:
         it did anything (a producer thread calls this in a loop, resting when it did not)."""
         with self._lock:
             changes, self._changes = self._changes, []
+            if changes:
+                # every queued piece's states take the new course, so whichever a replan goes on
+                # from (now or at a later change) holds every change so far, once
+                for piece in self._pieces:
+                    _change_goals(piece.before, changes)
+                    _change_goals(piece.after, changes)
             redo = self._replan(changes) if changes else None
             if redo is None and len(self._queue) >= QUEUE_SECONDS * self.fps:
                 return bool(changes)
@@ -231,11 +245,14 @@ class ModelAvatar:
         is dropped here and the synthesis goes on from after it, a piece of standing cut a
         moment after the frame playing: the start blends from there."""
         start = self._shown + self._lead(REDO_LEAD_PER_PIECE)
-        blend = int(round(BLEND_SECONDS * self.fps))
-        redone = next((p for p in self._pieces if p.first <= start < p.end), None)
+        blend = int(round(CROSS_FADE_SECONDS * self.fps))
+        pieces = list(self._pieces)
+        at = next((k for k, p in enumerate(pieces) if p.first <= start < p.end), None)
+        if at is not None and start + blend + 2 > pieces[at].end and at + 1 < len(pieces):
+            at, start = at + 1, pieces[at + 1].first  # too late in its step: the next one, whole
         # a seam needs the step's own last two frames
-        if redone is not None and not redone.standing and start + blend + 2 <= redone.end:
-            return redone, start
+        if at is not None and not pieces[at].standing and start + blend + 2 <= pieces[at].end:
+            return pieces[at], start
         self._replan_after(changes)
         return None
 
@@ -248,13 +265,14 @@ class ModelAvatar:
             if piece.end > self._shown + lead or piece is self._pieces[-1]:
                 keep = piece
                 break
-        if keep is not None:
-            n = self._shown + lead + 1 - keep.first  # the standing frames to keep
-            if keep.standing and 2 <= n < keep.n_frames:  # a seam joins the last two
-                self._cut(keep, n)
-            self._drop_after(keep)
-            self.synthesis = self._copy(keep.after)
-        _change_goals(self.synthesis, changes)
+        if keep is None:  # nothing queued: the synthesis goes on from where it stands
+            _change_goals(self.synthesis, changes)
+            return
+        n = max(self._shown + lead + 1 - keep.first, 2)  # the standing frames to keep: a seam
+        if keep.standing and n < keep.n_frames:  # joins the last two
+            self._cut(keep, n)
+        self._drop_after(keep)
+        self.synthesis = self._copy(keep.after)
 
     def _drop_after(self, keep: _Piece) -> None:
         """The pieces queued after `keep` dropped, with their frames and readouts."""
@@ -265,13 +283,11 @@ class ModelAvatar:
         del self.readouts[keep.readouts :]
 
     def _redo(self, piece: _Piece, start: int, changes: list[tuple[str, np.ndarray]]) -> None:
-        """The step playing planned again toward the new goals from where it began, and its
-        frames from `start` on blended into the new ones over BLEND_SECONDS (both leave the same
-        pose, with the same foot planted). When playback passed `start` meanwhile, or the new
-        step is too short to blend into, the old one plays to its end and the walk goes on from
-        there."""
-        synthesis = self._copy(piece.before)
-        _change_goals(synthesis, changes)
+        """The step planned again toward the new goals from where it began, its frames from
+        `start` on faded into the new ones over CROSS_FADE_SECONDS (both leave the same pose, the
+        same foot planted). When playback passed `start` meanwhile, or the new step is too short
+        to fade into, the old one plays to its end and the walk goes on from there."""
+        synthesis = self._copy(piece.before)  # the new course in it already (fill)
         before = self._copy(synthesis)
         started = time.perf_counter()
         frames, record = self._next_piece(synthesis)  # the slow part, unlocked
@@ -279,7 +295,7 @@ class ModelAvatar:
         with self._lock:
             self._took(time.perf_counter() - started)
             b = start - piece.first
-            n = 0 if frames is None else min(int(round(BLEND_SECONDS * self.fps)),
+            n = 0 if frames is None else min(int(round(CROSS_FADE_SECONDS * self.fps)),
                                              len(frames[0]) - b - 2)  # fmt: skip
             if self._shown > start or n < 2 or piece not in self._pieces or record.get("rest"):
                 self._replan_after(changes)

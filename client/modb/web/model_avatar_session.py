@@ -3,8 +3,10 @@
 The graph and its models are read once, when the session starts (on a read-only connection it
 gives back at once); the walk runs in this process after that. A thread plays the avatar's frames
 at the models' rate: it stands, idle, until a goal comes; a step's readout (its primitive, the
-search's candidates, its constraint error) is sent when the step starts to play. The avatar is not
-thread-safe: goals (the socket's thread) and frames (the play thread) take turns under a lock.
+search's candidates, its constraint error) is sent when the step starts to play, and again when a
+new goal re-planned it. Another thread synthesizes the steps ahead (ModelAvatar.fill); the avatar
+guards its queue and goals with a lock of its own, so goals (the socket's thread), frames (the play
+thread) and steps (the producer) need no other.
 """
 
 from __future__ import annotations
@@ -65,7 +67,6 @@ class ModelAvatarSession:
         name, hierarchy, joint_map, mirror_pairs = conn.execute(GRAPH_SKELETON, [graph]).fetchone()
         self._skeleton = Skeleton.from_row(hierarchy, joint_map, mirror_pairs, name)
         self._sources = _sources(conn, graph)
-        self._lock = threading.Lock()  # the avatar: goals from handle(), frames from the thread
         self._stopping = threading.Event()
         self._thread: threading.Thread | None = None
         self._producer: threading.Thread | None = None
@@ -130,12 +131,11 @@ class ModelAvatarSession:
             self._send({"type": "refused", "message": why})
             return
         try:
-            with self._lock:
-                if message.get("add"):
-                    self._avatar.add_waypoint(goal)
-                else:
-                    self._avatar.set_goal(goal)
-                goals, index = self._avatar.goals, self._avatar.goal_index
+            if message.get("add"):
+                self._avatar.add_waypoint(goal)
+            else:
+                self._avatar.set_goal(goal)
+            goals, index = self._avatar.goals, self._avatar.goal_index
         except ValueError as e:  # too many goals ahead
             self._send({"type": "refused", "message": str(e)})
             return
@@ -156,14 +156,13 @@ class ModelAvatarSession:
             self._send(frame_message(shown))
             frames = avatar.frames()
             idle = True  # standing, before any goal
+            sent: StepReadout | None = None  # the readout the page shows
             due = time.monotonic()
             while not self._stopping.is_set():
                 if self._failed is not None:
                     raise self._failed
-                with self._lock:
-                    frame = next(frames)
-                    readouts = avatar.readouts
-                    goals, index = avatar.goals, avatar.goal_index
+                frame = next(frames)
+                goals, index = avatar.goals, avatar.goal_index
                 # a frame a little late is made up at once (the rate holds); after a stall, on
                 # from now: no burst
                 due = max(due, time.monotonic() - CATCH_UP_SECONDS)
@@ -176,8 +175,11 @@ class ModelAvatarSession:
                 idle = standing
                 if frame.rotations is shown.rotations:  # the pose shown already
                     continue
-                if not standing and frame.step != shown.step:  # the first frame of a new step
-                    self._send(step_message(readouts, frame.step, goals))
+                # a new step's first frame, or a step re-planned toward a new goal
+                recent = [] if standing else avatar.recent_readouts(frame.step, RECENT)
+                if recent and recent[-1] is not sent:
+                    self._send(step_message(recent, goals))
+                    sent = recent[-1]
                 self._send(frame_message(frame))
                 self._walk.append(frame)
                 shown = frame
@@ -224,11 +226,10 @@ class ModelAvatarSession:
                 thread.join(timeout=30)
 
 
-def step_message(readouts: list[StepReadout], step: int, goals: list[Goal]) -> dict[str, Any]:
+def step_message(recent: list[StepReadout], goals: list[Goal]) -> dict[str, Any]:
     """A step's readout, and the medians of the last RECENT steps' errors. The goal being served
     is the step's (the synthesis runs a second ahead of what plays)."""
-    r = readouts[step - 1]
-    recent = readouts[max(0, step - RECENT) : step]
+    r = recent[-1]
 
     def median(field: str) -> float:
         return float(np.median([getattr(s, field) for s in recent]))

@@ -113,6 +113,8 @@ const handlers = {
       : `on the graph of models ${m.models} (seed ${m.seed}): click the ground to set a goal`);
   },
   step(m) {
+    const last = state.steps[state.steps.length - 1];
+    if (last && last.step === m.step) state.steps.pop(); // the step re-planned toward a new goal
     state.steps.push(m);
     if (state.steps.length > KEEP_CHOICES) state.steps.shift();
     showStep(m);
