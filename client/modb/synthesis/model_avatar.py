@@ -227,6 +227,7 @@ class ModelAvatar:
         frames = (body.shown[-1], body.translations[-1])
         body.drop_all_but_the_last_step()
         del synthesis.steps[:-1]  # an avatar reads the last step's record only
+        synthesis.notes.clear()  # nor the report's notes (each piece's states copy them)
         return frames, record
 
     def _playing(self) -> _Piece | None:
