@@ -13,6 +13,16 @@ from modb.provenance import Origin, credits
 from .downloads import FORMATS, motion_bytes
 from modb.synthesis.avatar import Choice, Frame
 
+# Late by less than this, playback catches up (frames sent at once: the stream keeps the clip's
+# rate); later, it goes on from now (no burst after a stall).
+CATCH_UP_SECONDS = 0.25
+
+
+def sending_time(due: float, now: float) -> float:
+    """When a frame due at `due` (monotonic seconds) goes: then, or from now after a stall."""
+    return max(due, now - CATCH_UP_SECONDS)
+
+
 RECENT = 50  # the readouts summarise the last this many selections
 
 

@@ -27,7 +27,7 @@ from modb.synthesis.placement import Placement
 from modb.synthesis.root_motion import with_root_motion
 from modb.synthesis.synth import strip_motion
 
-from .avatar_messages import choice_message, file_message, frame_message
+from .avatar_messages import choice_message, file_message, frame_message, sending_time
 from .avatar_settings import SettingsRefused, settings_from
 from .downloads import FORMATS
 
@@ -35,8 +35,6 @@ log = logging.getLogger("modb.web")
 
 STATEMENT_TIMEOUT = "10s"  # an avatar's query that takes longer stops it (and frees its slot)
 KEEP_SECONDS = 300  # a download holds the last 5 min of the walk (frames: ~10 MB at 30 fps)
-# Late by less than this, playback catches up (frames sent at once); later, it goes on from now.
-CATCH_UP_SECONDS = 0.25
 
 Send = Callable[[dict[str, Any]], None]
 Check = Callable[[Settings], None]
@@ -220,9 +218,7 @@ class AvatarSession:
                         )
                     )
                 self._keep(frame, choice.fps)
-                # a frame a little late is made up at once (the rate holds); after a stall, on
-                # from now: no burst
-                due = max(due, time.monotonic() - CATCH_UP_SECONDS)
+                due = sending_time(due, time.monotonic())
                 if self._stopping.wait(max(0.0, due - time.monotonic())):
                     break
                 self._send(frame_message(frame))

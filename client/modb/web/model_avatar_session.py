@@ -29,7 +29,7 @@ from modb.synthesis.from_models import SKELETON as GRAPH_SKELETON
 from modb.synthesis.model_avatar import MAX_GOALS, ModelAvatar, StepReadout
 from modb.synthesis.root_motion import with_root_motion
 
-from .avatar_messages import file_message, frame_message
+from .avatar_messages import file_message, frame_message, sending_time
 from .downloads import FORMATS
 
 log = logging.getLogger("modb.web")
@@ -38,8 +38,6 @@ KEEP_SECONDS = 300  # a download holds the last 5 min of the walk
 RECENT = 50  # the readout's medians: over the last this many steps
 MAX_SEED = 2**31 - 1  # modb.synthesize_from_models's seed is an int
 PRODUCER_REST_SECONDS = 0.02  # the queue full: the producer looks again after this
-# Late by less than this, playback catches up (frames sent at once); later, it goes on from now.
-CATCH_UP_SECONDS = 0.25
 
 Send = Callable[[dict[str, Any]], None]
 
@@ -163,9 +161,7 @@ class ModelAvatarSession:
                     raise self._failed
                 frame = next(frames)
                 goals, index = avatar.goals, avatar.goal_index
-                # a frame a little late is made up at once (the rate holds); after a stall, on
-                # from now: no burst
-                due = max(due, time.monotonic() - CATCH_UP_SECONDS)
+                due = sending_time(due, time.monotonic())
                 if self._stopping.wait(max(0.0, due - time.monotonic())):
                     break
                 due += 1.0 / fps
