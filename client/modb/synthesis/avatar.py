@@ -191,7 +191,7 @@ class Avatar:
                 waited = (time.perf_counter() - started) * 1000.0
                 choice = replace(choice, waited_ms=waited if self.choices else 0.0)
                 self.choices.append(choice)
-                previous, left = asked[0], (list(played), joints.hold_now())
+                previous, played_before = asked[0], list(played)
                 rotations, translations, shown = joints.join(
                     choice, rotations, translations, played
                 )
@@ -218,8 +218,7 @@ class Avatar:
                         new, r, t = self._answer(replacing[0], replacing[2])
                         if new.fps == choice.fps and k + fade + 2 <= min(new.n_frames,
                                                                          choice.n_frames):
-                            joints.hold_was(left[1])
-                            r, t, s = joints.join(new, r, t, left[0])
+                            r, t, s = joints.join_again(new, r, t, played_before)
                             shown, translations = cross_fade((shown, translations), (s, t), k, fade)
                             rotations, choice = r, new
                             self.choices.append(choice)
@@ -518,13 +517,14 @@ class _Joins:
         self.avatar = avatar
         self.seams: Seams | None = None
         self.hold: FootHold | None = None
+        self._before: FootHold | None = None  # the hold before the last snippet joined
 
-    def hold_now(self) -> FootHold | None:
-        """The hold as it stands, to feed a snippet chosen again in place of the next."""
-        return copy.deepcopy(self.hold)
-
-    def hold_was(self, hold: FootHold | None) -> None:
-        self.hold = copy.deepcopy(hold)
+    def join_again(self, choice: Choice, rotations: np.ndarray, translations: np.ndarray,
+                   played: list[Frame]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+        """join() in place of the last snippet joined (chosen again while it plays): the hold
+        fed from where it stood before that one."""
+        self.hold = self._before
+        return self.join(choice, rotations, translations, played)
 
     def join(self, choice: Choice, rotations: np.ndarray, translations: np.ndarray,
              played: list[Frame]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
@@ -549,6 +549,7 @@ class _Joins:
         if self.hold is None:  # a chain has one skeleton and rate
             skeleton = library.get(choice.clip_id, choice.version, choice.mirrored).skeleton
             self.hold = feet_held(skeleton, choice.fps)
+        self._before = copy.deepcopy(self.hold)
         shown = rotations.copy()
         shown[skip:] = self.hold.feed(rotations[skip:], translations[skip:],
                                       (reference[0][skip:], reference[1][skip:]))  # fmt: skip

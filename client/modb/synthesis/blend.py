@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from modb_kernel import quaternion
+from modb_kernel.standing import slerp
 
 from .chain import Frame
 
@@ -43,11 +44,10 @@ def cross_fade(
     easing in on a half cosine; new's own frames before and after. The avatars use it when a new
     goal replans the piece playing."""
     rotations, translations = np.array(new[0]), np.array(new[1])  # copies: faded here
+    fade = slice(start, start + n)
     weight = 0.5 - 0.5 * np.cos(np.pi * np.arange(1, n + 1) / (n + 1))
-    for k, w in zip(range(start, start + n), weight, strict=True):
-        a, b = old[0][k], rotations[k]
-        b = b * np.where((a * b).sum(-1, keepdims=True) < 0, -1.0, 1.0)  # the nearer sign
-        mixed = (1 - w) * a + w * b
-        rotations[k] = mixed / np.linalg.norm(mixed, axis=-1, keepdims=True)
-        translations[k] = (1 - w) * old[1][k] + w * translations[k]
+    shape = rotations[fade].shape
+    rotations[fade] = slerp(np.reshape(old[0][fade], (-1, 4)), rotations[fade].reshape(-1, 4),
+                            np.repeat(weight, shape[1])).reshape(shape)  # fmt: skip
+    translations[fade] = old[1][fade] + weight[:, None, None] * (translations[fade] - old[1][fade])
     return rotations, translations
