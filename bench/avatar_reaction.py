@@ -23,7 +23,13 @@ from modb_kernel.kinematics import world_positions
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from support.browser import serving  # noqa: E402
-from support.reaction import hips_heading, turn_reaction  # noqa: E402
+from support.reaction import (  # noqa: E402
+    ahead_and_aside,
+    hips_heading,
+    mean_heading,
+    turn_reaction,
+    walks_straight,
+)
 
 JOINT_MAP = "SELECT joint_map FROM modb.skeletons WHERE id = %s"
 
@@ -71,24 +77,14 @@ class Walk:
     def facing(self) -> tuple[np.ndarray, float]:
         """The pelvis now and the hips' mean heading over the last second."""
         t = np.array(self.t)
-        recent = np.array(self.heading)[t >= t[-1] - 1.0]
-        return self.pelvis[-1], float(np.angle(np.exp(1j * recent).mean()))
+        return self.pelvis[-1], mean_heading(np.array(self.heading)[t >= t[-1] - 1.0])
 
     def straight(self) -> bool:
-        t, h = np.array(self.t), np.array(self.heading)
-        halves = [t > t[-1] - 0.5, (t <= t[-1] - 0.5) & (t > t[-1] - 1.0)]
-        means = [np.angle(np.exp(1j * h[m]).mean()) for m in halves]
-        return np.degrees(abs(np.angle(np.exp(1j * (means[0] - means[1]))))) < 3.0
+        return walks_straight(np.array(self.t), np.array(self.heading))
 
 
 def goal(ws, x: float, z: float) -> None:
     ws.send(json.dumps({"type": "goal", "x": float(x), "z": float(z)}))
-
-
-def along(pelvis: np.ndarray, facing: float, ahead: float, aside: float) -> np.ndarray:
-    forward = np.array([np.sin(facing), np.cos(facing)])
-    across = np.array([np.cos(facing), -np.sin(facing)])
-    return pelvis + ahead * forward + aside * across
 
 
 def clicks(address: str, dsn: str, graph: str | None, n: int) -> tuple[list, list]:
@@ -103,14 +99,14 @@ def clicks(address: str, dsn: str, graph: str | None, n: int) -> tuple[list, lis
         reactions, arrivals = [], []
         for k in range(n):
             pelvis, facing = walk.facing()
-            goal(ws, *along(pelvis, facing, 8.0, 0.0))
+            goal(ws, *ahead_and_aside(pelvis, facing, 8.0, 0.0))
             walk.receive(1.0 + 0.13 * k)  # other moments of a step
             for _ in range(30):
                 if walk.straight():
                     break
                 walk.receive(0.1)
             pelvis, facing = walk.facing()
-            target = along(pelvis, facing, 1.0, 3.0 if k % 2 == 0 else -3.0)
+            target = ahead_and_aside(pelvis, facing, 1.0, 3.0 if k % 2 == 0 else -3.0)
             clicked = time.monotonic()
             goal(ws, *target)
             walk.receive(1.5)

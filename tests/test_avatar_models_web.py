@@ -20,7 +20,13 @@ from support.bvh_oracle import bvhio_world_positions
 from support.browser import module_page, serving, severe_console_entries
 from support.data import REPO
 from support.gltf_validator import validate
-from support.reaction import hips_heading, turn_reaction
+from support.reaction import (
+    ahead_and_aside,
+    hips_heading,
+    mean_heading,
+    turn_reaction,
+    walks_straight,
+)
 
 from modb.database import pgarray
 
@@ -447,31 +453,20 @@ def walking(rig: Rig, driver) -> tuple[np.ndarray, float]:
     """Where the pelvis is on the ground and the way the hips face, over the last second."""
     poses = driver.execute_script("return window.modbAvatar.state.poses")
     recent = [p for p in poses if p["t"] >= poses[-1]["t"] - 1000.0]
-    headings = np.array([rig.heading(p["positions"]) for p in recent])
-    facing = np.arctan2(np.sin(headings).mean(), np.cos(headings).mean())
-    return np.asarray(recent[-1]["positions"][rig.at["pelvis"]])[[0, 2]], float(facing)
+    facing = mean_heading([rig.heading(p["positions"]) for p in recent])
+    return np.asarray(recent[-1]["positions"][rig.at["pelvis"]])[[0, 2]], facing
 
 
 def steady(rig: Rig, driver, timeout: float = 6.0) -> None:
-    """Until the hips' heading over the last half second is that of the half second before
-    (within 3 degrees): the avatar walks straight."""
+    """Until the avatar walks straight (walks_straight)."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         poses = driver.execute_script("return window.modbAvatar.state.poses")
         t = np.array([p["t"] for p in poses]) / 1000.0
-        h = np.array([rig.heading(p["positions"]) for p in poses])
-        halves = [(t > t[-1] - 0.5), (t <= t[-1] - 0.5) & (t > t[-1] - 1.0)]
-        means = [np.angle(np.exp(1j * h[m]).mean()) for m in halves]
-        if np.degrees(abs(np.angle(np.exp(1j * (means[0] - means[1]))))) < 3.0:
+        if walks_straight(t, np.array([rig.heading(p["positions"]) for p in poses])):
             return
         time.sleep(0.1)
     raise AssertionError(f"the avatar did not walk straight within {timeout} s")
-
-
-def ahead_and_aside(pelvis: np.ndarray, facing: float, ahead: float, aside: float) -> np.ndarray:
-    forward = np.array([np.sin(facing), np.cos(facing)])
-    across = np.array([np.cos(facing), -np.sin(facing)])
-    return pelvis + ahead * forward + aside * across
 
 
 @pytest.mark.parametrize("mode", [GRAPH, ""], ids=["models", "motion matching"])

@@ -15,6 +15,26 @@ def hips_heading(positions: np.ndarray, left_hip: int, right_hip: int) -> np.nda
     return np.arctan2(-axis[..., 2], axis[..., 0])
 
 
+def mean_heading(heading: np.ndarray) -> float:
+    """The mean of headings (radians) on the circle."""
+    return float(np.angle(np.exp(1j * np.asarray(heading)).mean()))
+
+
+def walks_straight(t: np.ndarray, heading: np.ndarray) -> bool:
+    """Whether the heading over the last half second is that of the half second before (within
+    3 degrees)."""
+    halves = [t > t[-1] - 0.5, (t <= t[-1] - 0.5) & (t > t[-1] - 1.0)]
+    a, b = (mean_heading(heading[m]) for m in halves)
+    return np.degrees(abs(np.angle(np.exp(1j * (a - b))))) < 3.0
+
+
+def ahead_and_aside(pelvis: np.ndarray, facing: float, ahead: float, aside: float) -> np.ndarray:
+    """The ground point (x, z) `ahead` metres along `facing` from the pelvis and `aside` across."""
+    forward = np.array([np.sin(facing), np.cos(facing)])
+    across = np.array([np.cos(facing), -np.sin(facing)])
+    return pelvis + ahead * forward + aside * across
+
+
 def turn_reaction(t: np.ndarray, heading: np.ndarray, pelvis: np.ndarray, clicked: float,
                   goal: tuple[float, float]) -> float:  # fmt: skip
     """Seconds from `clicked` to the heading turning TURNED toward `goal` for good (to the last
@@ -23,7 +43,7 @@ def turn_reaction(t: np.ndarray, heading: np.ndarray, pelvis: np.ndarray, clicke
     the second before it (a stride: the sway cancels)."""
     before = (t < clicked) & (t >= clicked - 1.0)
     assert before.sum() >= 10, "the poses of the second before the click were not kept"
-    h0 = np.angle(np.exp(1j * heading[before]).mean())
+    h0 = mean_heading(heading[before])
     where = pelvis[before][-1]
     bearing = np.arctan2(goal[0] - where[0], goal[1] - where[1])
     side = np.sign(np.angle(np.exp(1j * (bearing - h0))))
