@@ -52,10 +52,6 @@ DOCUMENTS = Statement(
 )
 
 
-def no_interrupts():
-    pass
-
-
 @dataclass
 class Entry:
     key: tuple  # (version, row version, skeleton row version)
@@ -74,9 +70,10 @@ class PreparedModels:
         self._lock = threading.Lock()
         self.dropped_stale = self.evicted = 0
 
-    def step_models(self, db, keys, interrupts=no_interrupts):
+    def step_models(self, db, keys, interrupts=None):
         """id -> StepModel for the rows of KEYS (id -> row), read and prepared where this process
-        holds none current (an id whose row is gone by then is left out). ValueError where a
+        holds none current (an id whose row is gone by then is left out); interrupts: called
+        before each model is prepared (model_synthesis.load passes its own). ValueError where a
         skeleton or a model cannot be prepared."""
         found, missing = {}, {}  # missing: id -> times read before (its changed entry's)
         with self._lock:
@@ -96,7 +93,8 @@ class PreparedModels:
             return found
         rigs = {}  # skeleton's row version -> Rig: the models of one skeleton share one
         for row in db.run(DOCUMENTS, [sorted(missing)]):
-            interrupts()
+            if interrupts is not None:
+                interrupts()
             ident, skeleton = row["id"], row["skeleton_version"]
             if skeleton not in rigs:
                 rigs[skeleton] = Rig({"hierarchy": json.loads(row["hierarchy"]),
