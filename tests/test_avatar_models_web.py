@@ -471,13 +471,11 @@ def steady(rig: Rig, driver, timeout: float = 6.0) -> None:
 
 @pytest.mark.parametrize("mode", [GRAPH, ""], ids=["models", "motion matching"])
 def test_a_new_goal_is_answered_within_half_a_second(server, browser, mode):
-    """Clicked while the avatar walks straight, at three moments of a step. On models its heading
-    turns 5 degrees toward the new goal within REACTION_SECONDS of the click (the median; each
-    within LATEST_SECONDS, where the click lands in a step's last moments and the next step turns):
-    the step playing is planned again and blended into. In motion matching the snippet chosen
-    toward the new goal (the one playing chosen again, or the next) reaches the page within
-    REACTION_SECONDS; how soon the walk turns is then the data's (printed, not asserted: CMU 16's
-    14 walks offer few turns at some moments)."""
+    """Clicked while the avatar walks straight, at three moments of a step, its heading turns 5
+    degrees toward the new goal within REACTION_SECONDS of the click (the median; each within
+    LATEST_SECONDS, where the click lands in a step's last moments and the next step turns). On
+    models the step playing is planned again and blended into; in motion matching the snippet
+    playing is chosen again toward the goal (or the next one is) and steered (synthesis.steer)."""
     address, dsn = server
     rig = Rig(dsn)
     open_page(browser, address)
@@ -519,10 +517,7 @@ def test_a_new_goal_is_answered_within_half_a_second(server, browser, mode):
         frames = state["frames"]
     print(f"{mode or 'motion matching'}: heading turned after {np.round(times, 3)} s, "
           f"{'' if mode else f'the new snippet came after {np.round(answered, 3)} s'}")
-    if mode:
-        assert np.median(times) <= REACTION_SECONDS and max(times) <= LATEST_SECONDS, times
-    else:
-        assert max(answered) <= REACTION_SECONDS, answered
+    assert np.median(times) <= REACTION_SECONDS and max(times) <= LATEST_SECONDS, times
     assert severe_console_entries(browser) == []
 
 

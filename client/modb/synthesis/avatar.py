@@ -5,8 +5,10 @@ snippet with the goal in world coordinates, places that snippet where the previo
 yields its frames at the source rate. The next selection is issued `lead_time` seconds before the
 current snippet ends (the paper's latency hiding): the query runs while the last frames play, and
 a goal set or added after it started asks again, from the same snippet, with the new course (the
-first answer is dropped). Rules (goals, arrival, exclusion) are those of modb.synthesize, so with
-lead time zero both give the same chain. Seams are treated as settings.seam says, then each
+first answer is dropped); a new goal while a snippet plays chooses it again from the one before and
+fades into it, and the snippet first serving a new goal is steered toward it (steer.py). Rules
+(goals, arrival, exclusion) are those of modb.synthesize, so with lead time zero and no goal
+changed both give the same chain. Seams are treated as settings.seam says, then each
 snippet's stance feet are held (modb_kernel.foot_hold, unless settings.foot_hold is False) before
 its frames are yielded.
 """
@@ -15,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import math
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -45,6 +48,7 @@ from .chain import (
 from .defaults import describe_pool, largest_pool, session_graph
 from .placement import Placement, after, ground_distance, place_root
 from .source_frames import FrameLibrary
+from .steer import steer
 
 
 _ARGUMENTS = """%(prev)s::bigint, %(position)s::float8[], %(heading)s::float8, %(target)s::float8[],
@@ -187,13 +191,13 @@ class Avatar:
             joints = _Joins(self)
             while True:
                 started = time.perf_counter()
-                choice, rotations, translations = self._answer(pending, asked)
+                choice, rotations, translations, as_placed = self._answer(pending, asked)
                 waited = (time.perf_counter() - started) * 1000.0
                 choice = replace(choice, waited_ms=waited if self.choices else 0.0)
                 self.choices.append(choice)
                 previous, played_before = asked[0], list(played)
                 rotations, translations, shown = joints.join(
-                    choice, rotations, translations, played
+                    choice, rotations, translations, as_placed, played
                 )
                 skip = 0 if choice.step == 0 else 1
                 lead_frames = int(round(self.settings.lead_time * choice.fps))
@@ -215,10 +219,10 @@ class Avatar:
                             replacing[0].cancel()
                             replacing = None
                             continue
-                        new, r, t = self._answer(replacing[0], replacing[2])
+                        new, r, t, placed = self._answer(replacing[0], replacing[2])
                         if new.fps == choice.fps and k + fade + 2 <= min(new.n_frames,
                                                                          choice.n_frames):
-                            r, t, s = joints.join_again(new, r, t, played_before)
+                            r, t, s = joints.join_again(new, r, t, placed, played_before)
                             shown, translations = cross_fade((shown, translations), (s, t), k, fade)
                             rotations, choice = r, new
                             self.choices.append(choice)
@@ -231,7 +235,8 @@ class Avatar:
                         if pending is not None:
                             pending.cancel()  # a query not started yet is not run for nothing
                         seen, pending = self._course_changes, None
-                        again = (previous, self._request(previous))
+                        again = (previous, {**self._request(previous),
+                                            "steer_from": k + replace_lead})  # fmt: skip
                         replacing = (executor.submit(self._choose, *again), k + replace_lead, again)
                         continue
                     due = replacing is None and pending is None
@@ -241,15 +246,18 @@ class Avatar:
                     if due or (pending is not None and changed):
                         if pending is not None:
                             pending.cancel()
+                        request = self._request(choice)
+                        if changed:  # the next snippet is the first to serve the new goal
+                            request["steer_from"] = 1
                         seen = self._course_changes
-                        asked = (choice, self._request(choice))
+                        asked = (choice, request)
                         pending = executor.submit(self._choose, *asked)
         finally:
             executor.shutdown(wait=True, cancel_futures=True)
 
     def _answer(
         self, pending: Future, asked: tuple[Choice | None, dict]
-    ) -> tuple[Choice, np.ndarray, np.ndarray]:
+    ) -> tuple[Choice, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]:
         """The pending choice. On a hot standby a query may be cancelled by what the standby
         replays, and a node may stop: the same question is asked again (up to ASK_AGAIN times), on
         this connection after a conflict, else on the connection `failover` gives (a node that has
@@ -328,8 +336,10 @@ class Avatar:
 
     def _choose(
         self, previous: Choice | None, request: dict
-    ) -> tuple[Choice, np.ndarray, np.ndarray]:
-        """In the worker thread: the selection query, then the chosen snippet's placed frames."""
+    ) -> tuple[Choice, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]:
+        """In the worker thread: the selection query, then the chosen snippet's placed frames
+        (steered toward a new goal when the request says from which frame) and the frames as
+        placed before steering."""
         t = time.perf_counter()
         candidates = None
         if previous is None and self.start_snippet is not None:
@@ -405,6 +415,11 @@ class Avatar:
         rotations[:, 0], translations[:, source.root_track] = place_root(
             rotations[:, 0], translations[:, source.root_track], ground, source_heading, where
         )
+        as_placed, steered = (rotations, translations), 0.0
+        if request.get("steer_from") is not None:  # the first snippet to serve a new goal
+            rotations, translations, end, steered = steer(
+                source.skeleton, rotations, translations, source.root_track, end, target,
+                request["steer_from"], fps)  # fmt: skip
         choice = Choice(
             step=request["step"],
             snippet_id=snippet_id,
@@ -427,8 +442,9 @@ class Avatar:
             latency_ms=latency,
             waited_ms=0.0,
             candidates=candidates,
+            steered_degrees=math.degrees(steered),
         )
-        return choice, rotations, translations
+        return choice, rotations, translations, as_placed
 
     def _step(self, query: dict, previous: Choice) -> tuple | None:
         """The step after a snippet. An edit of that snippet's clip, committed since it was chosen,
@@ -520,18 +536,22 @@ class _Joins:
         self._before: FootHold | None = None  # the hold before the last snippet joined
 
     def join_again(self, choice: Choice, rotations: np.ndarray, translations: np.ndarray,
+                   as_placed: tuple[np.ndarray, np.ndarray],
                    played: list[Frame]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
         """join() in place of the last snippet joined (chosen again while it plays): the hold
         fed from where it stood before that one."""
         self.hold = self._before
-        return self.join(choice, rotations, translations, played)
+        return self.join(choice, rotations, translations, as_placed, played)
 
     def join(self, choice: Choice, rotations: np.ndarray, translations: np.ndarray,
+             as_placed: tuple[np.ndarray, np.ndarray],
              played: list[Frame]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
-        """(rotations, translations) as joined after `played`, and the rotations shown."""
+        """(rotations, translations) as joined after `played`, and the rotations shown.
+        as_placed: the frames before steering; their feet decide contacts and heights (a
+        steered snippet's turn would read as feet moving)."""
         settings, library = self.avatar.settings, self.avatar.library
-        # as placed: the feet's contacts and heights (a blend changes the frames in place)
-        reference = rotations.copy(), translations.copy()
+        # a blend changes the frames in place
+        reference = as_placed[0].copy(), as_placed[1].copy()
         if settings.seam == "inertialize" and len(played) == 2:
             if self.seams is None:  # a chain has one skeleton
                 source = library.get(choice.clip_id, choice.version, choice.mirrored)

@@ -101,6 +101,8 @@ class Choice:
     # how long playback stalled waiting for it (0 when the lead time hid the query)
     waited_ms: float
     candidates: int | None = None  # modb.candidates_examined, with Settings.count_candidates
+    # the avatar's turn toward a new goal added to the snippet (synthesis.steer), degrees
+    steered_degrees: float = 0.0
 
 
 @dataclass(frozen=True)

@@ -72,6 +72,7 @@ def choice_message(
         "latency_ms": choice.latency_ms,
         "waited_ms": choice.waited_ms,
         "candidates": choice.candidates,
+        "steered_degrees": choice.steered_degrees,
         "end": {"position": choice.end.position, "heading": choice.end.heading},
         "goals": course[0],
         "goal_index": course[1],
