@@ -38,3 +38,6 @@ BEGIN
     END IF;
 END
 $$;
+
+-- Action primitives found automatically (issue 63): modb.annotate_action.
+--@include 88a_action_annotations.sql
