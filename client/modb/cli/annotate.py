@@ -1,6 +1,6 @@
 """`modb annotate`: a clip version's annotation segments (named frame ranges): list, add, remove;
 `--steps` finds the steps of clips and collections (modb.annotate_steps; a job where the database
-has job tables)."""
+has job tables), `--action NAME` the action done standing in each (modb.annotate_action)."""
 
 from __future__ import annotations
 
@@ -30,7 +30,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "sources",
         nargs="+",
         metavar="CLIP",
-        help="clip id, name, or collection/name (with --steps: clips and collections)",
+        help="clip id, name, or collection/name (with --steps or --action: clips and collections)",
     )
     annotate.add_argument("--version", type=VERSION, help="clip version (default: newest)")
     annotate.add_argument(
@@ -54,8 +54,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "turning steps, starts, stops and idle where the clip has them, marked "
         "automatic (a run again replaces those, never a person's)",
     )
-    annotate.add_argument("-q", "--quiet", action="store_true", help="with --steps: no progress")
-    as_job.add_options(annotate, "with --steps")
+    annotate.add_argument(
+        "--action",
+        metavar="NAME",
+        help="find the action done standing (a reach or a wave) in each clip: a segment NAME "
+        "with its keyframes and hands, and idle for a standing lead-in and lead-out, marked "
+        "automatic (a run again replaces those, never a person's)",
+    )
+    annotate.add_argument(
+        "-q", "--quiet", action="store_true", help="with --steps or --action: no progress"
+    )
+    as_job.add_options(annotate, "with --steps or --action")
     annotate.set_defaults(func=run)
 
 
@@ -119,9 +128,77 @@ def steps(args: argparse.Namespace) -> int:
 STEPS = ("left_step", "right_step")  # always counted; the other primitives where found
 
 
+def find_action(conn: psycopg.Connection, args: argparse.Namespace, clips: list[int]
+                ) -> list[dict] | int:  # fmt: skip
+    """The action of each clip, found as a job where the database runs them, else here (each clip
+    in its transaction): per clip {clip_id, version, segments}; an exit status when queued or
+    refused (said why)."""
+    as_a_job = as_job.usable(conn, args, "annotate --action", "0.29.0")
+    if as_a_job is None:
+        return 2
+    if as_a_job:
+        arguments = {"clips": clips, "action": args.action}
+        done = as_job.run(conn, args, "annotate --action", "annotate_action", arguments)
+        if done is None or isinstance(done, int):
+            return done or 0
+        return done.result["clips"]
+    found = []
+    for clip in clips:
+        try:
+            with conn.transaction():
+                rows = conn.execute(
+                    "SELECT version, name, start_frame, end_frame, keyframes, hands, kind "
+                    "FROM modb.annotate_action(%s, %s)", [clip, args.action]
+                ).fetchall()  # fmt: skip
+        except psycopg.Error as e:
+            hint = e.diag.message_hint
+            print(f"modb annotate: {e.diag.message_primary or e}" + (f"\n  {hint}" if hint else ""),
+                  file=sys.stderr)  # fmt: skip
+            return 1
+        found.append({"clip_id": clip, "version": rows[0][0] if rows else None, "segments": [
+            {"name": n, "start": a, "end": b, "keyframes": k, "hands": h, "kind": kind}
+            for _, n, a, b, k, h, kind in rows]})  # fmt: skip
+    return found
+
+
+def action(args: argparse.Namespace) -> int:
+    from modb.clips import ClipNotFound, clips_in
+
+    with connect(args) as conn:
+        try:
+            clips = list(dict.fromkeys(c for spec in args.sources for c in clips_in(conn, spec)))
+        except ClipNotFound as e:
+            print(f"modb annotate: {e}", file=sys.stderr)
+            return 2
+        found = find_action(conn, args, clips)
+    if isinstance(found, int):
+        return found
+    kinds: dict[str, int] = {}
+    for clip in found:
+        parts = []
+        for s in clip["segments"]:
+            if s["name"] == args.action:
+                kinds[s["kind"]] = kinds.get(s["kind"], 0) + 1
+                parts.insert(0, f"{s['name']} {s['start']}-{s['end']} ({s['kind']}, "
+                             f"{' and '.join(s['hands'])} hand{'s' if len(s['hands']) > 1 else ''}"
+                             f"), keyframes {','.join(map(str, s['keyframes']))}")  # fmt: skip
+            else:
+                parts.append(f"{s['name']} {s['start']}-{s['end']}")
+        if not args.quiet:
+            print(f"clip {clip['clip_id']} version {clip['version']}: " + "; ".join(parts))
+    print(f"{len(found)} clips: " + ", ".join(f"{n} {k}" for k, n in sorted(kinds.items())))
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     from modb.clips import ClipNotFound, resolve_clip  # numpy (60 ms): not for `modb --help`
 
+    if args.action is not None:
+        if args.steps or args.segment or args.remove or args.version:
+            print("modb annotate: --action goes alone (no --steps, --segment, --remove, --version)",
+                  file=sys.stderr)  # fmt: skip
+            return 2
+        return action(args)
     if args.steps:
         if args.segment or args.remove or args.version:
             print("modb annotate: --steps goes alone (no --segment, --remove, --version)",
@@ -129,7 +206,8 @@ def run(args: argparse.Namespace) -> int:
             return 2
         return steps(args)
     if len(args.sources) != 1:
-        print("modb annotate: name one clip (several go with --steps)", file=sys.stderr)
+        print("modb annotate: name one clip (several go with --steps or --action)",
+              file=sys.stderr)  # fmt: skip
         return 2
     with connect(args) as conn:
         try:
@@ -160,6 +238,6 @@ def run(args: argparse.Namespace) -> int:
     )
     for s in segments:
         extra = (f"  keyframes {','.join(map(str, s.keyframes))}" if s.keyframes else "") + (
-            "  (found by --steps)" if s.auto else "")  # fmt: skip
+            "  (found automatically)" if s.auto else "")  # fmt: skip
         print(f"  {s.name}:{s.start}-{s.end}{extra}")
     return 0

@@ -11,7 +11,13 @@ from typing import Any
 import psycopg
 from psycopg.rows import dict_row
 
-from modb_kernel import edit_clips, processed, retarget_clip, step_annotations
+from modb_kernel import (
+    action_annotations,
+    edit_clips,
+    processed,
+    retarget_clip,
+    step_annotations,
+)
 from modb_kernel.database import StoreError
 
 from .kernel_database import WorkerDatabase
@@ -117,6 +123,14 @@ def annotate_steps(conn, progress, clips, stop_when_asked) -> list[dict[str, Any
         for s in made:
             counts[s["name"]] = counts.get(s["name"], 0) + 1
         return {"clip_id": clip, "version": version, "steps": counts}
+
+    return each_clip(conn, progress, clips, stop_when_asked, one)
+
+
+def annotate_action(conn, progress, clips, stop_when_asked, action) -> list[dict[str, Any]]:
+    def one(db: WorkerDatabase, clip: int) -> dict[str, Any]:
+        version, made = action_annotations.annotate(db, clip, action)
+        return {"clip_id": clip, "version": version, "segments": made}
 
     return each_clip(conn, progress, clips, stop_when_asked, one)
 

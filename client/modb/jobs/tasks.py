@@ -26,6 +26,7 @@ QUEUES = {
     "apply_edit_script": "clips",
     "split_by_annotation": "clips",
     "annotate_steps": "clips",
+    "annotate_action": "clips",
     "align": "primitives",
     "build_model": "primitives",
     "build_family": "primitives",
@@ -157,6 +158,15 @@ def annotate_steps(context, submitter: str, clips: list[int]) -> dict[str, Any]:
     return _run(context, f"finding the steps of {len(clips)} clips for {submitter}", work)
 
 
+def annotate_action(context, submitter: str, clips: list[int], action: str) -> dict[str, Any]:
+    def work(conn, progress, stop_when_asked):
+        made = clip_jobs.annotate_action(conn, progress, clips, stop_when_asked, action)
+        return {"clips": made, "action": action}
+
+    return _run(context, f"finding the action {action!r} of {len(clips)} clips for {submitter}",
+                work)  # fmt: skip
+
+
 def align(context, submitter: str, primitive: str, collection: str) -> dict[str, Any]:
     def work(conn, progress, stop_when_asked):
         return clip_jobs.align(conn, progress, stop_when_asked, primitive, collection)
@@ -216,6 +226,7 @@ KINDS = {
     "apply_edit_script": apply_edit_script,
     "split_by_annotation": split_by_annotation,
     "annotate_steps": annotate_steps,
+    "annotate_action": annotate_action,
     "align": align,
     "build_model": build_model,
     "build_family": build_family,

@@ -256,6 +256,8 @@ WRITES: dict[str, tuple[Callable, Any, bool]] = {
     "/api/collections/{path:path}/retarget": (
         job_routes.retarget_collection, body_models.CollectionRetarget, False),
     "/api/collections/{path:path}/steps": (job_routes.steps_collection, None, False),
+    "/api/collections/{path:path}/action": (
+        job_routes.action_collection, body_models.Action, False),
     "/api/processed-data": (job_routes.align_primitive, body_models.Align, False),
     "/api/motion-models/{name}/build": (model_routes.build, body_models.ModelBuild, False),
     "/api/jobs/{ident}/cancel": (job_routes.cancel_job, None, False),

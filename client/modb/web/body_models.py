@@ -383,6 +383,16 @@ class AnnotateStepsArguments(ClipArguments):
     """Clips whose steps to find (`modb steps`)."""
 
 
+class Action(Body):
+    """The action whose segments to find (`modb annotate --action NAME`)."""
+
+    action: TEXT
+
+
+class AnnotateActionArguments(ClipArguments, Action):
+    """Clips whose action to find (`modb annotate --action`)."""
+
+
 class Align(Body):
     """A primitive's examples in a collection to align in time."""
 
@@ -412,6 +422,7 @@ JOB_ARGUMENTS: dict[str, type[Body]] = {
     "apply_edit_script": ApplyEditScriptArguments,
     "split_by_annotation": SplitArguments,
     "annotate_steps": AnnotateStepsArguments,
+    "annotate_action": AnnotateActionArguments,
     "align": Align,
     "build_model": BuildModelArguments,
 }

@@ -540,6 +540,23 @@ def _steps(conn, request, body) -> Done:
     )  # fmt: skip
 
 
+def _action(conn, request, body) -> Done:
+    """The clip's action found and written as automatic segments of its current version."""
+    clip_id = _int(request, "ident", "clip id")
+    _current_clips(conn, [clip_id])
+    rows = conn.execute(
+        "SELECT version, name, start_frame, end_frame, keyframes, hands, kind "
+        "FROM modb.annotate_action(%s, %s)", [clip_id, body["action"]],
+    ).fetchall()  # fmt: skip
+    segments = [{"name": n, "start": s, "end": e, "keyframes": k, "hands": h, "kind": kind}
+                for _, n, s, e, k, h, kind in rows]  # fmt: skip
+    return Done(
+        {"clip_id": clip_id, "version": rows[0][0] if rows else None, "action": body["action"],
+         "segments": segments},
+        "annotate action", f"clip {clip_id}", {"action": body["action"]},
+    )  # fmt: skip
+
+
 def routes(read_pool, tokens: Tokens, writer: Writer) -> list[Route]:
     def write(path: str, method: str, handler: Handler, body: Any = None, frames=False) -> Route:
         endpoint = write_endpoint(tokens, writer, handler, body, frames)
@@ -563,6 +580,7 @@ def routes(read_pool, tokens: Tokens, writer: Writer) -> list[Route]:
         write("/api/clips/{clip_id}/versions/{version}/current", "POST", _restore_version),
         write("/api/clips/{ident}/retarget", "POST", _retarget, bodies.Retarget, frames=True),
         write("/api/clips/{ident}/steps", "POST", _steps, frames=True),
+        write("/api/clips/{ident}/action", "POST", _action, bodies.Action, frames=True),
         write("/api/edit-scripts/{name}", "PUT", _put_script, bodies.EditScript),
         write("/api/edit-scripts/{name}", "DELETE", _delete_script),
         Route(

@@ -133,6 +133,14 @@ def steps_collection(conn: psycopg.Connection, request: Request, body: Any) -> D
     )
 
 
+def action_collection(conn: psycopg.Connection, request: Request, body: dict[str, Any]) -> Done:
+    """POST /api/collections/PATH/action {"action"}: the action of every clip of it, as a job."""
+    path = parse(PATH, request.path_params["path"], "collection path")
+    _tables(conn)
+    clips = _target_clips(conn, {"collection": path})
+    return queue_job(conn, request, "annotate_action", {"clips": clips, "action": body["action"]})
+
+
 def align_primitive(conn: psycopg.Connection, request: Request, body: dict[str, Any]) -> Done:
     """POST /api/processed-data {"primitive", "collection"}: a job (202) where the database has job
     tables, else aligned at once (200 with the counts)."""

@@ -197,6 +197,14 @@ def catalog_writes() -> dict[str, dict[str, Any]]:
     out["/api/collections/{path}/steps"] = {"post": _write(
         "find the steps of every clip of the collection, as a job", collection_path,
         ok="the queued job (202, Location: /api/jobs/ID)")}  # fmt: skip
+    out["/api/clips/{ident}/action"] = {"post": _write(
+        "find the clip's action done standing (body {\"action\": NAME}): a segment NAME with "
+        "its keyframes, hands and kind (reach or repeat), and idle for a standing lead-in and "
+        "lead-out, marked automatic (replacing those of a run before for that action)", CLIP,
+        ok="the segments written")}  # fmt: skip
+    out["/api/collections/{path}/action"] = {"post": _write(
+        "find the action (body {\"action\": NAME}) of every clip of the collection, as a job",
+        collection_path, ok="the queued job (202, Location: /api/jobs/ID)")}  # fmt: skip
     out["/api/processed-data"] = {
         "get": {
             "summary": "processed-data rows (aligned examples of motion primitives) without their "
@@ -332,7 +340,8 @@ def operations() -> dict[str, Any]:
                 "min_turn_degrees, as `modb graph build`; retarget: clips or from_collection, "
                 "skeleton, collection, fps, mirrored; apply_edit_script: clips or from_collection, "
                 "script; split_by_annotation: clips or from_collection, annotation, collection; "
-                "annotate_steps: clips or from_collection; align: primitive, collection), "
+                "annotate_steps: clips or from_collection; annotate_action: clips or "
+                "from_collection, action; align: primitive, collection), "
                 "after the jobs `after` are done; a worker runs it",
                 ok="the queued job (202, Location: /api/jobs/ID)",
             ),  # fmt: skip
