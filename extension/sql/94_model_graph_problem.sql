@@ -1,5 +1,6 @@
 -- Why a graph of models is broken (96_model_graphs.sql's trigger asks it of every graph written): set-based,
 -- so a check takes time in proportion to the graph (0.26.0; it was quadratic), and a graph's size capped.
+-- A node's type: start, end, idle, standard, or action (0.29.0: an action reached from idle and back).
 
 CREATE OR REPLACE FUNCTION modb.model_graph_problem(data jsonb, skeleton_id bigint)
 RETURNS text
@@ -31,8 +32,9 @@ BEGIN
     SELECT CASE
              WHEN jsonb_typeof(n.spec) <> 'object' OR jsonb_typeof(n.spec->'model_id') IS DISTINCT FROM 'number'
                  THEN format('node "%s" must be {"model_id": a modb.models id, "type": ...}', n.name)
-             WHEN coalesce(n.spec->>'type', 'standard') NOT IN ('start', 'end', 'idle', 'standard')
-                 THEN format('node "%s": type "%s" is none of start, end, idle, standard', n.name, n.spec->>'type')
+             WHEN coalesce(n.spec->>'type', 'standard') NOT IN ('start', 'end', 'idle', 'standard', 'action')
+                 THEN format('node "%s": type "%s" is none of start, end, idle, standard, action', n.name,
+                             n.spec->>'type')
              WHEN m.id IS NULL OR m.kind <> 'motion_primitive'
                  THEN format('node "%s": there is no motion model with id %s (modb model list names them)',
                              n.name, n.spec->>'model_id')
@@ -44,7 +46,7 @@ BEGIN
       LEFT JOIN modb.models m
         ON m.id = CASE WHEN jsonb_typeof(n.spec->'model_id') = 'number' THEN (n.spec->>'model_id')::numeric END
      WHERE jsonb_typeof(n.spec) <> 'object' OR jsonb_typeof(n.spec->'model_id') IS DISTINCT FROM 'number'
-        OR coalesce(n.spec->>'type', 'standard') NOT IN ('start', 'end', 'idle', 'standard')
+        OR coalesce(n.spec->>'type', 'standard') NOT IN ('start', 'end', 'idle', 'standard', 'action')
         OR m.id IS NULL OR m.kind <> 'motion_primitive' OR m.skeleton_id IS DISTINCT FROM model_graph_problem.skeleton_id
      ORDER BY n.name LIMIT 1;
     IF problem IS NOT NULL THEN

@@ -41,6 +41,16 @@ SELECT a.seg->>'name' AS primitive, c.clip_id, c.version, c.fps, c.n_frames, c.s
  WHERE k.collection_id = ANY (modb.collection_subtree(%s)) AND a.seg->>'name' = ANY (%s)
  ORDER BY c.clip_id, (a.seg->>'start')::int
 """
+# The actions annotated in the collection (`modb annotate --action` marks them with their hands)
+ACTIONS = """
+SELECT DISTINCT a.seg->>'name'
+  FROM modb.current_clips c
+  JOIN modb.clips k ON k.id = c.clip_id
+  JOIN modb.clip_versions v USING (clip_id, version)
+ CROSS JOIN LATERAL jsonb_array_elements(coalesce(v.meta->'annotations', '[]')) AS a(seg)
+ WHERE k.collection_id = ANY (modb.collection_subtree(%s)) AND a.seg ? 'hands'
+ ORDER BY 1
+"""
 CURRENT = """
 SELECT primitive, name FROM modb.model_status
  WHERE kind = 'motion_primitive' AND collection = %s AND latest AND stale IS NULL
@@ -72,14 +82,15 @@ def of_the_steps_skeleton(segments: list[dict[str, Any]]
             [s for s in segments if s["skeleton_id"] != chosen])  # fmt: skip
 
 
-def examples(segments: list[dict[str, Any]]) -> dict[str, int]:
-    """Per primitive of the family: how many examples a model of it would learn from."""
+def examples(segments: list[dict[str, Any]], primitives: tuple[str, ...] = FAMILY
+             ) -> dict[str, int]:  # fmt: skip
+    """Per primitive: how many examples a model of it would learn from."""
     own: dict[str, int] = {}
     for s in segments:
         own[s["primitive"]] = own.get(s["primitive"], 0) + 1
     mirrors = all(s["mirrors"] for s in segments)
     return {p: own.get(p, 0) + (own.get(other_side(p) or "", 0) if mirrors else 0)
-            for p in FAMILY}  # fmt: skip
+            for p in primitives}  # fmt: skip
 
 
 def standing_stretch(segments: list[dict[str, Any]], fps: float) -> dict[str, Any] | None:
@@ -160,15 +171,18 @@ def build_family(
     returns {graph, built, kept, too_few: {primitive: examples}, minimum, standing}."""
     if conn.execute("SELECT modb.find_collection(%s)", [collection]).fetchone()[0] is None:
         raise graphs.GraphError(f'no collection "{collection}" (modb list names them)')
+    actions = tuple(r[0] for r in conn.execute(ACTIONS, [collection]).fetchall()
+                    if r[0] not in FAMILY)  # fmt: skip
+    primitives = FAMILY + actions
     with conn.cursor(row_factory=psycopg.rows.dict_row) as cur:
-        segments = cur.execute(SEGMENTS, [collection, list(FAMILY)]).fetchall()
+        segments = cur.execute(SEGMENTS, [collection, list(primitives)]).fetchall()
     segments, others = of_the_steps_skeleton(segments)
     mixed = sorted({s["primitive"] for s in others})  # a model learns from one skeleton only
-    counts = examples(segments)
+    counts = examples(segments, primitives)
     current: dict[str, str] = {}
     for primitive, model in conn.execute(CURRENT, [collection]).fetchall():
         current.setdefault(primitive, model)
-    wanted = [p for p in FAMILY if counts[p] >= MIN_EXAMPLES and p not in current
+    wanted = [p for p in primitives if counts[p] >= MIN_EXAMPLES and p not in current
               and p not in mixed]  # fmt: skip
     too_few = {p: n for p, n in counts.items() if 0 < n < MIN_EXAMPLES and p not in current}
     built = []
@@ -179,14 +193,15 @@ def build_family(
         built.append(made["name"])
         current[primitive] = made["name"]
         advance(k + 1, len(wanted) + 1)
-    picked = list(chosen or []) + [m for p, m in current.items() if p in FAMILY]
+    picked = list(chosen or []) + [m for p, m in current.items() if p in primitives]
     standing = None
     if "idle" not in current and segments and "idle" not in mixed:
         fps = float(segments[0]["fps"])
         stretch = standing_stretch(segments, fps)
         if stretch is not None:
             standing = standing_frames(conn, stretch, fps)
-    graph = graphs.build(conn, name, collection, list(dict.fromkeys(picked)), standing)
+    graph = graphs.build(conn, name, collection, list(dict.fromkeys(picked)), standing,
+                         [a for a in actions if a in current])  # fmt: skip
     advance(len(wanted) + 1, len(wanted) + 1)
     return {
         "graph": graph.name,

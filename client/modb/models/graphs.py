@@ -86,11 +86,14 @@ def role(primitive: str) -> str | None:
 
 
 def step_graph(models: list[dict[str, Any]], collection: str,
-               standing: dict[str, Any] | None = None) -> dict[str, Any]:  # fmt: skip
+               standing: dict[str, Any] | None = None,
+               actions: tuple[str, ...] = ()) -> dict[str, Any]:  # fmt: skip
     """The document of a character: steps and turning steps alternating feet, start nodes
     leading into them, stop (end) nodes after them, an idle node after the stops (after the
     steps where there are none: the synthesis settles into standing) that repeats and leads to
-    the starts; `standing` (captured standing frames) where there is no idle model."""
+    the starts; `standing` (captured standing frames) where there is no idle model; the
+    `actions` (primitives of models among `models`) as action nodes reached from idle and
+    leading back to it (without an idle node: from and to the walk, whose end it stands in)."""
     by_primitive = {m["primitive"]: m for m in models}
     missing = [p for p in STEPS if p not in by_primitive]
     if missing:
@@ -98,6 +101,8 @@ def step_graph(models: list[dict[str, Any]], collection: str,
                          f"{' or '.join(missing)}: build them first (modb model build NAME "
                          f"--collection {collection} --primitive {missing[0]})")  # fmt: skip
     nodes = {p: _node(m, role(p)) for p, m in sorted(by_primitive.items()) if role(p)}
+    for p in actions:
+        nodes[p] = {**_node(by_primitive[p], "action"), "action": p}
     sides = {n: swing_side(n) for n in nodes}
 
     def of(kind: str) -> list[str]:
@@ -113,6 +118,9 @@ def step_graph(models: list[dict[str, Any]], collection: str,
     for idle in idles:
         transitions += [{"from": e, "to": idle} for e in ends or standard]
         transitions += [{"from": idle, "to": idle}] + [{"from": idle, "to": s} for s in starts]
+    for action in actions:
+        transitions += [{"from": a, "to": action} for a in idles or ends or standard]
+        transitions += [{"from": action, "to": b} for b in idles or starts or standard]
     data = {"nodes": nodes, "transitions": transitions, "collection": collection}
     if standing is not None and not idles:
         data["standing"] = standing
@@ -126,7 +134,8 @@ def _node(model: dict[str, Any], role: str) -> dict[str, Any]:
 
 def build(conn: psycopg.Connection, name: str, collection: str,
           chosen: list[str] | None = None,
-          standing: dict[str, Any] | None = None) -> ModelGraph:  # fmt: skip
+          standing: dict[str, Any] | None = None,
+          actions: list[str] | None = None) -> ModelGraph:  # fmt: skip
     """Stores (or replaces) the graph `name` of the latest versions of the collection's models,
     one per primitive: the only one there is, or the one `chosen` names (refused, naming them,
     when several models of a primitive could serve); standing: captured standing frames for a
@@ -139,8 +148,8 @@ def build(conn: psycopg.Connection, name: str, collection: str,
                          "(modb model list --collection names them)")  # fmt: skip
     models = []
     for primitive in dict.fromkeys(m["primitive"] for m in found):
-        if role(primitive) is None:
-            continue  # not part of a walk (an action's model)
+        if role(primitive) is None and primitive not in (actions or ()):
+            continue  # not part of a walk, and not one of the actions asked for
         these = [m for m in found if m["primitive"] == primitive]
         picked = [m for m in these if m["name"] in (chosen or ())] or these
         if len(picked) > 1:
@@ -148,7 +157,8 @@ def build(conn: psycopg.Connection, name: str, collection: str,
                              f"{', '.join(m['name'] for m in picked)}): say which with --model "
                              "NAME")  # fmt: skip
         models.append(picked[0])
-    data = step_graph(models, collection, standing)
+    data = step_graph(models, collection, standing,
+                      tuple(a for a in actions or () if a in {m["primitive"] for m in models}))
     skeletons = {m["skeleton_id"] for m in models if m["primitive"] in data["nodes"]}
     if len(skeletons) != 1:
         raise GraphError(f'the step models of "{collection}" are of {len(skeletons)} skeletons')

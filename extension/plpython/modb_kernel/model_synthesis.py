@@ -25,7 +25,9 @@ import json
 
 import numpy as np
 
-from . import course, foot_hold, inertialization, memory, motion_model, prepared_models, standing
+from . import (course, foot_hold, inertialization, memory, model_actions, motion_model,
+               prepared_models, standing)  # fmt: skip
+from .action_search import ActionModel
 from .database import Statement, StoreError
 from .placement import placed
 from .step_search import hip_heading, rotate_y, stance_side, wrap
@@ -147,10 +149,11 @@ class Body:
 
 class Synthesis:
     def __init__(self, graph, models, rig, goals, seconds, seed, radius=ARRIVAL_RADIUS_M,
-                 interrupts=no_interrupts, hold_feet=True):  # fmt: skip
-        """graph: the graph document; models: node name -> StepModel; goals: [(x, z)];
-        interrupts: called before each piece of work (a step, a successor's search); hold_feet:
-        stance feet held from touchdown to lift-off (foot_hold)."""
+                 interrupts=no_interrupts, hold_feet=True, actions=None):  # fmt: skip
+        """graph: the graph document; models: node name -> StepModel (ActionModel for its action
+        nodes); goals: [(x, z)]; interrupts: called before each piece of work (a step, a
+        successor's search); hold_feet: stance feet held from touchdown to lift-off (foot_hold);
+        actions: model_actions's, each after the goals its "after" counts."""
         if not 0 < seconds <= MAX_SECONDS:
             raise SynthesisError(f"seconds is {seconds}: give more than 0, at most {MAX_SECONDS:g}")
         rates = {m.model["fps"] for m in models.values()}
@@ -161,8 +164,16 @@ class Synthesis:
         self.types, self.successors = node_types(graph), successor_lists(graph)
         self.interrupts = interrupts
         self.fps = rates.pop()
-        self.goals = [np.asarray(g, dtype=np.float64) for g in goals]
         self.seconds, self.radius = float(seconds), float(radius)
+        kinds = [n for n, t in self.types.items() if t == "action"]
+        actions = model_actions.checked(actions, len(goals), kinds)
+        # the course: the goals and where each action is performed, in the order walked
+        walked = model_actions.course(goals, actions, models)
+        self.goals = [point for point, _, _ in walked]
+        self.radii = [self.radius if r is None else r for _, r, _ in walked]
+        self.planned = {k: a for k, (_, _, a) in enumerate(walked) if a is not None}
+        self.due = []  # course entries of actions reached, to perform
+        self.actions = []  # their report records
         self.rng = np.random.default_rng(seed)
         self.seams = inertialization.Seams(rig.parents, rig.offsets, rig.translated, rig.pelvis)
         self.body = Body(rig)
@@ -186,10 +197,12 @@ class Synthesis:
         return int(round(self.seconds * self.fps)) + 1
 
     def run(self):
-        """The strip: steps toward the goals until the last is reached or the time is up, then
-        what follows the last goal (finish)."""
+        """The strip: steps toward the goals until the last is reached or the time is up (each
+        action performed where it is reached), then what follows the last goal (finish)."""
+        self.act_without_walking()
         while self.body.n_frames < self.wanted_frames and self.goal < len(self.goals):
             self.walk_step()
+            self.act()
         if self.body.n_frames < self.wanted_frames:
             self.finish(self.node)
         if self.goal < len(self.goals):
@@ -197,6 +210,29 @@ class Synthesis:
             self.notes.append(f"goal {self.goal + 1} ({x:g}, {z:g}) not reached in "
                               f"{self.seconds:g} s (closest {self.closest:.2f} m)")  # fmt: skip
         return self
+
+    def act_without_walking(self):
+        """An action whose place the character stands at before any step: it stands, then acts."""
+        if self.goal in self.planned and not self.body.rotations and float(
+                np.linalg.norm(self.goals[self.goal])) <= self.radii[self.goal]:  # fmt: skip
+            self.due.append(self.goal)
+            self.goal += 1
+            self.act()
+
+    def act(self):
+        """The actions reached: the walk comes to rest, each is performed, standing follows."""
+        while self.due and self.body.n_frames < self.wanted_frames:
+            action = self.planned[self.due.pop(0)]
+            if self.standing_source() is None:
+                raise SynthesisError(f'the action "{action["primitive"]}" needs the character '
+                                     "to stand: the graph has no idle node or standing "
+                                     "frames")  # fmt: skip
+            self.stop_walking()
+            if self.spot is None:
+                self.rest()
+            self.actions.append(model_actions.perform(self, action["primitive"], action))
+            if self.body.n_frames < self.wanted_frames:
+                self.rest()
 
     def walk_step(self):
         """One more step toward the current goal: from a start node first (and again after a
@@ -381,8 +417,10 @@ class Synthesis:
                 break
             distance = float(np.linalg.norm(p - self.goals[self.goal]))
             self.closest = min(self.closest, distance)
-            if distance <= self.radius:
+            if distance <= self.radii[self.goal]:
                 self.reached[self.goal] = start + k
+                if self.goal in self.planned:
+                    self.due.append(self.goal)
                 self.goal += 1
                 self.closest = np.inf
 
@@ -532,6 +570,7 @@ class Synthesis:
             "steps": self.steps,
             "stood_from_frame": self.stood_from,
             "rested_from_frame": self.rested_from,
+            "actions": self.actions,
             "notes": self.notes,
         }
 
@@ -572,7 +611,16 @@ def load(db, graph_name, interrupts=no_interrupts):
     except ValueError as e:
         raise StoreError(f'graph "{graph_name}": {e}', sqlstate="22023") from None
     _refuse_gone(graph_name, ids, models)  # one deleted since its key was read
-    nodes = {name: models[int(node["model_id"])] for name, node in graph["nodes"].items()}
+    nodes = {}
+    for name, node in graph["nodes"].items():
+        model = models[int(node["model_id"])]
+        if node.get("type") == "action":
+            try:
+                model = ActionModel(model.model, model.tree, model.rig)
+            except ValueError as e:
+                raise StoreError(f'graph "{graph_name}": action "{name}": {e}',
+                                 sqlstate="22023") from None  # fmt: skip
+        nodes[name] = model
     return graph, nodes, models[ids[0]].rig
 
 
@@ -592,7 +640,8 @@ def _sound_goals(goals):
     return all(isinstance(v, (int, float)) and abs(v) <= MAX_COORDINATE for v in values)
 
 
-def synthesize_stored(db, graph_name, goals, seconds, seed, radius=ARRIVAL_RADIUS_M):
+def synthesize_stored(db, graph_name, goals, seconds, seed, radius=ARRIVAL_RADIUS_M,
+                      actions=None):  # fmt: skip
     """[(fps, n_frames, rotations, translations, report)]: what modb.synthesize_from_models
     returns (its COMMENT says what)."""
     if graph_name is None:
@@ -603,7 +652,12 @@ def synthesize_stored(db, graph_name, goals, seconds, seed, radius=ARRIVAL_RADIU
     if seconds is None or not 0 < seconds <= MAX_SECONDS:
         raise StoreError(f"seconds is {seconds}: give more than 0, at most {MAX_SECONDS:g}",
                          sqlstate="22023")  # fmt: skip
-    if not _sound_goals(goals):
+    if actions is not None:
+        try:
+            actions = json.loads(actions)
+        except (TypeError, ValueError):
+            raise StoreError("actions must be a JSON list of actions", sqlstate="22023") from None
+    if not (_sound_goals(goals) or (actions and goals in (None, []))):
         raise StoreError(f"goals must be a non-empty float8[][2] of world X and Z in metres, each "
                          f"finite and at most {MAX_COORDINATE:g} from the origin, e.g. "
                          "ARRAY[[0, 6], [5, 8]]", sqlstate="22023")  # fmt: skip
@@ -612,8 +666,8 @@ def synthesize_stored(db, graph_name, goals, seconds, seed, radius=ARRIVAL_RADIU
                          f"{MAX_ARRIVAL_RADIUS_M:g}", sqlstate="22023")  # fmt: skip
     graph, models, rig = load(db, graph_name, db.check_interrupts)
     try:
-        synthesis = Synthesis(graph, models, rig, goals, seconds, seed, radius,
-                              db.check_interrupts, foot_hold_on(db)).run()  # fmt: skip
+        synthesis = Synthesis(graph, models, rig, goals or [], seconds, seed, radius,
+                              db.check_interrupts, foot_hold_on(db), actions).run()  # fmt: skip
     except ValueError as e:
         raise StoreError(f'graph "{graph_name}": {e}', sqlstate="22023") from None
     rotations, translations = synthesis.frames()

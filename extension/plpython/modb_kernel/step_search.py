@@ -107,6 +107,29 @@ class StepModel:
     threads, share one (prepared_models keeps it for the process)."""
 
     def __init__(self, model, tree, rig):
+        held = self._prepare(model, tree, rig)
+        landing, turn, travel = self.features(held)
+        # the model's ordinary step: its median landing and turn, and how far its turns reach
+        self.usual_landing = np.median(landing, axis=0)
+        self.usual_turn = float(np.median(turn))
+        # the turns its steps make, both ways (a turning model's are two-sided: open and crossing
+        # steps): the planner asks no turn beyond them
+        self.turn_range = tuple(float(v) for v in np.percentile(turn, TURN_PERCENTILES))
+        self.usual_travel = np.median(travel, axis=0)
+        # the quickest quarter of the model's steps swing their limbs fastest: drawn with far-out
+        # shapes, a frame jumped more than any capture (Bandai at 30 fps); the search passes them
+        self.least_frames = float(np.percentile(self.durations(held), QUICKEST_SHARE))
+        self.seconds = (model["n_frames"] - 1) / model["fps"]
+        self._freeze()
+
+    def _freeze(self):
+        for value in (*vars(self).values(), *self.whiteners):
+            if isinstance(value, np.ndarray):
+                value.flags.writeable = False
+
+    def _prepare(self, model, tree, rig):
+        """What every model's search needs (its tree, decoding of ends, mixture); returns the
+        samples its tree holds (or draws of its mixture)."""
         self.model, self.rig = model, rig
         self.tree = {**tree, "root": _packed(tree["root"])} if tree else tree
         spatial = model["spatial"]
@@ -124,22 +147,7 @@ class StepModel:
         self.whiteners = [np.linalg.inv(np.linalg.cholesky(np.asarray(c, dtype=np.float64)))
                           for c in mixture["covariances"]]  # fmt: skip
         self.dimensions = self.mixture_means.shape[1]
-        held = _leaf_samples(tree["root"]) if tree else motion_model.draw_scores(mixture, 2000, 0)
-        landing, turn, travel = self.features(held)
-        # the model's ordinary step: its median landing and turn, and how far its turns reach
-        self.usual_landing = np.median(landing, axis=0)
-        self.usual_turn = float(np.median(turn))
-        # the turns its steps make, both ways (a turning model's are two-sided: open and crossing
-        # steps): the planner asks no turn beyond them
-        self.turn_range = tuple(float(v) for v in np.percentile(turn, TURN_PERCENTILES))
-        self.usual_travel = np.median(travel, axis=0)
-        # the quickest quarter of the model's steps swing their limbs fastest: drawn with far-out
-        # shapes, a frame jumped more than any capture (Bandai at 30 fps); the search passes them
-        self.least_frames = float(np.percentile(self.durations(held), QUICKEST_SHARE))
-        self.seconds = (model["n_frames"] - 1) / model["fps"]
-        for value in (*vars(self).values(), *self.whiteners):
-            if isinstance(value, np.ndarray):
-                value.flags.writeable = False
+        return _leaf_samples(tree["root"]) if tree else motion_model.draw_scores(mixture, 2000, 0)
 
     def durations(self, scores):
         """Frames each row of scores lasts (motion_model.time_function's end, for many rows)."""
@@ -205,6 +213,16 @@ class StepModel:
         """(scores, candidates examined) from the tree: a beam of BEAM nodes down its levels, then
         one of the leaves' CHOICES samples of least error drawn with rng (so a seed varies the
         walk, and a straight walk does not repeat one pair of steps)."""
+        held, examined = self.beam(target)
+        e = self.errors(held, target)
+        quick = self.durations(held) < self.least_frames
+        if not quick.all():
+            e[quick] = np.inf
+        return held[rng.choice(np.argsort(e)[:CHOICES])], len(held) + examined
+
+    def beam(self, target):
+        """(the samples of the leaves a beam of BEAM nodes reaches down the tree by self.errors,
+        the inner nodes it examined)."""
         level = [self.tree["root"]]
         leaves, examined = [], 0
         while level:
@@ -215,12 +233,8 @@ class StepModel:
             examined += len(inner)
             means = np.array([c["mean"] for c in inner])
             level = [inner[i] for i in np.argsort(self.errors(means, target))[:BEAM]]
-        held = np.concatenate([np.asarray(leaf["samples"], dtype=np.float64) for leaf in leaves])
-        e = self.errors(held, target)
-        quick = self.durations(held) < self.least_frames
-        if not quick.all():
-            e[quick] = np.inf
-        return held[rng.choice(np.argsort(e)[:CHOICES])], len(held) + examined
+        return np.concatenate([np.asarray(leaf["samples"], dtype=np.float64)
+                               for leaf in leaves]), examined  # fmt: skip
 
     def refine(self, start, target):
         """The scores near start that least-squares minimise the constraint error plus
@@ -238,12 +252,8 @@ class StepModel:
             """Rows of residuals, one per row of spatial scores."""
             spatial = np.atleast_2d(spatial)
             x = np.hstack([spatial, np.broadcast_to(timing, (len(spatial), len(timing)))])
-            landing, turn, _ = self.features(x)
-            return np.concatenate([
-                landing - target[:2],
-                HEADING_WEIGHT_M * wrap(turn - target[2])[:, None],
-                PRIOR_WEIGHT_M * ((x - mu) @ whiten.T),
-            ], axis=1)  # fmt: skip
+            return np.concatenate([self.constraint_residuals(x, target),
+                                   PRIOR_WEIGHT_M * ((x - mu) @ whiten.T)], axis=1)  # fmt: skip
 
         def jacobian(x):
             """Forward differences, every column from one batch of features."""
@@ -254,6 +264,13 @@ class StepModel:
         found = least_squares(lambda x: residuals(x)[0], start[: self.split], jac=jacobian,
                               method="lm", max_nfev=50).x  # fmt: skip
         return np.concatenate([found, timing])
+
+    def constraint_residuals(self, scores, target):
+        """Per row of scores, the constraint's residuals in metres (refine squares them): the
+        landing's miss and the heading's at HEADING_WEIGHT_M per radian."""
+        landing, turn, _ = self.features(scores)
+        heading = HEADING_WEIGHT_M * wrap(turn - target[2])[:, None]
+        return np.concatenate([landing - target[:2], heading], axis=1)
 
     def best_random(self, target, rng, n=RANDOM_BASELINE):
         """The least constraint error among n draws of the mixture (the baseline the search must

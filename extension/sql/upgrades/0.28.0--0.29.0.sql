@@ -29,6 +29,13 @@ CREATE INDEX snippets_collection_idx ON modb.snippets (collection_id, id);
 -- Motion models prepared once per server process (issue 62): what a session's backend holds.
 --@include 96a_prepared_models.sql
 
+-- Actions in graphs of models (issue 63): a node may be of type action, and synthesis takes actions (the
+-- old signature of modb.synthesize_from_models dropped: the new one's last argument has a default).
+--@include 94_model_graph_problem.sql
+DROP FUNCTION modb.synthesize_from_models(text, float8[], float8, int, float8);
+DROP FUNCTION modb._synthesize_from_models(text, float8[], float8, int, float8);
+--@include 96b_synthesis_from_models.sql
+
 -- What to run next, where it is seen (an extension script shows WARNINGs, not NOTICEs).
 DO $$
 BEGIN

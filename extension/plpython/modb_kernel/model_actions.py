@@ -1,0 +1,145 @@
+"""Actions in a synthesis from models (after the DFKI worker use case): the character walks to where
+it stands for the action, comes to rest, performs the action so that its hand meets the target at
+the action's keyframe, and goes back to standing.
+
+An action is {"primitive": its graph node (an action model's primitive, e.g. "raise_right_hand"),
+"target": [x, y, z] world metres or null, "stand": [x, z] or null, "after": how many of the walk's
+goals come before it (default: all)}. Where it stands: `stand` when given, else it walks toward the
+target's ground point and stops within the action's reach (the horizontal distance from the pelvis
+at which its model's mean motion has the hand at the keyframe, plus REACH_SLACK_M). Meeting the
+target: the model's tree search and refinement on the hand at the keyframe in the action's own
+frame (as it stands: step_search's prior), then, where the result misses, inverse kinematics of the
+arm spread over the action's frames (reach.py); the report has the hand's error after each.
+"""
+
+import numpy as np
+
+from . import motion_model, standing
+from .step_search import rotate_y
+
+MAX_ACTIONS = 100
+REACH_SLACK_M = 0.25  # the stand point's arrival radius beyond the action's usual reach
+MAX_COORDINATE = 1e6
+
+
+class ActionError(ValueError):
+    pass
+
+
+def checked(actions, n_goals, primitives):
+    """The actions as dicts with numpy points, in the course's order, or ActionError saying which
+    and why. primitives: the graph's action nodes."""
+    if actions is None:
+        return []
+    if not isinstance(actions, list) or len(actions) > MAX_ACTIONS:
+        raise ActionError(f"actions must be a list of at most {MAX_ACTIONS} objects")
+    out = []
+    for k, a in enumerate(actions, start=1):
+        if not isinstance(a, dict) or not isinstance(a.get("primitive"), str):
+            raise ActionError(f'action {k} must be an object with a "primitive" (a node of the '
+                              "graph's actions)")  # fmt: skip
+        if a["primitive"] not in primitives:
+            known = ", ".join(sorted(primitives)) or "none"
+            raise ActionError(f'action {k}: the graph has no action "{a["primitive"]:.100}" '
+                              f"(its actions: {known})")  # fmt: skip
+        unknown = sorted(set(a) - {"primitive", "target", "stand", "after"})
+        if unknown:
+            raise ActionError(f'action {k}: unknown key "{unknown[0]:.50}" (it takes primitive, '
+                              "target, stand, after)")  # fmt: skip
+        target = _point(a.get("target"), 3, k, "target", "[x, y, z]")
+        stand = _point(a.get("stand"), 2, k, "stand", "[x, z]")
+        if target is None and stand is None:
+            raise ActionError(f'action {k}: give a "target" [x, y, z] or where to "stand" [x, z]')
+        after = a.get("after", n_goals)
+        if isinstance(after, bool) or not isinstance(after, int) or not 0 <= after <= n_goals:
+            raise ActionError(f'action {k}: "after" is how many goals come before it: a whole '
+                              f"number from 0 to {n_goals}")  # fmt: skip
+        out.append({"primitive": a["primitive"], "target": target, "stand": stand, "after": after})
+    return out
+
+
+def _point(value, n, k, key, form):
+    if value is None:
+        return None
+    ok = (isinstance(value, list) and len(value) == n and all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) and abs(v) <= MAX_COORDINATE
+        for v in value))  # fmt: skip
+    if not ok:
+        raise ActionError(f'action {k}: "{key}" must be {form} in metres, each finite and at '
+                          f"most {MAX_COORDINATE:g} from the origin")  # fmt: skip
+    return np.asarray(value, dtype=np.float64)
+
+
+def course(goals, actions, models):
+    """[(ground point (x, z), arrival radius or None for the synthesis's, action or None)] in the
+    order walked: each action after the goals its "after" counts."""
+    out = []
+    for k in range(len(goals) + 1):
+        for a in actions:
+            if a["after"] == k:
+                out.append(stand_point(a, models[a["primitive"]]))
+        if k < len(goals):
+            out.append((np.asarray(goals[k], dtype=np.float64), None, None))
+    return out
+
+
+def stand_point(action, model):
+    if action["stand"] is not None:
+        return action["stand"], None, action
+    reach = float(np.linalg.norm(model.usual_wrists.mean(axis=0)[[0, 2]]))
+    return action["target"][[0, 2]], reach + REACH_SLACK_M, action
+
+
+def hand_targets(model, target):
+    """(hands, 3) targets: one hand at the target; two keep their usual spacing about it."""
+    usual = model.usual_wrists
+    return np.asarray(target, dtype=np.float64)[None] + (usual - usual.mean(axis=0))
+
+
+def canonical(spot, points):
+    """World points (..., 3) in the frame of an action placed on the spot."""
+    points = np.asarray(points, dtype=np.float64)
+    ground = rotate_y(points[..., [0, 2]] - spot.pelvis, -spot.heading)
+    return np.stack([ground[..., 0], points[..., 1] - spot.lift, ground[..., 1]], axis=-1)
+
+
+def perform(synthesis, node, action):
+    """Plays the action at the spot the character stands on (synthesis.spot, settled) and returns
+    its report record."""
+    syn, rig, body = synthesis, synthesis.rig, synthesis.body
+    model = syn.models[node]
+    syn.interrupts()
+    target = action["target"]
+    record = {"action": node, "model": model.model.get("name"),
+              "version": model.model.get("version"), "first_frame": body.n_frames,
+              "target": None if target is None else target.tolist()}  # fmt: skip
+    world = None if action["target"] is None else hand_targets(model, action["target"])
+    scores = np.zeros(model.dimensions)
+    if world is not None and model.keyframe is not None:
+        local = canonical(syn.spot, world)
+        found, examined = model.search(local, syn.rng)
+        refined = model.refine(found, local)
+        limit = model.model["mixture"].get("max_mahalanobis2")
+        if limit and float(model.mahalanobis(refined)[0][0]) ** 2 > limit:
+            refined = found
+        scores = refined
+        record.update(candidates=examined, tree_error_m=float(model.errors(found, local)[0]),
+                      refined_error_m=float(model.errors(refined, local)[0]))  # fmt: skip
+    split = model.split
+    rotations, translations, times = motion_model.frames_from_scores(model.model, scores[:split],
+                                                                     scores[split:])  # fmt: skip
+    piece = standing.on_spot(rig, rotations, translations, syn.spot)
+    joined = syn.seams.inertialize(*body.last_two(), *piece, syn.fps)
+    joined = (standing.pinned(syn.legs, joined[0], joined[1], syn.spot.feet), joined[1])
+    if world is not None and model.keyframe is not None:
+        frame = int(round(float(times[model.keyframe])))
+        record["keyframe_frame"] = body.n_frames - 1 + frame
+        wrists = rig.positions(joined[0][frame:frame + 1], joined[1][frame:frame + 1])[0]
+        placed = wrists[model.wrist_joints]
+        record["placed_error_m"] = float(np.sqrt(np.mean(np.sum((placed - world) ** 2, axis=-1))))
+    syn.append(joined[0][1:], joined[1][1:], (piece[0][1:], piece[1][1:]), hold=False)
+    record["n_frames"] = body.n_frames - record["first_frame"]
+    record["cut"] = body.n_frames > syn.wanted_frames
+    if record["cut"]:
+        syn.notes.append(f'the action "{node}" was cut: the strip ends at {syn.seconds:g} s')
+    return record
