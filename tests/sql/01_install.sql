@@ -31,6 +31,7 @@ SELECT functions_are('modb', ARRAY[
     '_apply_edit_script', 'joint_axes_problem', 'skeletons_check_documents', 'edit_script_problems',
     'edit_scripts_check_commands', 'collections_check_name', 'terminators_updated',
     'select_snippet_ending_reference', 'annotate_steps', '_annotate_steps', 'align_primitive', '_align_primitive',
+    'annotate_action', '_annotate_action',
     'models_version_rules', 'model_document_problems', 'model_mixture_md5', 'models_check_documents',
     'models_keep_inputs', 'models_keep_what_graphs_name', 'tree_shape', 'sample_motion', '_sample_motion',
     'model_graph_problem', 'model_graphs_check',
