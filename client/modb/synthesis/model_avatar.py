@@ -361,7 +361,6 @@ def _change_goals(synthesis: MS.Synthesis, changes: list[tuple[str, np.ndarray]]
     """The goals set ("set": the course replaced) or added, in order, on this synthesis."""
     for kind, goal in changes:
         if kind == "set":
-            synthesis.goals, synthesis.goal, synthesis.reached = [goal], 0, {}
-            synthesis.closest = np.inf
+            synthesis.set_goal(goal)
         else:
-            synthesis.goals.append(goal)
+            synthesis.add_goal(goal)

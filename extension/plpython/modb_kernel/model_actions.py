@@ -125,6 +125,7 @@ def perform(synthesis, node, action):
         scores = refined
         record.update(candidates=examined, tree_error_m=float(model.errors(found, local)[0]),
                       refined_error_m=float(model.errors(refined, local)[0]))  # fmt: skip
+        record["error_m"] = record["refined_error_m"]
     split = model.split
     rotations, translations, times = motion_model.frames_from_scores(model.model, scores[:split],
                                                                      scores[split:])  # fmt: skip
@@ -137,6 +138,7 @@ def perform(synthesis, node, action):
         wrists = rig.positions(joined[0][frame:frame + 1], joined[1][frame:frame + 1])[0]
         placed = wrists[model.wrist_joints]
         record["placed_error_m"] = float(np.sqrt(np.mean(np.sum((placed - world) ** 2, axis=-1))))
+        record["error_m"] = record["placed_error_m"]
     syn.append(joined[0][1:], joined[1][1:], (piece[0][1:], piece[1][1:]), hold=False)
     record["n_frames"] = body.n_frames - record["first_frame"]
     record["cut"] = body.n_frames > syn.wanted_frames

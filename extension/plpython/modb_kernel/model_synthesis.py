@@ -45,6 +45,11 @@ class SynthesisError(ValueError):
     pass
 
 
+# an action's report record as its step's (an avatar's readout reads these)
+ACTION_STEP_KEYS = ("model", "version", "first_frame", "n_frames", "candidates", "tree_error_m",
+                    "error_m")  # fmt: skip
+
+
 def node_types(graph):
     return {name: node.get("type", "standard") for name, node in graph["nodes"].items()}
 
@@ -174,6 +179,7 @@ class Synthesis:
         self.planned = {k: a for k, (_, _, a) in enumerate(walked) if a is not None}
         self.due = []  # course entries of actions reached, to perform
         self.actions = []  # their report records
+        self.stand_after = False  # an action played: a piece of standing before walking on
         self.rng = np.random.default_rng(seed)
         self.seams = inertialization.Seams(rig.parents, rig.offsets, rig.translated, rig.pelvis)
         self.body = Body(rig)
@@ -200,9 +206,10 @@ class Synthesis:
         """The strip: steps toward the goals until the last is reached or the time is up (each
         action performed where it is reached), then what follows the last goal (finish)."""
         self.act_without_walking()
-        while self.body.n_frames < self.wanted_frames and self.goal < len(self.goals):
-            self.walk_step()
-            self.act()
+        while self.body.n_frames < self.wanted_frames and (
+                self.goal < len(self.goals) or self.due or self.stand_after):  # fmt: skip
+            if not self.act_step():
+                self.walk_step()
         if self.body.n_frames < self.wanted_frames:
             self.finish(self.node)
         if self.goal < len(self.goals):
@@ -212,27 +219,55 @@ class Synthesis:
         return self
 
     def act_without_walking(self):
-        """An action whose place the character stands at before any step: it stands, then acts."""
+        """An action whose place the character stands at before any step is due at once."""
         if self.goal in self.planned and not self.body.rotations and float(
                 np.linalg.norm(self.goals[self.goal])) <= self.radii[self.goal]:  # fmt: skip
+            self.reached[self.goal] = 0
             self.due.append(self.goal)
             self.goal += 1
-            self.act()
 
-    def act(self):
-        """The actions reached: the walk comes to rest, each is performed, standing follows."""
-        while self.due and self.body.n_frames < self.wanted_frames:
-            action = self.planned[self.due.pop(0)]
-            if self.standing_source() is None:
-                raise SynthesisError(f'the action "{action["primitive"]}" needs the character '
-                                     "to stand: the graph has no idle node or standing "
-                                     "frames")  # fmt: skip
-            self.stop_walking()
-            if self.spot is None:
-                self.rest()
-            self.actions.append(model_actions.perform(self, action["primitive"], action))
-            if self.body.n_frames < self.wanted_frames:
-                self.rest()
+    def act_step(self):
+        """One piece toward the action reached (the walk's stop, coming to rest, the action, a
+        piece of standing after it); False when no action is due (an avatar calls this before
+        walk_step)."""
+        if self.stand_after and not self.due:
+            self.stand_after = False
+            self.rest()
+            return True
+        if not self.due:
+            return False
+        entry = self.due[0]
+        action = self.planned[entry]
+        if self.standing_source() is None:
+            raise SynthesisError(f'the action "{action["primitive"]}" needs the character to '
+                                 "stand: the graph has no idle node or standing frames")
+        if not self.stop_walking() and self.spot is None:
+            self.rest()
+        elif self.spot is not None:
+            self.due.pop(0)
+            record = model_actions.perform(self, action["primitive"], action)
+            self.actions.append(record)
+            self.steps.append({"node": action["primitive"], "action": True, "goal": entry + 1,
+                               **{k: record.get(k) for k in ACTION_STEP_KEYS}})  # fmt: skip
+            self.stand_after = True
+        return True
+
+    def set_goal(self, goal):
+        """The course replaced by one goal (an avatar's new goal): actions not performed are
+        dropped."""
+        self.goals, self.radii = [np.asarray(goal, dtype=np.float64)], [self.radius]
+        self.goal, self.reached, self.planned, self.due, self.closest = 0, {}, {}, [], np.inf
+
+    def add_goal(self, goal, action=None):
+        """A goal, or the place of an action (model_actions.checked's), after the course's."""
+        if action is None:
+            point, radius = np.asarray(goal, dtype=np.float64), None
+        else:
+            point, radius, _ = model_actions.stand_point(action, self.models[action["primitive"]])
+        if action is not None:
+            self.planned[len(self.goals)] = action
+        self.goals.append(point)
+        self.radii.append(self.radius if radius is None else radius)
 
     def walk_step(self):
         """One more step toward the current goal: from a start node first (and again after a
