@@ -54,12 +54,21 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     synth.add_argument(
         "--to",
-        action="append",
-        required=True,
+        action=InOrder,
+        default=[],
         metavar="X,Z",
         help="a goal in world metres (X, Z on the ground; the avatar starts at the origin facing "
         "+Z); "
         "repeat for waypoints, followed in order",
+    )
+    synth.add_argument(
+        "--action",
+        action=InOrder,
+        default=[],
+        metavar="NAME:X,Y,Z",
+        help="with --models: walk to within reach of the point, come to rest, perform the graph's "
+        "action NAME with its hand at the point (world metres, Y up) and stand; repeatable, "
+        "kept in order with the goals (e.g. --to 0,4 --action raise_right_hand:0.3,1.75,5)",
     )
     synth.add_argument(
         "--seconds", type=SECONDS, required=True, help=f"length of the strip ({SECONDS.span})"
@@ -166,6 +175,29 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     synth.set_defaults(func=run)
 
 
+class InOrder(argparse.Action):
+    """--to and --action: each value in its own list and, with which option gave it, in
+    `course`, so that goals and actions keep the order given."""
+
+    def __call__(self, parser, namespace, values, option_string=None):  # type: ignore[no-untyped-def]
+        setattr(namespace, self.dest, [*getattr(namespace, self.dest, []), values])
+        namespace.course = [*getattr(namespace, "course", []), (self.dest, values)]
+
+
+def parse_action(text: str, goals_before: int) -> dict:
+    """'NAME:X,Y,Z' as modb.synthesize_from_models's action, after `goals_before` goals."""
+    name, _, point = text.rpartition(":")
+    try:
+        target = [float(v) for v in point.split(",")]
+        if not name or len(target) != 3 or not all(abs(v) <= MAX_COORDINATE for v in target):
+            raise ValueError
+    except ValueError:
+        raise ValueError(f"--action {text!r:.200}: expected NAME:X,Y,Z, the graph's action and "
+                         "where its hand goes in world metres, e.g. --action "
+                         "raise_right_hand:0.3,1.75,4") from None  # fmt: skip
+    return {"primitive": name, "target": target, "after": goals_before}
+
+
 def parse_goal(text: str) -> Goal:
     """'X,Z' (or 'X,Y,Z') world metres."""
     try:
@@ -211,8 +243,19 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         goals = [parse_goal(text) for text in args.to]
+        course = getattr(args, "course", [])
+        actions = [parse_action(text, sum(1 for kind, _ in course[:k] if kind == "to"))
+                   for k, (kind, text) in enumerate(course) if kind == "action"]  # fmt: skip
     except ValueError as e:
         print(f"modb synth: {e}", file=sys.stderr)
+        return 2
+    if not goals and not actions:
+        print("modb synth: give a goal (--to X,Z) or, with --models, an action (--action "
+              "NAME:X,Y,Z)", file=sys.stderr)  # fmt: skip
+        return 2
+    if actions and args.models is None:
+        print("modb synth: --action needs a graph of models (--models GRAPH): snippet selection "
+              "has no actions", file=sys.stderr)  # fmt: skip
         return 2
     on_stdout = [
         name
@@ -233,7 +276,7 @@ def run(args: argparse.Namespace) -> int:
     if not (writable("synth", args.out) and writable("synth", args.report_json)):
         return 1
     if args.models is not None:
-        return run_models(args, goals)
+        return run_models(args, goals, actions)
     if args.seed is not None:
         print("modb synth: --seed goes with --models (snippet selection draws nothing at random)",
               file=sys.stderr)  # fmt: skip
@@ -311,7 +354,7 @@ def run(args: argparse.Namespace) -> int:
     return 1 if result.stopped else 0
 
 
-def run_models(args: argparse.Namespace, goals: list[Goal]) -> int:
+def run_models(args: argparse.Namespace, goals: list[Goal], actions: list[dict]) -> int:
     """`modb synth --models GRAPH`: the walk modb.synthesize_from_models makes, written out."""
     import psycopg
 
@@ -342,7 +385,7 @@ def run_models(args: argparse.Namespace, goals: list[Goal]) -> int:
             conn.execute("SELECT set_config('modb.foot_hold', 'off', false)")
         try:
             strip = synthesize(conn, args.models, [(g[0], g[-1]) for g in goals], args.seconds,
-                               seed, args.arrival_radius)  # fmt: skip
+                               seed, args.arrival_radius, actions)  # fmt: skip
         except psycopg.Error as e:
             hint = e.diag.message_hint
             print(f"modb synth: {e.diag.message_primary}" + (f" ({hint})" if hint else ""),

@@ -205,8 +205,8 @@ def format_model_report(figures: dict, server_report: dict) -> str:
     lines = [f"graph of models {figures['graph']} (seed {figures['seed']}): "
              f"{figures['steps']} steps, {figures['seconds']:.1f} s"]  # fmt: skip
     for s in server_report["steps"]:
-        if s.get("rest"):
-            continue  # a piece of standing: the line after the goals says from when
+        if s.get("rest") or s.get("action"):
+            continue  # a piece of standing (the line after the goals says from when), an action
         lines.append(
             f"  frame {s['first_frame']:>6}  {s['node']:<14} goal {s['goal'] or '-'}  constraint "
             f"error {100 * s['error_m']:5.1f} cm (tree {100 * s['tree_error_m']:5.1f}, best of 300 "
@@ -217,6 +217,7 @@ def format_model_report(figures: dict, server_report: dict) -> str:
                 if g["reached"] else f"not reached (closest {g['closest_m']:.2f} m)")  # fmt: skip
         lines.append(f"goal {g['goal']} ({g['target'][0]:g}, {g['target'][1]:g}), "
                      f"{g['distance_m']:.1f} m away: {when}")  # fmt: skip
+    lines += [action_line(a) for a in server_report.get("actions", [])]
     c = figures["constraint_error_median"]
     lines += [
         f"constraint error, median: {100 * c['refined_m']:.1f} cm (tree alone "
@@ -235,6 +236,21 @@ def format_model_report(figures: dict, server_report: dict) -> str:
     lines += [f"aim {'met' if ok else 'MISSED' if ok is False else 'not judged'}: {aim}"
               for aim, ok in figures["aims"].items()]  # fmt: skip
     return "\n".join(lines)
+
+
+def action_line(a: dict) -> str:
+    """An action's line: where and when, and the hand's error after each stage."""
+    def cm(key: str) -> str:
+        return "-" if a.get(key) is None else f"{100 * a[key]:.1f}"
+
+    where = "" if a.get("target") is None else " at ({:g}, {:g}, {:g})".format(*a["target"])
+    line = (f"action {a['action']}{where}: frame {a['first_frame']}, keyframe "
+            f"{a.get('keyframe_frame', '-')}; hand error {cm('tree_error_m')} cm after the tree, "
+            f"{cm('refined_error_m')} after refinement, {cm('placed_error_m')} as placed, "
+            f"{cm('ik_error_m')} after IK")
+    if a.get("reachable") is False:
+        line += f"; out of reach: the nearest point reached, {cm('unreached_m')} cm short"
+    return line + ("; cut by the end of the strip" if a.get("cut") else "")
 
 
 def write_model_report_json(path: str, figures: dict, server_report: dict) -> None:

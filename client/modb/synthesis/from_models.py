@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 import psycopg
+from psycopg.types.json import Jsonb
 
 from modb.clips import read_motion
 from modb.database import pgarray
@@ -23,7 +24,7 @@ AIM_SEARCH_RATIO = 0.5  # median constraint error at most this times the best of
 
 STRIP = """
 SELECT fps, rotations, translations, report
-  FROM modb.synthesize_from_models(%s, %s::float8[], %s, %s, %s)
+  FROM modb.synthesize_from_models(%s, %s::float8[], %s, %s, %s, %s::jsonb)
 """
 SKELETON = """
 SELECT s.name, s.hierarchy, s.joint_map, s.mirror_pairs FROM modb.graphs g
@@ -50,12 +51,15 @@ class ModelStrip:
 
 
 def synthesize(conn: psycopg.Connection, graph: str, goals: list[tuple[float, float]],
-               seconds: float, seed: int = 0, radius: float = 0.5) -> ModelStrip:  # fmt: skip
-    """The strip modb.synthesize_from_models walks, as a Motion of the graph's skeleton."""
+               seconds: float, seed: int = 0, radius: float = 0.5,
+               actions: list[dict[str, Any]] | None = None) -> ModelStrip:  # fmt: skip
+    """The strip modb.synthesize_from_models walks, as a Motion of the graph's skeleton; actions
+    as that function takes them."""
     pgarray.register(conn)
     with conn.cursor(binary=True) as cur:
         fps, rotations, translations, report = cur.execute(
-            STRIP, [graph, [[float(v) for v in g] for g in goals], seconds, seed, radius]
+            STRIP, [graph, [[float(v) for v in g] for g in goals], seconds, seed, radius,
+                    None if not actions else Jsonb(actions)]
         ).fetchone()
     row = conn.execute(SKELETON, [graph]).fetchone()
     skeleton = Skeleton.from_row(row[1], row[2], row[3], row[0])
@@ -63,7 +67,8 @@ def synthesize(conn: psycopg.Connection, graph: str, goals: list[tuple[float, fl
     t = np.zeros((len(r), 0, 3)) if translations is None else np.asarray(translations, np.float64)
     motion = Motion(skeleton, float(fps), r, t, f"synth_{graph}".replace(" ", "_"),
                     meta={"graph of models": graph, "seed": seed})  # fmt: skip
-    return ModelStrip(motion, report, graph, [tuple(g) for g in goals], seed)
+    # the course as walked: the goals and where each action was performed
+    return ModelStrip(motion, report, graph, [tuple(g) for g in report["goals"]], seed)
 
 
 def stance_sliding(motion: Motion, steps: list[tuple[str, int, int]]) -> np.ndarray:
@@ -119,7 +124,8 @@ def measure(strip: ModelStrip, source: Source) -> dict[str, Any]:
     fps = motion.fps
     walked = report["stood_from_frame"]
     moving = motion if walked is None else first_frames(motion, walked + 1)
-    stepped = [r for r in report["steps"] if not r.get("rest")]  # not the pieces of standing
+    # not the pieces of standing, nor the actions (report["actions"])
+    stepped = [r for r in report["steps"] if not r.get("rest") and not r.get("action")]
     # a step runs from the frame before its first (the seam: its stance foot touches down) on
     steps = [
         (

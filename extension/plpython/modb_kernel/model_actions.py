@@ -4,9 +4,9 @@ the action's keyframe, and goes back to standing.
 
 An action is {"primitive": its graph node (an action model's primitive, e.g. "raise_right_hand"),
 "target": [x, y, z] world metres or null, "stand": [x, z] or null, "after": how many of the walk's
-goals come before it (default: all)}. Where it stands: `stand` when given, else it walks toward the
-target's ground point and stops within the action's reach (the horizontal distance from the pelvis
-at which its model's mean motion has the hand at the keyframe, plus REACH_SLACK_M). Meeting the
+goals come before it (default: all)}. Where it stands: `stand` when given, else where the model's
+mean motion puts the hand at the target's ground point, facing the way it comes from (within
+STAND_RADIUS_M). Meeting the
 target: the model's tree search and refinement on the hand at the keyframe in the action's own
 frame (as it stands: step_search's prior), then, where the result misses, inverse kinematics of the
 arm spread over the action's frames (reach.py); the report has the hand's error after each.
@@ -18,7 +18,8 @@ from . import motion_model, standing
 from .step_search import rotate_y
 
 MAX_ACTIONS = 100
-REACH_SLACK_M = 0.25  # the stand point's arrival radius beyond the action's usual reach
+FACE_BEYOND_M = 0.1  # a target nearer the pelvis (or a hand nearer it) says no way to face
+STAND_RADIUS_M = 0.15  # an action's stand point reached within a step (Synthesis.arrive_early)
 MAX_COORDINATE = 1e6
 
 
@@ -73,21 +74,39 @@ def _point(value, n, k, key, form):
 def course(goals, actions, models):
     """[(ground point (x, z), arrival radius or None for the synthesis's, action or None)] in the
     order walked: each action after the goals its "after" counts."""
-    out = []
+    out, last = [], np.zeros(2)
     for k in range(len(goals) + 1):
         for a in actions:
             if a["after"] == k:
-                out.append(stand_point(a, models[a["primitive"]]))
+                out.append(stand_point(a, models[a["primitive"]], last))
+                last = out[-1][0]
         if k < len(goals):
             out.append((np.asarray(goals[k], dtype=np.float64), None, None))
+            last = out[-1][0]
     return out
 
 
-def stand_point(action, model):
+def stand_point(action, model, came_from):
+    """(where to stand, its arrival radius, the action): `stand` when given, else where the
+    model's mean motion puts the hand at the target, facing the way from `came_from` to it."""
     if action["stand"] is not None:
         return action["stand"], None, action
-    reach = float(np.linalg.norm(model.usual_wrists.mean(axis=0)[[0, 2]]))
-    return action["target"][[0, 2]], reach + REACH_SLACK_M, action
+    ground = action["target"][[0, 2]]
+    way = ground - np.asarray(came_from, dtype=np.float64)
+    heading = float(np.arctan2(way[0], way[1])) if np.linalg.norm(way) > 1e-6 else 0.0
+    hand = model.usual_wrists.mean(axis=0)[[0, 2]]
+    return ground - rotate_y(hand, heading), STAND_RADIUS_M, action
+
+
+def facing(action, model, pelvis):
+    """The heading from which the model's mean motion puts the hand the way of the target (its
+    stand point's when it has none) from the pelvis's ground point; None where too near to say."""
+    point = action["target"][[0, 2]] if action["target"] is not None else action["stand"]
+    way = point - np.asarray(pelvis, dtype=np.float64)
+    hand = model.usual_wrists.mean(axis=0)[[0, 2]]
+    if np.linalg.norm(way) < FACE_BEYOND_M or np.linalg.norm(hand) < FACE_BEYOND_M:
+        return None
+    return float(np.arctan2(way[0], way[1]) - np.arctan2(hand[0], hand[1]))
 
 
 def hand_targets(model, target):

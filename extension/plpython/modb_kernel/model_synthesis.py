@@ -216,6 +216,10 @@ class Synthesis:
             x, z = self.goals[self.goal]
             self.notes.append(f"goal {self.goal + 1} ({x:g}, {z:g}) not reached in "
                               f"{self.seconds:g} s (closest {self.closest:.2f} m)")  # fmt: skip
+        left = [a["primitive"] for k, a in sorted(self.planned.items())
+                if k >= self.goal or k in self.due]  # fmt: skip
+        if left:
+            self.notes.append(f"not performed in {self.seconds:g} s: " + ", ".join(left))
         return self
 
     def act_without_walking(self):
@@ -234,6 +238,7 @@ class Synthesis:
             self.stand_after = False
             self.rest()
             return True
+        self.arrive_early()
         if not self.due:
             return False
         entry = self.due[0]
@@ -242,7 +247,8 @@ class Synthesis:
             raise SynthesisError(f'the action "{action["primitive"]}" needs the character to '
                                  "stand: the graph has no idle node or standing frames")
         if not self.stop_walking() and self.spot is None:
-            self.rest()
+            self.rest(face=model_actions.facing(action, self.models[action["primitive"]],
+                                                self.body.pelvis()))  # fmt: skip
         elif self.spot is not None:
             self.due.pop(0)
             record = model_actions.perform(self, action["primitive"], action)
@@ -251,6 +257,25 @@ class Synthesis:
                                **{k: record.get(k) for k in ACTION_STEP_KEYS}})  # fmt: skip
             self.stand_after = True
         return True
+
+    def arrive_early(self):
+        """The place of an action counts as reached once the next step would take the pelvis
+        past it (half a stride away): the character stops there, not a step beyond."""
+        k = self.goal
+        if k not in self.planned or not self.body.rotations or self.spot is not None:
+            return
+        if float(np.linalg.norm(self.body.pelvis() - self.goals[k])) <= self.half_stride:
+            self.reached[k] = self.body.n_frames - 1
+            self.due.append(k)
+            self.goal += 1
+            self.closest = np.inf
+
+    @property
+    def half_stride(self):
+        """Half the median travel of the graph's standard steps (metres)."""
+        travel = [np.linalg.norm(m.usual_travel) for n, m in self.models.items()
+                  if self.types[n] == "standard"]  # fmt: skip
+        return 0.5 * float(np.median(travel)) if travel else 0.0
 
     def set_goal(self, goal):
         """The course replaced by one goal (an avatar's new goal): actions not performed are
@@ -263,7 +288,9 @@ class Synthesis:
         if action is None:
             point, radius = np.asarray(goal, dtype=np.float64), None
         else:
-            point, radius, _ = model_actions.stand_point(action, self.models[action["primitive"]])
+            came_from = self.goals[-1] if self.goals else self.body.pelvis()
+            point, radius, _ = model_actions.stand_point(action, self.models[action["primitive"]],
+                                                         came_from)  # fmt: skip
         if action is not None:
             self.planned[len(self.goals)] = action
         self.goals.append(point)
@@ -528,9 +555,10 @@ class Synthesis:
             return frames[0], frames[1]
         return source.piece(self.rng)
 
-    def rest(self):
+    def rest(self, face=None):
         """One more piece of standing: the first comes to rest from the walk (the settle), every
-        piece stands on the spot the settle chose (an avatar calls this while it has no goal)."""
+        piece stands on the spot the settle chose (an avatar calls this while it has no goal);
+        face: a heading the settle turns to (within standing.MAX_SETTLE_TURN of the walk's)."""
         rig, body = self.rig, self.body
         rotations, translations = self.standing_piece()
         if not body.rotations:  # standing from the first frame: above the origin, facing +Z
@@ -544,6 +572,9 @@ class Synthesis:
                 rotations, translations, int(round(standing.SETTLE_S * self.fps)) + 2)
             heading = standing.travel_heading(rig, body.rotations[-1], body.translations[-1],
                                               body.heading)  # fmt: skip
+            if face is not None:
+                turn = float(wrap(face - heading))
+                heading += float(np.clip(turn, -standing.MAX_SETTLE_TURN, standing.MAX_SETTLE_TURN))
             planted = self.leading_foot(heading)
             self.spot = standing.settle_spot(rig, rotations, translations, planted,
                                              body.feet[planted], heading)  # fmt: skip

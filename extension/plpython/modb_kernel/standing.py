@@ -32,6 +32,7 @@ RAMP_S = 0.15  # the settle's IK takes the legs over from the walk's within this
 SWING_SHARE = 0.7
 LIFT_LEGS = 0.05
 MIN_STANDING_S = 0.5  # captured standing shorter than this is no idle
+MAX_SETTLE_TURN = np.radians(60.0)  # the most a settle turns from the walk to face a point
 
 
 class StandingError(ValueError):
