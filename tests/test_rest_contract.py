@@ -288,7 +288,8 @@ def _malformed(r, body) -> bool:
 
 
 def _url(s, path: str) -> str:
-    ident = {"/api/clips/{ident}/retarget": "$CLIP", "/api/models/{ident}": "$MODEL",
+    ident = {"/api/clips/{ident}/retarget": "$CLIP", "/api/clips/{ident}/action": "$CLIP",
+             "/api/models/{ident}": "$MODEL",
              "/api/graphs/{ident}": "$GRAPH"}[path] if "{ident}" in path else None  # fmt: skip
     values = {**PATH_VALUES, "ident": ident}
     return re.sub(r"\{(\w+)\}", lambda m: str(values[m.group(1)]), path)
