@@ -14,7 +14,7 @@ arm spread over the action's frames (reach.py); the report has the hand's error 
 
 import numpy as np
 
-from . import motion_model, standing
+from . import motion_model, reach, standing
 from .step_search import rotate_y
 
 MAX_ACTIONS = 100
@@ -122,6 +122,13 @@ def canonical(spot, points):
     return np.stack([ground[..., 0], points[..., 1] - spot.lift, ground[..., 1]], axis=-1)
 
 
+def _rms(misses):
+    """The root mean square of distances (metres): of vectors (..., 3), or of distances given."""
+    misses = np.asarray(misses, dtype=np.float64)
+    squared = np.sum(misses**2, axis=-1) if misses.ndim > 1 else misses**2
+    return float(np.sqrt(np.mean(squared)))
+
+
 def perform(synthesis, node, action):
     """Plays the action at the spot the character stands on (synthesis.spot, settled) and returns
     its report record."""
@@ -155,9 +162,23 @@ def perform(synthesis, node, action):
         frame = int(round(float(times[model.keyframe])))
         record["keyframe_frame"] = body.n_frames - 1 + frame
         wrists = rig.positions(joined[0][frame:frame + 1], joined[1][frame:frame + 1])[0]
-        placed = wrists[model.wrist_joints]
-        record["placed_error_m"] = float(np.sqrt(np.mean(np.sum((placed - world) ** 2, axis=-1))))
-        record["error_m"] = record["placed_error_m"]
+        record["placed_error_m"] = _rms(wrists[model.wrist_joints] - world)
+        syn.interrupts()
+        # the hand onto the target where the model's motion misses it: the arm's IK, spread over
+        # the action's frames (its first, the seam, and its last stay as they are)
+        reached = reach.reach(rig.parents, rig.offsets, rig.translated, rig.names, rig.joint_map,
+                              joined[0], joined[1], frame, dict(zip(model.hands, world)),
+                              limits=model.model.get("limits"))  # fmt: skip
+        joined = (reached.rotations, joined[1])
+        record["ik_error_m"] = _rms(np.array([reached.after[s] for s in model.hands]))
+        record["error_m"] = record["ik_error_m"]
+        record["reachable"] = reached.reachable
+        if not reached.reachable:
+            record["unreached_m"] = record["ik_error_m"]
+            record["nearest"] = {s: None if p is None else [float(v) for v in p]
+                                 for s, p in reached.nearest.items()}  # fmt: skip
+            syn.notes.append(f'the action "{node}": its target is out of reach; the nearest point '
+                             f"reached, {100 * record['ik_error_m']:.1f} cm from it")  # fmt: skip
     syn.append(joined[0][1:], joined[1][1:], (piece[0][1:], piece[1][1:]), hold=False)
     record["n_frames"] = body.n_frames - record["first_frame"]
     record["cut"] = body.n_frames > syn.wanted_frames
