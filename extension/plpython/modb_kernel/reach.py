@@ -235,6 +235,12 @@ def _signed_bend(elbow_rotation, upper, fore, axis):
     return np.arctan2(np.cross(upper, f) @ axis, f @ upper)
 
 
+def _signed_bend_frames(elbow_rotations, upper, fore, axis):
+    """_signed_bend frame by frame (upper, fore: (frames, 3))."""
+    f = quaternion.rotate(elbow_rotations, fore)
+    return np.arctan2(np.sum(np.cross(upper, f) * axis, -1), np.sum(f * upper, -1))
+
+
 def _clamped(rotations, mean, most):
     """Rotations (frames, 4) turned back toward mean where farther from it than most (radians,
     per frame): the same axis, the allowed angle (motion_model.within_limits, per frame)."""
@@ -300,6 +306,17 @@ def reach(parents, offsets, translated, names, joint_map, rotations, translation
             own = quaternion.angle_between(rotations[:, j], mean[j][None])
             most = np.maximum(np.radians(degrees[j] + slack_degrees - 0.5), own)
             out[:, j] = _clamped(out[:, j], mean[j], most)
+    # the keyframe's change carried to a frame less bent than it may straighten that frame's
+    # elbow past straight: each frame's bend kept at LEAST_BEND_DEGREES (or the motion's own)
+    for k, c in enumerate(chains.values()):
+        e, w = c["elbow"], c["wrist"]
+        upper, fore = _unit(local[:, e]), _unit(local[:, w])
+        bend = _signed_bend_frames(out[:, e], upper, fore, hinges[k])
+        own = _signed_bend_frames(rotations[:, e], upper, fore, hinges[k])
+        short = np.minimum(np.radians(LEAST_BEND_DEGREES), own) - bend
+        short[short < 0.0] = 0.0
+        turn = quaternion.from_rotation_vector(short[:, None] * hinges[k][None])
+        out[:, e] = quaternion.canonical(quaternion.multiply(turn, out[:, e]))
     untouched = weights <= 0.0
     out[untouched] = rotations[untouched]  # byte for byte
     ends = kinematics.world_positions(parents, offsets, out[keyframe:keyframe + 1],
