@@ -186,6 +186,11 @@ def test_held_frames_give_a_lead_in_and_a_lead_out_and_a_run_again_changes_nothi
     assert r.returncode == 0, r.stderr
     with connect(dsn) as conn:
         assert etag(conn, clip) == before
+    # finding the steps after it keeps the action and its lead-in and lead-out
+    r = modb(dsn, "annotate", "--steps", "made/held_raise")
+    assert r.returncode == 0, r.stderr
+    with connect(dsn) as conn:
+        assert all(s in segments(conn, clip) for s in stored)
 
 
 def test_a_persons_segments_and_other_actions_are_kept(dsn):

@@ -4,7 +4,7 @@ server and a job worker does in its own process (database.py runs the statements
 primitives.py finds them). Segments it writes are marked automatic ("auto": true) and carry their
 keyframes (a step's: its touchdowns); a run replaces the automatic segments
 of the version and keeps every other (a person's, or one a person edited: the editor drops the
-mark)."""
+mark; an action's and its lead-in and lead-out, which modb.annotate_action writes)."""
 
 import json
 
@@ -63,7 +63,9 @@ def annotate(db, clip):
     made = [segment(*found_one) for found_one in found]
     meta = json.loads(row["meta"])
     before = json.dumps(meta, sort_keys=True)
-    kept = [a for a in meta.get("annotations", []) if not a.get("auto")]
+    # a person's segments, and an action's (modb.annotate_action marks them: "hands", "action")
+    kept = [a for a in meta.get("annotations", [])
+            if not a.get("auto") or "hands" in a or "action" in a]  # fmt: skip
     annotations = sorted(kept + made, key=lambda a: (a["start"], a["end"], a["name"]))
     if annotations:
         meta["annotations"] = annotations
