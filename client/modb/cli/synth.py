@@ -65,10 +65,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--action",
         action=InOrder,
         default=[],
-        metavar="NAME:X,Y,Z",
+        metavar="NAME:X,Y,Z[:SECONDS]",
         help="with --models: walk to within reach of the point, come to rest, perform the graph's "
-        "action NAME with its hand at the point (world metres, Y up) and stand; repeatable, "
-        "kept in order with the goals (e.g. --to 0,4 --action raise_right_hand:0.3,1.75,5)",
+        "action NAME with its hand at the point (world metres, Y up) and stand; a repeated "
+        "motion (a wave) faces the point where it stands, for SECONDS; repeatable, kept in "
+        "order with the goals (e.g. --to 0,4 --action raise_right_hand:0.3,1.75,5)",
     )
     synth.add_argument(
         "--seconds", type=SECONDS, required=True, help=f"length of the strip ({SECONDS.span})"
@@ -185,17 +186,23 @@ class InOrder(argparse.Action):
 
 
 def parse_action(text: str, goals_before: int) -> dict:
-    """'NAME:X,Y,Z' as modb.synthesize_from_models's action, after `goals_before` goals."""
-    name, _, point = text.rpartition(":")
+    """'NAME:X,Y,Z[:SECONDS]' as modb.synthesize_from_models's action, after `goals_before`
+    goals."""
+    name, _, rest = text.partition(":")
+    point, _, seconds = rest.partition(":")
     try:
         target = [float(v) for v in point.split(",")]
         if not name or len(target) != 3 or not all(abs(v) <= MAX_COORDINATE for v in target):
             raise ValueError
+        action = {"primitive": name, "target": target, "after": goals_before}
+        if seconds:
+            action["seconds"] = float(seconds)
     except ValueError:
-        raise ValueError(f"--action {text!r:.200}: expected NAME:X,Y,Z, the graph's action and "
-                         "where its hand goes in world metres, e.g. --action "
+        raise ValueError(f"--action {text!r:.200}: expected NAME:X,Y,Z[:SECONDS], the graph's "
+                         "action and where its hand goes (a repeated motion such as a wave: the "
+                         "point it faces, and for how long) in world metres, e.g. --action "
                          "raise_right_hand:0.3,1.75,4") from None  # fmt: skip
-    return {"primitive": name, "target": target, "after": goals_before}
+    return action
 
 
 def parse_goal(text: str) -> Goal:

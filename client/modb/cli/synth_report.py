@@ -244,6 +244,10 @@ def action_line(a: dict) -> str:
         return "-" if a.get(key) is None else f"{100 * a[key]:.1f}"
 
     where = "" if a.get("target") is None else " at ({:g}, {:g}, {:g})".format(*a["target"])
+    if a.get("keyframe_frame") is None:  # a repeated motion (a wave): it faces the point
+        return (f"action {a['action']} facing{where[3:]}: frames {a['first_frame']}-"
+                f"{a['first_frame'] + a['n_frames'] - 1}, {a.get('repeats', 1)} pass(es)"
+                + ("; cut by the end of the strip" if a.get("cut") else ""))
     line = (f"action {a['action']}{where}: frame {a['first_frame']}, keyframe "
             f"{a.get('keyframe_frame', '-')}; hand error {cm('tree_error_m')} cm after the tree, "
             f"{cm('refined_error_m')} after refinement, {cm('placed_error_m')} as placed, "

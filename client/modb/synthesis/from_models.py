@@ -30,12 +30,14 @@ SKELETON = """
 SELECT s.name, s.hierarchy, s.joint_map, s.mirror_pairs FROM modb.graphs g
   JOIN modb.skeletons s ON s.id = g.skeleton_id WHERE g.name = %s AND g.kind = 'models'
 """
-# the captured examples the graph's models learnt from: clip versions and step segments
+# the captured examples the graph's walk models learnt from (not its actions'): clip versions and
+# step segments
 EXAMPLES = """
 SELECT DISTINCT p.clip_id, p.version, p.primitive, p.segment
   FROM modb.graphs g, jsonb_each(g.data->'nodes') n, modb.models m,
        jsonb_array_elements(m.data->'inputs') i, modb.processed_data p
  WHERE g.name = %s AND g.kind = 'models' AND m.id = (n.value->>'model_id')::bigint
+   AND n.value->>'type' IS DISTINCT FROM 'action'
    AND p.id = (i->>'id')::bigint AND NOT p.mirrored
  ORDER BY 1, 2
 """

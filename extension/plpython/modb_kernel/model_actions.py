@@ -18,6 +18,8 @@ from . import motion_model, reach, standing
 from .step_search import rotate_y
 
 MAX_ACTIONS = 100
+MAX_REPEAT_SECONDS = 60.0
+REPEAT_SPREAD = 0.5  # a repeated motion's scores this near its mixture component's mean
 FACE_BEYOND_M = 0.1  # a target nearer the pelvis (or a hand nearer it) says no way to face
 STAND_RADIUS_M = 0.15  # an action's stand point reached within a step (Synthesis.arrive_early)
 MAX_COORDINATE = 1e6
@@ -43,10 +45,16 @@ def checked(actions, n_goals, primitives):
             known = ", ".join(sorted(primitives)) or "none"
             raise ActionError(f'action {k}: the graph has no action "{a["primitive"]:.100}" '
                               f"(its actions: {known})")  # fmt: skip
-        unknown = sorted(set(a) - {"primitive", "target", "stand", "after"})
+        unknown = sorted(set(a) - {"primitive", "target", "stand", "after", "seconds"})
         if unknown:
             raise ActionError(f'action {k}: unknown key "{unknown[0]:.50}" (it takes primitive, '
-                              "target, stand, after)")  # fmt: skip
+                              "target, stand, after, seconds)")  # fmt: skip
+        seconds = a.get("seconds")
+        if seconds is not None and (isinstance(seconds, bool) or not isinstance(
+                seconds, (int, float)) or not 0 < seconds <= MAX_REPEAT_SECONDS):  # fmt: skip
+            raise ActionError(f'action {k}: "seconds" (how long a repeated motion such as a '
+                              f"wave goes on) must be above 0, at most "
+                              f"{MAX_REPEAT_SECONDS:g}")  # fmt: skip
         target = _point(a.get("target"), 3, k, "target", "[x, y, z]")
         stand = _point(a.get("stand"), 2, k, "stand", "[x, z]")
         if target is None and stand is None:
@@ -55,7 +63,8 @@ def checked(actions, n_goals, primitives):
         if isinstance(after, bool) or not isinstance(after, int) or not 0 <= after <= n_goals:
             raise ActionError(f'action {k}: "after" is how many goals come before it: a whole '
                               f"number from 0 to {n_goals}")  # fmt: skip
-        out.append({"primitive": a["primitive"], "target": target, "stand": stand, "after": after})
+        out.append({"primitive": a["primitive"], "target": target, "stand": stand, "after": after,
+                    "seconds": None if seconds is None else float(seconds)})  # fmt: skip
     return out
 
 
@@ -91,6 +100,8 @@ def stand_point(action, model, came_from):
     model's mean motion puts the hand at the target, facing the way from `came_from` to it."""
     if action["stand"] is not None:
         return action["stand"], None, action
+    if model.keyframe is None:  # a repeated motion faces its target from where it stands
+        return np.asarray(came_from, dtype=np.float64), np.inf, action
     ground = action["target"][[0, 2]]
     way = ground - np.asarray(came_from, dtype=np.float64)
     heading = float(np.arctan2(way[0], way[1])) if np.linalg.norm(way) > 1e-6 else 0.0
@@ -103,7 +114,9 @@ def facing(action, model, pelvis):
     stand point's when it has none) from the pelvis's ground point; None where too near to say."""
     point = action["target"][[0, 2]] if action["target"] is not None else action["stand"]
     way = point - np.asarray(pelvis, dtype=np.float64)
-    hand = model.usual_wrists.mean(axis=0)[[0, 2]]
+    hand = model.usual_wrists.mean(axis=0)[[0, 2]] if model.keyframe is not None else np.zeros(2)
+    if model.keyframe is None and np.linalg.norm(way) >= FACE_BEYOND_M:
+        return float(np.arctan2(way[0], way[1]))  # a repeated motion faces the point
     if np.linalg.norm(way) < FACE_BEYOND_M or np.linalg.norm(hand) < FACE_BEYOND_M:
         return None
     return float(np.arctan2(way[0], way[1]) - np.arctan2(hand[0], hand[1]))
@@ -120,6 +133,23 @@ def canonical(spot, points):
     points = np.asarray(points, dtype=np.float64)
     ground = rotate_y(points[..., [0, 2]] - spot.pelvis, -spot.heading)
     return np.stack([ground[..., 0], points[..., 1] - spot.lift, ground[..., 1]], axis=-1)
+
+
+def repeated(rotations, translations, first, last, n):
+    """The frames with their repetition (frames first to last, turning points of the motion:
+    at rest there, so a pass played backward joins it) played forward, backward, forward ...
+    an odd number of passes (the last forward, so the frames after it follow), about n frames in
+    all from first; and the number of passes."""
+    if last - first < 2:
+        return rotations, translations, 1
+    passes = max(1, int(round(n / (last - first))))
+    passes += 1 - passes % 2
+    order = [np.arange(first)]
+    for k in range(passes):
+        order.append(np.arange(first, last + 1) if k % 2 == 0 else np.arange(last - 1, first, -1))
+    order.append(np.arange(last + 1, len(rotations)))
+    at = np.concatenate(order)
+    return rotations[at], translations[at], passes
 
 
 def _rms(misses):
@@ -152,9 +182,17 @@ def perform(synthesis, node, action):
         record.update(candidates=examined, tree_error_m=float(model.errors(found, local)[0]),
                       refined_error_m=float(model.errors(refined, local)[0]))  # fmt: skip
         record["error_m"] = record["refined_error_m"]
+    if model.keyframe is None:  # a repeated motion: a calm draw of its mixture
+        drawn = motion_model.draw_scores(model.model["mixture"], 1, int(syn.rng.integers(2**31)))
+        mean = model.mixture_means[model.mahalanobis(drawn)[1][0]]
+        scores = mean + REPEAT_SPREAD * (drawn[0] - mean)
     split = model.split
     rotations, translations, times = motion_model.frames_from_scores(model.model, scores[:split],
                                                                      scores[split:])  # fmt: skip
+    if model.repetition is not None and action.get("seconds"):
+        first, last = (int(round(float(times[k]))) for k in model.repetition)
+        rotations, translations, record["repeats"] = repeated(
+            rotations, translations, first, last, int(round(action["seconds"] * syn.fps)))
     piece = standing.on_spot(rig, rotations, translations, syn.spot)
     joined = syn.seams.inertialize(*body.last_two(), *piece, syn.fps)
     joined = (standing.pinned(syn.legs, joined[0], joined[1], syn.spot.feet), joined[1])

@@ -264,7 +264,8 @@ class Synthesis:
         k = self.goal
         if k not in self.planned or not self.body.rotations or self.spot is not None:
             return
-        if float(np.linalg.norm(self.body.pelvis() - self.goals[k])) <= self.half_stride:
+        near = float(np.linalg.norm(self.body.pelvis() - self.goals[k])) <= self.half_stride
+        if near or self.radii[k] == np.inf:  # inf: an action performed where the character is
             self.reached[k] = self.body.n_frames - 1
             self.due.append(k)
             self.goal += 1

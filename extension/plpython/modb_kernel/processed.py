@@ -134,6 +134,12 @@ class Alignment:
             self._read_skeleton(self.examples[0]["skeleton_id"])
             if not self.skeleton["mirror_pairs"]:
                 self.examples = [e for e in self.examples if not e["mirrored"]]
+        # sections are aligned onto the reference's: an example with another number of keyframes
+        # than most (an action found as a reach among waves, say) is left out, not the primitive
+        counts = [len(json.loads(e["segment"]).get("keyframes", [])) for e in self.examples]
+        if counts:
+            usual = max(set(counts), key=lambda c: (counts.count(c), -c))
+            self.examples = [e for e, c in zip(self.examples, counts) if c == usual]
         n = len(self.examples)
         if n < MIN_EXAMPLES:
             raise StoreError(
