@@ -27,6 +27,12 @@ class Course:
         self.rng = random.Random(seed)
         self.frames = 0
 
+    def set_goal(self, goal) -> None:  # as model_synthesis.Synthesis's (no actions here)
+        self.goals, self.goal, self.reached, self.closest = [goal], 0, {}, np.inf
+
+    def add_goal(self, goal, action=None) -> None:
+        self.goals.append(goal)
+
     def standing_source(self) -> str:
         return "idle"
 
@@ -44,6 +50,7 @@ class StandIn(MA.ModelAvatar):
         self._lock = threading.Lock()
         self._queue, self._pieces, self._shown = deque(), deque(), 0
         self._changes, self._goals, self._piece_seconds = [], [], 0.0
+        self._actions, self._course = [], 0  # no actions here
         self.readouts = []
         self.standing = MA.Frame(0, 0, np.zeros((1, 4)), np.zeros((1, 3)))
         self.playing = playing  # playback moving on while a piece is made, unlocked

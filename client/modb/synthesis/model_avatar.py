@@ -12,6 +12,11 @@ from it. The queued pieces after it are dropped and planned again (each queued p
 synthesis as it stood before and after it). So the walk turns toward a new goal within a few tenths
 of a second of the click.
 
+An action (a graph's action node, e.g. raise_right_hand, with a target for the hand) joins the
+course as a waypoint does: the character walks to within reach of the target, stops, comes to
+rest, performs it (model_actions.perform: the hand meets the target at the keyframe) and stands.
+An action's piece is never planned again once queued: a new goal while it plays waits for its end.
+
 With the same graph, seed and goals given before the walk starts, the frames are those of
 `modb synth --models` (the same code, here with the client's numpy and scipy: equal within the
 last digits)."""
@@ -30,8 +35,8 @@ import numpy as np
 import psycopg
 
 from modb.jobs.kernel_database import WorkerDatabase
+from modb_kernel import model_actions, motion_model
 from modb_kernel import model_synthesis as MS
-from modb_kernel import motion_model
 from modb_kernel.step_search import hip_heading
 
 from .blend import CROSS_FADE_SECONDS, cross_fade
@@ -51,7 +56,10 @@ REDO_LEAD_PER_PIECE = 1.25
 @dataclass(frozen=True)
 class StepReadout:
     """What the page shows of a step: its primitive, the search's candidates, its constraint
-    error (and the tree's alone, and the best of 300 random draws)."""
+    error (and the tree's alone, and the best of 300 random draws). An action's has no random
+    draws (None) and `action`: its target, the hand's error after the tree, the refinement, the
+    placement and IK (where the kernel has it), and the frame of its keyframe (the avatar's
+    numbering, as the page's frames carry it)."""
 
     step: int
     node: str
@@ -61,8 +69,9 @@ class StepReadout:
     candidates: int
     error_m: float
     tree_error_m: float
-    random_error_m: float
+    random_error_m: float | None
     goal: int | None
+    action: dict[str, Any] | None = None
 
 
 @dataclass(eq=False)
@@ -76,6 +85,7 @@ class _Piece:
     standing: bool
     before: MS.Synthesis
     after: MS.Synthesis
+    action: dict[str, Any] | None = None  # an action's piece: its entry in ModelAvatar._actions
 
     @property
     def end(self) -> int:
@@ -104,8 +114,13 @@ class ModelAvatar:
         self._queue: deque[Frame] = deque()
         self._pieces: deque[_Piece] = deque()  # the queued pieces, oldest first
         self._shown = 0  # frames played so far
-        self._changes: list[tuple[str, np.ndarray]] = []  # goals set or added, not yet planned
+        self._changes: list[tuple[str, Any]] = []  # goals set or added, not yet planned
         self._goals: list[np.ndarray] = []  # the course as the page sees it
+        # the actions asked for and not yet played to their end: {primitive, target, goal (its
+        # index in _goals), course (_course when asked), queued (its piece is in the queue)}
+        self._actions: list[dict[str, Any]] = []
+        self._course = 0  # how many times the course was replaced (set_goal)
+        self.action_names = sorted(n for n, t in self.synthesis.types.items() if t == "action")
         self._piece_seconds = 0.0  # the recent pieces' synthesis time, seconds
         self.readouts: list[StepReadout] = []
         self.standing = self._first_pose(models)
@@ -144,19 +159,50 @@ class ModelAvatar:
                 return []
             return self.readouts[max(0, step - n) : step]
 
+    @property
+    def actions(self) -> list[dict[str, Any]]:
+        """The actions asked for and not yet done (their piece not played to its end): primitive,
+        target [x, y, z] and goal (the index of where it is performed in `goals`)."""
+        with self._lock:
+            return [{k: a[k] for k in ("primitive", "target", "goal")} for a in self._actions]
+
     def set_goal(self, goal: Goal) -> None:
-        """The new goal replaces the course, from the piece playing on."""
+        """The new goal replaces the course, from the piece playing on (an action queued to
+        play already plays)."""
         with self._lock:
             self._goals = [_ground(goal)]
             self._changes.append(("set", self._goals[0]))
+            self._course += 1
+            self._actions = [a for a in self._actions if a["queued"]]
 
     def add_waypoint(self, goal: Goal) -> None:
         with self._lock:
-            reached = 0 if self._changes else min(self.synthesis.goal, len(self._goals))
-            if len(self._goals) - reached >= MAX_GOALS:
-                raise ValueError(f"at most {MAX_GOALS} goals ahead")
+            self._room_ahead()
             self._goals.append(_ground(goal))
             self._changes.append(("add", self._goals[-1]))
+
+    def add_action(self, primitive: str, target: tuple[float, float, float]) -> None:
+        """The action after the course's goals: walk to within reach of the target, stop, perform
+        it (the hand at the target at its keyframe), stand. ValueError saying why it cannot."""
+        checked = model_actions.checked([{"primitive": primitive, "target": list(target)}], 0,
+                                        self.action_names)[0]  # fmt: skip
+        with self._lock:
+            if self.synthesis.standing_source() is None:
+                raise ValueError(
+                    f'the graph "{self.graph_name}" has nothing to stand with (no idle node or '
+                    "captured standing): it cannot perform actions"
+                )
+            self._room_ahead()
+            self._goals.append(checked["target"][[0, 2]])
+            self._actions.append({"primitive": primitive, "target": checked["target"].tolist(),
+                                  "goal": len(self._goals) - 1, "course": self._course,
+                                  "queued": False})  # fmt: skip
+            self._changes.append(("action", checked))
+
+    def _room_ahead(self) -> None:
+        reached = 0 if self._changes else min(self.synthesis.goal, len(self._goals))
+        if len(self._goals) - reached >= MAX_GOALS:
+            raise ValueError(f"at most {MAX_GOALS} goals ahead")
 
     def fill(self) -> bool:
         """Plans the goals that came since, then adds a piece when the queue is short; whether
@@ -202,21 +248,30 @@ class ModelAvatar:
         step = 0 if standing else step or len(self.readouts) + 1
         for k, (r, t) in enumerate(zip(*frames, strict=True)):
             self._queue.append(Frame(first + k, step, r, t))
+        entry = None
         if not standing:
+            done = _action_readout(record, first) if record.get("action") else None
             self.readouts.append(StepReadout(
                 step, record["node"], record["model"], record["first_frame"],
                 record["n_frames"], record["candidates"], record["error_m"],
-                record["tree_error_m"], record["random_error_m"], record["goal"],
+                record["tree_error_m"], record.get("random_error_m"), record["goal"], done,
             ))  # fmt: skip
+            if done is not None:
+                entry = next((a for a in self._actions if a["goal"] == record["goal"] - 1
+                              and a["course"] == self._course), None)  # fmt: skip
+                if entry is not None:
+                    entry["queued"] = True
         n = len(frames[0])
-        self._pieces.append(_Piece(first, n, len(self.readouts), standing, before, after))
+        self._pieces.append(_Piece(first, n, len(self.readouts), standing, before, after, entry))
 
     def _next_piece(self, synthesis: MS.Synthesis) -> tuple[Any, dict[str, Any]]:
         """((rotations, translations) shown, its record) of the next piece: a step toward the
         current goal or, without one, a piece of standing; (None, {}) when there is nothing to
         add (no goal, and nothing to stand with: the last pose holds)."""
         body = synthesis.body
-        if synthesis.goal < len(synthesis.goals):
+        if synthesis.act_step():  # an action reached: its stop, rest, itself, standing after it
+            pass
+        elif synthesis.goal < len(synthesis.goals):
             synthesis.walk_step()
         elif synthesis.standing_source() is not None:
             if not synthesis.stop_walking():  # the stop first, where the graph has one
@@ -224,9 +279,12 @@ class ModelAvatar:
         else:
             return None, {}
         record = synthesis.steps[-1]
+        if record.get("action"):  # its report's record too: the errors, the keyframe
+            record = {**record, "report": synthesis.actions[-1]}
         frames = (body.shown[-1], body.translations[-1])
         body.drop_all_but_the_last_step()
         del synthesis.steps[:-1]  # an avatar reads the last step's record only
+        del synthesis.actions[:]
         synthesis.notes.clear()  # nor the report's notes (each piece's states copy them)
         return frames, record
 
@@ -237,7 +295,7 @@ class ModelAvatar:
                 return piece
         return None
 
-    def _replan(self, changes: list[tuple[str, np.ndarray]]):
+    def _replan(self, changes: list[tuple[str, Any]]):
         """The goals changed, from the piece playing on. The step that plays a moment after the
         frame playing (_lead), where enough of it is left, is planned again from
         where it began and blended into from that moment: returns (that piece, that frame) for
@@ -251,13 +309,14 @@ class ModelAvatar:
         at = next((k for k, p in enumerate(pieces) if p.first <= start < p.end), None)
         if at is not None and start + blend + 2 > pieces[at].end and at + 1 < len(pieces):
             at, start = at + 1, pieces[at + 1].first  # too late in its step: the next one, whole
-        # a seam needs the step's own last two frames
-        if at is not None and not pieces[at].standing and start + blend + 2 <= pieces[at].end:
+        # a seam needs the step's own last two frames; an action plays to its end
+        if (at is not None and not pieces[at].standing and pieces[at].action is None
+                and start + blend + 2 <= pieces[at].end):  # fmt: skip
             return pieces[at], start
         self._replan_after(changes)
         return None
 
-    def _replan_after(self, changes: list[tuple[str, np.ndarray]]) -> None:
+    def _replan_after(self, changes: list[tuple[str, Any]]) -> None:
         """The goals changed after the piece playing (or the next, when little of it is left):
         what is queued after it dropped, the synthesis back to where it stood after it."""
         lead = self._lead()
@@ -278,12 +337,12 @@ class ModelAvatar:
     def _drop_after(self, keep: _Piece) -> None:
         """The pieces queued after `keep` dropped, with their frames and readouts."""
         while self._pieces[-1] is not keep:
-            self._pieces.pop()
+            self._unqueue(self._pieces.pop())
         while self._queue and self._queue[-1].index >= keep.end:
             self._queue.pop()
         del self.readouts[keep.readouts :]
 
-    def _redo(self, piece: _Piece, start: int, changes: list[tuple[str, np.ndarray]]) -> None:
+    def _redo(self, piece: _Piece, start: int, changes: list[tuple[str, Any]]) -> None:
         """The step planned again toward the new goals from where it began, its frames from
         `start` on faded into the new ones over CROSS_FADE_SECONDS (both leave the same pose, the
         same foot planted). When playback passed `start` meanwhile, or the new step is too short
@@ -307,14 +366,22 @@ class ModelAvatar:
                           for a in ("rotations", "translations"))  # fmt: skip
             rotations, translations = cross_fade(ahead, (frames[0][b:], frames[1][b:]), 0, n)
             step = old[0].step  # the readout number the page knows the step by
-            while self._pieces.pop() is not piece:  # it and those after it: their frames too
-                pass
+            while (dropped := self._pieces.pop()) is not piece:  # it and those after it
+                self._unqueue(dropped)
             while self._queue and self._queue[-1].index >= start:
                 self._queue.pop()
             del self.readouts[piece.readouts - 1 :]
             self.synthesis = synthesis
             self._queue_piece(start, (rotations, translations), record, before, after, step)
             self._pieces[-1].first, self._pieces[-1].n_frames = piece.first, len(frames[0])
+
+    def _unqueue(self, piece: _Piece) -> None:
+        """A queued piece dropped: its action (if it is one) is performed again from the state
+        the synthesis goes on from, unless the course was replaced since it was asked for."""
+        if piece.action is not None:
+            piece.action["queued"] = False
+            if piece.action["course"] != self._course:
+                self._actions.remove(piece.action)
 
     def _cut(self, piece: _Piece, n: int) -> None:
         """The piece of standing ends after its first n frames: what is queued of it, and the
@@ -345,7 +412,9 @@ class ModelAvatar:
                     last = self._queue.popleft()
                     self._shown += 1
                     while self._pieces and self._pieces[0].end <= self._shown:
-                        self._pieces.popleft()  # played: a replan goes on from self.synthesis
+                        played = self._pieces.popleft()  # a replan goes on from self.synthesis
+                        if any(a is played.action for a in self._actions):  # done: its target goes
+                            self._actions.remove(played.action)
                     frame = last
                 else:
                     frame = Frame(self._shown, last.step, last.rotations, last.translations)
@@ -357,10 +426,30 @@ def _ground(goal: Goal) -> np.ndarray:
     return np.array([goal[0], goal[-1]], dtype=np.float64)
 
 
-def _change_goals(synthesis: MS.Synthesis, changes: list[tuple[str, np.ndarray]]) -> None:
-    """The goals set ("set": the course replaced) or added, in order, on this synthesis."""
+def _action_readout(record: dict[str, Any], first: int) -> dict[str, Any]:
+    """An action piece's readout: its primitive, target, the hand's errors after each stage (the
+    kernel's keys ending in _error_m: tree, refined, placed, ik where it has IK) and its
+    keyframe as the avatar's frame index (its piece's frames begin at `first`)."""
+    report = record["report"]
+    out = {"primitive": record["node"], "target": report.get("target"),
+           "cut": bool(report.get("cut"))}  # fmt: skip
+    out.update({k: v for k, v in report.items() if k.endswith("_error_m")})
+    if report.get("keyframe_frame") is not None:
+        out["keyframe_index"] = first + report["keyframe_frame"] - record["first_frame"]
+    return out
+
+
+def _change_goals(synthesis: MS.Synthesis, changes: list[tuple[str, Any]]) -> None:
+    """The goals set ("set": the course replaced), added, or actions added ("action": as
+    model_actions.checked gives them), in order, on this synthesis."""
     for kind, goal in changes:
         if kind == "set":
             synthesis.set_goal(goal)
+        elif kind == "action":
+            if not synthesis.goals and not synthesis.body.rotations:
+                # the first piece's state before it, with no frames and no goal to come from:
+                # nothing goes on from it (only a step's is planned again, and the first stands)
+                continue
+            synthesis.add_goal(goal["target"][[0, 2]], goal)
         else:
             synthesis.add_goal(goal)

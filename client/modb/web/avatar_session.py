@@ -71,6 +71,9 @@ class AvatarSession:
             self._goal(message)
         elif kind == "download":
             self._download(message)
+        elif kind == "action":
+            self._send({"type": "refused", "message": "actions need a graph of models (they are "
+                        "its action nodes): choose one under *walks by*"})  # fmt: skip
         elif kind == "settings":
             try:
                 settings = settings_from(message, self.settings)

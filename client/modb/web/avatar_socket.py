@@ -180,7 +180,10 @@ def avatar_endpoint(
             send({"type": "refused", "message": why, "mode": _mode(session)})
             return session
         session.close()
-        send({"type": "mode", **_mode(new), "settings": new.public_settings()})
+        # on models: the graph's actions, which the page offers beside the mode
+        actions = new.actions if isinstance(new, ModelAvatarSession) else []
+        send({"type": "mode", **_mode(new), "settings": new.public_settings(),
+              "actions": actions})  # fmt: skip
         for m in standing:
             send(m)
         if isinstance(new, ModelAvatarSession):

@@ -4,7 +4,8 @@ The graph and its models are read once, when the session starts (on a read-only 
 gives back at once); the walk runs in this process after that. A thread plays the avatar's frames
 at the models' rate: it stands, idle, until a goal comes; a step's readout (its primitive, the
 search's candidates, its constraint error) is sent when the step starts to play, and again when a
-new goal re-planned it. Another thread synthesizes the steps ahead (ModelAvatar.fill); the avatar
+new goal re-planned it; an action's piece (a hand raised to a target) has a readout too. Another
+thread synthesizes the steps ahead (ModelAvatar.fill); the avatar
 guards its queue and goals with a lock of its own, so goals (the socket's thread), frames (the play
 thread) and steps (the producer) need no other.
 """
@@ -76,6 +77,11 @@ class ModelAvatarSession:
     def fps(self) -> float:
         return float(self._avatar.fps)
 
+    @property
+    def actions(self) -> list[str]:
+        """The graph's actions (its action nodes), which an "action" message may name."""
+        return list(self._avatar.action_names)
+
     def public_settings(self) -> dict[str, Any]:
         radius = self._avatar.synthesis.radius
         return {"models": self.graph, "seed": self.seed, "arrival_radius": radius}
@@ -103,6 +109,8 @@ class ModelAvatarSession:
         kind = message.get("type") if isinstance(message, dict) else None
         if kind == "goal":
             self._goal(message)
+        elif kind == "action":
+            self._action(message)
         elif kind == "download":
             self._download(message)
         elif kind == "settings":
@@ -117,7 +125,8 @@ class ModelAvatarSession:
             self._send(
                 {
                     "type": "refused",
-                    "message": f"unknown message type {kind!r:.200}: send goal, download or mode",
+                    "message": f"unknown message type {kind!r:.200}: send goal, action, download "
+                    "or mode",
                 }
             )
 
@@ -137,7 +146,37 @@ class ModelAvatarSession:
         except ValueError as e:  # too many goals ahead
             self._send({"type": "refused", "message": str(e)})
             return
-        self._send({"type": "goals", "goals": goals, "goal_index": index})
+        self._send(self._goals_message(goals, index))
+
+    def _action(self, message: dict[str, Any]) -> None:
+        """{"type": "action", "primitive": a graph's action, "x", "y", "z": the target, metres}:
+        performed after the course's goals (walk there, stop, meet the target, stand)."""
+        names = ", ".join(self.actions) or "none"
+        primitive = message.get("primitive")
+        try:
+            target = checked_json_goal(tuple(message[k] for k in ("x", "y", "z")))
+        except (KeyError, TypeError, ValueError, OverflowError):
+            why = (f'an action is {{"primitive": one of the graph\'s actions ({names}), "x", "y", '
+                   f'"z": the target in metres}}, got {message!r:.200}')  # fmt: skip
+            self._send({"type": "refused", "message": why})
+            return
+        if not isinstance(primitive, str) or primitive not in self.actions:
+            why = (f'no action {primitive!r:.100} on the graph of models "{self.graph}": its '
+                   f"actions are {names}")  # fmt: skip
+            self._send({"type": "refused", "message": why})
+            return
+        try:
+            self._avatar.add_action(primitive, target)
+        except ValueError as e:  # too many goals ahead, nothing to stand with
+            self._send({"type": "refused", "message": str(e)})
+            return
+        self._send(self._goals_message(self._avatar.goals, self._avatar.goal_index))
+
+    def _goals_message(self, goals: list[Goal], index: int) -> dict[str, Any]:
+        """The course: its goals (an action's: where it walks to), the one served, and the actions
+        not yet done (their targets, for the page to mark)."""
+        return {"type": "goals", "goals": goals, "goal_index": index,
+                "actions": self._avatar.actions}  # fmt: skip
 
     def _play(self) -> None:
         """The avatar's frames at its rate: the standing pose first, then each new frame (standing
@@ -166,15 +205,15 @@ class ModelAvatarSession:
                     break
                 due += 1.0 / fps
                 standing = frame.step == 0 or frame.rotations is shown.rotations
-                if standing and not idle:  # the walk's last frame played: every goal served
-                    self._send({"type": "goals", "goals": goals, "goal_index": index})
+                if standing and not idle:  # the walk's (or an action's) last frame played
+                    self._send(self._goals_message(goals, index))
                 idle = standing
                 if frame.rotations is shown.rotations:  # the pose shown already
                     continue
                 # a new step's first frame, or a step re-planned toward a new goal
                 recent = [] if standing else avatar.recent_readouts(frame.step, RECENT)
                 if recent and recent[-1] is not sent:
-                    self._send(step_message(recent, goals))
+                    self._send(step_message(recent, goals, avatar.actions))
                     sent = recent[-1]
                 self._send(frame_message(frame))
                 self._walk.append(frame)
@@ -222,13 +261,18 @@ class ModelAvatarSession:
                 thread.join(timeout=30)
 
 
-def step_message(recent: list[StepReadout], goals: list[Goal]) -> dict[str, Any]:
-    """A step's readout, and the medians of the last RECENT steps' errors. The goal being served
-    is the step's (the synthesis runs a second ahead of what plays)."""
+def step_message(recent: list[StepReadout], goals: list[Goal],
+                 actions: list[dict[str, Any]] | None = None) -> dict[str, Any]:  # fmt: skip
+    """A step's readout, and the medians of the last RECENT steps' errors (of the walk's steps:
+    an action's piece is not a step of the walk). The goal being served is the step's (the
+    synthesis runs a second ahead of what plays). An action's piece carries `action`: its
+    target, the hand's errors (tree_error_m, refined_error_m, placed_error_m, ik_error_m where
+    the kernel has IK) and keyframe_index, the frame its hand meets the target."""
     r = recent[-1]
+    walked = [s for s in recent if s.action is None]
 
-    def median(field: str) -> float:
-        return float(np.median([getattr(s, field) for s in recent]))
+    def median(field: str) -> float | None:
+        return float(np.median([getattr(s, field) for s in walked])) if walked else None
 
     return {
         "type": "step",
@@ -240,12 +284,14 @@ def step_message(recent: list[StepReadout], goals: list[Goal]) -> dict[str, Any]
         "candidates": r.candidates,  # tree nodes and leaf samples the search examined
         "error_m": r.error_m,  # the constraint error of the step played
         "tree_error_m": r.tree_error_m,  # the tree's search alone
-        "random_error_m": r.random_error_m,  # the best of 300 random draws
+        "random_error_m": r.random_error_m,  # the best of 300 random draws (None: an action)
+        "action": r.action,
         "goal": r.goal,
         "goals": goals,
         "goal_index": len(goals) if r.goal is None else min(r.goal - 1, len(goals)),
+        "actions": actions or [],
         "readout": {
-            "steps": len(recent),
+            "steps": len(walked),
             "error_m_median": median("error_m"),
             "tree_error_m_median": median("tree_error_m"),
             "random_error_m_median": median("random_error_m"),

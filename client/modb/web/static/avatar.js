@@ -1,7 +1,8 @@
 // Avatar mode: the server walks an Avatar toward the goals clicked here and streams its poses over a
 // WebSocket at the source rate; this page poses the figure, draws its trail and the goals, and tunes the
 // selection. The avatar walks by motion matching (snippets) or on a graph of models (the mode selector);
-// in both it stands at the origin from the start. window.modbAvatar is what tests (and the console) read.
+// in both it stands at the origin from the start. On a graph of models it also performs the graph's actions (a hand
+// raised to a target placed in the air). window.modbAvatar is what tests (and the console) read.
 import { loadCharacter, saveFile } from './character.js';
 import { Course } from './course.js';
 import { Rig } from './rig.js';
@@ -22,7 +23,7 @@ stage.look([0, 7, -7], [0, 0, 3]); // from above and behind the avatar, which st
 const state = {
   connected: false, settings: null, rig: null, character: null, framed: false, frames: 0, frame: null,
   choices: [], goals: [], goalIndex: 0, messages: [], closed: null, pelvisAt: {},
-  mode: { models: null, seed: null }, steps: [], poses: [], clicks: [],
+  mode: { models: null, seed: null }, steps: [], poses: [], clicks: [], actions: [],
 };
 
 function status(text, isError = false) {
@@ -50,6 +51,7 @@ function showMode(mode) {
   $('mode').value = mode.models || '';
   if (models) $('seed').value = mode.seed;
   $('seed-choice').style.display = models ? '' : 'none';
+  if (!models) showActions([]);
   $('model-readouts').hidden = !models;
   document.querySelectorAll('#tuning .snippets-only').forEach((section) => { section.hidden = models; });
 }
@@ -61,7 +63,19 @@ function chooseMode() {
   send({ type: 'mode', models, seed });
 }
 
-// A step of the walk on models, as it starts to play: its primitive, the search, its constraint error.
+// The graph's actions (its action nodes), offered beside the mode; none in motion matching.
+function showActions(names) {
+  const chosen = $('action').value;
+  $('action').replaceChildren(Object.assign(document.createElement('option'), {
+    value: '', textContent: 'none: shift-click adds a waypoint',
+  }), ...names.map((name) => Object.assign(document.createElement('option'), { value: name, textContent: name })));
+  if (names.includes(chosen)) $('action').value = chosen;
+  $('action-choice').style.display = names.length ? '' : 'none';
+  $('height-choice').style.display = names.length ? '' : 'none';
+}
+
+// A step of the walk on models, as it starts to play: its primitive, the search, its constraint error. An action's
+// piece: the hand's error at the keyframe, after the tree search, the refinement and IK (where the server has it).
 function showStep(step) {
   const r = step.readout;
   $('step').textContent = `${step.step} (${step.goal === null ? 'after the last goal' : `goal ${step.goal}`})`;
@@ -70,11 +84,21 @@ function showStep(step) {
   $('error').textContent = cm(step.error_m);
   $('error-compare').textContent = `${cm(step.tree_error_m)} / ${cm(step.random_error_m)}`;
   $('error-medians').textContent = `${cm(r.error_m_median)}; ${cm(r.tree_error_m_median)} / ${cm(r.random_error_m_median)} (${r.steps} steps)`;
+  const a = step.action;
+  $('action-row').hidden = !a;
+  if (a) {
+    const ik = a.ik_error_m === undefined ? 'no IK' : cm(a.ik_error_m);
+    $('action-errors').textContent = `${cm(a.tree_error_m)} / ${cm(a.refined_error_m)} / ${ik}${a.cut ? ' (cut)' : ''}`;
+  }
 }
 
-function showGoals(goals, index) {
+function showGoals(goals, index, actions) {
   Object.assign(state, { goals, goalIndex: index });
   course.setGoals(goals, index, state.settings ? state.settings.arrival_radius : 0.5);
+  if (actions) {
+    state.actions = actions;
+    course.setActions(actions);
+  }
 }
 
 const handlers = {
@@ -108,7 +132,9 @@ const handlers = {
     state.pelvisAt = {};
     state.steps = [];
     document.querySelectorAll('#model-readouts td').forEach((cell) => { cell.textContent = '-'; });
-    showGoals([], 0);
+    $('action-row').hidden = true;
+    showActions(m.actions || []);
+    showGoals([], 0, []);
     status(m.models === null ? 'click the ground to set a goal (motion matching)'
       : `on the graph of models ${m.models} (seed ${m.seed}): click the ground to set a goal`);
   },
@@ -118,7 +144,7 @@ const handlers = {
     state.steps.push(m);
     if (state.steps.length > KEEP_CHOICES) state.steps.shift();
     showStep(m);
-    showGoals(m.goals, m.goal_index);
+    showGoals(m.goals, m.goal_index, m.actions);
     if ($('status').textContent.startsWith('on the graph')) status('');
   },
   skeleton(m) {
@@ -162,7 +188,8 @@ const handlers = {
     state.frame = { index: m.index, step: m.step, pelvis };
     state.pelvisAt[m.index] = pelvis; // the recent frames' pelvis, for checks
     delete state.pelvisAt[m.index - KEEP_FRAMES];
-    state.poses.push({ t: performance.now(), index: m.index, positions });
+    // (with the pose as sent: a check's own kinematics)
+    state.poses.push({ t: performance.now(), index: m.index, positions, rotations: m.rotations, translations: m.translations });
     if (state.poses.length > KEEP_POSES) state.poses.shift();
   },
   choice(m) {
@@ -172,7 +199,7 @@ const handlers = {
     showGoals(m.goals, m.goal_index);
     if ($('status').textContent.startsWith('click')) status('');
   },
-  goals(m) { showGoals(m.goals, m.goal_index); },
+  goals(m) { showGoals(m.goals, m.goal_index, m.actions); },
   settings(m) {
     state.settings = m.settings;
     tuning.show(m.settings);
@@ -199,7 +226,8 @@ socket.addEventListener('close', (event) => {
   resolveReady(false);
 });
 
-// A click (not a drag of the view) on the ground sets the goal; with shift, adds a waypoint after the others.
+// A click (not a drag of the view) on the ground sets the goal; with shift, adds a waypoint after the others, or, with
+// an action chosen (on a graph of models), that action with its target above the point at the target height.
 let pressed = null;
 const canvas = stage.renderer.domElement;
 canvas.addEventListener('pointerdown', (e) => { pressed = [e.clientX, e.clientY]; });
@@ -207,6 +235,13 @@ canvas.addEventListener('click', (e) => {
   if (!state.connected || !pressed || Math.hypot(e.clientX - pressed[0], e.clientY - pressed[1]) > CLICK_SLOP_PX) return;
   const point = stage.groundPointAt(e.clientX, e.clientY);
   if (!point) return;
+  const action = e.shiftKey && state.mode.models !== null ? $('action').value : '';
+  if (action) {
+    const y = Number($('target-height').value);
+    state.clicks.push({ t: performance.now(), x: point.x, z: point.z, add: true, action, y });
+    send({ type: 'action', primitive: action, x: point.x, y, z: point.z });
+    return;
+  }
   state.clicks.push({ t: performance.now(), x: point.x, z: point.z, add: e.shiftKey });
   send({ type: 'goal', x: point.x, z: point.z, add: e.shiftKey });
 });

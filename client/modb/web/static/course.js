@@ -1,4 +1,5 @@
-// What the avatar page draws on the ground besides the figure: the trail the pelvis left and the goals.
+// What the avatar page draws on the ground besides the figure: the trail the pelvis left and the goals, and in the
+// air the targets of the actions asked for (a sphere on a thin post from the ground).
 import * as THREE from 'three';
 
 const MAX_TRAIL = 50000; // points; a 30 fps walk adds one per 5 cm, so this is a long walk
@@ -26,6 +27,28 @@ export class Course {
     scene.add(this.current);
     this.waypoints = [];
     this.radius = 0.5;
+    this.targets = []; // [x, y, z] of the actions not yet done
+    this.targetMarks = [];
+  }
+
+  // actions: [{primitive, target: [x, y, z], goal}], those not yet done (the server says when one is).
+  setActions(actions) {
+    this.targetMarks.forEach((mark) => {
+      this.scene.remove(mark);
+      mark.traverse((o) => { if (o.geometry) { o.geometry.dispose(); o.material.dispose(); } });
+    });
+    this.targets = actions.map((a) => a.target);
+    this.targetMarks = this.targets.map(([x, y, z]) => {
+      const mark = new THREE.Group();
+      const sphere = new THREE.Mesh(new THREE.SphereGeometry(0.04, 16, 12), new THREE.MeshBasicMaterial({ color: 0x7b2cbf }));
+      sphere.position.set(0, y, 0);
+      const post = new THREE.Line(new THREE.BufferGeometry().setFromPoints([new THREE.Vector3(0, 0, 0), new THREE.Vector3(0, y, 0)]),
+                                  new THREE.LineBasicMaterial({ color: 0x7b2cbf }));
+      mark.add(sphere, post);
+      mark.position.set(x, 0, z);
+      this.scene.add(mark);
+      return mark;
+    });
   }
 
   addTrail(x, z) {
