@@ -261,6 +261,39 @@ def _planned_walk(after, before) -> None:
     assert "rested_from_frame" in after[4]
 
 
+WALK = "SELECT fps, n_frames, rotations, report FROM modb.synthesize_from_models('steps', %s, 3, 5)"
+AN_ACTION_NODE = """
+UPDATE modb.graphs SET data = jsonb_set(
+         data, '{nodes,an action}', (data->'nodes'->'left_step') || '{"type": "action"}')
+       || jsonb_build_object('transitions', (data->'transitions') || '[{"from": "right_step",
+          "to": "an action"}, {"from": "an action", "to": "left_step"}]')
+ WHERE name = 'steps'
+"""
+
+
+def _walk_of_step_models(db, dsn) -> tuple:
+    """0.28.0's family graph of step models and its walk; a graph with an action node refused."""
+    collection, _ = _step_models(db, dsn)
+    r = run_modb(dsn, "model", "graph", "steps", "--collection", collection, process=False)
+    assert r.returncode == 0, r.stderr
+    with db.transaction(force_rollback=True), pytest.raises(psycopg.errors.CheckViolation):
+        db.execute(AN_ACTION_NODE)
+    return db.execute(WALK, [[[0.0, 3.0]]]).fetchone()
+
+
+def _actions_after_the_update(db, walk_before) -> None:
+    """0.29.0: the same call walks the same walk; the new argument (actions) is there, refusing
+    an action the graph has not; a graph may now have an action node."""
+    after = db.execute(WALK, [[[0.0, 3.0]]]).fetchone()
+    assert after[:3] == walk_before[:3] and after[3]["steps"] == walk_before[3]["steps"]
+    with db.transaction(force_rollback=True), pytest.raises(psycopg.errors.InvalidParameterValue,
+                                                            match=r"its actions: none"):
+        db.execute("SELECT * FROM modb.synthesize_from_models('steps', '{{0, 3}}', 3, 5, 0.5, "
+                   """'[{"primitive": "wave", "target": [0, 1, 2]}]')""")  # fmt: skip
+    with db.transaction(force_rollback=True):
+        db.execute(AN_ACTION_NODE)
+
+
 def _family_after_the_update(db, dsn) -> None:
     """Steps found again find the primitives beyond them and leave the step segments as they were:
     the models built from them stay current; the family graph keeps them and builds what it can."""
@@ -420,6 +453,8 @@ def test_update_keeps_the_data(fresh_db, db, old, fresh_load):
         outputs_before = _models_and_their_outputs(db, fresh_db)
     if old == "0.25.0":  # 0.26.0 checks model documents: what it refuses is repaired
         _models_0_26_0_refuses(db)
+    if old == "0.28.0":  # 0.29.0: actions beside the walk
+        walk_before = _walk_of_step_models(db, fresh_db)
     before = db.execute(
         "SELECT clip_id, version, n_frames, meta, md5(rotations::text) FROM modb.clip_versions "
         "ORDER BY 1"
@@ -453,6 +488,7 @@ def test_update_keeps_the_data(fresh_db, db, old, fresh_load):
     db.execute("ALTER EXTENSION modb UPDATE")
     if old == "0.28.0":
         _endings_after_the_update(db, endings_before)
+        _actions_after_the_update(db, walk_before)
     if old == "0.21.0":
         _models_in_versions(db, fresh_db, processed_before)
     if old == "0.22.0":
