@@ -181,11 +181,15 @@ class ModelAvatar:
             self._goals.append(_ground(goal))
             self._changes.append(("add", self._goals[-1]))
 
-    def add_action(self, primitive: str, target: tuple[float, float, float]) -> None:
+    def add_action(self, primitive: str, target: tuple[float, float, float],
+                   seconds: float | None = None) -> None:  # fmt: skip
         """The action after the course's goals: walk to within reach of the target, stop, perform
-        it (the hand at the target at its keyframe), stand. ValueError saying why it cannot."""
-        checked = model_actions.checked([{"primitive": primitive, "target": list(target)}], 0,
-                                        self.action_names)[0]  # fmt: skip
+        it (the hand at the target at its keyframe; a wave faces it, for `seconds` when given),
+        stand. ValueError saying why it cannot."""
+        asked = {"primitive": primitive, "target": list(target)}
+        if seconds is not None:
+            asked["seconds"] = seconds
+        checked = model_actions.checked([asked], 0, self.action_names)[0]
         with self._lock:
             if self.synthesis.standing_source() is None:
                 raise ValueError(

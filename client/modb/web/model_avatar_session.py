@@ -149,8 +149,9 @@ class ModelAvatarSession:
         self._send(self._goals_message(goals, index))
 
     def _action(self, message: dict[str, Any]) -> None:
-        """{"type": "action", "primitive": a graph's action, "x", "y", "z": the target, metres}:
-        performed after the course's goals (walk there, stop, meet the target, stand)."""
+        """{"type": "action", "primitive": a graph's action, "x", "y", "z": the target, metres,
+        and for a repeated action such as a wave "seconds", how long}: performed after the
+        course's goals (walk there, stop, meet the target or face it, stand)."""
         names = ", ".join(self.actions) or "none"
         primitive = message.get("primitive")
         try:
@@ -166,8 +167,8 @@ class ModelAvatarSession:
             self._send({"type": "refused", "message": why})
             return
         try:
-            self._avatar.add_action(primitive, target)
-        except ValueError as e:  # too many goals ahead, nothing to stand with
+            self._avatar.add_action(primitive, target, message.get("seconds"))
+        except ValueError as e:  # too many goals ahead, nothing to stand with, bad seconds
             self._send({"type": "refused", "message": str(e)})
             return
         self._send(self._goals_message(self._avatar.goals, self._avatar.goal_index))
