@@ -17,6 +17,7 @@ import pytest
 from psycopg.types.json import Jsonb
 from support import own_kinematics, shared
 from support.bandai_actions import BUILT, GRAPH, action_files, build
+from support.browser import get, serving
 from support.commands import run_modb_here as modb
 from support.gltf_validator import validate
 
@@ -228,3 +229,20 @@ def test_the_command_writes_a_valid_glb_and_reports_each_action(dsn, tmp_path):
     r = modb(dsn, "synth", "--models", GRAPH, "--action", "raise_right_hand:0,1", "--seconds",
              "5", "--out", out)  # fmt: skip
     assert r.returncode == 2 and "expected NAME:X,Y,Z" in r.stderr
+
+
+def test_the_rest_walk_takes_goals_and_actions_in_order_as_the_sql_call(dsn):
+    with psycopg.connect(dsn) as conn:
+        (ident,) = conn.execute("SELECT id FROM modb.graphs WHERE name = %s", [GRAPH]).fetchone()
+    query = "to=0,3&action=raise_right_hand:0.3,1.75,4.6&seconds=10&seed=2"
+    with serving(dsn) as address:
+        status, walked = get(address, f"/api/graphs/{ident}/synthesis?{query}")
+        assert status == 200, walked
+        status, body = get(address, f"/api/graphs/{ident}/synthesis?action=raise_right_hand:0,1")
+        assert status == 400 and "expected NAME:X,Y,Z" in body["error"], body
+        status, body = get(address, f"/api/graphs/{ident}/synthesis?to=0,3&speed=2")
+        assert status == 400 and "unknown parameter 'speed'" in body["error"], body
+    fps, r, t, report = synthesize(dsn, [[0.0, 3.0]], 10.0, [
+        {"primitive": "raise_right_hand", "target": [0.3, 1.75, 4.6], "after": 1}], seed=2)
+    assert walked["report"] == report and walked["fps"] == fps
+    assert np.allclose(walked["rotations"], r, atol=1e-6)

@@ -185,26 +185,6 @@ class InOrder(argparse.Action):
         namespace.course = [*getattr(namespace, "course", []), (self.dest, values)]
 
 
-def parse_action(text: str, goals_before: int) -> dict:
-    """'NAME:X,Y,Z[:SECONDS]' as modb.synthesize_from_models's action, after `goals_before`
-    goals."""
-    name, _, rest = text.partition(":")
-    point, _, seconds = rest.partition(":")
-    try:
-        target = [float(v) for v in point.split(",")]
-        if not name or len(target) != 3 or not all(abs(v) <= MAX_COORDINATE for v in target):
-            raise ValueError
-        action = {"primitive": name, "target": target, "after": goals_before}
-        if seconds:
-            action["seconds"] = float(seconds)
-    except ValueError:
-        raise ValueError(f"--action {text!r:.200}: expected NAME:X,Y,Z[:SECONDS], the graph's "
-                         "action and where its hand goes (a repeated motion such as a wave: the "
-                         "point it faces, and for how long) in world metres, e.g. --action "
-                         "raise_right_hand:0.3,1.75,4") from None  # fmt: skip
-    return action
-
-
 def parse_goal(text: str) -> Goal:
     """'X,Z' (or 'X,Y,Z') world metres."""
     try:
@@ -244,6 +224,7 @@ def run(args: argparse.Namespace) -> int:
     from modb.resample import at_fps
     from modb.synthesis.root_motion import with_root_motion
     from modb.synthesis.source_frames import UnplaceableSkeleton
+    from modb.synthesis.from_models import actions_in_course
     from modb.synthesis.synth import clip_names, report, synthesize
 
     from .synth_report import format_report, print_progress, write_report_json
@@ -251,8 +232,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         goals = [parse_goal(text) for text in args.to]
         course = getattr(args, "course", [])
-        actions = [parse_action(text, sum(1 for kind, _ in course[:k] if kind == "to"))
-                   for k, (kind, text) in enumerate(course) if kind == "action"]  # fmt: skip
+        actions = actions_in_course(course)
     except ValueError as e:
         print(f"modb synth: {e}", file=sys.stderr)
         return 2

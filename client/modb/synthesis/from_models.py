@@ -16,6 +16,7 @@ from modb.database import pgarray
 from modb.motion import Motion, Skeleton
 from modb_kernel.step_search import swing_side
 
+from .chain import MAX_COORDINATE
 from .quality import REACH_MIN_DISTANCE, NaturalSteps, foot_skating, pose_jumps
 
 AIM_REACH_RATIO = 2.0  # a goal >= REACH_MIN_DISTANCE away within this times the straight line
@@ -71,6 +72,33 @@ def synthesize(conn: psycopg.Connection, graph: str, goals: list[tuple[float, fl
                     meta={"graph of models": graph, "seed": seed})  # fmt: skip
     # the course as walked: the goals and where each action was performed
     return ModelStrip(motion, report, graph, [tuple(g) for g in report["goals"]], seed)
+
+
+def parse_action(text: str, goals_before: int) -> dict[str, Any]:
+    """'NAME:X,Y,Z[:SECONDS]' (`modb synth --action`, the REST walk's `action`) as
+    modb.synthesize_from_models's action, after `goals_before` goals."""
+    name, _, rest = text.partition(":")
+    point, _, seconds = rest.partition(":")
+    try:
+        target = [float(v) for v in point.split(",")]
+        if not name or len(target) != 3 or not all(abs(v) <= MAX_COORDINATE for v in target):
+            raise ValueError
+        action = {"primitive": name, "target": target, "after": goals_before}
+        if seconds:
+            action["seconds"] = float(seconds)
+    except ValueError:
+        raise ValueError(f"action {text!r:.200}: expected NAME:X,Y,Z[:SECONDS], the graph's "
+                         "action and where its hand goes (a repeated motion such as a wave: the "
+                         "point it faces, and for how long) in world metres, e.g. "
+                         "raise_right_hand:0.3,1.75,4") from None  # fmt: skip
+    return action
+
+
+def actions_in_course(course: list[tuple[str, str]]) -> list[dict[str, Any]]:
+    """The actions of a course [("to", "X,Z") or ("action", "NAME:X,Y,Z[:S]"), ...] in the order
+    given, each after the goals before it."""
+    return [parse_action(text, sum(1 for kind, _ in course[:k] if kind == "to"))
+            for k, (kind, text) in enumerate(course) if kind == "action"]  # fmt: skip
 
 
 def stance_sliding(motion: Motion, steps: list[tuple[str, int, int]]) -> np.ndarray:

@@ -245,6 +245,7 @@ HEAVY_VIEWS: dict[str, tuple[View, Callable[[Request], Any]]] = {
     "/api/skeletons/{ident}/character.glb": (_character, lambda r: _path_id(r, "skeleton")),
     "/api/motion-models/{name}/samples": (model_routes.samples, model_routes.samples_args),
     "/api/motion-models/{name}/examples": (model_routes.examples, model_routes.examples_args),
+    "/api/graphs/{ident}/synthesis": (model_graph_routes.walk, model_graph_routes.walk_args),
 }
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
 import psycopg
 from starlette.exceptions import HTTPException
 from starlette.requests import Request
@@ -104,3 +105,75 @@ def check_if_match(conn: psycopg.Connection, request: Request, ident: int) -> st
             headers={"ETag": current},
         )
     return current
+
+
+WALK_PARAMETERS = ("to", "action", "seconds", "seed", "arrival_radius")
+
+
+def walk_args(request: Request) -> tuple[int, list, list, float, int, float]:
+    """(graph id, goals, actions, seconds, seed, arrival radius) of GET /api/graphs/ID/synthesis:
+    `to=X,Z` and `action=NAME:X,Y,Z[:SECONDS]` repeatable and kept in the order given, as
+    `modb synth --models` takes them."""
+    from modb.synthesis.chain import checked_goal
+    from modb.synthesis.from_models import actions_in_course
+    from modb_kernel.model_synthesis import MAX_ARRIVAL_RADIUS_M, MAX_SECONDS
+
+    items = request.query_params.multi_items()
+    unknown = sorted({k for k, _ in items} - set(WALK_PARAMETERS))
+    if unknown:
+        raise BadRequest(f"unknown parameter {unknown[0]!r}: {request.url.path} takes "
+                         f"{', '.join(WALK_PARAMETERS)}")  # fmt: skip
+    single = {k: v for k, v in items if k not in ("to", "action")}
+    if len(single) < sum(k not in ("to", "action") for k, _ in items):
+        raise BadRequest("seconds, seed and arrival_radius are given once each")
+    course = [(k, v) for k, v in items if k in ("to", "action")]
+    try:
+        goals = [list(checked_goal(v.split(","))) for k, v in course if k == "to"]
+        actions = actions_in_course(course)
+    except ValueError as e:
+        raise BadRequest(f"{e} (to=X,Z; action=NAME:X,Y,Z[:SECONDS])") from None
+    if not goals and not actions:
+        raise BadRequest("give a goal (to=X,Z) or an action (action=NAME:X,Y,Z)")
+    seconds = _number(single.get("seconds"), "seconds", MAX_SECONDS, 20.0)
+    radius = _number(single.get("arrival_radius"), "arrival_radius", MAX_ARRIVAL_RADIUS_M, 0.5)
+    seed = single.get("seed", "0")
+    if not seed.isascii() or not seed.isdigit() or int(seed) > 2**31 - 1:
+        raise BadRequest(f"seed: a whole number from 0 to {2**31 - 1}, got {seed!r:.40}")
+    return _ident(request), goals, actions, seconds, int(seed), radius
+
+
+def _number(value: str | None, what: str, most: float, default: float) -> float:
+    if value is None:
+        return default
+    try:
+        number = float(value)
+    except ValueError:
+        raise BadRequest(f"{what}: a number, got {value!r:.40}") from None
+    if not 0 < number <= most:
+        raise BadRequest(f"{what}: above 0, at most {most:g}, got {number:g}")
+    return number
+
+
+def walk(conn: psycopg.Connection, request: Request) -> dict[str, Any]:
+    """GET /api/graphs/ID/synthesis?to=X,Z&action=NAME:X,Y,Z[:S]&seconds=S[&seed=N]: the strip the
+    graph of models walks (modb.synthesize_from_models: goals, then each action walked to and
+    performed), its frames and the server's report (per action the hand's error after the tree,
+    the refinement and IK)."""
+    from modb.synthesis.from_models import synthesize
+
+    ident, goals, actions, seconds, seed, radius = walk_args(request)
+    row = conn.execute("SELECT name, kind FROM modb.graphs WHERE id = %s", [ident]).fetchone()
+    if row is None or row[1] != KIND:
+        raise HTTPException(404, f"no graph of models with id {ident} (GET /api/graphs?kind="
+                                 "models lists them)")  # fmt: skip
+    try:
+        strip = synthesize(conn, row[0], goals, seconds, seed, radius, actions)
+    finally:
+        conn.close()  # the call's memory goes with its server process (as samples do)
+    m = strip.motion
+    return {"graph": row[0], "seed": seed, "fps": m.fps, "n_frames": m.n_frames,
+            "joints": m.skeleton.names, "parents": m.skeleton.parents,
+            "translated": m.skeleton.translated,
+            "rotations": np.round(m.rotations, 7).tolist(),
+            "translations": np.round(m.translations, 6).tolist(),
+            "report": strip.report}  # fmt: skip

@@ -331,6 +331,18 @@ def operations() -> dict[str, Any]:
             "one graph; a graph of models (kind models) with its ETag (If-Match of a PUT)",
             _id("ident", "graph id"),
         ),
+        "/api/graphs/{ident}/synthesis": _read(
+            "the strip a graph of models walks (modb.synthesize_from_models): its goals, then each "
+            "action walked to and performed meeting its target; frames and the report",
+            _id("ident", "graph id"),
+            _query("to", "a goal X,Z (metres; repeatable, in order with the actions)",
+                   {"type": "string"}),
+            _query("action", "NAME:X,Y,Z[:SECONDS]: an action of the graph and its hand's target "
+                   "(a wave: the point it faces, how long); repeatable", {"type": "string"}),
+            _query("seconds", "the strip's length (20; at most 600)", {"type": "number"}),
+            _query("seed", "the same seed, the same walk (0)", {"type": "integer"}),
+            _query("arrival_radius", "a goal is reached this near (0.5 m)", {"type": "number"}),
+        ),
         "/api/profiles": _read("the match profiles"),
         "/api/edit-scripts": _read("the stored edit scripts"),
         "/api/jobs": {
