@@ -289,7 +289,8 @@ class Synthesis:
         if action is None:
             point, radius = np.asarray(goal, dtype=np.float64), None
         else:
-            came_from = self.goals[-1] if self.goals else self.body.pelvis()
+            came_from = (self.goals[-1] if self.goals else
+                         self.body.pelvis() if self.body.rotations else np.zeros(2))  # fmt: skip
             point, radius, _ = model_actions.stand_point(action, self.models[action["primitive"]],
                                                          came_from)  # fmt: skip
         if action is not None:
