@@ -50,6 +50,27 @@ def sizes(text: str) -> list[int | None]:
         ) from None
 
 
+def names(text: str) -> list[str]:
+    """--actions: node names separated by commas."""
+    out = [v.strip() for v in text.split(",") if v.strip()]
+    if not out:
+        raise argparse.ArgumentTypeError("name at least one action, e.g. raise_right_hand")
+    return out
+
+
+TARGET_GROUPS = ("inside", "10", "20", "30", "out")
+
+
+def target_groups(text: str) -> list[str]:
+    """--groups: some of TARGET_GROUPS separated by commas."""
+    out = [v.strip() for v in text.split(",")]
+    if not out or any(v not in TARGET_GROUPS for v in out):
+        raise argparse.ArgumentTypeError(
+            f"must be some of {', '.join(TARGET_GROUPS)} separated by commas, got {text!r:.100}"
+        )
+    return out
+
+
 def add_parser(sub: argparse._SubParsersAction) -> None:
     bench = sub.add_parser("bench", help="benchmarks (results go in BENCHMARKS.md)")
     benchmarks = bench.add_subparsers(dest="benchmark", required=True, metavar="BENCHMARK")
@@ -118,6 +139,31 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     compare.add_argument("--seed", type=SEED, default=0, help="the models' seed (default 0)")
     compare.add_argument("--json", metavar="FILE", help="also write the figures as JSON")
     compare.set_defaults(func=run_synth_compare)
+
+    actions = benchmarks.add_parser(
+        "actions",
+        help="a hand meeting targets: each reach action of a graph of models over a grid fixed "
+        "before tuning (the examples' peak box, 10-30 cm beyond it, out of reach), the character "
+        "standing; errors after tree, refinement and IK, jumps, sliding, joint range, compute",
+    )
+    actions.add_argument("--models", metavar="GRAPH", required=True, help="the graph of models")
+    actions.add_argument(
+        "--actions",
+        type=names,
+        metavar="A,B",
+        help="these reach actions only (default: every one of the graph's)",
+    )
+    actions.add_argument(
+        "--groups",
+        type=target_groups,
+        metavar="G,H",
+        help="these groups of targets only: inside, 10, 20, 30, out (default: all)",
+    )
+    actions.add_argument(
+        "--seed", type=SEED, default=0, help="the standing piece's seed (default 0)"
+    )
+    actions.add_argument("--json", metavar="FILE", help="also write every target's figures as JSON")
+    actions.set_defaults(func=run_actions)
 
     crowd = benchmarks.add_parser(
         "crowd",
@@ -412,6 +458,36 @@ def run_synth_compare(args: argparse.Namespace) -> int:
     print(table(result))
     if args.json:
         Path(args.json).write_text(json.dumps(result, indent=2) + "\n")
+    return 0
+
+
+def run_actions(args: argparse.Namespace) -> int:
+    import json
+
+    from modb.bench.actions import GROUP_NAMES, NoActions, run, table  # numpy, the kernel
+
+    groups = None if args.groups is None else [GROUP_NAMES[g] for g in args.groups]
+    with connect(args) as conn:
+        try:
+            result = run(
+                conn,
+                args.models,
+                args.actions,
+                args.seed,
+                groups,
+                lambda text: print(f"modb bench actions: {text}", file=sys.stderr),
+            )
+        except NoActions as e:
+            print(f"modb bench actions: graph {args.models}: {e}", file=sys.stderr)
+            return 2
+    print(
+        f"graph of models {args.models}, seed {args.seed}: each reach action performed standing "
+        "(its pelvis above the origin facing +Z), one synthesis a target; targets in the "
+        "action's frame (metres); errors of the hand (the wrist; two hands: their RMS)\n"
+    )
+    print(table(result))
+    if args.json:
+        Path(args.json).write_text(json.dumps(result, indent=2, default=float) + "\n")
     return 0
 
 
