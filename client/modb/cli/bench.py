@@ -464,7 +464,7 @@ def run_synth_compare(args: argparse.Namespace) -> int:
 def run_actions(args: argparse.Namespace) -> int:
     import json
 
-    from modb.bench.actions import GROUP_NAMES, NoActions, run, table  # numpy, the kernel
+    from modb.bench.actions import GROUP_NAMES, NoActions, run, table, wrapped  # the kernel
 
     groups = None if args.groups is None else [GROUP_NAMES[g] for g in args.groups]
     with connect(args) as conn:
@@ -480,11 +480,12 @@ def run_actions(args: argparse.Namespace) -> int:
         except NoActions as e:
             print(f"modb bench actions: graph {args.models}: {e}", file=sys.stderr)
             return 2
-    print(
+    intro = (
         f"graph of models {args.models}, seed {args.seed}: each reach action performed standing "
         "(its pelvis above the origin facing +Z), one synthesis a target; targets in the "
-        "action's frame (metres); errors of the hand (the wrist; two hands: their RMS)\n"
+        "action's frame (metres); errors of the hand (the wrist; two hands: their RMS)"
     )
+    print("\n".join(wrapped(intro)) + "\n")
     print(table(result))
     if args.json:
         Path(args.json).write_text(json.dumps(result, indent=2, default=float) + "\n")
