@@ -136,3 +136,19 @@ def test_an_action_not_in_the_graph_is_refused(dsn):
     r = modb(dsn, "bench", "actions", "--models", GRAPH, "--actions", "juggle")
     assert r.returncode == 2
     assert '"juggle" is not a reach action of the graph (its reach actions: ' in r.stderr
+
+
+def test_an_action_where_the_character_starts_is_performed_without_a_walk(dsn):
+    """The bench's case run whole (Synthesis.run): the action due at once, standing from the first
+    frame (it once failed reading the pelvis of a body with no frames yet)."""
+    with psycopg.connect(dsn) as conn:
+        graph, models, rig = model_synthesis.load(WorkerDatabase(conn), GRAPH)
+    target = [-0.1, 1.7, 0.15]
+    syn = model_synthesis.Synthesis(graph, models, rig, [], 5.0, SEED, actions=[
+        {"primitive": ACTION, "target": target, "stand": [0.0, 0.0]}]).run()  # fmt: skip
+    (done,) = syn.actions
+    assert done["reachable"] and done["ik_error_m"] <= 0.01 and not done["cut"], done
+    assert not [s for s in syn.steps if s["node"] in ("left_step", "right_step")]
+    r, t = syn.frames()
+    p = own_fk(rig, r, t)
+    assert np.linalg.norm(p[done["keyframe_frame"], rig.names.index("Hand_R")] - target) <= 0.01

@@ -247,8 +247,10 @@ class Synthesis:
             raise SynthesisError(f'the action "{action["primitive"]}" needs the character to '
                                  "stand: the graph has no idle node or standing frames")
         if not self.stop_walking() and self.spot is None:
-            self.rest(face=model_actions.facing(action, self.models[action["primitive"]],
-                                                self.body.pelvis()))  # fmt: skip
+            # standing from the first frame (an action where the character starts): as it starts
+            face = model_actions.facing(action, self.models[action["primitive"]],
+                                        self.body.pelvis()) if self.body.rotations else None
+            self.rest(face=face)
         elif self.spot is not None:
             self.due.pop(0)
             record = model_actions.perform(self, action["primitive"], action)
