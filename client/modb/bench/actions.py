@@ -25,9 +25,11 @@ frames (from the frame before it, the seam) against the source's p99.9 (a joint'
 frame to the next relative to the pelvis's ground point, over every example); the stance feet's
 sliding (the most an ankle's ground point moves from where it is at the seam) against the
 examples' (the same measure over each example: its median and greatest); joints past the
-examples' range plus SLACK_DEGREES over the action's own frames (the model's limits: the most any
-example turns a joint from its mean rotation; the pelvis and the joints above it, which carry the
-heading, left out; counted per target: the joints past it in any frame); and the
+examples' range plus SLACK_DEGREES over the action's own frames once the seam from standing has
+faded (SEAM_FADE_S; the model's limits: the most any example turns a joint from its mean rotation;
+the pelvis and the joints above it, which carry the heading, and the legs, pinned where the
+character stands as standing pins them, left out; counted per target: the joints past it in any
+frame); and the
 compute of the action (the wall time of the synthesis's step that performs it), beside a baseline
 in the same run: the same action performed with no target (its mean motion: no search, no IK),
 its jumps, sliding and joints past the range measured alike.
@@ -44,12 +46,14 @@ import psycopg
 
 from modb.jobs.kernel_database import WorkerDatabase
 from modb.models.examples import training_motions
-from modb_kernel import model_actions, model_synthesis, motion_model, quaternion
+from modb_kernel import (inertialization, model_actions, model_synthesis, motion_model, quaternion,
+                         standing)  # fmt: skip
 
 DISTANCES_M = (0.1, 0.2, 0.3)
 DIRECTIONS = ("up", "down", "front", "back", "out", "in")
 OUT_OF_REACH_M = 1.2
 SLACK_DEGREES = 10.0
+SEAM_FADE_S = 4 * inertialization.HALFLIFE_SECONDS  # the seam's offset down to a 16th
 JUMP_PERCENTILE = 99.9
 BASELINE_ROUNDS = 10
 MET_M = 0.01  # the issue's aims: the wrist within 1 cm after IK wherever reachable,
@@ -107,15 +111,20 @@ def source(conn: psycopg.Connection, model, rig) -> dict[str, Any]:
     if not examples:
         raise NoActions(f'the model "{doc.get("name")}" has none of its examples stored')
     ankles = list(rig.ankle.values())
+    mirrored = {i for (i,) in conn.execute(
+        "SELECT id FROM modb.processed_data WHERE id = ANY (%s) AND mirrored",
+        [[i for i, _ in examples]]).fetchall()}  # fmt: skip
     peaks, jumps, slides = [], [], []
-    for _, motion in examples:
+    for ident, motion in examples:
         p = rig.positions(motion.rotations, motion.translations)
         peaks.append(peak(p, model.wrist_joints))
         jumps.append(body_jumps(p, rig.pelvis))
         slides.append(sliding(p, ankles))
     peaks = np.array(peaks)
-    return {"examples": len(examples), "peaks": peaks, "low": peaks.min(axis=0),
-            "high": peaks.max(axis=0),
+    # the box: the captured clips' peaks (the other side's mirrored ones are other people's)
+    captured = peaks[[i not in mirrored for i, _ in examples]]
+    return {"examples": len(examples), "peaks": peaks, "low": captured.min(axis=0),
+            "high": captured.max(axis=0),
             "jump_p999_m": float(np.percentile(np.concatenate(jumps), JUMP_PERCENTILE)),
             "slide_median_m": float(np.median(slides)),
             "slide_max_m": float(max(slides))}  # fmt: skip
@@ -187,7 +196,10 @@ def measure(syn, record, model, rig, world, limits, moved) -> dict[str, Any]:
             "ik_m": float(np.sqrt(np.mean(miss**2))), "ik_report_m": record["ik_error_m"],
             "reachable": bool(record["reachable"]), "keyframe_frame": record["keyframe_frame"],
         }  # fmt: skip
-    own = rotations[record["first_frame"] : span.stop][:, moved]  # the action's frames, no seam
+    # the action's frames once the seam from standing has faded (its pose is the standing's till
+    # then: inertialization's offset, SEAM_FADE_S)
+    settled = record["first_frame"] + int(round(SEAM_FADE_S * syn.fps))
+    own = rotations[settled : span.stop][:, moved]
     turned = np.degrees(quaternion.angle_between(own, limits[0][None, moved]))
     past = turned.max(axis=0) - (limits[1][moved] + SLACK_DEGREES)
     return {
@@ -217,7 +229,9 @@ def run(conn: psycopg.Connection, graph_name: str, actions: list[str] | None = N
         while j >= 0:
             above.add(j)
             j = rig.parents[j]
-        moved = [j for j in range(len(rig.names)) if j not in above]
+        # the legs are pinned where the character stands, as its standing pins them: left out
+        legs = {j for chain in standing.Legs(rig).chains.values() for j in chain}
+        moved = [j for j in range(len(rig.names)) if j not in above and j not in legs]
         # the floor the action stands on: the standing piece's lift (the same for every target)
         probe, record, _ = perform(graph, models, rig, node, None, seed)
         lift = probe.spot.lift

@@ -152,6 +152,26 @@ def repeated(rotations, translations, first, last, n):
     return rotations[at], translations[at], passes
 
 
+def _slower(rig, natural, after):
+    """How many times slower the frames `after` play so that no joint moves faster from one frame
+    to the next (relative to the pelvis's ground point) than in the `natural` frames: a hand sent
+    farther takes longer (1 where it is no faster)."""
+    def worst(frames):
+        p = rig.positions(*frames)
+        pose = p - (p[:, rig.pelvis] * np.array([1.0, 0.0, 1.0]))[:, None]
+        return float(np.linalg.norm(np.diff(pose, axis=0), axis=-1).max())
+
+    return max(1.0, worst(after) / max(worst(natural), 1e-9))
+
+
+def _played(rotations, translations, pace):
+    """The frames played `pace` times slower (blended between neighbours; the first and, where the
+    length allows, the last kept)."""
+    if pace <= 1.0:
+        return rotations, translations
+    return motion_model.play(rotations, translations, np.arange(len(rotations)) * pace)
+
+
 def _rms(misses):
     """The root mean square of distances (metres): of vectors (..., 3), or of distances given."""
     misses = np.asarray(misses, dtype=np.float64)
@@ -170,15 +190,11 @@ def perform(synthesis, node, action):
               "version": model.model.get("version"), "first_frame": body.n_frames,
               "target": None if target is None else target.tolist()}  # fmt: skip
     world = None if action["target"] is None else hand_targets(model, action["target"])
-    scores = np.zeros(model.dimensions)
+    scores = found = np.zeros(model.dimensions)
     if world is not None and model.keyframe is not None:
         local = canonical(syn.spot, world)
         found, examined = model.search(local, syn.rng)
-        refined = model.refine(found, local)
-        limit = model.model["mixture"].get("max_mahalanobis2")
-        if limit and float(model.mahalanobis(refined)[0][0]) ** 2 > limit:
-            refined = found
-        scores = refined
+        scores = refined = model.refine(found, local)  # within the mixture's mass
         record.update(candidates=examined, tree_error_m=float(model.errors(found, local)[0]),
                       refined_error_m=float(model.errors(refined, local)[0]))  # fmt: skip
         record["error_m"] = record["refined_error_m"]
@@ -207,8 +223,16 @@ def perform(synthesis, node, action):
         reached = reach.reach(rig.parents, rig.offsets, rig.translated, rig.names, rig.joint_map,
                               joined[0], joined[1], frame, dict(zip(model.hands, world)),
                               limits=model.model.get("limits"))  # fmt: skip
-        joined = (reached.rotations, joined[1])
-        record["ik_error_m"] = _rms(np.array([reached.after[s] for s in model.hands]))
+        # no faster than the tree's sample (a natural one: refinement and IK may hurry the hand)
+        natural = motion_model.frames_from_scores(model.model, found[:split], found[split:])
+        pace = _slower(rig, standing.on_spot(rig, natural[0], natural[1], syn.spot),
+                       (reached.rotations, joined[1]))  # fmt: skip
+        joined, piece = (_played(reached.rotations, joined[1], pace),
+                         _played(piece[0], piece[1], pace))  # fmt: skip
+        frame = int(round(frame * pace))
+        record["keyframe_frame"], record["slowed"] = body.n_frames - 1 + frame, pace
+        wrists = rig.positions(joined[0][frame:frame + 1], joined[1][frame:frame + 1])[0]
+        record["ik_error_m"] = _rms(wrists[model.wrist_joints] - world)
         record["error_m"] = record["ik_error_m"]
         record["reachable"] = reached.reachable
         if not reached.reachable:

@@ -21,6 +21,7 @@ CHOICES = 8  # the best leaf samples the search draws one from
 TURN_PERCENTILES = (5, 95)  # the turns a model's steps make: from the one to the other
 QUICKEST_SHARE = 25  # percent: the quickest steps of a model, passed by the search
 RANDOM_BASELINE = 300  # random samples the search is measured against
+MASS_WALL = 1.0  # metres per unit of Mahalanobis distance past the mixture's max_mahalanobis2
 
 
 def hip_heading(positions, left_hip, right_hip):
@@ -105,6 +106,9 @@ class StepModel:
     in whitened form, its tree (its means and samples as arrays), and the spread of its samples'
     steps. Read-only once made (its arrays are not writeable): syntheses running at once, in
     threads, share one (prepared_models keeps it for the process)."""
+
+    prior_weight = PRIOR_WEIGHT_M  # metres of constraint error per unit of Mahalanobis distance
+    within_mass = False  # refine() keeps the scores within the mixture's max_mahalanobis2
 
     def __init__(self, model, tree, rig):
         held = self._prepare(model, tree, rig)
@@ -247,13 +251,18 @@ class StepModel:
         _, component = self.mahalanobis(start)
         mu, whiten = self.mixture_means[component[0]], self.whiteners[component[0]]
         timing = start[self.split :]
+        limit = self.model["mixture"].get("max_mahalanobis2") if self.within_mass else None
 
         def residuals(spatial):
             """Rows of residuals, one per row of spatial scores."""
             spatial = np.atleast_2d(spatial)
             x = np.hstack([spatial, np.broadcast_to(timing, (len(spatial), len(timing)))])
-            return np.concatenate([self.constraint_residuals(x, target),
-                                   PRIOR_WEIGHT_M * ((x - mu) @ whiten.T)], axis=1)  # fmt: skip
+            z = (x - mu) @ whiten.T
+            rows = [self.constraint_residuals(x, target), self.prior_weight * z]
+            if limit:  # a steep wall at the edge of the mass the model draws from
+                rows.append(MASS_WALL * np.maximum(0.0, np.linalg.norm(z, axis=1, keepdims=True)
+                                                   - np.sqrt(limit)))  # fmt: skip
+            return np.concatenate(rows, axis=1)
 
         def jacobian(x):
             """Forward differences, every column from one batch of features."""
@@ -262,7 +271,7 @@ class StepModel:
             return ((rows[1:] - rows[0]) / step[:, None]).T
 
         found = least_squares(lambda x: residuals(x)[0], start[: self.split], jac=jacobian,
-                              method="lm", max_nfev=50).x  # fmt: skip
+                              method="trf" if limit else "lm", max_nfev=100 if limit else 50).x
         return np.concatenate([found, timing])
 
     def constraint_residuals(self, scores, target):
