@@ -199,3 +199,35 @@ def test_motion_matching_refuses_an_action(server, browser):
     why = refusal(browser, {"type": "action", "primitive": "raise_right_hand", "x": 0, "y": 1.6,
                             "z": 2})  # fmt: skip
     assert why.startswith("actions need a graph of models"), why
+
+
+def test_the_graph_editor_shows_the_actions(server, browser):
+    """The Graphs panel draws the family graph's action nodes as such, reached from idle and leading
+    back to it, and offers the action type for a node."""
+    from selenium.webdriver.common.by import By
+    from test_model_graphs_web import drawn, wait_for
+
+    address, _ = server
+    browser.get(f"http://{address}/")
+    browser.execute_async_script(
+        "const done = arguments[0]; window.modbModelGraphs.ready.then(() => done(true))")
+    browser.execute_script("window.modbViewer?.pause?.()")
+    entry = browser.find_element(By.CSS_SELECTOR, f"#model-graphs span[data-graph='{GRAPH}']")
+    browser.execute_script("arguments[0].scrollIntoView({block: 'center'})", entry)
+    entry.click()
+    wait_for(browser, f"return window.modbModelGraphs.opened?.name === '{GRAPH}'")
+    wait_for(browser, "return document.querySelectorAll('#graph-drawing g[data-node]').length > 0")
+    shown = drawn(browser)
+    actions = sorted(n for n, t in shown["nodes"].items() if t == "action")
+    with psycopg.connect(server[1]) as conn:
+        stored = conn.execute(
+            "SELECT array_agg(n.key ORDER BY n.key) FROM modb.graphs g, "
+            "jsonb_each(g.data->'nodes') n WHERE g.name = %s AND n.value->>'type' = 'action'",
+            [GRAPH]).fetchone()[0]  # fmt: skip
+    assert actions == stored and "raise_right_hand" in actions, (shown["nodes"], stored)
+    for action in actions:
+        assert ["idle", action] in shown["arrows"] and [action, "idle"] in shown["arrows"], shown
+    types = browser.execute_script(
+        "return Object.fromEntries([...document.querySelectorAll('#graph-nodes li')]"
+        ".map((li) => [li.dataset.node, li.querySelector('select.node-type').value]))")
+    assert all(types[a] == "action" for a in actions), types

@@ -1,7 +1,7 @@
 // The Graphs of models panel: the graphs of motion models (modb.graphs kind 'models', `modb model graph`).
 // One opened is drawn (its nodes as boxes, coloured by type, the transitions as arrows) and listed, and is
 // edited here: a motion model of the graph's skeleton added as a node, a node's type set (start, end, idle,
-// standard), a node removed (with its transitions), a transition added or removed. Save replaces the graph
+// standard, action: one performed from idle, issue 63), a node removed (with its transitions), a transition added or removed. Save replaces the graph
 // by PUT with the ETag it was read with (If-Match) and this tab's token; the database checks every graph
 // (modb.model_graph_problem), so a refused save shows the database's reason here and stores nothing. A new
 // graph starts from one model: its skeleton, and a start node playing it.
@@ -9,8 +9,8 @@
 import { getJSON, motionModels } from './panels.js';
 import { token } from './token.js';
 
-const TYPES = ['start', 'standard', 'end', 'idle'];
-const COLOURS = { start: '#3b9c4a', standard: '#2f6fc4', end: '#c0392b', idle: '#7d8590' };
+const TYPES = ['start', 'standard', 'end', 'idle', 'action'];
+const COLOURS = { start: '#3b9c4a', standard: '#2f6fc4', end: '#c0392b', idle: '#7d8590', action: '#8e44ad' };
 const SVG = 'http://www.w3.org/2000/svg';
 const W = 280; // the drawing's size (its viewBox; it scales to the panel's width)
 const H = 230;
@@ -57,7 +57,7 @@ function edge(box, dx, dy) {
   return [box.x + dx * t, box.y + dy * t];
 }
 
-// Nodes on a circle (start nodes first, then standard, end, idle; by name), transitions as arrows between
+// Nodes on a circle (start nodes first, then standard, end, idle, action; by name), transitions as arrows between
 // the boxes' edges: a pair both ways drawn side by side, a transition to itself as a loop above the box.
 function draw() {
   const drawing = $('graph-drawing');
