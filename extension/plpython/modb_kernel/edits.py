@@ -15,6 +15,16 @@ Commands ("op" and its fields):
               [source_start], [blend]     skeleton) over start..end, slerped in and out over `blend`
                                           frames at both ends
   retarget    skeleton                    onto another skeleton (the result is on that skeleton)
+  ik          joint, time, offset,        a joint (standard name) moved by offset metres (heading
+              [orientation], [chain],     frame) at the frame nearest time by inverse kinematics,
+              before, after               the change spread over before/after seconds
+                                          (pose_edits.py)
+  rotate      joint, time, rotation,      a joint's local rotation premultiplied by rotation
+              before, after               (degrees, a rotation vector in its parent frame) there,
+                                          spread the same way (pose_edits.py)
+
+apply() returns the clip; apply_with_notes() the clip and per command a note (None, or for ik and
+rotate a dict: the frames changed and, for ik, the target, the point reached and their distance).
 """
 
 import math
@@ -22,7 +32,7 @@ import math
 import numpy as np
 
 from . import mirror as mirroring
-from . import quaternion, resample, retarget
+from . import pose_edits, quaternion, resample, retarget
 
 # The one frame-rate range of the extension (the loader's, `resample`'s and retargeting's).
 FPS_RANGE = (1.0, 1000.0)
@@ -63,7 +73,9 @@ def fps_error(fps):
 
 
 # Each command's parameters: name -> (kind, required); kinds: "frame" (an integer >= 0), "id" (an
-# integer > 0), "number" with its range, "joints" (a non-empty list of names).
+# integer > 0), "number" with its range, "joints" (a non-empty list of names), and pose_edits'
+# "joint" (a standard joint name), "offset" (3 numbers, metres), "degrees" (3 numbers), "chain" (a
+# count).
 _PARAMETERS = {
     "mirror": {},
     "trim": {"start": ("frame", True), "end": ("frame", True)},
@@ -79,6 +91,7 @@ _PARAMETERS = {
         "blend": ((0, 10000), False),
     },
     "retarget": {"skeleton": ("id", True)},
+    **pose_edits.PARAMETERS,
 }
 COMMANDS = tuple(_PARAMETERS)
 
@@ -93,6 +106,9 @@ def _parameter_error(op, key, kind, value):
     if kind == "joints":
         ok = isinstance(value, list) and value and all(isinstance(j, str) for j in value)
         return None if ok else f'{op}: "{key}" must be a non-empty list of joint names'
+    check = pose_edits.parameter_error(op, key, kind)
+    if check is not None:
+        return check(value)
     low, high = kind
     number = isinstance(value, (int, float)) and not isinstance(value, bool)
     if not number or not low <= value <= high:
@@ -224,6 +240,20 @@ def _copy_joints(clip, command, fetch):
 def apply_command(clip, command, fetch, fetch_skeleton):
     """One command on a clip; fetch(clip_id) -> clip (copy_joints), fetch_skeleton(id) -> (skeleton,
     a reference frame or None) (retarget)."""
+    return command_with_note(clip, command, fetch, fetch_skeleton)[0]
+
+
+def command_with_note(clip, command, fetch, fetch_skeleton):
+    """(clip, note): apply_command's clip and the command's note (None but for ik and rotate)."""
+    if isinstance(command, dict) and command.get("op") in pose_edits.EDITS:
+        try:
+            return pose_edits.edit(clip, command)
+        except pose_edits.PoseEditError as e:
+            raise EditError(str(e)) from None
+    return _apply_command(clip, command, fetch, fetch_skeleton), None
+
+
+def _apply_command(clip, command, fetch, fetch_skeleton):
     if not isinstance(command, dict) or not isinstance(command.get("op"), str):
         raise EditError('each command is an object with an "op"')
     op = command["op"]
@@ -273,19 +303,33 @@ def apply_command(clip, command, fetch, fetch_skeleton):
         except retarget.RetargetError as e:
             raise EditError(f"retarget: {e}") from None
         return dict(clip, skeleton=destination, rotations=r, translations=t)
-    raise EditError(f'unknown command "{op}": mirror, trim, smooth, resample, time_stretch, '
-                    "copy_joints or retarget")  # fmt: skip
+    raise EditError(f'unknown command "{op}": {", ".join(COMMANDS)}')
 
 
 def apply(clip, commands, fetch=lambda clip_id: None, fetch_skeleton=lambda skeleton_id: None):
     """The clip after every command in order; an EditError names the command (1-based) that
     failed."""
+    return apply_with_notes(clip, commands, fetch, fetch_skeleton)[0]
+
+
+def apply_with_notes(clip, commands, fetch=lambda clip_id: None,
+                     fetch_skeleton=lambda skeleton_id: None):  # fmt: skip
+    """(clip, notes): apply()'s clip and, per command in order, its note: None, or for ik and
+    rotate a dict (pose_edits: "frame", "frames" [first, last changed], and for ik "target",
+    "reached", "distance_m", "met" and, when not met, "message"), each with its "command" number
+    (1-based)."""
     errors = script_errors(commands)
     if errors:
         raise EditError("; ".join(errors))
+    notes = []
     for k, command in enumerate(commands, 1):
         try:
-            clip = apply_command(clip, command, fetch, fetch_skeleton)
+            clip, note = command_with_note(clip, command, fetch, fetch_skeleton)
         except EditError as e:
             raise EditError(f"command {k}: {e}") from None
-    return clip
+        if note is not None:
+            note = {"command": k, **note}
+            if "message" in note:
+                note["message"] = f"command {k}: {note['message']}"
+        notes.append(note)
+    return clip, notes

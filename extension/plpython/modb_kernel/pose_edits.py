@@ -1,0 +1,425 @@
+"""Pose edits (issue 64): the edit-script commands `ik` (move a joint to a target at one instant)
+and `rotate` (turn a joint there), each change spread over the frames around that instant by the
+DFKI motion editor's cubic B-spline falloff (ik.falloff, ik.spread_from); frames outside the range
+keep their rotations byte for byte, and no translation ever changes (bone lengths are kept).
+
+  {"op": "ik", "joint": "right_wrist", "time": 1.2, "offset": [0.0, 0.1, 0.05],
+   "orientation": [0, 0, 30], "chain": 3, "before": 0.5, "after": 0.5}
+  {"op": "rotate", "joint": "left_elbow", "time": 1.2, "rotation": [0, 0, -20],
+   "before": 0.5, "after": 0.5}
+
+- joint: a standard joint name (joints.STANDARD_JOINTS: pelvis, left_wrist, right_ankle, ...),
+  found through the skeleton's joint map, so a script replays on any skeleton that maps it.
+- time: seconds from the clip's first frame; the frame nearest it, round(time * fps), is edited.
+- before, after: seconds (0 to 10): the change is whole at that frame and falls smoothly to nothing
+  this long before and after it (0: that side is not touched).
+- offset (ik): metres [x, y, z] from where the joint is at that frame, in the character's heading
+  frame there (x: its left, y: up, z: forward; the heading of terminators.headings: the hips' axis
+  averaged over +-0.25 s), so the same script moves a hand forward whichever way the character
+  faces, on any clip.
+- orientation (ik, optional): degrees, a rotation vector [rx, ry, rz] in the same heading frame: the
+  joint's world orientation is turned by it; without it the joint keeps its world orientation (a
+  dragged hand or foot is not turned by the arm's or leg's change).
+- chain (ik, optional): how many joints above the joint may turn (1 to 10); by default its ancestors
+  up to the nearest joint with more than one child, exclusive (a wrist: forearm, upper arm and
+  clavicle; an ankle: shin and thigh). Never the skeleton's top joint nor the pelvis: the body's
+  travel and facing stay as they were.
+- rotation (rotate): degrees, a rotation vector [rx, ry, rz] in the joint's parent frame: the
+  joint's local rotation at the frame becomes this rotation times the original (q_rot * q_joint),
+  the frames around it turned by a share of it (the same axis, the shorter way round).
+
+The IK at the frame: damped least squares (Levenberg-Marquardt on the geometric Jacobian) of the
+joint's position over the chain's turns, each turn a rotation vector in its joint's own frame, an
+elbow or a knee (the joint map's) turned only about the axis the motion itself bends it about (its
+bend plane in the parent's frame, averaged over the clip, weighted by the bend), so the limb bends
+as a hinge; the smallest turns that meet the target (minimum-norm steps from the motion's pose).
+A target the chain cannot reach ends at the nearest point it reaches (the least-squares minimum);
+edit() returns that point and its distance (a note), and the edit is kept.
+"""
+
+import math
+
+import numpy as np
+
+from . import kinematics, quaternion, terminators
+
+# ik (scipy's BSpline) is imported where a pose is edited: edits.py, which checks every script
+# saved, imports this module for its parameters alone.
+
+REACHED_M = 1e-3  # a target counts as met within this distance
+SOLVED_M = 1e-5  # the solver stops this close to the target
+ITERATIONS = 200  # the solver's most steps
+DAMPING_M = 0.01  # Levenberg-Marquardt's starting damping (metres per radian)
+MOST_TURN = 0.5  # radians: the most one step turns any joint
+LIMB_MIDDLES = ("left_knee", "right_knee", "left_elbow", "right_elbow")  # hinges when in a chain
+
+OFFSET_M = 2.0  # the longest offset an ik command may give
+MOST_DEGREES = 360.0  # the largest turn (the rotation vector's length) of ik and rotate
+CHAIN_RANGE = (1, 10)
+BLEND_RANGE = (0.0, 10.0)  # before, after: seconds
+TIME_RANGE = (0.0, 86400.0)
+
+PARAMETERS = {
+    "ik": {
+        "joint": ("joint", True),
+        "time": (TIME_RANGE, True),
+        "offset": ("offset", True),
+        "orientation": ("degrees", False),
+        "chain": ("chain", False),
+        "before": (BLEND_RANGE, True),
+        "after": (BLEND_RANGE, True),
+    },
+    "rotate": {
+        "joint": ("joint", True),
+        "time": (TIME_RANGE, True),
+        "rotation": ("degrees", True),
+        "before": (BLEND_RANGE, True),
+        "after": (BLEND_RANGE, True),
+    },
+}
+
+
+class PoseEditError(ValueError):
+    """A pose edit that cannot run on this clip, and why (edits.EditError wraps it)."""
+
+
+def _number(value):
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def parameter_error(op, key, kind):
+    """Why a value of the kinds this module adds is refused, as a function of the value (None: it
+    is not one of them)."""
+    if kind == "joint":
+        return lambda v: None if isinstance(v, str) and 0 < len(v) <= 100 else (
+            f'{op}: "{key}" must be a standard joint name, e.g. "right_wrist" or "left_ankle"')
+    if kind == "chain":
+        low, high = CHAIN_RANGE
+        return lambda v: None if (isinstance(v, int) and not isinstance(v, bool)
+                                  and low <= v <= high) else (
+            f'{op}: "{key}" must be how many joints above the joint may turn, {low} to {high}')
+    if kind in ("offset", "degrees"):
+        most, what = (OFFSET_M, "metres") if kind == "offset" else (MOST_DEGREES, "degrees")
+        frame = "the joint's parent frame" if key == "rotation" else (
+            "the character's heading frame (x: its left, y: up, z: forward)")
+
+        def check(v):
+            ok = isinstance(v, list) and len(v) == 3 and all(_number(x) for x in v)
+            if ok and math.sqrt(sum(float(x) ** 2 for x in v)) <= most:
+                return None
+            return (f'{op}: "{key}" must be 3 numbers [x, y, z] in {what}, at most {most:g} '
+                    f"{what} long, in {frame}")
+
+        return check
+    return None
+
+
+def skeleton_joint(sk, standard, op="ik"):
+    """The index of the skeleton's joint the joint map names for a standard name."""
+    name = sk["joint_map"].get(standard) if isinstance(standard, str) else None
+    if name not in sk["names"]:
+        known = ", ".join(s for s, n in sk["joint_map"].items() if n in sk["names"])
+        raise PoseEditError(f'{op}: "joint" must be a standard joint name of the skeleton\'s joint '
+                            f"map ({known}), got {standard!r}")
+    return sk["names"].index(name)
+
+
+def frame_at(clip, command):
+    """The frame nearest the command's time; refused outside the clip."""
+    n, fps = clip["rotations"].shape[0], float(clip["fps"])
+    time = command.get("time")
+    last = (n - 1) / fps
+    if not _number(time) or not 0 <= time <= last + 0.5 / fps:
+        raise PoseEditError(f'{command.get("op")}: "time" must be within the clip: seconds from '
+                            f"0 to {last:.3f} ({n} frames at {fps:g} fps), got {time!r}")
+    return min(int(round(time * fps)), n - 1)
+
+
+def weights(clip, command, frame):
+    """The falloff (frames,): 1 at the frame, 0 `before` and `after` seconds away and past."""
+    from . import ik
+
+    fps = float(clip["fps"])
+    return ik.falloff(clip["rotations"].shape[0], frame, float(command["before"]) * fps,
+                      float(command["after"]) * fps)  # fmt: skip
+
+
+def default_chain(parents, joint, fixed):
+    """The joint's ancestors up to the nearest one with more than one child (exclusive), nearest
+    first, none of `fixed`."""
+    children = np.bincount([p for p in parents if p >= 0], minlength=len(parents))
+    out, j = [], parents[joint]
+    while j >= 0 and children[j] == 1 and j not in fixed:
+        out.append(j)
+        j = parents[j]
+    return out
+
+
+def chain_of(sk, joint, count=None):
+    """The joints ik may turn for a joint, nearest first: `count` ancestors (fewer where the top
+    joint or the pelvis comes first), or default_chain's."""
+    parents = sk["parents"]
+    fixed = {j for j, p in enumerate(parents) if p < 0}
+    pelvis = sk["joint_map"].get("pelvis")
+    if pelvis in sk["names"]:
+        fixed.add(sk["names"].index(pelvis))
+    if count is None:
+        return default_chain(parents, joint, fixed)
+    out, j = [], parents[joint]
+    while j >= 0 and j not in fixed and len(out) < count:
+        out.append(j)
+        j = parents[j]
+    return out
+
+
+def _local_offsets(sk, translations):
+    """(frames, joints, 3): each joint's offset from its parent in the parent's frame."""
+    n = translations.shape[0]
+    local = np.broadcast_to(np.asarray(sk["offsets"], dtype=np.float64),
+                            (n, len(sk["parents"]), 3)).copy()  # fmt: skip
+    if len(sk["translated"]):
+        local[:, list(sk["translated"])] = translations
+    return local
+
+
+def _unit(v):
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)
+
+
+def _hinge_axis(rotations, local, middle, end):
+    """The axis (in the middle joint's parent frame) the motion bends the middle joint about: the
+    normal of the plane of the bones before and after it, averaged over the clip (weighted by the
+    sine of the bend); None when the limb is straight throughout."""
+    upper = _unit(local[:, middle])
+    lower = quaternion.rotate(rotations[:, middle], _unit(local[:, end]))
+    normal = np.cross(upper, lower).sum(0)
+    size = np.linalg.norm(normal)
+    if size < 1e-6 * len(upper) or np.linalg.norm(local[:, middle], axis=-1).min() < 1e-6:
+        return None
+    return normal / size
+
+
+class _Chain:
+    """The frame's pose as the chain's turns move it: positions and orientations along the path
+    from the top joint to the end joint, and their Jacobian."""
+
+    def __init__(self, parents, local, pose, joints, end, hinges):
+        self.parents, self.local, self.end = parents, local, end
+        path, j = [], end
+        while j >= 0:
+            path.append(j)
+            j = parents[j]
+        self.path = path[::-1]  # top joint first
+        self.joints = joints  # nearest first
+        self.hinges = hinges  # joint -> axis in its parent frame
+        self.pose = pose.copy()
+
+    def forward(self, pose):
+        pos, ori = {}, {}
+        for j in self.path:
+            p = self.parents[j]
+            if p < 0:
+                pos[j], ori[j] = self.local[j].copy(), pose[j]
+            else:
+                pos[j] = pos[p] + quaternion.rotate(ori[p], self.local[j])
+                ori[j] = quaternion.multiply(ori[p], pose[j])
+        return pos, ori
+
+    def jacobian(self, pos, ori):
+        """(3, parameters): how the end moves per radian of each parameter."""
+        columns = []
+        lever = {j: pos[self.end] - pos[j] for j in self.joints}
+        for j in self.joints:
+            if j in self.hinges:
+                p = self.parents[j]
+                axis = quaternion.rotate(ori[p], self.hinges[j]) if p >= 0 else self.hinges[j]
+                columns.append(np.cross(axis, lever[j]))
+            else:
+                for e in np.eye(3):
+                    columns.append(np.cross(quaternion.rotate(ori[j], e), lever[j]))
+        return np.stack(columns, axis=1)
+
+    def turned(self, pose, step):
+        out, k = pose.copy(), 0
+        for j in self.joints:
+            if j in self.hinges:
+                turn = quaternion.from_rotation_vector(step[k] * self.hinges[j])
+                out[j] = quaternion.canonical(quaternion.multiply(turn, pose[j]))
+                k += 1
+            else:
+                turn = quaternion.from_rotation_vector(step[k:k + 3])
+                out[j] = quaternion.canonical(quaternion.multiply(pose[j], turn))
+                k += 3
+        return out
+
+
+def solve(chain, target):
+    """(pose, reached, distance): the frame's pose whose end is nearest the target
+    (Levenberg-Marquardt, minimum-norm steps from the motion's own pose)."""
+    pose = chain.pose
+    pos, ori = chain.forward(pose)
+    error = target - pos[chain.end]
+    distance = float(np.linalg.norm(error))
+    damping = DAMPING_M
+    for _ in range(ITERATIONS):
+        if distance <= SOLVED_M:
+            break
+        jac = chain.jacobian(pos, ori)
+        step = jac.T @ np.linalg.solve(jac @ jac.T + damping**2 * np.eye(3), error)
+        largest = np.abs(step).max()
+        if largest > MOST_TURN:
+            step *= MOST_TURN / largest
+        trial = chain.turned(pose, step)
+        trial_pos, trial_ori = chain.forward(trial)
+        trial_error = target - trial_pos[chain.end]
+        trial_distance = float(np.linalg.norm(trial_error))
+        if trial_distance < distance:
+            progress = distance - trial_distance
+            pose, pos, ori, error, distance = trial, trial_pos, trial_ori, trial_error, (
+                trial_distance)  # fmt: skip
+            damping = max(damping * 0.5, 1e-6)
+            if progress < 1e-9:  # the nearest point of an unreachable target
+                break
+        else:
+            damping *= 4.0
+            if damping > 1e3:
+                break
+    return pose, pos[chain.end], distance
+
+
+def _heading_turn(clip, frame):
+    """The rotation about +Y taking the character's heading frame at the frame to the world."""
+    sk = clip["skeleton"]
+    at = sk["joint_map"]
+    if at.get("left_hip") not in sk["names"] or at.get("right_hip") not in sk["names"]:
+        raise PoseEditError("ik: the skeleton's joint map lacks left_hip or right_hip: the heading "
+                            "frame of the offset is taken from them")
+    fps = float(clip["fps"])
+    half = int(round(terminators.HEADING_HALF_WINDOW_S * fps))
+    n = clip["rotations"].shape[0]
+    lo, hi = max(0, frame - half), min(n, frame + half + 1)
+    positions = kinematics.world_positions(sk["parents"], sk["offsets"], clip["rotations"][lo:hi],
+                                           clip["translations"][lo:hi], sk["translated"])
+    theta = terminators.headings(positions, sk["names"].index(at["left_hip"]),
+                                 sk["names"].index(at["right_hip"]), fps)[frame - lo]
+    return quaternion.about_axis("Y", theta)
+
+
+def _checked(command):
+    op = command.get("op")
+    for key, (kind, required) in PARAMETERS[op].items():
+        if key not in command:
+            if required:
+                raise PoseEditError(f'{op}: "{key}" is missing')
+            continue
+        check = parameter_error(op, key, kind)
+        if check is not None:
+            problem = check(command[key])
+        else:
+            low, high = kind
+            ok = _number(command[key]) and low <= command[key] <= high
+            problem = None if ok else f'{op}: "{key}" must be a number from {low:g} to {high:g}'
+        if problem:
+            raise PoseEditError(problem)
+
+
+def _spread(clip, frame, changed_pose, joints, falloff):
+    from . import ik
+
+    rotations = clip["rotations"]
+    out = ik.spread_from(rotations, frame, changed_pose, joints, falloff)
+    untouched = falloff <= 0.0
+    out[untouched] = rotations[untouched]  # byte for byte
+    return out
+
+
+def _changed_frames(falloff):
+    moved = np.flatnonzero(falloff > 0.0)
+    return [int(moved[0]), int(moved[-1])]
+
+
+def rotate(clip, command):
+    """(clip, note): the `rotate` command (see the module's docstring)."""
+    _checked(command)
+    sk = clip["skeleton"]
+    joint = skeleton_joint(sk, command["joint"], "rotate")
+    frame = frame_at(clip, command)
+    falloff = weights(clip, command, frame)
+    turn = quaternion.from_rotation_vector(np.radians(np.asarray(command["rotation"], float)))
+    pose = np.array(clip["rotations"][frame], dtype=np.float64)
+    pose[joint] = quaternion.canonical(quaternion.multiply(turn, pose[joint]))
+    rotations = _spread(clip, frame, pose, [joint], falloff)
+    note = {"op": "rotate", "joint": command["joint"], "skeleton_joint": sk["names"][joint],
+            "frame": frame, "frames": _changed_frames(falloff)}  # fmt: skip
+    return dict(clip, rotations=rotations), note
+
+
+def inverse_kinematics(clip, command):
+    """(clip, note): the `ik` command (see the module's docstring). The note: the joint, the frame
+    edited and the first and last frames changed, the chain's joints, the target and the point
+    reached (world metres, at the frame), their distance (distance_m), whether it is met (within
+    REACHED_M) and, when it is not, a message saying so."""
+    _checked(command)
+    sk = clip["skeleton"]
+    parents = sk["parents"]
+    joint = skeleton_joint(sk, command["joint"], "ik")
+    frame = frame_at(clip, command)
+    joints = chain_of(sk, joint, command.get("chain"))
+    if not joints:
+        raise PoseEditError(f'ik: no joint above {command["joint"]} may turn (the pelvis and the '
+                            "top joint stay): use rotate")
+    rotations, translations = clip["rotations"], clip["translations"]
+    local = _local_offsets(sk, translations)
+    by_name = {sk["names"].index(n): s for s, n in sk["joint_map"].items() if n in sk["names"]}
+    hinges = {}
+    if len(joints) > 1 and by_name.get(joints[0]) in LIMB_MIDDLES:
+        axis = _hinge_axis(rotations, local, joints[0], joint)
+        if axis is not None:
+            hinges[joints[0]] = axis
+    heading = _heading_turn(clip, frame)
+    pose = np.array(rotations[frame], dtype=np.float64)
+    chain = _Chain(parents, local[frame], pose, joints, joint, hinges)
+    start_pos, start_ori = chain.forward(pose)
+    offset = quaternion.rotate(heading, np.asarray(command["offset"], dtype=np.float64))
+    target = start_pos[joint] + offset
+    solved, _, _ = solve(chain, target)
+    # the joint's own rotation: its world orientation kept, or turned by `orientation`
+    world = start_ori[joint]
+    if "orientation" in command:
+        turn = np.radians(np.asarray(command["orientation"], dtype=np.float64))
+        world = quaternion.multiply(
+            quaternion.from_rotation_vector(quaternion.rotate(heading, turn)), world)
+    _, solved_ori = chain.forward(solved)
+    solved[joint] = quaternion.canonical(
+        quaternion.multiply(quaternion.conjugate(solved_ori[parents[joint]]), world))
+    falloff = weights(clip, command, frame)
+    moved = joints + [joint]
+    out = _spread(clip, frame, solved, moved, falloff)
+    reached = kinematics.world_positions(parents, sk["offsets"], out[frame:frame + 1],
+                                         translations[frame:frame + 1], sk["translated"])[0, joint]
+    distance = float(np.linalg.norm(reached - target))
+    note = {
+        "op": "ik",
+        "joint": command["joint"],
+        "skeleton_joint": sk["names"][joint],
+        "frame": frame,
+        "frames": _changed_frames(falloff),
+        "chain": [sk["names"][j] for j in reversed(joints)],
+        "target": [float(x) for x in target],
+        "reached": [float(x) for x in reached],
+        "distance_m": distance,
+        "met": distance <= REACHED_M,
+    }
+    if not note["met"]:
+        note["message"] = (f'ik: {command["joint"]} at frame {frame}: the target is out of the '
+                           f"chain's reach ({', '.join(note['chain'])}): the nearest point it "
+                           f"reaches is used, {distance * 1000:.1f} mm from the target")
+    return dict(clip, rotations=out), note
+
+
+EDITS = {"ik": inverse_kinematics, "rotate": rotate}
+
+
+def edit(clip, command):
+    """(clip, note): one pose edit; a PoseEditError says why it cannot run on this clip."""
+    return EDITS[command["op"]](clip, command)
