@@ -101,6 +101,11 @@ def run(args: argparse.Namespace) -> int:
                 rows = conn.execute(
                     "SELECT * FROM modb.apply_edit_script(%s, %s)", [args.name, clips]
                 ).fetchall()
-    for clip_id, version, frames, snippets in rows:
-        print(f"clip {clip_id}: version {version} ({frames} frames, {snippets} snippets)")
+    from modb.editing.script_notes import messages, version_notes
+
+    with connect(args) as conn:
+        for clip_id, version, frames, snippets in rows:
+            print(f"clip {clip_id}: version {version} ({frames} frames, {snippets} snippets)")
+            for message in messages(version_notes(conn, clip_id, version)):
+                print(f"  {message}")  # an ik target out of reach: the nearest point, its distance
     return 0

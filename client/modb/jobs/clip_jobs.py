@@ -20,6 +20,8 @@ from modb_kernel import (
 )
 from modb_kernel.database import StoreError
 
+from modb.editing.script_notes import version_notes
+
 from .kernel_database import WorkerDatabase
 from .progress import JobProgress
 
@@ -93,7 +95,8 @@ def apply_edit_script(
     def one(db: WorkerDatabase, clip: int) -> dict[str, Any]:
         db.run(edit_clips.LOCK_CLIPS, [[clip]])
         edits.apply(clip, job=job_id)  # None: this job edited it before it was retried
-        return clip_now(conn, clip)
+        now = clip_now(conn, clip)
+        return {**now, "notes": version_notes(conn, clip, now["version"])}
 
     return each_clip(conn, progress, targets, stop_when_asked, one)
 

@@ -30,6 +30,7 @@ from pydantic_core import PydanticCustomError
 
 from modb.validation import number_range
 from modb_kernel.edits import _PARAMETERS as KERNEL_COMMANDS
+from modb_kernel import pose_edits
 from modb_kernel.edits import FPS_RANGE, script_errors
 
 MAX_ID = 2**63 - 1  # a bigint
@@ -228,6 +229,18 @@ def _parameter(kind: Any) -> dict[str, Any]:
     if kind == "joints":
         return {"type": "array", "items": {"type": "string"}, "minItems": 1,
                 "description": "a non-empty list of joint names"}  # fmt: skip
+    if kind == "joint":
+        return {"type": "string", "minLength": 1, "maxLength": 100,
+                "description": "a standard joint name (the skeleton's joint map), e.g. right_wrist"}
+    if kind == "chain":
+        low, high = pose_edits.CHAIN_RANGE
+        return {"type": "integer", "minimum": low, "maximum": high,
+                "description": "how many joints above the joint may turn"}  # fmt: skip
+    if kind in ("offset", "degrees"):
+        most = pose_edits.OFFSET_M if kind == "offset" else pose_edits.MOST_DEGREES
+        unit = "metres" if kind == "offset" else "degrees"
+        return {"type": "array", "items": {"type": "number", "minimum": -most, "maximum": most},
+                "minItems": 3, "maxItems": 3, "description": f"[x, y, z] in {unit}"}  # fmt: skip
     low, high = kind
     return {"type": "number", "minimum": low, "maximum": high}
 

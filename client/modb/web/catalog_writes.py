@@ -23,6 +23,7 @@ from starlette.routing import Route
 from modb.access import audit
 from modb.clips import collection_clips
 from modb.editing import catalog
+from modb.editing.script_notes import version_notes
 
 from . import model_graph_routes
 from .api import BadRequest, NotFound
@@ -494,7 +495,12 @@ def apply_script(conn, request, body) -> Done:
     if conn.execute("SELECT 1 FROM modb.edit_scripts WHERE name = %s", [name]).fetchone() is None:
         raise NotFound(f"no edit script {name!r}")
     rows = conn.execute("SELECT * FROM modb.apply_edit_script(%s, %s)", [name, clips]).fetchall()
-    results = [{"clip_id": c, "version": v, "n_frames": n, "snippets": k} for c, v, n, k in rows]
+    # notes: the ik and rotate commands' (an ik target's distance when it is out of reach)
+    results = [
+        {"clip_id": c, "version": v, "n_frames": n, "snippets": k,
+         "notes": version_notes(conn, c, v)}
+        for c, v, n, k in rows
+    ]  # fmt: skip
     return Done({"script": name, "results": results}, "edit script apply", name, {"clips": clips})
 
 

@@ -1,6 +1,8 @@
 """A stored edit script applied to stored clips, each result a new version cut into snippets: what
 modb.apply_edit_script does in the server and a job worker does in its own process (database.py runs
-the statements on either side; edits.py does the editing)."""
+the statements on either side; edits.py does the editing). The version's load_params.edit_script
+records the script's name, commands, the version it started from and, for ik and rotate commands,
+their notes (edits.apply_with_notes: an ik target out of reach, its nearest point and distance)."""
 
 import json
 
@@ -193,7 +195,8 @@ class Script:
             return None
         clip = _clip(row)
         try:
-            edited = E.apply(clip, self.commands, self._fetch, self._fetch_skeleton)
+            edited, notes = E.apply_with_notes(clip, self.commands, self._fetch,
+                                               self._fetch_skeleton)  # fmt: skip
         except E.EditError as e:
             raise StoreError(
                 f'edit script "{self.name}" on clip {clip_id}: {e}',
@@ -204,6 +207,9 @@ class Script:
         if n_frames != clip["rotations"].shape[0]:
             meta.pop("annotations", None)  # frame numbers: they stay with the version they describe
         record = {"name": self.name, "commands": self.commands, "from_version": row["version"]}
+        notes = [n for n in notes if n is not None]
+        if notes:  # ik's and rotate's: the frames changed, an ik target's distance when not met
+            record["notes"] = notes
         if job is not None:
             record["job"] = job
         translations = edited["translations"]

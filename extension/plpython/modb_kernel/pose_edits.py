@@ -13,20 +13,21 @@ keep their rotations byte for byte, and no translation ever changes (bone length
 - time: seconds from the clip's first frame; the frame nearest it, round(time * fps), is edited.
 - before, after: seconds (0 to 10): the change is whole at that frame and falls smoothly to nothing
   this long before and after it (0: that side is not touched).
-- offset (ik): metres [x, y, z] from where the joint is at that frame, in the character's heading
-  frame there (x: its left, y: up, z: forward; the heading of terminators.headings: the hips' axis
-  averaged over +-0.25 s), so the same script moves a hand forward whichever way the character
-  faces, on any clip.
-- orientation (ik, optional): degrees, a rotation vector [rx, ry, rz] in the same heading frame: the
-  joint's world orientation is turned by it; without it the joint keeps its world orientation (a
-  dragged hand or foot is not turned by the arm's or leg's change).
+- offset (ik): metres [x, y, z] (each from -2 to 2) from where the joint is at that frame, in the
+  character's heading frame there (x: its left, y: up, z: forward; the heading of
+  terminators.headings: the hips' axis averaged over +-0.25 s), so the same script moves a hand
+  forward whichever way the character faces, on any clip.
+- orientation (ik, optional): degrees (each from -360 to 360), a rotation vector [rx, ry, rz] in
+  the same heading frame: the joint's world orientation is turned by it; without it the joint keeps
+  its world orientation (a dragged hand or foot is not turned by the arm's or leg's change).
 - chain (ik, optional): how many joints above the joint may turn (1 to 10); by default its ancestors
   up to the nearest joint with more than one child, exclusive (a wrist: forearm, upper arm and
   clavicle; an ankle: shin and thigh). Never the skeleton's top joint nor the pelvis: the body's
   travel and facing stay as they were.
-- rotation (rotate): degrees, a rotation vector [rx, ry, rz] in the joint's parent frame: the
-  joint's local rotation at the frame becomes this rotation times the original (q_rot * q_joint),
-  the frames around it turned by a share of it (the same axis, the shorter way round).
+- rotation (rotate): degrees (each from -360 to 360), a rotation vector [rx, ry, rz] in the
+  joint's parent frame: the joint's local rotation at the frame becomes this rotation times the
+  original (q_rot * q_joint), the frames around it turned by a share of it (the same axis, the
+  shorter way round).
 
 The IK at the frame: damped least squares (Levenberg-Marquardt on the geometric Jacobian) of the
 joint's position over the chain's turns, each turn a rotation vector in its joint's own frame, an
@@ -52,9 +53,13 @@ ITERATIONS = 200  # the solver's most steps
 DAMPING_M = 0.01  # Levenberg-Marquardt's starting damping (metres per radian)
 MOST_TURN = 0.5  # radians: the most one step turns any joint
 LIMB_MIDDLES = ("left_knee", "right_knee", "left_elbow", "right_elbow")  # hinges when in a chain
+# How readily a chain's joints turn (the least-squares steps' scale of each joint's turn): the two
+# nearest the end (a limb's middle and root: elbow and shoulder, knee and hip) fully, those above
+# (a clavicle, CMU's hip bone) a third as much, as people reach with the arm before the shoulder.
+NEAR_WEIGHT, FAR_WEIGHT = 1.0, 1.0 / 3.0
 
-OFFSET_M = 2.0  # the longest offset an ik command may give
-MOST_DEGREES = 360.0  # the largest turn (the rotation vector's length) of ik and rotate
+OFFSET_M = 2.0  # an ik offset's components are from -2 to 2 metres
+MOST_DEGREES = 360.0  # rotation vectors' components (ik's orientation, rotate's rotation): degrees
 CHAIN_RANGE = (1, 10)
 BLEND_RANGE = (0.0, 10.0)  # before, after: seconds
 TIME_RANGE = (0.0, 86400.0)
@@ -105,10 +110,10 @@ def parameter_error(op, key, kind):
 
         def check(v):
             ok = isinstance(v, list) and len(v) == 3 and all(_number(x) for x in v)
-            if ok and math.sqrt(sum(float(x) ** 2 for x in v)) <= most:
+            if ok and all(-most <= x <= most for x in v):
                 return None
-            return (f'{op}: "{key}" must be 3 numbers [x, y, z] in {what}, at most {most:g} '
-                    f"{what} long, in {frame}")
+            return (f'{op}: "{key}" must be 3 numbers [x, y, z] from {-most:g} to {most:g} '
+                    f"{what}, in {frame}")
 
         return check
     return None
@@ -225,6 +230,14 @@ class _Chain:
                 ori[j] = quaternion.multiply(ori[p], pose[j])
         return pos, ori
 
+    def scale(self):
+        """(parameters,): each parameter's weight (NEAR_WEIGHT, FAR_WEIGHT)."""
+        out = []
+        for k, j in enumerate(self.joints):
+            weight = NEAR_WEIGHT if k < 2 else FAR_WEIGHT
+            out += [weight] * (1 if j in self.hinges else 3)
+        return np.array(out)
+
     def jacobian(self, pos, ori):
         """(3, parameters): how the end moves per radian of each parameter."""
         columns = []
@@ -255,17 +268,19 @@ class _Chain:
 
 def solve(chain, target):
     """(pose, reached, distance): the frame's pose whose end is nearest the target
-    (Levenberg-Marquardt, minimum-norm steps from the motion's own pose)."""
+    (Levenberg-Marquardt, minimum-norm steps from the motion's own pose, each joint's turn scaled
+    by its weight)."""
     pose = chain.pose
     pos, ori = chain.forward(pose)
     error = target - pos[chain.end]
     distance = float(np.linalg.norm(error))
     damping = DAMPING_M
+    scale = chain.scale()
     for _ in range(ITERATIONS):
         if distance <= SOLVED_M:
             break
-        jac = chain.jacobian(pos, ori)
-        step = jac.T @ np.linalg.solve(jac @ jac.T + damping**2 * np.eye(3), error)
+        jac = chain.jacobian(pos, ori) * scale
+        step = scale * (jac.T @ np.linalg.solve(jac @ jac.T + damping**2 * np.eye(3), error))
         largest = np.abs(step).max()
         if largest > MOST_TURN:
             step *= MOST_TURN / largest
