@@ -106,6 +106,13 @@ def _clip(row):
     }
 
 
+def current_clip(db, clip_id):
+    """The clip's current version as edits.apply and edits.apply_with_notes take it (a preview of
+    a script computes what applying it stores), or None when there is no such clip."""
+    rows = db.run(CLIP, [clip_id])
+    return _clip(rows[0]) if rows else None
+
+
 class Script:
     """A stored script, read and checked, ready to apply to clips."""
 
@@ -167,8 +174,7 @@ class Script:
     def _fetch(self, clip_id):
         if not isinstance(clip_id, int):
             return None
-        rows = self.db.run(CLIP, [clip_id])
-        return _clip(rows[0]) if rows else None
+        return current_clip(self.db, clip_id)
 
     def _fetch_skeleton(self, skeleton_id):
         if not isinstance(skeleton_id, int):
