@@ -27,7 +27,8 @@ from modb.clips import read_motion
 from modb.database import pgarray
 from modb.loader.asf import read_amc, read_asf
 from modb.loader.bvh import read_bvh
-from modb_kernel import edits, retarget
+from modb.jobs.kernel_database import WorkerDatabase
+from modb_kernel import edit_clips, edits, retarget
 
 WALK = ("bandai-2-dev", "data", "dataset-2_walk_active_001.bvh")
 CMU = ("cmu", "16")
@@ -323,18 +324,25 @@ def test_cli_applies_and_replays_the_script_byte_for_byte(stored):
     dsn, _, _, clips = stored
     clip = clips["bandai"]
     original = version(dsn, clip)
+    with psycopg.connect(dsn) as conn:  # a preview: the kernel on the clip as the database holds it
+        preview, notes = edits.apply_with_notes(
+            edit_clips.current_clip(WorkerDatabase(conn), clip), SCRIPT)
     r = run_modb_here(dsn, "edit", "save", "pose", "--commands", json.dumps(SCRIPT))
     assert r.returncode == 0, r.stderr
     r = run_modb_here(dsn, "edit", "apply", "pose", "bandai")
     assert r.returncode == 0, r.stderr
     made = version(dsn, clip)
     check_script(original, made)
+    assert np.abs(made.rotations - preview["rotations"].astype(np.float32)).max() < 1e-6
     with psycopg.connect(dsn) as conn:
         record = conn.execute(
             "SELECT load_params->'edit_script' FROM modb.clip_versions WHERE clip_id = %s AND "
             "version = %s", [clip, made.meta["version"]]).fetchone()[0]  # fmt: skip
     assert record["commands"] == SCRIPT and record["from_version"] == original.meta["version"]
     assert [n["op"] for n in record["notes"]] == ["ik", "rotate"] and record["notes"][0]["met"]
+    for stored_note, previewed in zip(record["notes"], notes):
+        assert stored_note["frames"] == previewed["frames"]
+        assert np.allclose(stored_note.get("reached", 0), previewed.get("reached", 0), atol=1e-6)
     # replayed on the original version (made current again): the same frames, byte for byte
     r = run_modb_here(dsn, "clip", "restore", str(clip), "--version", str(original.meta["version"]))
     assert r.returncode == 0, r.stderr
