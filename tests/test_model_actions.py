@@ -224,6 +224,7 @@ def test_the_command_writes_a_valid_glb_and_reports_each_action(dsn, tmp_path):
              "--report-json", report, "-q")  # fmt: skip
     assert r.returncode == 0, r.stderr
     assert "action raise_right_hand at (0.3, 1.75, 4.6)" in r.stdout and "after IK" in r.stdout
+    assert "the place of raise_right_hand (" in r.stdout  # not called a goal
     assert validate(out)["numErrors"] == 0
     steps = json.loads(report.read_text())["steps"]
     assert any(s.get("action") for s in steps)

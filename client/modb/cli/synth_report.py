@@ -215,8 +215,10 @@ def format_model_report(figures: dict, server_report: dict) -> str:
     for g in figures["goals"]:
         when = (f"reached in {g['seconds']:.1f} s ({g['ratio']:.2f}x the straight line)"
                 if g["reached"] else f"not reached (closest {g['closest_m']:.2f} m)")  # fmt: skip
-        lines.append(f"goal {g['goal']} ({g['target'][0]:g}, {g['target'][1]:g}), "
-                     f"{g['distance_m']:.1f} m away: {when}")  # fmt: skip
+        x, z = g["target"]
+        what = (f"the place of {g['action']} ({x:.2f}, {z:.2f})" if g.get("action")
+                else f"goal {g['goal']} ({x:g}, {z:g})")  # fmt: skip
+        lines.append(f"{what}, {g['distance_m']:.1f} m away: {when}")
     lines += [action_line(a) for a in server_report.get("actions", [])]
     c = figures["constraint_error_median"]
     lines += [

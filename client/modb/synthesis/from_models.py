@@ -167,10 +167,15 @@ def measure(strip: ModelStrip, source: Source) -> dict[str, Any]:
         if (side := r["swing"])
     ]
     sliding = float(stance_sliding(motion, steps).mean()) if steps else 0.0
+    # the walk's jumps: an action's frames are judged against its own capture (modb bench actions)
     jumps = pose_jumps(motion)
+    for a in report.get("actions", []):
+        jumps[max(a["first_frame"] - 1, 0) : a["first_frame"] + a["n_frames"] - 1] = 0.0
     errors = np.array([[s["tree_error_m"], s["error_m"], s["random_error_m"]]
                        for s in stepped])  # fmt: skip
     goals = _goals(motion, strip.goals, report["reached"], source.walking_speed)
+    for g in goals:  # an action's place, not a goal given
+        g["action"] = report.get("places", {}).get(str(g["goal"]))
     out = {
         "graph": strip.graph,
         "seed": strip.seed,

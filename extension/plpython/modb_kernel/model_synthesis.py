@@ -641,6 +641,8 @@ class Synthesis:
             "stood_from_frame": self.stood_from,
             "rested_from_frame": self.rested_from,
             "actions": self.actions,
+            # the course's entries that are an action's place (1-based, as "reached" counts)
+            "places": {str(k + 1): a["primitive"] for k, a in self.planned.items()},
             "notes": self.notes,
         }
 
