@@ -91,6 +91,7 @@ OLD_VERSIONS = [
     "0.26.0",
     "0.27.0",
     "0.28.0",
+    "0.29.0",
 ]
 
 # What a retargeting, an edit script and a cut store, without ids (sequences differ between runs):

@@ -1,0 +1,1 @@
+-- 0.30.0: editing motion by hand (issue 64): edit scripts gain the ik and rotate commands, run by the kernel.
