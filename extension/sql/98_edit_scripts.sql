@@ -9,7 +9,7 @@ CREATE TABLE modb.edit_scripts (
     created_by name NOT NULL DEFAULT current_user
 );
 COMMENT ON TABLE modb.edit_scripts IS
-    'Edit scripts: [{"op": "mirror" | "trim" (start, end) | "smooth" (seconds) | "resample" (fps) | "time_stretch" (factor) | "copy_joints" (clip, joints, start, end, source_start, blend) | "retarget" (skeleton)}, ...], applied in order by modb.apply_edit_script';
+    'Edit scripts: [{"op": "mirror" | "trim" (start, end) | "smooth" (seconds) | "resample" (fps) | "time_stretch" (factor) | "copy_joints" (clip, joints, start, end, source_start, blend) | "retarget" (skeleton) | "ik" (joint, time, offset, orientation, chain, before, after) | "rotate" (joint, time, rotation, before, after)}, ...], applied in order by modb.apply_edit_script';
 SELECT pg_catalog.pg_extension_config_dump('modb.edit_scripts', '');
 GRANT SELECT ON modb.edit_scripts TO modb_reader;
 GRANT INSERT (name, commands, comment), UPDATE (commands, comment), DELETE ON modb.edit_scripts TO modb_loader;
