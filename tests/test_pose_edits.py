@@ -281,12 +281,14 @@ def test_refusals_name_the_command_and_what_to_give():
 @pytest.fixture(scope="module")
 def stored(cluster):
     """A database holding Bandai's walk and CMU 16_15 (two skeletons, one joint map of standard
-    names), a loader token, `modb serve`: (dsn, token, client, clip ids)."""
+    names), job tables, a loader token, `modb serve`: (dsn, token, client, clip ids)."""
     walk, amc = mocap(*WALK), mocap(*CMU, "16_15.amc")
     with scratch_database(cluster, f"pose_edits_{os.getpid()}") as dsn:
         for path, collection in ((walk, "bandai"), (amc, "cmu16")):
             r = run_modb(dsn, "load", path, "-q", "--collection", collection)
             assert r.returncode == 0, r.stderr
+        r = run_modb_here(dsn, "worker", "--init")  # job tables: `modb edit apply` runs a job
+        assert r.returncode == 0, r.stderr
         r = run_modb(dsn, "token", "create", "editor", "--role", "loader")
         assert r.returncode == 0, r.stderr
         with psycopg.connect(dsn) as conn:
@@ -302,8 +304,9 @@ def version(dsn, clip, number=None):
         return read_motion(conn, clip, number)
 
 
-def check_script(before, after):
-    """The stored version `after` made from `before` by SCRIPT, judged by the tests' own FK."""
+def check_script(before, after, also=()):
+    """The stored version `after` made from `before` by SCRIPT (and commands at the times `also`),
+    judged by the tests' own FK."""
     sk = after.skeleton
     joint, time, offset = REACHABLE[0]
     frame, target = own_target(before, joint, time, offset)
@@ -314,8 +317,9 @@ def check_script(before, after):
     turn = Rotation.from_rotvec(np.radians(SCRIPT[1]["rotation"]))
     want = turn * rot(before.rotations[turned, elbow])
     assert (rot(after.rotations[turned, elbow]) * want.inv()).magnitude()[0] < 2e-4  # float4
-    still = outside(before.n_frames, frame, before.fps) & outside(before.n_frames, turned,
-                                                                  before.fps)  # fmt: skip
+    still = np.ones(before.n_frames, bool)
+    for at in (frame, turned, *(int(round(t * before.fps)) for t in also)):
+        still &= outside(before.n_frames, at, before.fps)
     assert np.array_equal(after.rotations[still], before.rotations[still])
     assert np.array_equal(after.translations, before.translations)
 
@@ -340,6 +344,10 @@ def test_cli_applies_and_replays_the_script_byte_for_byte(stored):
             "version = %s", [clip, made.meta["version"]]).fetchone()[0]  # fmt: skip
     assert record["commands"] == SCRIPT and record["from_version"] == original.meta["version"]
     assert [n["op"] for n in record["notes"]] == ["ik", "rotate"] and record["notes"][0]["met"]
+    with psycopg.connect(dsn) as conn:  # a job (no worker: run by the command), its result
+        (result,) = conn.execute("SELECT result FROM modb_jobs.progress ORDER BY job_id DESC "
+                                 "LIMIT 1").fetchone()  # fmt: skip
+    assert result["clips"][0]["notes"] == record["notes"]
     for stored_note, previewed in zip(record["notes"], notes):
         assert stored_note["frames"] == previewed["frames"]
         assert np.allclose(stored_note.get("reached", 0), previewed.get("reached", 0), atol=1e-6)
@@ -352,6 +360,13 @@ def test_cli_applies_and_replays_the_script_byte_for_byte(stored):
     assert again.meta["version"] > made.meta["version"] + 1
     assert np.array_equal(again.rotations, made.rotations)
     assert np.array_equal(again.translations, made.translations)
+    # a target out of reach: met as nearly as the arm can, and said
+    far = [{**SCRIPT[0], "offset": [0.0, 0.0, 1.9]}]
+    assert run_modb_here(dsn, "edit", "save", "far", "--commands", json.dumps(far)).returncode == 0
+    r = run_modb_here(dsn, "edit", "apply", "far", str(clip))
+    assert r.returncode == 0, r.stderr
+    said = "command 1: ik: right_wrist at frame 60: the target is out of the chain's reach"
+    assert said in r.stdout and "mm from the target" in r.stdout, r.stdout
 
 
 def test_rest_and_sql_apply_it_on_another_skeleton_by_standard_names(stored):
@@ -369,7 +384,7 @@ def test_rest_and_sql_apply_it_on_another_skeleton_by_standard_names(stored):
     made = version(dsn, clip)
     assert result["version"] == made.meta["version"]
     assert made.skeleton.names != version(dsn, clips["bandai"]).skeleton.names
-    check_script(original, made)
+    check_script(original, made, also=[far["time"]])
     notes = result["notes"]
     assert [n["command"] for n in notes] == [1, 2, 3] and notes[0]["met"] and not notes[2]["met"]
     assert notes[2]["distance_m"] > 0.5 and "out of the chain's reach" in notes[2]["message"]
@@ -390,11 +405,12 @@ def test_a_pose_edit_that_does_not_fit_the_clip_stores_nothing(stored):
     with psycopg.connect(dsn) as conn:
         versions = conn.execute("SELECT count(*) FROM modb.clip_versions").fetchone()[0]
     r = client.post("/api/edit-scripts/bad/apply", json={"clips": [clips["cmu16"]]}, headers=h)
-    assert r.status_code >= 400 and 'command 2: ik: "joint" must be a standard joint name' in r.text
+    said = 'command 2: ik: "joint" must be a standard joint name'
+    assert r.status_code == 400 and said in r.json()["error"], r.text
     r = run_modb_here(dsn, "edit", "apply", "bad", "bandai")
     assert r.returncode != 0 and "command 2: ik:" in r.stderr, r.stderr
     r = client.put("/api/edit-scripts/worse", json={"commands": [{**bad, "offset": [0, 5, 0]}]},
                    headers=h)  # fmt: skip
-    assert r.status_code == 400 and '"offset" must be 3 numbers' in r.text
+    assert r.status_code == 400 and '"offset" must be 3 numbers' in r.json()["error"], r.text
     with psycopg.connect(dsn) as conn:
         assert conn.execute("SELECT count(*) FROM modb.clip_versions").fetchone()[0] == versions
