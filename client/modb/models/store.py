@@ -8,7 +8,9 @@ import json
 from collections.abc import Callable
 from typing import Any
 
+import numpy as np
 import psycopg
+from modb_kernel import kinematics, motion_model
 from modb_kernel.foot_hold import stance_heights
 from modb_kernel.model_samples import KIND
 from modb_kernel.step_search import stance_side, swing_side
@@ -51,6 +53,7 @@ def build_document(inputs: Inputs, collection: str, seed: int, variance: float) 
         **document,
         "inputs": inputs.rows,
     }  # fmt: skip
+    out["pace"] = {"jump_p999_m": jump_p999(inputs)}
     stance = stance_side(swing_side(inputs.primitive))
     if stance is not None:  # where the capture holds the foot the step stands on
         sk = inputs.skeleton
@@ -58,6 +61,19 @@ def build_document(inputs: Inputs, collection: str, seed: int, variance: float) 
                                        sk.joint_map, stance,
                                        [(e.rotations, e.translations) for e in inputs.examples])
     return out
+
+
+def jump_p999(inputs: Inputs) -> float:
+    """The examples' pose jumps' p99.9 (kinematics.pose_jumps, each played at its own pace): how
+    fast the capture moves, which a motion made from the model should not pass."""
+    sk = inputs.skeleton
+    pelvis = sk.index(sk.joint_map["pelvis"])
+    jumps = []
+    for e in inputs.examples:
+        r, t = motion_model.play(e.rotations, e.translations, e.time_function)
+        p = kinematics.world_positions(sk.parents, sk.offsets, r, t, sk.translated)
+        jumps.append(kinematics.pose_jumps(p, pelvis))
+    return float(np.percentile(np.concatenate(jumps), 99.9))
 
 
 def save(conn: psycopg.Connection, name: str, inputs: Inputs, document: dict[str, Any],

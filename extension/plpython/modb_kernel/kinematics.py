@@ -43,3 +43,10 @@ def rest_positions(parents, offsets):
     for j, p in enumerate(parents):
         out[j] = offsets[j] if p < 0 else out[p] + offsets[j]
     return out
+
+
+def pose_jumps(positions, pelvis):
+    """Per frame step of world positions (frames, joints, 3): the largest move of a joint relative
+    to the pelvis's ground point (metres), so the travel is left out."""
+    pose = positions - (positions[:, pelvis] * np.array([1.0, 0.0, 1.0]))[:, None]
+    return np.linalg.norm(np.diff(pose, axis=0), axis=-1).max(axis=1)

@@ -14,11 +14,12 @@ arm spread over the action's frames (reach.py); the report has the hand's error 
 
 import numpy as np
 
-from . import motion_model, reach, standing
+from . import kinematics, motion_model, reach, standing
 from .step_search import rotate_y
 
 MAX_ACTIONS = 100
 MAX_REPEAT_SECONDS = 60.0
+PACE_MARGIN = 1.01  # an action slowed to its bound plays this much slower again (frames blended)
 REPEAT_SPREAD = 0.5  # a repeated motion's scores this near its mixture component's mean
 FACE_BEYOND_M = 0.1  # a target nearer the pelvis (or a hand nearer it) says no way to face
 STAND_RADIUS_M = 0.15  # an action's stand point reached within a step (Synthesis.arrive_early)
@@ -152,16 +153,17 @@ def repeated(rotations, translations, first, last, n):
     return rotations[at], translations[at], passes
 
 
-def _slower(rig, natural, after):
+def _slower(rig, natural, after, bound=None):
     """How many times slower the frames `after` play so that no joint moves faster from one frame
-    to the next (relative to the pelvis's ground point) than in the `natural` frames: a hand sent
-    farther takes longer (1 where it is no faster)."""
+    to the next (kinematics.pose_jumps) than in the `natural` frames, nor than `bound` (metres: the
+    examples' p99.9, where the model knows it): a hand sent farther takes longer (1 where it is
+    no faster)."""
     def worst(frames):
-        p = rig.positions(*frames)
-        pose = p - (p[:, rig.pelvis] * np.array([1.0, 0.0, 1.0]))[:, None]
-        return float(np.linalg.norm(np.diff(pose, axis=0), axis=-1).max())
+        return float(kinematics.pose_jumps(rig.positions(*frames), rig.pelvis).max())
 
-    return max(1.0, worst(after) / max(worst(natural), 1e-9))
+    fastest = worst(natural) if bound is None else min(worst(natural), bound)
+    pace = worst(after) / max(fastest, 1e-9)
+    return 1.0 if pace <= 1.0 else PACE_MARGIN * pace  # a blend of frames may overshoot a little
 
 
 def _played(rotations, translations, pace):
@@ -226,7 +228,8 @@ def perform(synthesis, node, action):
         # no faster than the tree's sample (a natural one: refinement and IK may hurry the hand)
         natural = motion_model.frames_from_scores(model.model, found[:split], found[split:])
         pace = _slower(rig, standing.on_spot(rig, natural[0], natural[1], syn.spot),
-                       (reached.rotations, joined[1]))  # fmt: skip
+                       (reached.rotations, joined[1]),
+                       model.model.get("pace", {}).get("jump_p999_m"))  # fmt: skip
         joined, piece = (_played(reached.rotations, joined[1], pace),
                          _played(piece[0], piece[1], pace))  # fmt: skip
         frame = int(round(frame * pace))

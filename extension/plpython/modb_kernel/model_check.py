@@ -149,6 +149,13 @@ def _check(doc):
             if isinstance(height, bool) or not isinstance(height, (int, float)):
                 raise _Problem(f"stance.{point} must be a number (metres)")
             _array(height, f"stance.{point}", ())
+    pace = doc.get("pace")
+    if pace is not None:
+        if not isinstance(pace, dict) or set(pace) != {"jump_p999_m"}:
+            raise _Problem('"pace" must be an object of "jump_p999_m" (metres per frame)')
+        jump = pace["jump_p999_m"]
+        if isinstance(jump, bool) or not isinstance(jump, (int, float)) or not 0 < jump < 100:
+            raise _Problem("pace.jump_p999_m must be a number of metres above 0")
     inputs = doc.get("inputs")
     if inputs is not None and not (
         isinstance(inputs, list) and all(isinstance(i, dict) for i in inputs)
