@@ -240,8 +240,9 @@ def perform(synthesis, node, action):
         record["reachable"] = reached.reachable
         if not reached.reachable:
             record["unreached_m"] = record["ik_error_m"]
-            record["nearest"] = {s: None if p is None else [float(v) for v in p]
-                                 for s, p in reached.nearest.items()}  # fmt: skip
+            # where the hand is at the keyframe as played (the frames may have been slowed)
+            record["nearest"] = {s: [float(v) for v in wrists[j]]
+                                 for s, j in zip(model.hands, model.wrist_joints)}  # fmt: skip
             syn.notes.append(f'the action "{node}": its target is out of reach; the nearest point '
                              f"reached, {100 * record['ik_error_m']:.1f} cm from it")  # fmt: skip
     syn.append(joined[0][1:], joined[1][1:], (piece[0][1:], piece[1][1:]), hold=False)
