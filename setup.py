@@ -21,6 +21,7 @@ THREE_FILES = [
     "build/three.module.js",
     "build/three.core.js",
     "examples/jsm/controls/OrbitControls.js",
+    "examples/jsm/controls/TransformControls.js",
     "examples/jsm/loaders/GLTFLoader.js",
     "examples/jsm/utils/BufferGeometryUtils.js",
     "examples/jsm/utils/SkeletonUtils.js",

@@ -262,7 +262,8 @@ def _shown_path(path: tuple) -> str:
 
 def _names(error: str, path: tuple, route: tuple[str, str]) -> bool:
     """Whether the 400's message names the field at `path`."""
-    if route == ("PUT", "/api/edit-scripts/{name}") and len(path) > 1:
+    scripts = (("PUT", "/api/edit-scripts/{name}"), ("POST", "/api/clips/{ident}/edit-preview"))
+    if route in scripts and len(path) > 1:
         # an edit script's commands are the kernel's: "commands: command 1: trim: "start" must be"
         head = error.startswith("commands: command 1: ")
         return head and (len(path) < 3 or f'"{path[2]}"' in error or "unknown command" in error)
@@ -289,6 +290,7 @@ def _malformed(r, body) -> bool:
 
 def _url(s, path: str) -> str:
     ident = {"/api/clips/{ident}/retarget": "$CLIP", "/api/clips/{ident}/action": "$CLIP",
+             "/api/clips/{ident}/edit-preview": "$CLIP",
              "/api/models/{ident}": "$MODEL",
              "/api/graphs/{ident}": "$GRAPH"}[path] if "{ident}" in path else None  # fmt: skip
     values = {**PATH_VALUES, "ident": ident}

@@ -40,6 +40,7 @@ from . import (
     catalog_writes,
     database_errors,
     downloads,
+    edit_preview,
     job_routes,
     model_graph_routes,
     model_routes,
@@ -62,6 +63,7 @@ POOL_SIZE = 4  # database connections for the JSON endpoints and the avatar sock
 HEAVY_SLOTS = 2  # frame requests answered at once: the other connections stay for the light reads
 HEAVY_QUEUE = 16  # frame requests that may wait for a slot; more are answered 503 at once
 HEAVY_WAIT_S = 30  # a frame request that waits this long for a slot is answered 503
+PREVIEW_SLOTS, PREVIEW_QUEUE = 2, 8  # edit previews computed at once, and waiting for a turn
 RETRY_AFTER_S = database_errors.RETRY_AFTER_S  # the 503's Retry-After
 POOL_WAIT_S = 30  # a request that waits this long for a database connection is answered 503
 STATEMENT_TIMEOUT = "30s"  # a pooled connection's query that takes longer is cancelled (a 503)
@@ -395,6 +397,7 @@ def create_app(
         pool.close()
 
     frames_gate = Gate("clip frame requests", HEAVY_SLOTS, HEAVY_QUEUE, HEAVY_WAIT_S)
+    preview_gate = Gate("edit previews", PREVIEW_SLOTS, PREVIEW_QUEUE, HEAVY_WAIT_S)
     routes = [
         Route("/", lambda request: FileResponse(STATIC / "index.html")),
         *(Route(path, _endpoint(pool, view, tokens)) for path, view in VIEWS.items()),
@@ -408,6 +411,11 @@ def create_app(
             methods=["GET", "PUT"],
         ),
         Route("/api/uploads", upload_endpoint(tokens, writer, max_upload_mb), methods=["POST"]),
+        Route(
+            "/api/clips/{ident}/edit-preview",
+            edit_preview.endpoint(pool, tokens, preview_gate, lambda r: _path_id(r, "clip")),
+            methods=["POST"],
+        ),
         *catalog_writes.routes(pool, tokens, writer),
         *(
             Route(path, catalog_writes.write_endpoint(tokens, writer, *how), methods=["POST"])

@@ -423,6 +423,14 @@ def operations() -> dict[str, Any]:
             "get": {"summary": "this description", "responses": _responses("OpenAPI 3.1")}
         },
     }
+    paths["/api/clips/{ident}/edit-preview"] = {"post": {
+        "summary": "an edit script's result on the clip's current version, not stored: the frames "
+        "it changes (as /frames gives them: start, count) and each command's note (an ik target "
+        "out of reach: the nearest point and its distance); what applying the script stores",
+        "description": READ,
+        "parameters": [CLIP],
+        "responses": _responses("the frames changed and the notes", 400, 401, 404, 411, 413, 503),
+    }}  # fmt: skip
     for path, methods in catalog_writes().items():
         paths.setdefault(path, {}).update(methods)
     return paths

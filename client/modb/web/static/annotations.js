@@ -234,13 +234,16 @@ export class AnnotationEditor {
     window.addEventListener('mouseup', up);
   }
 
-  // The plotted values: the chosen joint's height (m) or horizontal speed (m/s) in every frame.
-  plotValues() {
-    const positions = this.viewer.positions();
+  // The plotted values: the chosen joint's height (m) or horizontal speed (m/s) in every frame (of the
+  // motion shown, or of `given` frames' positions).
+  plotValues(given = null) {
+    const positions = given || this.viewer.positions();
     if (!this.clip || !positions || !positions.length) return null;
     const joint = Number(this.ui.joint.value || 0);
-    const key = `${this.clip.id}/${this.clip.version}/${joint}/${this.ui.quantity.value}`;
-    if (this.plotted && this.plotted.key === key) return this.plotted.values;
+    const edit = given ? 'stored' : (this.viewer.revision ? this.viewer.revision() : 0); // the pose editor's
+    const key = `${this.clip.id}/${this.clip.version}/${joint}/${this.ui.quantity.value}/${edit}`;
+    const cache = given ? 'plottedStored' : 'plotted';
+    if (this[cache] && this[cache].key === key) return this[cache].values;
     const fps = this.clip.fps;
     const values = positions.map((p, f) => {
       if (this.ui.quantity.value === 'height') return p[joint][1];
@@ -250,7 +253,7 @@ export class AnnotationEditor {
       const r = positions[before][joint];
       return after > before ? Math.hypot(q[0] - r[0], q[2] - r[2]) * fps / (after - before) : 0;
     });
-    this.plotted = { key, values };
+    this[cache] = { key, values };
     return values;
   }
 
@@ -264,14 +267,29 @@ export class AnnotationEditor {
     ctx.clearRect(0, 0, canvas.width, canvas.height);
     const values = this.plotValues();
     if (!values) return;
-    const lo = values.reduce((a, v) => Math.min(a, v), Infinity);
-    const hi = Math.max(values.reduce((a, v) => Math.max(a, v), -Infinity), lo + 1e-6);
+    // while the pose editor shows an edit: the stored motion dashed, the edited one solid
+    const stored = this.viewer.originalPositions ? this.viewer.originalPositions() : null;
+    const before = stored ? this.plotValues(stored) : null;
+    const all = before ? values.concat(before) : values;
+    const lo = all.reduce((a, v) => Math.min(a, v), Infinity);
+    const hi = Math.max(all.reduce((a, v) => Math.max(a, v), -Infinity), lo + 1e-6);
     const x = (f) => (f / Math.max(values.length - 1, 1)) * canvas.width;
     const y = (v) => canvas.height - 2 - ((v - lo) / (hi - lo)) * (canvas.height - 4);
-    ctx.strokeStyle = '#2f6fc4';
-    ctx.beginPath();
-    values.forEach((v, f) => (f ? ctx.lineTo(x(f), y(v)) : ctx.moveTo(x(f), y(v))));
-    ctx.stroke();
+    const range = this.viewer.blendRange ? this.viewer.blendRange() : null;
+    if (range) { // the frames the next pose edit changes
+      ctx.fillStyle = 'rgba(232, 137, 43, 0.18)';
+      ctx.fillRect(x(range[0]), 0, Math.max(x(range[1]) - x(range[0]), 1), canvas.height);
+    }
+    const line = (vs, colour, dash) => {
+      ctx.strokeStyle = colour;
+      ctx.setLineDash(dash);
+      ctx.beginPath();
+      vs.forEach((v, f) => (f ? ctx.lineTo(x(f), y(v)) : ctx.moveTo(x(f), y(v))));
+      ctx.stroke();
+      ctx.setLineDash([]);
+    };
+    if (before) line(before, '#7d8590', [4, 3]);
+    line(values, '#2f6fc4', []);
     ctx.strokeStyle = '#b00020';
     ctx.beginPath();
     ctx.moveTo(x(this.viewer.frame()), 0);

@@ -47,7 +47,8 @@ export class Stage {
     this.axes.visible = false;
     this.scene.add(this.axes);
     this.highlight = new THREE.Mesh(new THREE.SphereGeometry(JOINT_RADIUS * 2, 16, 12),
-                                    new THREE.MeshBasicMaterial({ color: 0xe0402a }));
+                                    new THREE.MeshBasicMaterial({ color: 0xe0402a, depthTest: false }));
+    this.highlight.renderOrder = 2; // seen through the character: the joint selected sits inside it
     this.highlight.visible = false;
     this.scene.add(this.highlight);
     this.followed = null; // the last followed point, so the camera moves by the figure's travel

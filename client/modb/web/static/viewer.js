@@ -6,6 +6,7 @@ import { Rig } from './rig.js';
 import { Stage } from './stage.js';
 import { getJSON, markSelected, showClips, showCollections, showSkeleton } from './panels.js';
 import { AnnotationEditor } from './annotations.js';
+import { PoseEditor } from './pose_editor.js';
 import { token, tokenPanel } from './token.js';
 import { uploadPanel } from './uploads.js';
 import { jobsPanel } from './jobs.js';
@@ -22,7 +23,22 @@ const editor = new AnnotationEditor({
   positions: () => (state.frames ? state.frames.positions : null),
   jointNames: () => (state.rig ? state.rig.joints.map((j) => j.name) : []),
   plotJoint: () => (state.jointMap ? state.jointMap.left_ankle : null), // a foot: where it plants
+  // the pose editor's: the stored motion (dashed) while an edit shows, and the next edit's blend range
+  originalPositions: () => poseEditor.originalPositions(),
+  blendRange: () => poseEditor.blendRange(),
+  revision: () => poseEditor.revision,
 });
+const poseEditor = new PoseEditor({
+  mode: $('pose-mode'), before: $('pose-before'), after: $('pose-after'), undo: $('pose-undo'),
+  save: $('pose-save'), discard: $('pose-discard'), status: $('pose-status'), notes: $('pose-notes'),
+}, {
+  state: () => state,
+  setFrame: (i) => setFrame(i),
+  pause: () => pause(),
+  reload: (clipId) => loadClip(clipId, false),
+  redrawPlot: () => editor.drawPlot(),
+  plotJoint: (index) => { $('plot-joint').value = String(index); editor.drawPlot(); },
+}, stage);
 const state = { clip: null, fps: 0, frames: null, frame: 0, playing: false, time: 0, highlighted: null, rig: null,
                 character: null };
 
@@ -46,7 +62,7 @@ async function allFrames(clipId, nFrames) {
 
 let latestLoad = 0; // only the clip asked for last is shown, however the answers arrive
 
-async function loadClip(clipId) {
+async function loadClip(clipId, autoplay = true) {
   const load = ++latestLoad;
   status(`loading clip ${clipId}…`);
   pause();
@@ -69,17 +85,18 @@ async function loadClip(clipId) {
   $('download-bvh').href = `/api/clips/${clip.id}/download?format=bvh&version=${clip.version}`;
   $('download-glb').href = `/api/clips/${clip.id}/download?format=glb&version=${clip.version}`;
   $('skeleton-name').textContent = `(${skeleton.name || skeleton.id}, ${skeleton.hierarchy.joints.length} joints)`;
-  showSkeleton($('skeleton'), skeleton.hierarchy.joints, (index) => { state.highlighted = index; setFrame(state.frame); });
+  showSkeleton($('skeleton'), skeleton.hierarchy.joints, (index) => poseEditor.select(index));
   $('timeline').max = String(clip.n_frames - 1);
   state.rig.pose(frames.rotations[0], frames.translations[0]);
   stage.setFigure(skeleton.hierarchy.joints.length, state.rig.worldPositions()[state.rig.pelvis]);
   stage.showSkeleton($('show-skeleton').checked || !character);
+  poseEditor.open(clip, skeleton);
   setFrame(0);
   status('');
   document.title = `MoDB: ${clip.collection}/${clip.name}`;
   history.replaceState(null, '', `?clip=${clip.id}`); // reload and share open this clip
   await editor.open(clip);
-  play(); // a chosen clip plays: the page shows something that moves
+  if (autoplay) play(); // a chosen clip plays: the page shows something that moves
   return true;
 }
 
@@ -93,6 +110,7 @@ function setFrame(index) {
              $('follow').checked);
   stage.drawAxes($('show-axes').checked ? state.rig.axisSegments(state.jointAxes) : null);
   $('timeline').value = String(state.frame);
+  poseEditor.frameChanged();
   editor.drawCursor();
   $('frame').textContent = `${state.frame} / ${n - 1}  ${(state.frame / state.fps).toFixed(2)} s`;
 }
@@ -214,6 +232,7 @@ window.modbViewer = {
   stage,
   state,
   editor,
+  pose: poseEditor,
   loadClip,
   setFrame,
   play,
