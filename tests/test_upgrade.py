@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import psycopg
+from psycopg.types.json import Jsonb
 import pytest
 from support.commands import run_modb
 from support.data import mocap
@@ -295,6 +296,36 @@ def _actions_after_the_update(db, walk_before) -> None:
         db.execute(AN_ACTION_NODE)
 
 
+POSE_EDITS = [{"op": "ik", "joint": "right_wrist", "time": 1.0, "offset": [0.0, 0.1, 0.0],
+               "before": 0.5, "after": 0.5},
+              {"op": "rotate", "joint": "left_elbow", "time": 1.0, "rotation": [0.0, 0.0, 20.0],
+               "before": 0.5, "after": 0.5}]  # fmt: skip
+STORE_SCRIPT = "INSERT INTO modb.edit_scripts (name, commands) VALUES ('pose', %s)"
+
+
+def _pose_edits_refused(db) -> None:
+    """0.29.0 knows no ik or rotate command: a script of them is refused."""
+    with db.transaction(force_rollback=True), pytest.raises(psycopg.Error, match='"ik"'):
+        db.execute(STORE_SCRIPT, [Jsonb(POSE_EDITS)])
+
+
+def _pose_edits_after_the_update(db) -> None:
+    """0.30.0 stores the script and applies it: a new version of the clip whose recorded script
+    holds both commands, the frames before the blend as they were (all rolled back after: the
+    data is compared with what it was below)."""
+    with db.transaction(force_rollback=True):
+        db.execute(STORE_SCRIPT, [Jsonb(POSE_EDITS)])
+        (clip, version, _, _) = db.execute(
+            "SELECT * FROM modb.apply_edit_script('pose', ARRAY[1::bigint])"
+        ).fetchone()
+        stored, before, after = db.execute(
+            "SELECT n.load_params->'edit_script'->'commands', o.rotations[1:10], n.rotations[1:10] "
+            "FROM modb.clip_versions o JOIN modb.clip_versions n USING (clip_id) "
+            "WHERE clip_id = %s AND o.version = %s - 1 AND n.version = %s",
+            [clip, version, version]).fetchone()  # fmt: skip
+    assert [c["op"] for c in stored] == ["ik", "rotate"] and before == after
+
+
 def _family_after_the_update(db, dsn) -> None:
     """Steps found again find the primitives beyond them and leave the step segments as they were:
     the models built from them stay current; the family graph keeps them and builds what it can."""
@@ -456,6 +487,8 @@ def test_update_keeps_the_data(fresh_db, db, old, fresh_load):
         _models_0_26_0_refuses(db)
     if old == "0.28.0":  # 0.29.0: actions beside the walk
         walk_before = _walk_of_step_models(db, fresh_db)
+    if old == "0.29.0":  # 0.30.0: the ik and rotate edit commands
+        _pose_edits_refused(db)
     before = db.execute(
         "SELECT clip_id, version, n_frames, meta, md5(rotations::text) FROM modb.clip_versions "
         "ORDER BY 1"
@@ -490,6 +523,8 @@ def test_update_keeps_the_data(fresh_db, db, old, fresh_load):
     if old == "0.28.0":
         _endings_after_the_update(db, endings_before)
         _actions_after_the_update(db, walk_before)
+    if old == "0.29.0":
+        _pose_edits_after_the_update(db)
     if old == "0.21.0":
         _models_in_versions(db, fresh_db, processed_before)
     if old == "0.22.0":

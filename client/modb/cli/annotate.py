@@ -103,14 +103,21 @@ def totals(found: Found) -> str:
     return f"{len(found)} clips: " + ", ".join(f"{summed[n]} {n}" for n in kinds)
 
 
-def steps(args: argparse.Namespace) -> int:
+def sources(conn: psycopg.Connection, args: argparse.Namespace) -> list[int] | None:
+    """The clips of the SOURCE arguments, each once (None, said why, when one names nothing)."""
     from modb.clips import ClipNotFound, clips_in
 
+    try:
+        return list(dict.fromkeys(c for spec in args.sources for c in clips_in(conn, spec)))
+    except ClipNotFound as e:
+        print(f"modb annotate: {e}", file=sys.stderr)
+        return None
+
+
+def steps(args: argparse.Namespace) -> int:
     with connect(args) as conn:
-        try:
-            clips = list(dict.fromkeys(c for spec in args.sources for c in clips_in(conn, spec)))
-        except ClipNotFound as e:
-            print(f"modb annotate: {e}", file=sys.stderr)
+        clips = sources(conn, args)
+        if clips is None:
             return 2
         found = find_steps(conn, args, clips)
     if isinstance(found, int):
@@ -162,13 +169,9 @@ def find_action(conn: psycopg.Connection, args: argparse.Namespace, clips: list[
 
 
 def action(args: argparse.Namespace) -> int:
-    from modb.clips import ClipNotFound, clips_in
-
     with connect(args) as conn:
-        try:
-            clips = list(dict.fromkeys(c for spec in args.sources for c in clips_in(conn, spec)))
-        except ClipNotFound as e:
-            print(f"modb annotate: {e}", file=sys.stderr)
+        clips = sources(conn, args)
+        if clips is None:
             return 2
         found = find_action(conn, args, clips)
     if isinstance(found, int):

@@ -12,7 +12,7 @@ import re
 from . import actions
 from . import memory
 from .database import StoreError
-from .step_annotations import CLIP, SET_META
+from .step_annotations import SET_META, current_version, motion_of
 
 NAME = re.compile(r"^[^\x00-\x1f\x7f,!:]{1,64}$")  # a primitive's name, as processed_data has it
 IDLE = "idle"
@@ -37,27 +37,9 @@ def annotate(db, clip, name):
             "comma, '!' or ':'), not idle: e.g. raise_right_hand",
             sqlstate="22023",
         )
-    rows = db.run(CLIP, [clip])
-    if not rows:
-        raise StoreError(
-            f"no clip {clip} with a version",
-            hint="modb.current_clips lists the stored clips",
-            sqlstate="P0002",
-        )
-    row = rows[0]
-    h = json.loads(row["hierarchy"])
-    joints = h["joints"]
+    row = current_version(db, clip)
     try:
-        found = actions.find(
-            [j["parent"] for j in joints],
-            [j["offset"] for j in joints],
-            row["rotations"],
-            row["translations"],
-            h["translated"],
-            [j["name"] for j in joints],
-            json.loads(row["joint_map"]),
-            row["fps"],
-        )
+        found = actions.find(*motion_of(row))
     except actions.ActionError as e:
         if str(e).startswith("the joint map"):
             hint = "complete modb.skeletons.joint_map for it, then find its action again"
@@ -80,6 +62,6 @@ def annotate(db, clip, name):
     version = row["version"]
     if json.dumps(meta, sort_keys=True) != before:  # the same action again: meta and ETag kept
         db.run(SET_META, [clip, version, json.dumps(meta)])
-    del row, rows  # the frames: their memory goes back to the system
+    del row  # the frames: their memory goes back to the system
     memory.release()
     return version, made

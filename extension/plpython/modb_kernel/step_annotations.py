@@ -27,13 +27,8 @@ SET_META = Statement(
 )
 
 
-def segment(name, start, end, keyframes):
-    return {"name": name, "start": start, "end": end, "keyframes": keyframes, "auto": True}
-
-
-def annotate(db, clip):
-    """Finds the clip's steps and stores them as its current version's automatic segments; returns
-    (version, [segment, ...])."""
+def current_version(db, clip):
+    """The CLIP row of the clip's current version (locked), or StoreError when it has none."""
     rows = db.run(CLIP, [clip])
     if not rows:
         raise StoreError(
@@ -41,20 +36,29 @@ def annotate(db, clip):
             hint="modb.current_clips lists the stored clips",
             sqlstate="P0002",
         )
-    row = rows[0]
+    return rows[0]
+
+
+def motion_of(row):
+    """(parents, offsets, rotations, translations, translated, names, joint_map, fps) of a CLIP
+    row: what primitives.find and actions.find take."""
     h = json.loads(row["hierarchy"])
     joints = h["joints"]
+    return ([j["parent"] for j in joints], [j["offset"] for j in joints], row["rotations"],
+            row["translations"], h["translated"], [j["name"] for j in joints],
+            json.loads(row["joint_map"]), row["fps"])  # fmt: skip
+
+
+def segment(name, start, end, keyframes):
+    return {"name": name, "start": start, "end": end, "keyframes": keyframes, "auto": True}
+
+
+def annotate(db, clip):
+    """Finds the clip's steps and stores them as its current version's automatic segments; returns
+    (version, [segment, ...])."""
+    row = current_version(db, clip)
     try:
-        found = primitives.find(
-            [j["parent"] for j in joints],
-            [j["offset"] for j in joints],
-            row["rotations"],
-            row["translations"],
-            h["translated"],
-            [j["name"] for j in joints],
-            json.loads(row["joint_map"]),
-            row["fps"],
-        )
+        found = primitives.find(*motion_of(row))
     except S.StepError as e:
         raise StoreError(
             f"clip {clip}: skeleton {row['skeleton_id']}: {e}",
@@ -74,6 +78,6 @@ def annotate(db, clip):
     version = row["version"]
     if json.dumps(meta, sort_keys=True) != before:  # the same steps again: meta and ETag kept
         db.run(SET_META, [clip, version, json.dumps(meta)])
-    del row, rows  # the frames: their memory goes back to the system
+    del row  # the frames: their memory goes back to the system
     memory.release()
     return version, made
