@@ -340,3 +340,20 @@ def test_a_hand_turned_by_the_gizmo_is_the_rotation_times_the_original(site, bro
     assert browser.execute_script("return window.modbViewer.pose.commands.length") == 0
     assert browser.execute_script("return window.modbViewer.state.clip.version") == (
         after.meta["version"])  # fmt: skip
+
+
+def test_a_preview_takes_the_pose_commands_only_and_a_bounded_number(site):
+    """Other scripts are applied, not previewed; a script of more than edit_preview.MAX_COMMANDS
+    commands is refused before any work."""
+    from modb.web.edit_preview import MAX_COMMANDS
+
+    address, _, _, clip = site
+    turn = {"op": "rotate", "joint": "left_elbow", "time": 1.0, "rotation": [0.0, 0.0, 1.0],
+            "before": 0.1, "after": 0.1}  # fmt: skip
+    with httpx.Client(base_url=f"http://{address}", timeout=60) as client:
+        trim = client.post(f"/api/clips/{clip}/edit-preview",
+                           json={"commands": [{"op": "trim", "start": 0, "end": 10}]})  # fmt: skip
+        many = client.post(f"/api/clips/{clip}/edit-preview",
+                           json={"commands": [turn] * (MAX_COMMANDS + 1)})  # fmt: skip
+    assert trim.status_code == 400 and "'trim' is applied, not previewed" in trim.json()["error"]
+    assert many.status_code == 400 and f"at most {MAX_COMMANDS} commands" in many.json()["error"]

@@ -5,8 +5,10 @@ edits.apply_with_notes: the code `modb edit apply` and POST /api/edit-scripts/NA
 what the page previews is what saving stores (within float4's rounding). A read: a reader may ask
 (a token only with --require-token); nothing is written.
 
-The answer: the frames that differ from the version's, start..start+count-1 (for a script of ik
-and rotate commands, the frames their blend ranges cover; for others, every frame), as
+It takes the pose editor's commands, ik and rotate, at most MAX_COMMANDS (each costs a solve over
+its blend range: the work and the answer stay bounded; other scripts are applied, not previewed).
+The answer: the frames that differ from the version's, start..start+count-1 (the frames the blend
+ranges cover), as
 /api/clips/ID/frames gives them (local rotations, translations, world positions), and each
 command's note (edits.apply_with_notes: for ik the target, the point reached, its distance, and a
 message when the target is out of reach)."""
@@ -35,6 +37,7 @@ from .bodies import parse
 from .body_models import EDIT_SCRIPT, Body
 
 MAX_BODY_BYTES = 1 << 20  # a script of a few thousand commands
+MAX_COMMANDS = 100  # a pose edited by hand: far more drags than anyone makes in one go
 
 
 class EditPreview(Body):
@@ -66,41 +69,39 @@ async def _read(request: Request) -> bytes:
     return bytes(raw)
 
 
-def _window(commands: list[dict[str, Any]], notes: list, n_before: int, n_after: int
-            ) -> tuple[int, int]:  # fmt: skip
-    """(first, last) frame that may differ from the version's."""
-    if n_before != n_after or any(c["op"] not in pose_edits.EDITS for c in commands):
-        return 0, n_after - 1
+def _window(notes: list) -> tuple[int, int]:
+    """(first, last) frame that may differ from the version's: the commands' blend ranges."""
     spans = [n["frames"] for n in notes if n is not None]
     return min(s[0] for s in spans), max(s[1] for s in spans)
 
 
 def preview(conn: psycopg.Connection, clip_id: int, commands: list[dict[str, Any]]) -> dict:
     """The script's result on the clip's current version: the frames it changes and the notes."""
-    if any(c.get("op") == "retarget" for c in commands):
-        raise BadRequest("a preview shows a clip on its own skeleton: retarget is not previewed")
+    others = sorted({c.get("op") for c in commands} - set(pose_edits.EDITS))
+    if others:
+        raise BadRequest(f"a preview takes the pose editor's commands, ik and rotate: "
+                         f"{others[0]!r} is applied, not previewed (modb edit apply, POST "
+                         "/api/edit-scripts/NAME/apply)")  # fmt: skip
+    if len(commands) > MAX_COMMANDS:
+        raise BadRequest(f"a preview takes at most {MAX_COMMANDS} commands, got {len(commands)}: "
+                         "save the edits so far, then go on")
     found = conn.execute(
         "SELECT version, n_frames FROM modb.current_clips WHERE clip_id = %s", [clip_id]
     ).fetchone()
     if found is None:
         raise NotFound(f"no clip with id {clip_id} (with a version of its own)")
-    version, n_frames = found
+    version = found[0]
     db = WorkerDatabase(conn)
     clip = edit_clips.current_clip(db, clip_id)
     if clip is None:
         raise NotFound(f"no clip with id {clip_id}")
     sk = clip["skeleton"]
-    n_result, _, largest = E.result_frames(commands, clip["rotations"].shape[0], clip["fps"])
-    try:
-        E.check_result_size(largest, len(sk["parents"]), len(sk["translated"]),
-                            f"the preview of clip {clip_id}")  # fmt: skip
-        edited, notes = E.apply_with_notes(
-            clip, commands, lambda c: edit_clips.current_clip(db, c) if isinstance(c, int) else None
-        )
+    try:  # ik and rotate keep the clip's frames: no result larger than the version
+        edited, notes = E.apply_with_notes(clip, commands)
     except E.EditError as e:
         raise BadRequest(str(e)) from None
     rotations, translations = edited["rotations"], edited["translations"]
-    first, last = _window(commands, notes, clip["rotations"].shape[0], rotations.shape[0])
+    first, last = _window(notes)
     part = slice(first, last + 1)
     positions = kinematics.world_positions(sk["parents"], sk["offsets"], rotations[part],
                                            translations[part], sk["translated"])  # fmt: skip

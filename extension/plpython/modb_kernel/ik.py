@@ -8,7 +8,9 @@
   from the limb's root toward the target, at the limb's full (or least) length.
 - ccd: cyclic coordinate descent over a longer chain of joints (the DFKI motion editor's choice):
   each joint, from the end inward, turned so that the end points at the target, until the end is
-  within TOLERANCE_M or ITERATIONS rounds have run.
+  within TOLERANCE_M or ITERATIONS rounds have run. The edit scripts' `ik` (pose_edits.py) and the
+  actions' arm (reach.py) solve their chains by least squares instead (hinge elbows and knees, joint
+  limits), and spread the change with falloff/spread_from below.
 - spread: a change made at one frame carried over the frames around it, each joint's change
   weighted by a cubic B-spline bump (1 at the frame, falling smoothly to 0 at the range's ends).
 

@@ -20,14 +20,16 @@ async function send(url, method, body) {
     method, headers: { 'Content-Type': 'application/json', ...token.headers() }, body: JSON.stringify(body),
   });
   const answer = await response.json().catch(() => ({}));
-  if (!response.ok) throw new Error(answer.error || `${url}: HTTP ${response.status}`);
+  if (!response.ok) throw Object.assign(new Error(answer.error || `${url}: HTTP ${response.status}`), { status: response.status });
   return answer;
 }
 
 // The character's heading at a frame, as the kernel takes it (terminators.headings): forward is the hip
 // axis (left minus right) turned to the ground's +Z side, averaged over +-0.25 s; the angle about +Y.
 export function headingAt(positions, frame, leftHip, rightHip, fps) {
-  const half = Math.round(0.25 * fps);
+  // Python's round(): halves to even (at 10, 50, 90 fps Math.round would widen the window by a frame)
+  const scaled = 0.25 * fps, floor = Math.floor(scaled);
+  const half = scaled - floor === 0.5 ? floor + (floor % 2) : Math.round(scaled);
   let x = 0, z = 0;
   for (let f = Math.max(0, frame - half); f < Math.min(positions.length, frame + half + 1); f++) {
     const l = positions[f][leftHip], r = positions[f][rightHip];
@@ -68,6 +70,7 @@ export class PoseEditor {
     ui.discard.addEventListener('click', () => this.discard());
     ui.save.addEventListener('click', () => this.save());
     this.show();
+    this.say('click a joint of the character (or in the joint tree) to edit its pose');
   }
 
   // A clip opened (or saved and read again): its frames as stored are the original; no commands.
@@ -88,6 +91,7 @@ export class PoseEditor {
   // Selects a joint (a skeleton index, or null): highlighted, the gizmo on it, its height plotted.
   select(index) {
     const state = this.viewer.state();
+    if (index !== null) this.viewer.pause(); // a joint is edited at the frame shown: the clip stops there
     this.selected = index;
     state.highlighted = index;
     if (index === null || !this.standard[this.names[index]]) {
@@ -238,9 +242,11 @@ export class PoseEditor {
       const answer = await send(`/api/clips/${clip.id}/edit-preview`, 'POST', { commands: script });
       if (clip === this.clip) this.showFrames(answer, text);
     } catch (error) {
-      if (clip === this.clip) { // the server refused the script: its last command is not kept
+      if (clip === this.clip) {
         this.say(`preview: ${error.message}`, true);
-        if (this.commands.length && text === JSON.stringify(this.commands)) this.commands.pop();
+        // the server refused the script (400): its last command is not kept; a busy server (503) or a
+        // lost connection keeps it, and the next change asks again
+        if (error.status === 400 && this.commands.length && text === JSON.stringify(this.commands)) this.commands.pop();
         this.shownScript = text; // not sent again unless it changes
       }
     } finally {
@@ -294,6 +300,11 @@ export class PoseEditor {
     if (!this.commands.length || !this.clip) return;
     if (!token.get()) return this.say('saving needs a loader token: paste one under "Access token"', true);
     const clip = this.clip;
+    // the edits were made on the version shown: saved only onto that one (another tab may have saved since)
+    const current = await fetch(`/api/clips/${clip.id}`, { headers: token.headers() }).then((r) => r.json()).catch(() => ({}));
+    if (current.version !== undefined && current.version !== clip.version) {
+      return this.say(`save: clip ${clip.id} has a newer version (${current.version}) than the one edited (${clip.version}): discard and edit it again`, true);
+    }
     const name = `pose edit of clip ${clip.id} ${new Date().toISOString()}`;
     const path = `/api/edit-scripts/${encodeURIComponent(name)}`;
     this.say('saving…');
