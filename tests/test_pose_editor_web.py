@@ -357,3 +357,25 @@ def test_a_preview_takes_the_pose_commands_only_and_a_bounded_number(site):
                            json={"commands": [turn] * (MAX_COMMANDS + 1)})  # fmt: skip
     assert trim.status_code == 400 and "'trim' is applied, not previewed" in trim.json()["error"]
     assert many.status_code == 400 and f"at most {MAX_COMMANDS} commands" in many.json()["error"]
+
+
+def test_the_blend_range_is_chosen_on_the_timelines_plot(site, browser):
+    """A shift-click on the plot left of the frame shown sets the blend's start (before), right of
+    it its end (after), in seconds from the frame."""
+    from selenium.webdriver.common.keys import Keys
+
+    address, dsn, token, clip = site
+    fps, n = motion(dsn, clip).fps, motion(dsn, clip).n_frames
+    open_clip(browser, address, clip, token)
+    frame = at_frame(browser, 3.0)
+    click_joint(browser, HAND)
+    plot = browser.find_element(By.ID, "plot")
+    width = plot.size["width"]
+    for target, field in ((frame - round(1.2 * fps), "pose-before"),
+                          (frame + round(0.8 * fps), "pose-after")):  # fmt: skip
+        offset = round(target / (n - 1) * width - width / 2)  # from the plot's centre
+        (ActionChains(browser).key_down(Keys.SHIFT).move_to_element_with_offset(plot, offset, 0)
+         .click().key_up(Keys.SHIFT).perform())  # fmt: skip
+        value = float(browser.find_element(By.ID, field).get_attribute("value"))
+        assert abs(value - abs(target - frame) / fps) <= 1.5 / fps * (n - 1) / width + 0.02, value
+

@@ -69,6 +69,17 @@ export class PoseEditor {
     ui.undo.addEventListener('click', () => this.undo());
     ui.discard.addEventListener('click', () => this.discard());
     ui.save.addEventListener('click', () => this.save());
+    // the blend range chosen on the timeline's plot: a shift-click left of the frame shown sets where the
+    // change starts (before), right of it where it ends (after)
+    const plot = document.getElementById('plot');
+    plot?.addEventListener('click', (e) => {
+      if (!e.shiftKey || this.selected === null || !this.clip) return;
+      const rect = plot.getBoundingClientRect();
+      const frame = Math.round(((e.clientX - rect.left) / rect.width) * (this.clip.n_frames - 1));
+      const seconds = (Math.abs(frame - this.viewer.state().frame) / this.clip.fps).toFixed(2);
+      (frame < this.viewer.state().frame ? ui.before : ui.after).value = String(Math.min(10, seconds));
+      this.viewer.redrawPlot();
+    });
     this.show();
     this.say('click a joint of the character (or in the joint tree) to edit its pose');
   }
