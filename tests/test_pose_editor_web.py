@@ -264,6 +264,10 @@ def test_a_hand_dragged_10_cm_by_the_gizmo_is_previewed_and_saved_at_its_target(
     g = gizmo(browser)
     y_axis = np.array(g["axes"][1])
     assert np.allclose(y_axis, [0, 1, 0], atol=1e-9)  # the heading frame's up
+    # its x and z: the character's left and forward at that frame, by the test's own heading
+    facing = Rotation.from_rotvec([0.0, heading(before, positions(before), frame), 0.0])
+    assert np.allclose(g["axes"][0], facing.apply([1.0, 0.0, 0.0]), atol=1e-5), g["axes"]
+    assert np.allclose(g["axes"][2], facing.apply([0.0, 0.0, 1.0]), atol=1e-5), g["axes"]
     grip = np.array(g["at"]) + 0.45 * g["scale"] * y_axis  # on the Y arrow's picker
     x0, y0 = screen(browser, grip)
     x1, y1 = screen(browser, grip + [0.0, 0.1, 0.0])
