@@ -46,8 +46,8 @@ import psycopg
 
 from modb.jobs.kernel_database import WorkerDatabase
 from modb.models.examples import training_motions
-from modb_kernel import (inertialization, model_actions, model_synthesis, motion_model, quaternion,
-                         standing)  # fmt: skip
+from modb_kernel import (inertialization, kinematics, model_actions, model_synthesis, motion_model,
+                         quaternion, standing)  # fmt: skip
 
 DISTANCES_M = (0.1, 0.2, 0.3)
 DIRECTIONS = ("up", "down", "front", "back", "out", "in")
@@ -85,10 +85,7 @@ def reach_actions(models: dict, types: dict, wanted: list[str] | None) -> list[s
     return [n for n in reach if n in wanted]
 
 
-def body_jumps(p: np.ndarray, pelvis: int) -> np.ndarray:
-    """Per frame step, the largest move of a joint relative to the pelvis's ground point."""
-    pose = p - (p[:, pelvis] * np.array([1.0, 0.0, 1.0]))[:, None]
-    return np.linalg.norm(np.diff(pose, axis=0), axis=-1).max(axis=1)
+body_jumps = kinematics.pose_jumps  # per frame step, a joint's largest move about the pelvis
 
 
 def sliding(p: np.ndarray, ankles: list[int]) -> float:

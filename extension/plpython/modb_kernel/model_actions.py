@@ -201,9 +201,7 @@ def perform(synthesis, node, action):
                       refined_error_m=float(model.errors(refined, local)[0]))  # fmt: skip
         record["error_m"] = record["refined_error_m"]
     if model.keyframe is None:  # a repeated motion: a calm draw of its mixture
-        drawn = motion_model.draw_scores(model.model["mixture"], 1, int(syn.rng.integers(2**31)))
-        mean = model.mixture_means[model.mahalanobis(drawn)[1][0]]
-        scores = mean + REPEAT_SPREAD * (drawn[0] - mean)
+        scores = model.calm_draw(syn.rng, REPEAT_SPREAD)
     split = model.split
     rotations, translations, times = motion_model.frames_from_scores(model.model, scores[:split],
                                                                      scores[split:])  # fmt: skip

@@ -552,9 +552,7 @@ class Synthesis:
         if isinstance(source, str):
             model = self.models[source].model
             split = len(model["spatial"]["components"])
-            drawn = motion_model.draw_scores(model["mixture"], 1, int(self.rng.integers(2**31)))
-            mean = self.models[source].mixture_means[self.models[source].mahalanobis(drawn)[1][0]]
-            scores = mean + IDLE_SPREAD * (drawn[0] - mean)  # calm: nearer its component's mean
+            scores = self.models[source].calm_draw(self.rng, IDLE_SPREAD)
             frames = motion_model.frames_from_scores(model, scores[:split], scores[split:])
             return frames[0], frames[1]
         return source.piece(self.rng)

@@ -281,6 +281,13 @@ class StepModel:
         heading = HEADING_WEIGHT_M * wrap(turn - target[2])[:, None]
         return np.concatenate([landing - target[:2], heading], axis=1)
 
+    def calm_draw(self, rng, spread):
+        """One draw of the mixture (its seed from rng) taken `spread` of the way from its
+        component's mean (0: the mean; 1: as drawn): an idle piece, a repeated action."""
+        drawn = motion_model.draw_scores(self.model["mixture"], 1, int(rng.integers(2**31)))
+        mean = self.mixture_means[self.mahalanobis(drawn)[1][0]]
+        return mean + spread * (drawn[0] - mean)
+
     def best_random(self, target, rng, n=RANDOM_BASELINE):
         """The least constraint error among n draws of the mixture (the baseline the search must
         beat)."""
