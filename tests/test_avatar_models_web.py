@@ -166,12 +166,16 @@ def choose_mode(driver, value: str) -> dict:
     since = len(page_state(driver)["messages"])
     frames = page_state(driver)["frames"]
     Select(driver.find_element(By.ID, "mode")).select_by_value(value)
+
+    def switched(s: dict) -> bool:
+        answer = [m["type"] for m in s["messages"][since:] if m["type"] in ("mode", "refused")]
+        # a frame of the new avatar: the mode message empties the trail, its first frame starts it
+        # (a frame of the last walk may arrive between the choice and the answer)
+        return bool(answer) and s["frames"] > frames and (answer[-1] == "refused" or bool(s["trail"]))
+
     return wait_until(
         driver,
-        lambda s: (
-            any(m["type"] in ("mode", "refused") for m in s["messages"][since:])
-            and s["frames"] > frames
-        ),
+        switched,
         30,
         f"the mode {value!r} and its standing avatar",
     )
