@@ -171,7 +171,8 @@ def choose_mode(driver, value: str) -> dict:
         answer = [m["type"] for m in s["messages"][since:] if m["type"] in ("mode", "refused")]
         # a frame of the new avatar: the mode message empties the trail, its first frame starts it
         # (a frame of the last walk may arrive between the choice and the answer)
-        return bool(answer) and s["frames"] > frames and (answer[-1] == "refused" or bool(s["trail"]))
+        new_avatar = bool(answer) and (answer[-1] == "refused" or bool(s["trail"]))
+        return new_avatar and s["frames"] > frames
 
     return wait_until(
         driver,
