@@ -160,23 +160,53 @@ def test_two_bone_takes_a_pole_and_an_end_orientation(motion):
     assert change.max() < 1e-6
 
 
-def test_ccd_meets_targets_along_a_longer_chain(motion):
+def test_the_chain_solver_meets_targets_along_a_longer_chain(motion):
     sk = motion.skeleton
-    chain = [sk.index(sk.joint_map[n]) for n in ("chest", "left_wrist")]
+    chest, wrist = (sk.index(sk.joint_map[n]) for n in ("chest", "left_wrist"))
+    joints = ik.path(sk.parents, chest, wrist)[:-1]
+    local = ik.local_offsets(sk.offsets, sk.translated, motion.translations)
     before = positions(motion, motion.rotations)
-    targets = before[:, chain[1]] + RNG.normal(size=(motion.n_frames, 3)) * 0.08
-    rotations, reached, miss = ik.ccd(sk.parents, sk.offsets, motion.rotations, motion.translations,
-                                      sk.translated, chain, targets)  # fmt: skip
-    after = positions(motion, rotations)
-    assert np.abs(np.linalg.norm(after[:, chain[1]] - targets, axis=-1)).max() < 1e-3
-    kids = [j for j, p in enumerate(sk.parents) if p >= 0]
-    parents = [sk.parents[j] for j in kids]
-    length = lambda p: np.linalg.norm(p[:, kids] - p[:, parents], axis=-1)  # noqa: E731
-    assert np.abs(length(after) - length(before)).max() < 1e-9
-    assert np.allclose(miss, np.linalg.norm(after[:, chain[1]] - targets, axis=-1), atol=1e-9)
-    hand = (world_rotations(motion, rotations, chain[1])
-            * world_rotations(motion, motion.rotations, chain[1]).inv()).magnitude()
-    assert hand.max() < 1e-6
+    others = [j for j in range(len(sk.parents)) if j not in joints]
+    for frame in (0, motion.n_frames // 2, motion.n_frames - 1):
+        target = before[frame, wrist] + RNG.normal(size=3) * 0.08
+        turns = ik.Turns(sk.parents, local[frame], motion.rotations[frame], joints, [wrist])
+        pose, reached = ik.solve(turns, target[None])
+        rotations = motion.rotations.copy()
+        rotations[frame] = pose
+        after = positions(motion, rotations)[frame]
+        assert np.linalg.norm(after[wrist] - target) < 1e-3
+        assert np.allclose(after[wrist], reached[0], atol=1e-9)
+        assert np.array_equal(pose[others], motion.rotations[frame, others])
+
+
+def test_the_chain_solver_and_two_bone_meet_a_leg_target_bending_the_knee_alike(motion):
+    """two_bone is the chain solver's closed form for a limb: on a leg with the knee a hinge,
+    both put the ankle on a reachable target, the knee bent to the same side of the limb."""
+    sk = motion.skeleton
+    hip, knee, ankle = leg(motion)
+    local = ik.local_offsets(sk.offsets, sk.translated, motion.translations)
+    before = positions(motion, motion.rotations)
+    targets = before[:, ankle] + [0.0, 0.1, 0.05]
+    closed, _, _ = solve_two_bone(motion, (hip, knee, ankle), targets)
+    closed_p = positions(motion, closed)
+    axis = ik.hinge_axis(motion.rotations, local, knee, ankle)
+    assert axis is not None
+    for frame in range(0, motion.n_frames, max(1, motion.n_frames // 6)):
+        turns = ik.Turns(sk.parents, local[frame], motion.rotations[frame], [knee, hip],
+                         [ankle], {knee: axis})  # fmt: skip
+        pose, _ = ik.solve(turns, targets[frame][None])
+        rotations = motion.rotations.copy()
+        rotations[frame] = pose
+        p = positions(motion, rotations)[frame]
+        assert np.linalg.norm(p[ankle] - targets[frame]) < 1e-3
+        assert np.linalg.norm(closed_p[frame, ankle] - targets[frame]) < 1e-3
+
+        def side(q):  # the knee's offset from the hip-ankle line, as a unit vector
+            line = (q[ankle] - q[hip]) / np.linalg.norm(q[ankle] - q[hip])
+            off = (q[knee] - q[hip]) - np.dot(q[knee] - q[hip], line) * line
+            return off / np.linalg.norm(off)
+
+        assert np.dot(side(p), side(closed_p[frame])) > 0.9, frame
 
 
 def test_the_falloff_is_a_cubic_b_spline_bump_and_spread_keeps_frames_outside():

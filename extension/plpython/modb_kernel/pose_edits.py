@@ -29,13 +29,12 @@ keep their rotations byte for byte, and no translation ever changes (bone length
   original (q_rot * q_joint), the frames around it turned by a share of it (the same axis, the
   shorter way round).
 
-The IK at the frame: damped least squares (Levenberg-Marquardt on the geometric Jacobian) of the
-joint's position over the chain's turns, each turn a rotation vector in its joint's own frame, an
-elbow or a knee (the joint map's) turned only about the axis the motion itself bends it about (its
-bend plane in the parent's frame, averaged over the clip, weighted by the bend), so the limb bends
-as a hinge; the smallest turns that meet the target (minimum-norm steps from the motion's pose).
-A target the chain cannot reach ends at the nearest point it reaches (the least-squares minimum);
-edit() returns that point and its distance (a note), and the edit is kept.
+The IK at the frame is the kernel's chain solver (ik.solve, the one the actions' arm uses): least
+squares of the joint's position over the chain's turns, each turn a rotation vector in its joint's
+own frame, an elbow or a knee (the joint map's) turned only about the axis the motion itself bends
+it about (ik.hinge_axis), so the limb bends as a hinge; each turn costs a little (TURN_COST), so
+the smallest turns that meet the target win. A target the chain cannot reach ends at the nearest
+point it reaches; edit() returns that point and its distance (a note), and the edit is kept.
 """
 
 import math
@@ -48,15 +47,11 @@ from . import kinematics, quaternion, terminators
 # saved, imports this module for its parameters alone.
 
 REACHED_M = 1e-3  # a target counts as met within this distance
-SOLVED_M = 1e-5  # the solver stops this close to the target
-ITERATIONS = 200  # the solver's most steps
-DAMPING_M = 0.01  # Levenberg-Marquardt's starting damping (metres per radian)
-MOST_TURN = 0.5  # radians: the most one step turns any joint
 LIMB_MIDDLES = ("left_knee", "right_knee", "left_elbow", "right_elbow")  # hinges when in a chain
-# How readily a chain's joints turn (the least-squares steps' scale of each joint's turn): the two
-# nearest the end (a limb's middle and root: elbow and shoulder, knee and hip) fully, those above
-# (a clavicle, CMU's hip bone) a third as much, as people reach with the arm before the shoulder.
-NEAR_WEIGHT, FAR_WEIGHT = 1.0, 1.0 / 3.0
+# What a chain's joints' turns cost (metres per radian, as reach.REGULARIZE): the two nearest the
+# end (a limb's middle and root: elbow and shoulder, knee and hip) least, those above (a clavicle,
+# CMU's hip bone) three times as much, as people reach with the arm before the shoulder.
+TURN_COST = {"near": 1e-3, "far": 3e-3}
 
 OFFSET_M = 2.0  # an ik offset's components are from -2 to 2 metres
 MOST_DEGREES = 360.0  # rotation vectors' components (ik's orientation, rotate's rotation): degrees
@@ -177,131 +172,6 @@ def chain_of(sk, joint, count=None):
     return out
 
 
-def _local_offsets(sk, translations):
-    """(frames, joints, 3): each joint's offset from its parent in the parent's frame."""
-    n = translations.shape[0]
-    local = np.broadcast_to(np.asarray(sk["offsets"], dtype=np.float64),
-                            (n, len(sk["parents"]), 3)).copy()  # fmt: skip
-    if len(sk["translated"]):
-        local[:, list(sk["translated"])] = translations
-    return local
-
-
-def _unit(v):
-    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)
-
-
-def _hinge_axis(rotations, local, middle, end):
-    """The axis (in the middle joint's parent frame) the motion bends the middle joint about: the
-    normal of the plane of the bones before and after it, averaged over the clip (weighted by the
-    sine of the bend); None when the limb is straight throughout."""
-    upper = _unit(local[:, middle])
-    lower = quaternion.rotate(rotations[:, middle], _unit(local[:, end]))
-    normal = np.cross(upper, lower).sum(0)
-    size = np.linalg.norm(normal)
-    if size < 1e-6 * len(upper) or np.linalg.norm(local[:, middle], axis=-1).min() < 1e-6:
-        return None
-    return normal / size
-
-
-class _Chain:
-    """The frame's pose as the chain's turns move it: positions and orientations along the path
-    from the top joint to the end joint, and their Jacobian."""
-
-    def __init__(self, parents, local, pose, joints, end, hinges):
-        self.parents, self.local, self.end = parents, local, end
-        path, j = [], end
-        while j >= 0:
-            path.append(j)
-            j = parents[j]
-        self.path = path[::-1]  # top joint first
-        self.joints = joints  # nearest first
-        self.hinges = hinges  # joint -> axis in its parent frame
-        self.pose = pose.copy()
-
-    def forward(self, pose):
-        pos, ori = {}, {}
-        for j in self.path:
-            p = self.parents[j]
-            if p < 0:
-                pos[j], ori[j] = self.local[j].copy(), pose[j]
-            else:
-                pos[j] = pos[p] + quaternion.rotate(ori[p], self.local[j])
-                ori[j] = quaternion.multiply(ori[p], pose[j])
-        return pos, ori
-
-    def scale(self):
-        """(parameters,): each parameter's weight (NEAR_WEIGHT, FAR_WEIGHT)."""
-        out = []
-        for k, j in enumerate(self.joints):
-            weight = NEAR_WEIGHT if k < 2 else FAR_WEIGHT
-            out += [weight] * (1 if j in self.hinges else 3)
-        return np.array(out)
-
-    def jacobian(self, pos, ori):
-        """(3, parameters): how the end moves per radian of each parameter."""
-        columns = []
-        lever = {j: pos[self.end] - pos[j] for j in self.joints}
-        for j in self.joints:
-            if j in self.hinges:
-                p = self.parents[j]
-                axis = quaternion.rotate(ori[p], self.hinges[j]) if p >= 0 else self.hinges[j]
-                columns.append(np.cross(axis, lever[j]))
-            else:
-                for e in np.eye(3):
-                    columns.append(np.cross(quaternion.rotate(ori[j], e), lever[j]))
-        return np.stack(columns, axis=1)
-
-    def turned(self, pose, step):
-        out, k = pose.copy(), 0
-        for j in self.joints:
-            if j in self.hinges:
-                turn = quaternion.from_rotation_vector(step[k] * self.hinges[j])
-                out[j] = quaternion.canonical(quaternion.multiply(turn, pose[j]))
-                k += 1
-            else:
-                turn = quaternion.from_rotation_vector(step[k:k + 3])
-                out[j] = quaternion.canonical(quaternion.multiply(pose[j], turn))
-                k += 3
-        return out
-
-
-def solve(chain, target):
-    """(pose, reached, distance): the frame's pose whose end is nearest the target
-    (Levenberg-Marquardt, minimum-norm steps from the motion's own pose, each joint's turn scaled
-    by its weight)."""
-    pose = chain.pose
-    pos, ori = chain.forward(pose)
-    error = target - pos[chain.end]
-    distance = float(np.linalg.norm(error))
-    damping = DAMPING_M
-    scale = chain.scale()
-    for _ in range(ITERATIONS):
-        if distance <= SOLVED_M:
-            break
-        jac = chain.jacobian(pos, ori) * scale
-        step = scale * (jac.T @ np.linalg.solve(jac @ jac.T + damping**2 * np.eye(3), error))
-        largest = np.abs(step).max()
-        if largest > MOST_TURN:
-            step *= MOST_TURN / largest
-        trial = chain.turned(pose, step)
-        trial_pos, trial_ori = chain.forward(trial)
-        trial_error = target - trial_pos[chain.end]
-        trial_distance = float(np.linalg.norm(trial_error))
-        if trial_distance < distance:
-            progress = distance - trial_distance
-            pose, pos, ori, error, distance = trial, trial_pos, trial_ori, trial_error, (
-                trial_distance)  # fmt: skip
-            damping = max(damping * 0.5, 1e-6)
-            if progress < 1e-9:  # the nearest point of an unreachable target
-                break
-        else:
-            damping *= 4.0
-            if damping > 1e3:
-                break
-    return pose, pos[chain.end], distance
-
-
 def _heading_turn(clip, frame):
     """The rotation about +Y taking the character's heading frame at the frame to the world."""
     sk = clip["skeleton"]
@@ -374,6 +244,8 @@ def inverse_kinematics(clip, command):
     edited and the first and last frames changed, the chain's joints, the target and the point
     reached (world metres, at the frame), their distance (distance_m), whether it is met (within
     REACHED_M) and, when it is not, a message saying so."""
+    from . import ik
+
     _checked(command)
     sk = clip["skeleton"]
     parents = sk["parents"]
@@ -384,29 +256,32 @@ def inverse_kinematics(clip, command):
         raise PoseEditError(f'ik: no joint above {command["joint"]} may turn (the pelvis and the '
                             "top joint stay): use rotate")
     rotations, translations = clip["rotations"], clip["translations"]
-    local = _local_offsets(sk, translations)
+    local = ik.local_offsets(sk["offsets"], sk["translated"], translations)
     by_name = {sk["names"].index(n): s for s, n in sk["joint_map"].items() if n in sk["names"]}
     hinges = {}
     if len(joints) > 1 and by_name.get(joints[0]) in LIMB_MIDDLES:
-        axis = _hinge_axis(rotations, local, joints[0], joint)
+        axis = ik.hinge_axis(rotations, local, joints[0], joint)
         if axis is not None:
             hinges[joints[0]] = axis
     heading = _heading_turn(clip, frame)
     pose = np.array(rotations[frame], dtype=np.float64)
-    chain = _Chain(parents, local[frame], pose, joints, joint, hinges)
-    start_pos, start_ori = chain.forward(pose)
+    cost = {j: TURN_COST["near" if k < 2 else "far"] for k, j in enumerate(joints)}
+    turns = ik.Turns(parents, local[frame], pose, joints, [joint], hinges, cost)
+    start_pos, start_ori = kinematics.world_transforms(
+        parents, sk["offsets"], pose[None], translations[frame:frame + 1], sk["translated"])
     offset = quaternion.rotate(heading, np.asarray(command["offset"], dtype=np.float64))
-    target = start_pos[joint] + offset
-    solved, _, _ = solve(chain, target)
+    target = start_pos[0, joint] + offset
+    solved, _ = ik.solve(turns, target[None])
     # the joint's own rotation: its world orientation kept, or turned by `orientation`
-    world = start_ori[joint]
+    world = start_ori[0, joint]
     if "orientation" in command:
         turn = np.radians(np.asarray(command["orientation"], dtype=np.float64))
         world = quaternion.multiply(
             quaternion.from_rotation_vector(quaternion.rotate(heading, turn)), world)
-    _, solved_ori = chain.forward(solved)
+    _, solved_ori = kinematics.world_transforms(
+        parents, sk["offsets"], solved[None], translations[frame:frame + 1], sk["translated"])
     solved[joint] = quaternion.canonical(
-        quaternion.multiply(quaternion.conjugate(solved_ori[parents[joint]]), world))
+        quaternion.multiply(quaternion.conjugate(solved_ori[0, parents[joint]]), world))
     falloff = weights(clip, command, frame)
     moved = joints + [joint]
     out = _spread(clip, frame, solved, moved, falloff)

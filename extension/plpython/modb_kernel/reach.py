@@ -20,10 +20,11 @@ how many frames before and after the keyframe the change reaches (default: to th
 and last frame, which, like every frame outside the range, stay exactly as they were); spine,
 whether the spine may help (default True).
 
-How: the pose at the keyframe is solved by a bounded least-squares fit (scipy's least_squares) of
-the wrists to their targets over a few joints' turns, then carried over the frames around it by
-the DFKI motion editor's cubic B-spline falloff (ik.falloff, ik.spread_from), and each moved joint
-is kept within its allowance on every frame. The joints and why:
+How: the pose at the keyframe is solved by the kernel's chain solver (ik.solve: least squares of
+the wrists to their targets over a few joints' turns, joint limits as its penalties), then carried
+over the frames around it by the DFKI motion editor's cubic B-spline falloff (ik.falloff,
+ik.spread_from), and each moved joint is kept within its allowance on every frame. The joints
+and why:
 - shoulder (upper arm): three degrees of freedom; elbow: one, a hinge about the axis the motion
   itself bends it about (its bend plane in the upper arm's frame, averaged over the motion,
   weighted by how bent the arm is), its bend kept on the motion's side (never straight-through
@@ -36,12 +37,12 @@ is kept within its allowance on every frame. The joints and why:
   more than the arm's joints (REGULARIZE), so a target the arm reaches moves them little.
 - the wrist joint's own local rotation is kept (the hand turns with the forearm, as in the
   examples); legs, pelvis, neck and head are not turned (the head rides on the chest).
-ik.two_bone and ik.ccd do not know joint limits (a clamp afterwards would break the reach they
-found and say nothing of what remains), hence the fit: its residuals are the wrists' offsets from
-their targets, each joint's turn past its examples' range (a light weight: used when reaching needs
-it) and past the allowance (a heavy one), the elbow's bend past straight, and a small pull toward
-the motion's own pose. Where no pose within the allowance meets a target, the fit ends at the pose
-whose wrist is nearest to it: that point and its distance are reported, the pose stays natural.
+Joint limits are the solver's penalties, not a clamp afterwards (which would break the reach found
+and say nothing of what remains): besides the wrists' offsets from their targets, each joint's turn
+past its examples' range (a light weight: used when reaching needs it) and past the allowance (a
+heavy one), the elbow's bend past straight, and the turns' pull toward the motion's own pose.
+Where no pose within the allowance meets a target, the solver ends at the pose whose wrist is
+nearest to it: that point and its distance are reported, the pose stays natural.
 """
 
 from dataclasses import dataclass
@@ -58,8 +59,6 @@ PAST_RANGE_WEIGHT = 0.02  # metres per radian: a turn past the examples' range (
 PAST_ALLOWANCE_WEIGHT = 30.0  # metres per radian: a turn past the allowance (not used)
 # metres per radian: the pull of each kind of joint toward the motion's own pose
 REGULARIZE = {"arm": 1e-3, "clavicle": 3e-3, "spine": 1e-2}
-FINITE_STEP = 1e-7  # radians: the Jacobian's forward differences
-MAX_EVALUATIONS = 100  # the fit's most steps (200 gained < 1 mm on Bandai's grid in twice the time)
 SIDES = ("left", "right")
 
 
@@ -122,110 +121,38 @@ def arm_joints(parents, names, joint_map, side, spine=True):
             "wrist": wrist}  # fmt: skip
 
 
-def _unit(v):
-    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)
+class _Limits:
+    """The penalties ik.solve adds for the arms: each moved joint's turn past its examples' range
+    and past the allowance, each elbow's bend short of LEAST_BEND_DEGREES on the motion's side."""
 
+    def __init__(self, moved, limits, allowance, elbows, hinges, bends):
+        self.moved, self.limits, self.allowance = moved, limits, allowance
+        self.elbows, self.hinges, self.bends = elbows, hinges, bends
 
-def _hinge_axis(rotations, local, elbow, wrist):
-    """The elbow's bend axis in its parent's (the upper arm's) frame: the normal of the plane of
-    upper arm and forearm, averaged over the motion (weighted by the sine of the bend)."""
-    upper = _unit(local[:, elbow])
-    fore = quaternion.rotate(rotations[:, elbow], _unit(local[:, wrist]))
-    normal = np.cross(upper, fore).sum(0)
-    if np.linalg.norm(normal) < 1e-9:  # a straight arm throughout: any normal to the upper arm
-        normal = np.cross(upper[0], [0.0, 0.0, 1.0] if abs(upper[0, 2]) < 0.9 else [1.0, 0, 0])
-    return _unit(normal)
-
-
-class _Fit:
-    """The keyframe's pose as a function of a parameter vector: per spine, clavicle and shoulder
-    joint a rotation vector (a turn in the joint's own frame after its rotation), per elbow a
-    hinge angle (radians, about its motion's axis, in the upper arm's frame)."""
-
-    def __init__(self, parents, local, pose, chains, targets, limits, allowance, hinges, bends):
-        self.parents, self.local, self.pose = parents, local, pose
-        self.targets = targets  # side -> (3,)
-        ball = []
-        for chain in chains.values():
-            ball += [j for j in chain["spine"] + chain["clavicle"] + [chain["shoulder"]]
-                     if j not in ball]  # fmt: skip
-        self.ball = ball
-        self.elbows = [c["elbow"] for c in chains.values()]
-        self.wrists = {s: c["wrist"] for s, c in chains.items()}
-        self.hinges, self.bends = hinges, bends  # per elbow: axis (3,), upper / fore unit vectors
-        self.moved = ball + self.elbows
-        # every joint on a path from a moved joint to a wrist, parents first
-        needed = set()
-        for c in chains.values():
-            j = c["wrist"]
-            while j >= 0:
-                needed.add(j)
-                j = parents[j]
-        self.order = sorted(needed)
-        kind = {}
-        for c in chains.values():
-            kind.update({j: "spine" for j in c["spine"]})
-            kind.update({j: "clavicle" for j in c["clavicle"]})
-            kind[c["shoulder"]] = kind[c["elbow"]] = "arm"
-        self.weights = np.concatenate([np.repeat([REGULARIZE[kind[j]] for j in ball], 3),
-                                       [REGULARIZE["arm"]] * len(self.elbows)])  # fmt: skip
-        self.limits, self.allowance = limits, allowance  # (mean (J, 4), degrees (J,)) or None
-        self.size = 3 * len(ball) + len(self.elbows)
-
-    def rotations(self, x):
-        """(n, joints, 4) local rotations of the keyframe for parameter rows x (n, size)."""
-        x = np.atleast_2d(x)
-        out = np.repeat(self.pose[None], len(x), axis=0)
-        nb = len(self.ball)
-        turns = quaternion.from_rotation_vector(x[:, : 3 * nb].reshape(len(x), nb, 3))
-        out[:, self.ball] = quaternion.multiply(out[:, self.ball], turns)
-        angles = x[:, 3 * nb :]
-        for k, j in enumerate(self.elbows):
-            hinge = quaternion.from_rotation_vector(angles[:, k : k + 1] * self.hinges[k])
-            out[:, j] = quaternion.multiply(hinge, out[:, j])
-        return out
-
-    def wrists_at(self, rotations):
-        """side -> (n, 3) wrist positions: forward kinematics along the needed joints only."""
-        n = len(rotations)
-        pos, ori = {}, {}
-        for j in self.order:
-            p = self.parents[j]
-            if p < 0:
-                pos[j] = np.broadcast_to(self.local[j], (n, 3))
-                ori[j] = rotations[:, j]
-            else:
-                pos[j] = pos[p] + quaternion.rotate(ori[p], self.local[j])
-                ori[j] = quaternion.multiply(ori[p], rotations[:, j])
-        return {s: pos[w] for s, w in self.wrists.items()}
-
-    def residuals(self, x):
-        x = np.atleast_2d(x)
-        rot = self.rotations(x)
-        wrists = self.wrists_at(rot)
-        parts = [wrists[s] - self.targets[s] for s in self.wrists]
+    def __call__(self, rotations, x):
+        parts = []
         if self.limits is not None:
             mean, degrees = self.limits
-            angle = quaternion.angle_between(rot[:, self.moved], mean[None, self.moved])
+            angle = quaternion.angle_between(rotations[:, self.moved], mean[None, self.moved])
             past = angle - np.radians(degrees[self.moved])[None]
             parts.append(PAST_RANGE_WEIGHT * np.maximum(past, 0.0))
             over = angle - self.allowance[None, self.moved]
             parts.append(PAST_ALLOWANCE_WEIGHT * np.maximum(over, 0.0))
         for k, j in enumerate(self.elbows):
-            bend = _signed_bend(rot[:, j], *self.bends[k], self.hinges[k])
+            bend = _signed_bend(rotations[:, j], *self.bends[k], self.hinges[k])
             short = np.radians(LEAST_BEND_DEGREES) - bend
             parts.append(PAST_ALLOWANCE_WEIGHT * np.maximum(short, 0.0)[:, None])
-        parts.append(x * self.weights[None])
-        return np.concatenate(parts, axis=1)
+        return parts
 
-    def fun(self, x):
-        return self.residuals(x)[0]
 
-    def jac(self, x):
-        """Forward differences, every column's pose in one batch."""
-        rows = np.vstack([x, x + FINITE_STEP * np.eye(len(x))])
-        r = self.residuals(rows)
-        return ((r[1:] - r[0]) / FINITE_STEP).T
+def _elbow_axis(rotations, local, elbow, wrist):
+    """ik.hinge_axis, or for an arm straight throughout any normal to the upper arm."""
+    axis = ik.hinge_axis(rotations, local, elbow, wrist)
+    if axis is None:
+        upper = local[0, elbow] / np.linalg.norm(local[0, elbow])
+        axis = np.cross(upper, [0.0, 0.0, 1.0] if abs(upper[2]) < 0.9 else [1.0, 0, 0])
+        axis /= np.linalg.norm(axis)
+    return axis
 
 
 def _signed_bend(elbow_rotation, upper, fore, axis):
@@ -255,8 +182,6 @@ def reach(parents, offsets, translated, names, joint_map, rotations, translation
           spine=True):  # fmt: skip
     """Reached: the motion's arm(s) moved so that each side's wrist meets its target at the
     keyframe (see the module's docstring)."""
-    from scipy.optimize import least_squares  # here: a session that never reaches does not import
-
     parents = list(parents)
     rotations = np.asarray(rotations, dtype=np.float64)
     n_frames, n_joints = rotations.shape[:2]
@@ -272,14 +197,12 @@ def reach(parents, offsets, translated, names, joint_map, rotations, translation
         else int(min(max(after, 0), n_frames - 1 - keyframe))
     )
     chains = {s: arm_joints(parents, names, joint_map, s, spine) for s in SIDES if s in targets}
-    local = np.broadcast_to(np.asarray(offsets, dtype=np.float64), (n_frames, n_joints, 3)).copy()
-    if len(translated):
-        local[:, list(translated)] = np.asarray(translations, dtype=np.float64)
+    local = ik.local_offsets(offsets, translated, translations)
     hinges, bends = [], []
     for c in chains.values():
         e, w = c["elbow"], c["wrist"]
-        hinges.append(_hinge_axis(rotations, local, e, w))
-        bends.append((_unit(local[keyframe, e]), _unit(local[keyframe, w])))
+        hinges.append(_elbow_axis(rotations, local, e, w))
+        bends.append((ik.unit(local[keyframe, e]), ik.unit(local[keyframe, w])))
     pose = rotations[keyframe]
     lim = allowance = None
     if limits is not None:
@@ -291,14 +214,22 @@ def reach(parents, offsets, translated, names, joint_map, rotations, translation
         # a joint the motion itself turns past the allowance may stay where it is
         own = quaternion.angle_between(pose, mean)
         allowance = np.maximum(np.radians(degrees + slack_degrees - SOLVE_INSIDE_DEGREES), own)
-    fit = _Fit(parents, local[keyframe], pose, chains, targets, lim, allowance, hinges, bends)
-    start = {s: float(np.linalg.norm(w[0] - targets[s]))
-             for s, w in fit.wrists_at(pose[None]).items()}  # fmt: skip
-    solved = least_squares(fit.fun, np.zeros(fit.size), jac=fit.jac, method="trf",
-                           xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=200)  # fmt: skip
-    changed = fit.rotations(solved.x)[0]
+    moved, cost = [], {}
+    for c in chains.values():
+        for kind, joints in (("spine", c["spine"]), ("clavicle", c["clavicle"]),
+                             ("arm", [c["shoulder"]])):  # fmt: skip
+            moved += [j for j in joints if j not in moved]
+            cost.update({j: REGULARIZE[kind] for j in joints})
+    elbows = [c["elbow"] for c in chains.values()]
+    cost.update({e: REGULARIZE["arm"] for e in elbows})
+    moved += elbows
+    wrists = [c["wrist"] for c in chains.values()]
+    turns = ik.Turns(parents, local[keyframe], pose, moved, wrists, dict(zip(elbows, hinges)), cost)
+    wanted = np.stack([targets[s] for s in chains])
+    start = dict(zip(chains, np.linalg.norm(turns.ends_at(pose[None])[0] - wanted, axis=-1)))
+    penalties = _Limits(moved, lim, allowance, elbows, hinges, bends)
+    changed, _ = ik.solve(turns, wanted, penalties)
     weights = ik.falloff(n_frames, keyframe, before, after)
-    moved = fit.moved
     out = ik.spread_from(rotations, keyframe, changed, moved, weights)
     if lim is not None:  # every frame's moved joints within the allowance (or their own turn)
         mean, degrees = lim
@@ -310,7 +241,7 @@ def reach(parents, offsets, translated, names, joint_map, rotations, translation
     # elbow past straight: each frame's bend kept at LEAST_BEND_DEGREES (or the motion's own)
     for k, c in enumerate(chains.values()):
         e, w = c["elbow"], c["wrist"]
-        upper, fore = _unit(local[:, e]), _unit(local[:, w])
+        upper, fore = ik.unit(local[:, e]), ik.unit(local[:, w])
         bend = _signed_bend_frames(out[:, e], upper, fore, hinges[k])
         own = _signed_bend_frames(rotations[:, e], upper, fore, hinges[k])
         short = np.minimum(np.radians(LEAST_BEND_DEGREES), own) - bend
