@@ -220,6 +220,16 @@ def drag(driver, start: tuple[float, float], move: tuple[float, float], axis: st
     chain.release().perform()
 
 
+def lift_hand(driver, metres: float) -> None:
+    """A real drag of the selected joint's Y arrow by `metres` up (from where the gizmo is now)."""
+    g = gizmo(driver)
+    up = np.array(g["axes"][1])
+    grip = np.array(g["at"]) + 0.45 * g["scale"] * up  # on the Y arrow's picker
+    x0, y0 = screen(driver, grip)
+    x1, y1 = screen(driver, grip + metres * up)
+    drag(driver, (x0, y0), (x1 - x0, y1 - y0), "Y")
+
+
 def settled(driver) -> dict:
     """The page's script once its preview shows it: the commands and the notes shown."""
     return wait_for(
@@ -268,10 +278,7 @@ def test_a_hand_dragged_10_cm_by_the_gizmo_is_previewed_and_saved_at_its_target(
     facing = Rotation.from_rotvec([0.0, heading(before, positions(before), frame), 0.0])
     assert np.allclose(g["axes"][0], facing.apply([1.0, 0.0, 0.0]), atol=1e-5), g["axes"]
     assert np.allclose(g["axes"][2], facing.apply([0.0, 0.0, 1.0]), atol=1e-5), g["axes"]
-    grip = np.array(g["at"]) + 0.45 * g["scale"] * y_axis  # on the Y arrow's picker
-    x0, y0 = screen(browser, grip)
-    x1, y1 = screen(browser, grip + [0.0, 0.1, 0.0])
-    drag(browser, (x0, y0), (x1 - x0, y1 - y0), "Y")
+    lift_hand(browser, 0.1)
     shown = settled(browser)
     (command,) = shown["commands"]
     assert command["op"] == "ik" and command["joint"] == HAND
@@ -344,6 +351,35 @@ def test_a_hand_turned_by_the_gizmo_is_the_rotation_times_the_original(site, bro
     assert browser.execute_script("return window.modbViewer.pose.commands.length") == 0
     assert browser.execute_script("return window.modbViewer.state.clip.version") == (
         after.meta["version"])  # fmt: skip
+
+
+def test_undo_drops_the_last_drag_and_discard_every_one_nothing_saved(site, browser):
+    address, dsn, token, clip = site
+    before = motion(dsn, clip)
+    open_clip(browser, address, clip, token)
+    stored = shown_positions(browser, 0, before.n_frames - 1)
+    frame = at_frame(browser, 1.5)
+    hand = click_joint(browser, HAND)
+    lift_hand(browser, 0.08)
+    first = settled(browser)
+    shown_first = shown_positions(browser, 0, before.n_frames - 1)
+    assert np.abs(shown_first[frame, hand] - stored[frame, hand]).max() > 0.05  # it moved
+    lift_hand(browser, 0.06)
+    two = wait_for(browser, "const p = window.modbViewer.pose; return !p.inFlight &&"
+                   " p.commands.length === 2 && p.commands")  # fmt: skip
+    # the second drag moved as far as the pointer did: the view kept its place under it while the
+    # notes of the first command were shown
+    assert 0.05 < two[1]["offset"][1] < 0.07, two[1]
+    browser.find_element(By.ID, "pose-undo").click()
+    shown = settled(browser)
+    assert shown["commands"] == first["commands"]
+    assert np.abs(shown_positions(browser, 0, before.n_frames - 1) - shown_first).max() < 1e-9
+    browser.find_element(By.ID, "pose-discard").click()
+    wait_for(browser, "const p = window.modbViewer.pose;"
+             "return !p.inFlight && !p.commands.length && p.shownScript === '[]'")  # fmt: skip
+    assert np.abs(shown_positions(browser, 0, before.n_frames - 1) - stored).max() < 1e-9
+    assert browser.find_element(By.ID, "pose-save").get_attribute("disabled")
+    assert stored_script(dsn, clip)[0] == before.meta["version"]  # nothing was saved
 
 
 def test_a_preview_takes_the_pose_commands_only_and_a_bounded_number(site):

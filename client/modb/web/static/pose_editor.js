@@ -105,6 +105,7 @@ export class PoseEditor {
     if (index !== null) this.viewer.pause(); // a joint is edited at the frame shown: the clip stops there
     this.selected = index;
     state.highlighted = index;
+    this.ui.notes.classList.toggle('editing', index !== null);
     if (index === null || !this.standard[this.names[index]]) {
       this.gizmo.detach();
       if (index !== null) this.say(`${this.names[index]} has no standard name in the skeleton's joint map: it cannot be edited`, true);
@@ -303,6 +304,7 @@ export class PoseEditor {
 
   say(text, isError = false) {
     this.ui.status.textContent = text;
+    this.ui.status.title = text; // the whole of it where the line cuts it short
     this.ui.status.classList.toggle('error', isError);
   }
 
