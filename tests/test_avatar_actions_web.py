@@ -186,6 +186,16 @@ def test_a_target_placed_in_the_air_is_walked_to_reached_and_the_avatar_stands_a
     assert browser.execute_script("return window.modbAvatar.course.targets") == []
     time.sleep(2.0)
     assert sum(bool(m.get("action")) for m in page_state(browser)["steps"]) == 1
+    # A wave, a repeated action, takes how long it goes on; a raise does not
+    assert not browser.find_element(By.ID, "action-seconds").is_displayed()
+    Select(browser.find_element(By.ID, "action")).select_by_value("wave_right_hand")
+    seconds = browser.find_element(By.ID, "action-seconds")
+    assert seconds.is_displayed()
+    seconds.send_keys("2.5", Keys.TAB)
+    click_ground(browser, 0.5, 3.5, waypoint=True)
+    state = wait_until(browser, lambda s: len(s["actions"]) == 1, 10, "the wave's place")
+    assert state["actions"][0]["primitive"] == "wave_right_hand", state["actions"]
+    assert state["actions"][0]["seconds"] == 2.5, state["actions"]
     assert severe_console_entries(browser) == []
 
 

@@ -121,6 +121,8 @@ class ModelAvatar:
         self._actions: list[dict[str, Any]] = []
         self._course = 0  # how many times the course was replaced (set_goal)
         self.action_names = sorted(n for n, t in self.synthesis.types.items() if t == "action")
+        # a repeated motion (a wave: no keyframe) goes on for the seconds asked, a reach does not
+        self.repeated_actions = [n for n in self.action_names if models[n].keyframe is None]
         self._piece_seconds = 0.0  # the recent pieces' synthesis time, seconds
         self.readouts: list[StepReadout] = []
         self.standing = self._first_pose(models)
@@ -162,9 +164,11 @@ class ModelAvatar:
     @property
     def actions(self) -> list[dict[str, Any]]:
         """The actions asked for and not yet done (their piece not played to its end): primitive,
-        target [x, y, z] and goal (the index of where it is performed in `goals`)."""
+        target [x, y, z], goal (the index of where it is performed in `goals`) and, where asked,
+        seconds (how long a repeated one goes on)."""
         with self._lock:
-            return [{k: a[k] for k in ("primitive", "target", "goal")} for a in self._actions]
+            return [{k: a[k] for k in ("primitive", "target", "goal", "seconds") if k in a}
+                    for a in self._actions]  # fmt: skip
 
     def set_goal(self, goal: Goal) -> None:
         """The new goal replaces the course, from the piece playing on (an action queued to
@@ -200,7 +204,8 @@ class ModelAvatar:
             self._goals.append(checked["target"][[0, 2]])
             self._actions.append({"primitive": primitive, "target": checked["target"].tolist(),
                                   "goal": len(self._goals) - 1, "course": self._course,
-                                  "queued": False})  # fmt: skip
+                                  "queued": False, **({} if seconds is None else {
+                                      "seconds": checked["seconds"]})})  # fmt: skip
             self._changes.append(("action", checked))
 
     def _room_ahead(self) -> None:

@@ -181,9 +181,10 @@ def avatar_endpoint(
             return session
         session.close()
         # on models: the graph's actions, which the page offers beside the mode
-        actions = new.actions if isinstance(new, ModelAvatarSession) else []
+        on_models = isinstance(new, ModelAvatarSession)
         send({"type": "mode", **_mode(new), "settings": new.public_settings(),
-              "actions": actions})  # fmt: skip
+              "actions": new.actions if on_models else [],
+              "repeated_actions": new.repeated_actions if on_models else []})  # fmt: skip
         for m in standing:
             send(m)
         if isinstance(new, ModelAvatarSession):

@@ -82,6 +82,11 @@ class ModelAvatarSession:
         """The graph's actions (its action nodes), which an "action" message may name."""
         return list(self._avatar.action_names)
 
+    @property
+    def repeated_actions(self) -> list[str]:
+        """Those of its actions that repeat (a wave): an "action" message may say for how long."""
+        return list(self._avatar.repeated_actions)
+
     def public_settings(self) -> dict[str, Any]:
         radius = self._avatar.synthesis.radius
         return {"models": self.graph, "seed": self.seed, "arrival_radius": radius}

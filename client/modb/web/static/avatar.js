@@ -64,7 +64,10 @@ function chooseMode() {
 }
 
 // The graph's actions (its action nodes), offered beside the mode; none in motion matching.
-function showActions(names) {
+// The graph's actions in the selector; those that repeat (a wave) also take how long.
+let repeatedActions = [];
+function showActions(names, repeated = []) {
+  repeatedActions = repeated;
   const chosen = $('action').value;
   $('action').replaceChildren(Object.assign(document.createElement('option'), {
     value: '', textContent: 'none: shift-click adds a waypoint',
@@ -72,6 +75,11 @@ function showActions(names) {
   if (names.includes(chosen)) $('action').value = chosen;
   $('action-choice').style.display = names.length ? '' : 'none';
   $('height-choice').style.display = names.length ? '' : 'none';
+  showSecondsChoice();
+}
+
+function showSecondsChoice() {
+  $('seconds-choice').style.display = repeatedActions.includes($('action').value) ? '' : 'none';
 }
 
 // A step of the walk on models, as it starts to play: its primitive, the search, its constraint error. An action's
@@ -133,7 +141,7 @@ const handlers = {
     state.steps = [];
     document.querySelectorAll('#model-readouts td').forEach((cell) => { cell.textContent = '-'; });
     $('action-row').hidden = true;
-    showActions(m.actions || []);
+    showActions(m.actions || [], m.repeated_actions || []);
     showGoals([], 0, []);
     status(m.models === null ? 'click the ground to set a goal (motion matching)'
       : `on the graph of models ${m.models} (seed ${m.seed}): click the ground to set a goal`);
@@ -238,8 +246,9 @@ canvas.addEventListener('click', (e) => {
   const action = e.shiftKey && state.mode.models !== null ? $('action').value : '';
   if (action) {
     const y = Number($('target-height').value);
+    const seconds = repeatedActions.includes(action) ? Number($('action-seconds').value) : 0;
     state.clicks.push({ t: performance.now(), x: point.x, z: point.z, add: true, action, y });
-    send({ type: 'action', primitive: action, x: point.x, y, z: point.z });
+    send({ type: 'action', primitive: action, x: point.x, y, z: point.z, ...(seconds > 0 ? { seconds } : {}) });
     return;
   }
   state.clicks.push({ t: performance.now(), x: point.x, z: point.z, add: e.shiftKey });
@@ -247,6 +256,7 @@ canvas.addEventListener('click', (e) => {
 });
 
 $('mode').addEventListener('change', chooseMode);
+$('action').addEventListener('change', showSecondsChoice);
 $('seed').addEventListener('change', () => { if (state.mode.models !== null) chooseMode(); });
 $('show-skeleton').addEventListener('change', () => stage.showSkeleton($('show-skeleton').checked || !state.character));
 for (const format of ['bvh', 'glb']) {
