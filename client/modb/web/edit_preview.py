@@ -16,6 +16,8 @@ message when the target is out of reach)."""
 from __future__ import annotations
 
 import json
+import threading
+from collections import OrderedDict
 from collections.abc import Callable
 from typing import Any
 
@@ -38,6 +40,44 @@ from .body_models import EDIT_SCRIPT, Body
 
 MAX_BODY_BYTES = 1 << 20  # a script of a few thousand commands
 MAX_COMMANDS = 100  # a pose edited by hand: far more drags than anyone makes in one go
+CACHED_VERSIONS = 8  # clip versions kept read: a drag previews one version many times
+
+
+class _VersionCache:
+    """Clip versions as edit_clips.current_clip reads them, by (clip, version): a version never
+    changes once written, so a drag's updates read it once. Their arrays are made read-only: a
+    command that changed its input in place would fail rather than spoil the next preview."""
+
+    def __init__(self, size: int):
+        self.size, self._clips, self._lock = size, OrderedDict(), threading.Lock()
+
+    def get(self, conn: psycopg.Connection, clip_id: int, version: int) -> dict | None:
+        key = (clip_id, version)
+        with self._lock:
+            if key in self._clips:
+                self._clips.move_to_end(key)
+                return self._clips[key]
+        clip = edit_clips.current_clip(WorkerDatabase(conn), clip_id)
+        if clip is None or _version(conn, clip_id) != version:  # a newer one came meanwhile
+            return clip
+        for value in clip.values():
+            if isinstance(value, np.ndarray):
+                value.flags.writeable = False
+        with self._lock:
+            self._clips[key] = clip
+            while len(self._clips) > self.size:
+                self._clips.popitem(last=False)
+        return clip
+
+
+_versions = _VersionCache(CACHED_VERSIONS)
+
+
+def _version(conn: psycopg.Connection, clip_id: int) -> int | None:
+    found = conn.execute(
+        "SELECT version FROM modb.current_clips WHERE clip_id = %s", [clip_id]
+    ).fetchone()
+    return None if found is None else found[0]
 
 
 class EditPreview(Body):
@@ -91,8 +131,7 @@ def preview(conn: psycopg.Connection, clip_id: int, commands: list[dict[str, Any
     if found is None:
         raise NotFound(f"no clip with id {clip_id} (with a version of its own)")
     version = found[0]
-    db = WorkerDatabase(conn)
-    clip = edit_clips.current_clip(db, clip_id)
+    clip = _versions.get(conn, clip_id, version)
     if clip is None:
         raise NotFound(f"no clip with id {clip_id}")
     sk = clip["skeleton"]
