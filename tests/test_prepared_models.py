@@ -182,3 +182,27 @@ def test_the_web_servers_sessions_share_prepared_models_in_threads_within_bounds
         tight = prepared_models.PreparedModels(max_megabytes=0.001)
         tight.step_models(database, {first: keys[first]})
         assert tight.rows() == [] and tight.evicted == 1
+
+
+def test_a_server_prepares_its_first_graph_of_models_as_it_starts(dsn):
+    """`modb serve` prepares the graph the avatar page offers first while it answers, so the page's
+    first switch to it is served, as the next ones are."""
+    import asyncio
+
+    from modb.web import models_at_start
+    from modb.web.app import create_app
+
+    prepared = prepared_models.PREPARED
+    prepared.clear()
+    app = create_app(dsn).app  # the Starlette app inside its Host/Origin guard
+
+    async def started() -> dict:
+        async with app.router.lifespan_context(app):  # as the server starts and stops
+            await asyncio.to_thread(models_at_start.wait_for, GRAPH)
+            return {row[0]: row[3:5] for row in prepared.rows()}
+
+    read = asyncio.run(started())
+    with connect(dsn) as conn:
+        assert set(read) == set(nodes(conn).values()) and set(read.values()) == {(1, 0)}
+        ModelAvatar(conn, GRAPH)  # the page's first switch to it
+    assert {row[0]: row[3:5] for row in prepared.rows()} == {i: (1, 1) for i in read}

@@ -44,6 +44,7 @@ from . import (
     job_routes,
     model_graph_routes,
     model_routes,
+    models_at_start,
     openapi,
 )
 from .avatar_socket import avatar_endpoint, default_max_avatars
@@ -392,6 +393,10 @@ def create_app(
     @contextlib.asynccontextmanager
     async def lifespan(app: Starlette):
         pool.open(wait=True, timeout=10)
+        try:  # the avatar page's first graph of models, prepared while the server answers
+            models_at_start.prepare(pool)
+        except psycopg.Error as e:
+            warn(f"no graph of models prepared at start: {e}")
         yield
         writer.close()
         pool.close()
