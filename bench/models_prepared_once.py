@@ -2,8 +2,9 @@
 the first and second `modb.synthesize_from_models` call of one session, a new session's first
 (the server's backends each keep their own), and the avatar page's mode switch to the graph of
 models against the real `modb serve`: the time from the page's "mode" message to the first frame,
-on a new server (cold), again on the same connection, and on a new connection (a browser session
-of its own) of that server (warm).
+on a new server at once (it prepares the page's first graph as it starts: the switch waits for
+that), on a new server 5 s after it started (as a user opening the page), again on the same
+connection, and on a new connection (a browser session of its own) of that server (warm).
 
     .venv/bin/python bench/models_prepared_once.py DSN GRAPH [ROUNDS]
 """
@@ -22,6 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from support.browser import serving  # noqa: E402
 
 GOALS = [[0.0, 6.0], [6.0, 8.0]]
+OPENED_AFTER_S = 5.0  # a user opens the page this long after the server started
 SECONDS = 10.0
 SYNTHESIZE = "SELECT n_frames FROM modb.synthesize_from_models(%s, %s::float8[], %s, 0)"
 
@@ -74,18 +76,25 @@ def main(dsn: str, graph: str, rounds: int) -> None:
         values = [c[k] for c in calls]
         print(f"{name}: median {statistics.median(values):.3f} s "
               f"({', '.join(f'{v:.3f}' for v in values)})")  # fmt: skip
-    cold, again, other = [], [], []
+    cold, later, again, other = [], [], [], []
     for _ in range(rounds):
         with serving(dsn) as address:
+            first = page(address)
+            cold.append(mode_switch(first, graph))
+            first.close()
+        with serving(dsn) as address:
+            time.sleep(OPENED_AFTER_S)
             ws = page(address)
-            cold.append(mode_switch(ws, graph))
+            later.append(mode_switch(ws, graph))
             again.append(mode_switch(ws, graph))
             second = page(address)
             other.append(mode_switch(second, graph))
             ws.close()
             second.close()
-    for name, values in (("mode switch, new server", cold), ("again, same page", again),
-                         ("warm server, another page", other)):  # fmt: skip
+    rows = (("mode switch, new server at once", cold),
+            (f"new server, page opened {OPENED_AFTER_S:g} s after", later),
+            ("again, same page", again), ("warm server, another page", other))  # fmt: skip
+    for name, values in rows:
         print(f"{name}: median {statistics.median(values):.3f} s "
               f"({', '.join(f'{v:.3f}' for v in values)})")  # fmt: skip
 
