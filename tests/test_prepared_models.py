@@ -174,14 +174,21 @@ def test_the_web_servers_sessions_share_prepared_models_in_threads_within_bounds
         keys = {row["id"]: row for row in database.run(prepared_models.KEYS, [ids])}
         first, second, third = ids[:3]
         small = prepared_models.PreparedModels(max_models=2)
-        small.step_models(database, {i: keys[i] for i in (first, second, third)})
+        small.step_models(database, {i: keys[i] for i in (first, second)})
+        small.step_models(database, {third: keys[third]})
         assert [row[0] for row in small.rows()] == [second, third] and small.evicted == 1
         small.step_models(database, {first: keys[first]})
         assert [row[0] for row in small.rows()] == [first, third]
         assert small.rows()[0][3:5] == (1, 0)  # read, not served: it had been dropped
+        # a call's models are kept even past the bounds (another call would read them again),
+        # until another call needs the room
         tight = prepared_models.PreparedModels(max_megabytes=0.001)
-        tight.step_models(database, {first: keys[first]})
-        assert tight.rows() == [] and tight.evicted == 1
+        tight.step_models(database, {first: keys[first], second: keys[second]})
+        assert [row[0] for row in tight.rows()] == [first, second] and tight.evicted == 0
+        tight.step_models(database, {first: keys[first], second: keys[second]})
+        assert [row[3:5] for row in tight.rows()] == [(1, 1), (1, 1)]  # served, not read again
+        tight.step_models(database, {third: keys[third]})
+        assert [row[0] for row in tight.rows()] == [third] and tight.evicted == 2
 
 
 def test_a_server_prepares_its_first_graph_of_models_as_it_starts(dsn):

@@ -14,7 +14,9 @@ transaction ends.)
 
 Bounded: at most MAX_MODELS models and MAX_MEGABYTES of their documents' JSON text (prepared, a
 model holds about 1.2x its text's size: its tree's samples as arrays), the least recently used
-dropped first. A StepModel is read-only once made, so syntheses running at once (the web server's
+dropped first, but never one the call at hand wants: a graph larger than the bounds is held whole
+until another call needs the room (Bandai's walking with six hand actions: 11 models, 76 MB).
+A StepModel is read-only once made, so syntheses running at once (the web server's
 avatar sessions run in threads) share it; the table is guarded by a lock, and a model two threads
 miss at once is prepared by both (the last one kept)."""
 
@@ -109,16 +111,18 @@ class PreparedModels:
             with self._lock:
                 self._entries[where] = entry
                 self._entries.move_to_end(where)
-                self._evict()
+                self._evict({(row["place"], i) for i, row in keys.items()})
         return found
 
-    def _evict(self):
-        """The least recently used entries dropped until the table is within its bounds."""
+    def _evict(self, wanted):
+        """The least recently used entries dropped until the table is within its bounds, never
+        one the call at hand wants (`wanted`): a graph whose models pass the bounds is held whole
+        (the call holds them anyway), else each call would read again what the last one dropped."""
         total = sum(e.megabytes for e in self._entries.values())
-        while self._entries and (len(self._entries) > self.max_models
-                                 or total > self.max_megabytes):  # fmt: skip
-            _, entry = self._entries.popitem(last=False)
-            total -= entry.megabytes
+        for where in [w for w in self._entries if w not in wanted]:  # the least recent first
+            if len(self._entries) <= self.max_models and total <= self.max_megabytes:
+                break
+            total -= self._entries.pop(where).megabytes
             self.evicted += 1
 
     def rows(self):
