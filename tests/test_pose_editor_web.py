@@ -380,6 +380,15 @@ def test_undo_drops_the_last_drag_and_discard_every_one_nothing_saved(site, brow
     assert np.abs(shown_positions(browser, 0, before.n_frames - 1) - stored).max() < 1e-9
     assert browser.find_element(By.ID, "pose-save").get_attribute("disabled")
     assert stored_script(dsn, clip)[0] == before.meta["version"]  # nothing was saved
+    # the chain set beside the blend: that many joints above the hand turn
+    from selenium.webdriver.common.keys import Keys
+
+    browser.find_element(By.ID, "pose-chain").send_keys("2", Keys.TAB)
+    lift_hand(browser, 0.05)
+    shown = settled(browser)
+    (command,) = shown["commands"]
+    (note,) = shown["notes"]
+    assert command["chain"] == 2 and len(note["chain"]) == 2 and note["met"], note
 
 
 def test_a_preview_takes_the_pose_commands_only_and_a_bounded_number(site):

@@ -171,8 +171,8 @@ class Turns:
     way the motion bends it, hinge_axis). Rows of parameters give poses in one batch.
 
     parents, local: the skeleton and each joint's offset in its parent's frame at this frame
-    (joints, 3); pose: the frame's local rotations (joints, 4); joints: those that may turn, in
-    the order of their parameters; ends: the joints that reach targets; hinges: {joint: axis};
+    (joints, 3); pose: the frame's local rotations (joints, 4); joints: those that may turn (the
+    parameters: the ball joints' in the order given, then the hinges'); ends: the joints that reach targets; hinges: {joint: axis};
     costs: per joint, metres per radian of its turn (the pull toward the motion's own pose: the
     larger, the less the joint moves)."""
 

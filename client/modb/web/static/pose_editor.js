@@ -42,7 +42,7 @@ export function headingAt(positions, frame, leftHip, rightHip, fps) {
 }
 
 export class PoseEditor {
-  // ui: {mode, before, after, undo, save, discard, status, notes}; viewer: {state(), setFrame(i), pause(),
+  // ui: {mode, before, after, chain, undo, save, discard, status, notes}; viewer: {state(), setFrame(i), pause(),
   // reload(clipId), redrawPlot(), plotJoint(index)}
   constructor(ui, viewer, stage) {
     Object.assign(this, { ui, viewer, stage, clip: null, original: null, commands: [], pending: null,
@@ -204,7 +204,9 @@ export class PoseEditor {
     }
     // the move in the gizmo's axes, the heading frame at the frame
     const offset = this.proxy.position.clone().sub(d.position).applyQuaternion(d.quaternion.clone().invert());
-    return { op: 'ik', joint: d.joint, time, offset: offset.toArray().map(round), before, after };
+    const chain = Math.round(Number(this.ui.chain.value));
+    return { op: 'ik', joint: d.joint, time, offset: offset.toArray().map(round), before, after,
+             ...(chain >= 1 && chain <= 10 ? { chain } : {}) };
   }
 
   dragged() {

@@ -29,7 +29,7 @@ const editor = new AnnotationEditor({
   revision: () => poseEditor.revision,
 });
 const poseEditor = new PoseEditor({
-  mode: $('pose-mode'), before: $('pose-before'), after: $('pose-after'), undo: $('pose-undo'),
+  mode: $('pose-mode'), before: $('pose-before'), after: $('pose-after'), chain: $('pose-chain'), undo: $('pose-undo'),
   save: $('pose-save'), discard: $('pose-discard'), status: $('pose-status'), notes: $('pose-notes'),
 }, {
   state: () => state,
