@@ -177,9 +177,10 @@ def test_a_click_sets_a_goal_the_avatar_reaches_and_one_behind_it_turns_it_aroun
     # The streamed frames put the pelvis, as the page's own kinematics computes it, where each
     # selection said its snippet would end (the server's placement arithmetic).
     pelvis_at = browser.execute_script("return window.modbAvatar.state.pelvisAt")
-    ends = [
-        (m["end_frame"], m["end"]["position"]) for m in state["messages"] if m["type"] == "choice"
-    ]
+    # (a snippet chosen again toward a new goal while it played replaced the step's first choice,
+    # whose end was never played: the step's last choice counts)
+    last = {m["step"]: m for m in state["messages"] if m["type"] == "choice"}
+    ends = [(m["end_frame"], m["end"]["position"]) for m in last.values()]
     checked = [(str(f), p) for f, p in ends if str(f) in pelvis_at]
     assert len(checked) >= 10
     for frame, end in checked:
