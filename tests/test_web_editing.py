@@ -308,7 +308,7 @@ def test_a_dropped_file_is_uploaded(site, browser):
         )
 
 
-def test_the_plot_shows_a_joints_height_and_speed(site, browser):
+def test_the_plot_shows_a_joints_height_speed_and_world_x_and_z(site, browser):
     """The editor's plot: the chosen joint's height and horizontal speed in every frame, against
     this test's own forward kinematics (scipy) and numpy's gradient."""
     import numpy as np
@@ -331,6 +331,8 @@ def test_the_plot_shows_a_joints_height_and_speed(site, browser):
     for quantity, want in (
         ("height", p[:, ankle, 1]),
         ("speed", np.hypot(*np.gradient(p[:, ankle][:, [0, 2]], axis=0).T) * motion.fps),
+        ("x", p[:, ankle, 0]),
+        ("z", p[:, ankle, 2]),
     ):
         browser.execute_script(
             "document.getElementById('plot-joint').value = arguments[0];"

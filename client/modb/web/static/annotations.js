@@ -234,8 +234,8 @@ export class AnnotationEditor {
     window.addEventListener('mouseup', up);
   }
 
-  // The plotted values: the chosen joint's height (m) or horizontal speed (m/s) in every frame (of the
-  // motion shown, or of `given` frames' positions).
+  // The plotted values: the chosen joint's height, world x or z (m), or horizontal speed (m/s) in every
+  // frame (of the motion shown, or of `given` frames' positions).
   plotValues(given = null) {
     const positions = given || this.viewer.positions();
     if (!this.clip || !positions || !positions.length) return null;
@@ -246,7 +246,8 @@ export class AnnotationEditor {
     if (this[cache] && this[cache].key === key) return this[cache].values;
     const fps = this.clip.fps;
     const values = positions.map((p, f) => {
-      if (this.ui.quantity.value === 'height') return p[joint][1];
+      const axis = { x: 0, height: 1, z: 2 }[this.ui.quantity.value];
+      if (axis !== undefined) return p[joint][axis];
       const after = Math.min(f + 1, positions.length - 1);
       const before = Math.max(f - 1, 0);
       const q = positions[after][joint];
@@ -295,6 +296,6 @@ export class AnnotationEditor {
     ctx.moveTo(x(this.viewer.frame()), 0);
     ctx.lineTo(x(this.viewer.frame()), canvas.height);
     ctx.stroke();
-    this.ui.plotRange.textContent = `${lo.toFixed(2)}-${hi.toFixed(2)} ${this.ui.quantity.value === 'height' ? 'm' : 'm/s'}`;
+    this.ui.plotRange.textContent = `${lo.toFixed(2)}-${hi.toFixed(2)} ${this.ui.quantity.value === 'speed' ? 'm/s' : 'm'}`;
   }
 }
