@@ -172,9 +172,9 @@ class Turns:
 
     parents, local: the skeleton and each joint's offset in its parent's frame at this frame
     (joints, 3); pose: the frame's local rotations (joints, 4); joints: those that may turn (the
-    parameters: the ball joints' in the order given, then the hinges'); ends: the joints that reach targets; hinges: {joint: axis};
-    costs: per joint, metres per radian of its turn (the pull toward the motion's own pose: the
-    larger, the less the joint moves)."""
+    parameters: the ball joints' in the order given, then the hinges'); ends: the joints that
+    reach targets; hinges: {joint: axis}; costs: per joint, metres per radian of its turn (the
+    pull toward the motion's own pose: the larger, the less the joint moves)."""
 
     def __init__(self, parents, local, pose, joints, ends, hinges=None, costs=None):
         self.parents, self.local = list(parents), np.asarray(local, dtype=np.float64)
