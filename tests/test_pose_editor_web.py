@@ -391,6 +391,40 @@ def test_undo_drops_the_last_drag_and_discard_every_one_nothing_saved(site, brow
     assert command["chain"] == 2 and len(note["chain"]) == 2 and note["met"], note
 
 
+def test_a_preview_reads_the_clip_again_when_its_skeleton_changed(site):
+    """The server keeps a clip version read for the next drag update, but never past a change of
+    its rows: the skeleton's joint map edited (left and right elbows swapped), the next preview
+    turns the other elbow, and the one after the map's restoring the first again."""
+    from psycopg.types.json import Jsonb
+
+    address, dsn, _, clip = site
+    turn = {"op": "rotate", "joint": "left_elbow", "time": 1.0, "rotation": [0.0, 0.0, 10.0],
+            "before": 0.1, "after": 0.1}  # fmt: skip
+
+    def turned(client) -> str:
+        r = client.post(f"/api/clips/{clip}/edit-preview", json={"commands": [turn]})
+        assert r.status_code == 200, r.text
+        return r.json()["notes"][0]["skeleton_joint"]
+
+    with psycopg.connect(dsn, autocommit=True) as conn, httpx.Client(
+        base_url=f"http://{address}", timeout=60
+    ) as client:
+        skeleton, joint_map = conn.execute(
+            "SELECT s.id, s.joint_map FROM modb.skeletons s JOIN modb.current_clips c "
+            "ON c.skeleton_id = s.id WHERE c.clip_id = %s", [clip]).fetchone()  # fmt: skip
+        assert turned(client) == joint_map["left_elbow"]
+        swapped = {**joint_map, "left_elbow": joint_map["right_elbow"],
+                   "right_elbow": joint_map["left_elbow"]}  # fmt: skip
+        try:
+            conn.execute("UPDATE modb.skeletons SET joint_map = %s WHERE id = %s",
+                         [Jsonb(swapped), skeleton])  # fmt: skip
+            assert turned(client) == joint_map["right_elbow"]
+        finally:
+            conn.execute("UPDATE modb.skeletons SET joint_map = %s WHERE id = %s",
+                         [Jsonb(joint_map), skeleton])  # fmt: skip
+        assert turned(client) == joint_map["left_elbow"]
+
+
 def test_a_preview_takes_the_pose_commands_only_and_a_bounded_number(site):
     """Other scripts are applied, not previewed; a script of more than edit_preview.MAX_COMMANDS
     commands is refused before any work."""

@@ -121,8 +121,9 @@ class ModelAvatar:
         self._actions: list[dict[str, Any]] = []
         self._course = 0  # how many times the course was replaced (set_goal)
         self.action_names = sorted(n for n, t in self.synthesis.types.items() if t == "action")
-        # a repeated motion (a wave: no keyframe) goes on for the seconds asked, a reach does not
-        self.repeated_actions = [n for n in self.action_names if models[n].keyframe is None]
+        # a repeated motion (a wave: its repetition's first and last turn) goes on for the seconds
+        # asked; a reach does not
+        self.repeated_actions = [n for n in self.action_names if models[n].repetition is not None]
         self._piece_seconds = 0.0  # the recent pieces' synthesis time, seconds
         self.readouts: list[StepReadout] = []
         self.standing = self._first_pose(models)

@@ -246,6 +246,10 @@ def profiles(conn: psycopg.Connection) -> list[dict[str, Any]]:
     )
 
 
+# the graphs of models as the avatar page offers them: `modb demo`'s first, then by name
+MODEL_GRAPHS = "SELECT name FROM modb.graphs WHERE kind = 'models' ORDER BY name <> %s, name"
+
+
 def avatar_choices(conn: psycopg.Connection) -> dict[str, Any]:
     """The avatar panel's choices: profiles, transition graphs newest first, collections, joints;
     and the graphs of models it can walk on instead, by name, `modb demo`'s first (named in
@@ -257,10 +261,7 @@ def avatar_choices(conn: psycopg.Connection) -> dict[str, Any]:
             "ORDER BY created_at DESC, id DESC"
         )
     ]
-    models = conn.execute(
-        "SELECT name FROM modb.graphs WHERE kind = 'models' ORDER BY name <> %s, name",
-        [MODEL_GRAPH],
-    )
+    models = conn.execute(MODEL_GRAPHS, [MODEL_GRAPH])
     model_graphs = [r[0] for r in models]
     return {
         "profiles": profiles(conn),

@@ -395,7 +395,7 @@ def create_app(
         pool.open(wait=True, timeout=10)
         try:  # the avatar page's first graph of models, prepared while the server answers
             models_at_start.prepare(pool)
-        except psycopg.Error as e:
+        except (psycopg.Error, Unreachable) as e:
             warn(f"no graph of models prepared at start: {e}")
         yield
         writer.close()

@@ -27,7 +27,7 @@ from modb_kernel.database import StoreError
 
 from modb.database.read_nodes import ReadNodes
 from modb.synthesis.avatar import Settings
-from . import api
+from . import api, models_at_start
 from .auth import Tokens
 
 from .avatar_session import AvatarSession
@@ -171,6 +171,9 @@ def avatar_endpoint(
                 with pool.connection() as conn:
                     standing = standing_messages(conn)
             else:
+                # its models prepared as the server started: waited for (holding no connection
+                # meanwhile), not prepared a second time beside it
+                models_at_start.wait_for(models)
                 with pool.connection() as conn:
                     new = ModelAvatarSession(conn, send, models, seed, goals)
                 standing = []

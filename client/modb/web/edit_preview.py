@@ -43,24 +43,37 @@ MAX_COMMANDS = 100  # a pose edited by hand: far more drags than anyone makes in
 CACHED_VERSIONS = 8  # clip versions kept read: a drag previews one version many times
 
 
+# The clip's newest version and, as its cache key, the row versions of that version and of its
+# skeleton (xmin and ctid, as modb_kernel.prepared_models keys models): a version deleted and its
+# number used again, or a skeleton's joint map edited, is another key.
+CURRENT = """SELECT v.version, concat_ws(' ', v.xmin, v.ctid, s.id, s.xmin, s.ctid)
+               FROM modb.clip_versions v JOIN modb.skeletons s ON s.id = v.skeleton_id
+              WHERE v.clip_id = %s ORDER BY v.version DESC LIMIT 1"""
+
+
+def _current(conn: psycopg.Connection, clip_id: int) -> tuple[int, str] | None:
+    """(version, row key) of the clip's newest version, None where it has none."""
+    return conn.execute(CURRENT, [clip_id]).fetchone()
+
+
 class _VersionCache:
-    """Clip versions as edit_clips.current_clip reads them, by (clip, version): a version never
-    changes once written, so a drag's updates read it once. Their arrays are made read-only: a
-    command that changed its input in place would fail rather than spoil the next preview."""
+    """Clip versions as edit_clips.current_clip reads them, by their rows (CURRENT): a drag's
+    updates read the version once. Its arrays, the skeleton's too, are made read-only: a command
+    that changed its input in place would fail rather than spoil the next preview."""
 
     def __init__(self, size: int):
         self.size, self._clips, self._lock = size, OrderedDict(), threading.Lock()
 
-    def get(self, conn: psycopg.Connection, clip_id: int, version: int) -> dict | None:
-        key = (clip_id, version)
+    def get(self, conn: psycopg.Connection, clip_id: int, current: tuple[int, str]) -> dict | None:
+        key = (clip_id, current[1])
         with self._lock:
             if key in self._clips:
                 self._clips.move_to_end(key)
                 return self._clips[key]
         clip = edit_clips.current_clip(WorkerDatabase(conn), clip_id)
-        if clip is None or _version(conn, clip_id) != version:  # a newer one came meanwhile
+        if clip is None or _current(conn, clip_id) != current:  # a newer one came meanwhile
             return clip
-        for value in clip.values():
+        for value in (*clip.values(), *clip["skeleton"].values()):
             if isinstance(value, np.ndarray):
                 value.flags.writeable = False
         with self._lock:
@@ -71,13 +84,6 @@ class _VersionCache:
 
 
 _versions = _VersionCache(CACHED_VERSIONS)
-
-
-def _version(conn: psycopg.Connection, clip_id: int) -> int | None:
-    found = conn.execute(
-        "SELECT version FROM modb.current_clips WHERE clip_id = %s", [clip_id]
-    ).fetchone()
-    return None if found is None else found[0]
 
 
 class EditPreview(Body):
@@ -125,13 +131,11 @@ def preview(conn: psycopg.Connection, clip_id: int, commands: list[dict[str, Any
     if len(commands) > MAX_COMMANDS:
         raise BadRequest(f"a preview takes at most {MAX_COMMANDS} commands, got {len(commands)}: "
                          "save the edits so far, then go on")
-    found = conn.execute(
-        "SELECT version, n_frames FROM modb.current_clips WHERE clip_id = %s", [clip_id]
-    ).fetchone()
-    if found is None:
+    current = _current(conn, clip_id)
+    if current is None:
         raise NotFound(f"no clip with id {clip_id} (with a version of its own)")
-    version = found[0]
-    clip = _versions.get(conn, clip_id, version)
+    version = current[0]
+    clip = _versions.get(conn, clip_id, current)
     if clip is None:
         raise NotFound(f"no clip with id {clip_id}")
     sk = clip["skeleton"]

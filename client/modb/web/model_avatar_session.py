@@ -30,7 +30,6 @@ from modb.synthesis.from_models import SKELETON as GRAPH_SKELETON
 from modb.synthesis.model_avatar import MAX_GOALS, ModelAvatar, StepReadout
 from modb.synthesis.root_motion import with_root_motion
 
-from . import models_at_start
 from .avatar_messages import file_message, frame_message, sending_time
 from .downloads import FORMATS
 
@@ -61,7 +60,6 @@ class ModelAvatarSession:
         starts, as `modb synth --models --to ...` takes them."""
         self._send = send
         self.graph, self.seed = graph, seed
-        models_at_start.wait_for(graph)  # its models prepared as the server started: not again
         self._avatar = ModelAvatar(conn, graph, seed)
         for goal in goals:
             self._avatar.add_waypoint(checked_goal(goal))

@@ -16,11 +16,11 @@ from modb.demo import MODEL_GRAPH
 from modb.jobs.kernel_database import WorkerDatabase
 from modb_kernel import model_synthesis as MS
 
+from .api import MODEL_GRAPHS
+
 log = logging.getLogger("modb.web")
 
 WAIT_SECONDS = 30.0  # a session waits at most this long for the preparation under way
-
-FIRST_GRAPH = "SELECT name FROM modb.graphs WHERE kind = 'models' ORDER BY name <> %s, name LIMIT 1"
 
 _underway: dict[str, threading.Event] = {}  # graph -> set once its preparation ended
 
@@ -30,11 +30,11 @@ def prepare(pool) -> threading.Thread | None:
     none). A graph that cannot be prepared is logged and left to the session that asks for it,
     which says why."""
     with pool.connection() as conn:
-        found = conn.execute(FIRST_GRAPH, [MODEL_GRAPH]).fetchone()
+        found = conn.execute(MODEL_GRAPHS, [MODEL_GRAPH]).fetchone()  # the page's first
     if found is None:
         return None
     graph = found[0]
-    done = _underway.setdefault(graph, threading.Event())
+    done = _underway[graph] = threading.Event()  # this start's (a server started again: anew)
 
     def run() -> None:
         try:

@@ -93,6 +93,7 @@ class PreparedModels:
                 missing[ident] = entry.reads if entry is not None else 0
         if not missing:
             return found
+        wanted = {(row["place"], i) for i, row in keys.items()}  # kept whatever the bounds
         rigs = {}  # skeleton's row version -> Rig: the models of one skeleton share one
         for row in db.run(DOCUMENTS, [sorted(missing)]):
             if interrupts is not None:
@@ -111,7 +112,7 @@ class PreparedModels:
             with self._lock:
                 self._entries[where] = entry
                 self._entries.move_to_end(where)
-                self._evict({(row["place"], i) for i, row in keys.items()})
+                self._evict(wanted)
         return found
 
     def _evict(self, wanted):

@@ -149,9 +149,8 @@ def _elbow_axis(rotations, local, elbow, wrist):
     """ik.hinge_axis, or for an arm straight throughout any normal to the upper arm."""
     axis = ik.hinge_axis(rotations, local, elbow, wrist)
     if axis is None:
-        upper = local[0, elbow] / np.linalg.norm(local[0, elbow])
-        axis = np.cross(upper, [0.0, 0.0, 1.0] if abs(upper[2]) < 0.9 else [1.0, 0, 0])
-        axis /= np.linalg.norm(axis)
+        upper = ik.unit(local[0, elbow])
+        axis = ik.unit(np.cross(upper, [0.0, 0.0, 1.0] if abs(upper[2]) < 0.9 else [1.0, 0, 0]))
     return axis
 
 

@@ -204,9 +204,10 @@ export class PoseEditor {
     }
     // the move in the gizmo's axes, the heading frame at the frame
     const offset = this.proxy.position.clone().sub(d.position).applyQuaternion(d.quaternion.clone().invert());
-    const chain = Math.round(Number(this.ui.chain.value));
+    // chain: how many joints above it turn, 1 to 10 (empty: the default chain)
+    const chain = this.ui.chain.value === '' ? null : Math.min(10, Math.max(1, Math.round(Number(this.ui.chain.value)) || 1));
     return { op: 'ik', joint: d.joint, time, offset: offset.toArray().map(round), before, after,
-             ...(chain >= 1 && chain <= 10 ? { chain } : {}) };
+             ...(chain === null ? {} : { chain }) };
   }
 
   dragged() {
