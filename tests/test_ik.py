@@ -43,16 +43,7 @@ def positions(motion, rotations):
 
 
 def world_rotations(motion, rotations, joint):
-    """scipy's world rotation of one joint: the product of the local ones from the top down."""
-    sk = motion.skeleton
-    chain, j = [], joint
-    while j >= 0:
-        chain.append(j)
-        j = sk.parents[j]
-    out = Rotation.identity(len(rotations))
-    for j in reversed(chain):
-        out = out * own_kinematics.rotations_of(rotations[:, j])
-    return out
+    return own_kinematics.world_rotation(motion.skeleton.parents, rotations, joint)
 
 
 def leg(motion, side="left"):
@@ -167,8 +158,18 @@ def test_the_chain_solver_meets_targets_along_a_longer_chain(motion):
     local = ik.local_offsets(sk.offsets, sk.translated, motion.translations)
     before = positions(motion, motion.rotations)
     others = [j for j in range(len(sk.parents)) if j not in joints]
+    rng = np.random.default_rng(159)  # its own: the targets do not hang on the tests' order
     for frame in (0, motion.n_frames // 2, motion.n_frames - 1):
-        target = before[frame, wrist] + RNG.normal(size=3) * 0.08
+        # a target the chain reaches: where the wrist goes when the chain's joints turn at random
+        # (up to about 0.3 radians each; scipy's rotations, the tests' own kinematics)
+        turned = motion.rotations[frame : frame + 1].copy()
+        for j in joints:
+            turn = Rotation.from_rotvec(rng.normal(size=3) * 0.15)
+            turned[0, j] = np.roll((turn * own_kinematics.rotations_of(turned[0, j])).as_quat(), 1)
+        target = own_kinematics.world_positions(
+            sk.parents, sk.offsets, sk.translated, turned,
+            motion.translations[frame : frame + 1])[0, wrist]  # fmt: skip
+        assert np.linalg.norm(target - before[frame, wrist]) > 0.02  # not where it stood
         turns = ik.Turns(sk.parents, local[frame], motion.rotations[frame], joints, [wrist])
         pose, reached = ik.solve(turns, target[None])
         rotations = motion.rotations.copy()

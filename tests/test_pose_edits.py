@@ -75,14 +75,7 @@ def positions(sk, rotations, translations) -> np.ndarray:
 
 
 def world_rotation(sk, rotations, joint) -> Rotation:
-    chain, j = [], joint
-    while j >= 0:
-        chain.append(j)
-        j = sk.parents[j]
-    out = Rotation.identity(len(rotations))
-    for j in reversed(chain):
-        out = out * own_kinematics.rotations_of(rotations[:, j])
-    return out
+    return own_kinematics.world_rotation(sk.parents, rotations, joint)
 
 
 def heading(sk, p, fps, frame) -> float:

@@ -32,3 +32,15 @@ def world_positions(parents, offsets, translated, rotations, translations) -> np
             world_rot[j] = world_rot[p] * local
             out[:, j] = out[:, p] + world_rot[p].apply(offset)
     return out
+
+
+def world_rotation(parents, rotations, joint) -> Rotation:
+    """scipy's world rotation of one joint per frame: the local ones multiplied from the top."""
+    chain, j = [], joint
+    while j >= 0:
+        chain.append(j)
+        j = parents[j]
+    out = Rotation.identity(len(rotations))
+    for j in reversed(chain):
+        out = out * rotations_of(rotations[:, j])
+    return out

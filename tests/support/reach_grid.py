@@ -15,7 +15,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 from support import own_kinematics
 from support.data import mocap
 
@@ -52,16 +51,7 @@ def positions(motion, rotations=None):
 
 
 def world_rotations(motion, rotations, joint):
-    """scipy's world rotation of one joint per frame: the local ones multiplied from the top."""
-    sk = motion.skeleton
-    chain, j = [], joint
-    while j >= 0:
-        chain.append(j)
-        j = sk.parents[j]
-    out = Rotation.identity(len(rotations))
-    for j in reversed(chain):
-        out = out * own_kinematics.rotations_of(rotations[:, j])
-    return out
+    return own_kinematics.world_rotation(motion.skeleton.parents, rotations, joint)
 
 
 def joint(motion, side, part):
