@@ -15,7 +15,6 @@ message when the target is out of reach)."""
 
 from __future__ import annotations
 
-import json
 import threading
 from collections import OrderedDict
 from collections.abc import Callable
@@ -25,7 +24,6 @@ import numpy as np
 import psycopg
 from psycopg_pool import ConnectionPool
 from starlette.concurrency import run_in_threadpool
-from starlette.exceptions import HTTPException
 from starlette.requests import Request
 from starlette.responses import JSONResponse
 
@@ -35,7 +33,7 @@ from modb_kernel import edits as E
 
 from .api import BadRequest, NotFound
 from .auth import Tokens
-from .bodies import parse
+from .bodies import json_body, parse
 from .body_models import EDIT_SCRIPT, Body
 
 MAX_BODY_BYTES = 1 << 20  # a script of a few thousand commands
@@ -90,29 +88,6 @@ class EditPreview(Body):
     """An edit script to preview on a clip's current version (nothing is stored)."""
 
     commands: EDIT_SCRIPT
-
-
-def _body(raw: bytes) -> Any:
-    try:
-        return json.loads(raw)
-    except RecursionError:
-        raise HTTPException(400, "the body is nested too deep") from None
-    except (ValueError, UnicodeDecodeError) as e:
-        raise HTTPException(400, f"the body is not JSON: {e}") from None
-
-
-async def _read(request: Request) -> bytes:
-    length = request.headers.get("content-length")
-    if length is None or not length.isdigit():
-        raise HTTPException(411, "send Content-Length")
-    if int(length) > MAX_BODY_BYTES:
-        raise HTTPException(413, f"the body is larger than {MAX_BODY_BYTES:,} bytes")
-    raw = bytearray()
-    async for chunk in request.stream():
-        raw += chunk
-        if len(raw) > MAX_BODY_BYTES:
-            raise HTTPException(413, f"the body is larger than {MAX_BODY_BYTES:,} bytes")
-    return bytes(raw)
 
 
 def _window(notes: list) -> tuple[int, int]:
@@ -173,7 +148,7 @@ def endpoint(pool: ConnectionPool, tokens: Tokens, gate: Any, clip_id: Callable)
     async def run(request: Request) -> JSONResponse:
         await run_in_threadpool(tokens.reader, request)  # before the body is read
         ident = clip_id(request)
-        commands = parse(EditPreview, _body(await _read(request)))["commands"]
+        commands = parse(EditPreview, await json_body(request, MAX_BODY_BYTES))["commands"]
         async with gate.turn():
             return await run_in_threadpool(answer, ident, commands)
 
