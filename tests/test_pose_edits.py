@@ -262,6 +262,9 @@ def test_refusals_name_the_command_and_what_to_give():
                                   "skeleton's joint map (pelvis, "),
         ({"time": 60.0}, 'command 1: ik: "time" must be within the clip: seconds from 0 to 6.867'),
         ({"joint": "pelvis"}, "command 1: ik: no joint above pelvis may turn"),
+        # and a script never saved (a preview's) has its parameters checked when it is applied
+        ({"before": 11}, 'command 1: ik: "before" must be a number from 0 to 10'),
+        ({"offset": [0, float("nan"), 0]}, 'command 1: ik: "offset" must be 3 numbers'),
     ):  # fmt: skip
         with pytest.raises(edits.EditError) as e:
             edits.apply(clip, [{**ik, **change}])

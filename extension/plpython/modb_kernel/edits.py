@@ -237,14 +237,10 @@ def _copy_joints(clip, command, fetch):
     return dict(clip, rotations=rotations)
 
 
-def apply_command(clip, command, fetch, fetch_skeleton):
-    """One command on a clip; fetch(clip_id) -> clip (copy_joints), fetch_skeleton(id) -> (skeleton,
-    a reference frame or None) (retarget)."""
-    return command_with_note(clip, command, fetch, fetch_skeleton)[0]
-
-
 def command_with_note(clip, command, fetch, fetch_skeleton):
-    """(clip, note): apply_command's clip and the command's note (None but for ik and rotate)."""
+    """(clip, note): one command on a clip (its parameters checked: script_errors) and its note
+    (None but for ik and rotate); fetch(clip_id) -> clip (copy_joints), fetch_skeleton(id) ->
+    (skeleton, a reference frame or None) (retarget)."""
     if isinstance(command, dict) and command.get("op") in pose_edits.EDITS:
         try:
             return pose_edits.edit(clip, command)

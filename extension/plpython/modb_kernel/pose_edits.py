@@ -190,24 +190,6 @@ def _heading_turn(clip, frame):
     return quaternion.about_axis("Y", theta)
 
 
-def _checked(command):
-    op = command.get("op")
-    for key, (kind, required) in PARAMETERS[op].items():
-        if key not in command:
-            if required:
-                raise PoseEditError(f'{op}: "{key}" is missing')
-            continue
-        check = parameter_error(op, key, kind)
-        if check is not None:
-            problem = check(command[key])
-        else:
-            low, high = kind
-            ok = _number(command[key]) and low <= command[key] <= high
-            problem = None if ok else f'{op}: "{key}" must be a number from {low:g} to {high:g}'
-        if problem:
-            raise PoseEditError(problem)
-
-
 def _spread(clip, frame, changed_pose, joints, falloff):
     from . import ik
 
@@ -225,7 +207,6 @@ def _changed_frames(falloff):
 
 def rotate(clip, command):
     """(clip, note): the `rotate` command (see the module's docstring)."""
-    _checked(command)
     sk = clip["skeleton"]
     joint = skeleton_joint(sk, command["joint"], "rotate")
     frame = frame_at(clip, command)
@@ -246,7 +227,6 @@ def inverse_kinematics(clip, command):
     REACHED_M) and, when it is not, a message saying so."""
     from . import ik
 
-    _checked(command)
     sk = clip["skeleton"]
     parents = sk["parents"]
     joint = skeleton_joint(sk, command["joint"], "ik")
@@ -311,5 +291,6 @@ EDITS = {"ik": inverse_kinematics, "rotate": rotate}
 
 
 def edit(clip, command):
-    """(clip, note): one pose edit; a PoseEditError says why it cannot run on this clip."""
+    """(clip, note): one pose edit whose parameters edits.script_errors has checked (their types
+    and ranges: PARAMETERS); a PoseEditError says why it cannot run on this clip."""
     return EDITS[command["op"]](clip, command)
