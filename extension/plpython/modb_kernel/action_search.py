@@ -14,7 +14,7 @@ the model's mean motion moves (relative to the pelvis) at least half as far as t
 import numpy as np
 
 from . import kinematics, motion_model
-from .step_search import QUICKEST_SHARE, StepModel
+from .step_search import StepModel
 
 ACTING_SHARE = 0.5  # a wrist moving at least this share of the most moved one's way acts
 ACTION_PRIOR_WEIGHT_M = 0.005  # metres of hand error per unit of Mahalanobis distance
@@ -36,10 +36,7 @@ class ActionModel(StepModel):
     within_mass = True
 
     def __init__(self, model, tree, rig):
-        held = self._prepare(model, tree, rig)
-        # as a step's search, it passes the quickest quarter: their hands rise fastest (Bandai's
-        # raises: up to 1.35x the examples' p99.9 jump where the tree's nearest was one of them)
-        self.least_frames = float(np.percentile(self.durations(held), QUICKEST_SHARE))
+        self._prepare(model, tree, rig)  # its search passes the quickest, as a step's
         inner = list(model.get("keyframes", []))[1:-1]
         self.keyframe = int(inner[0]) if len(inner) == 1 else None
         self.repetition = tuple(int(k) for k in inner) if len(inner) == 2 else None
@@ -118,8 +115,5 @@ class ActionModel(StepModel):
     def search(self, target, rng=None):
         """(scores, candidates examined): the leaf sample of least error the beam reaches."""
         held, examined = self.beam(target)
-        e = self.errors(held, target)
-        quick = self.durations(held) < self.least_frames
-        if not quick.all():
-            e[quick] = np.inf
+        e = self.errors_past_quickest(held, target)
         return held[int(np.argmin(e))], len(held) + examined

@@ -120,9 +120,6 @@ class StepModel:
         # steps): the planner asks no turn beyond them
         self.turn_range = tuple(float(v) for v in np.percentile(turn, TURN_PERCENTILES))
         self.usual_travel = np.median(travel, axis=0)
-        # the quickest quarter of the model's steps swing their limbs fastest: drawn with far-out
-        # shapes, a frame jumped more than any capture (Bandai at 30 fps); the search passes them
-        self.least_frames = float(np.percentile(self.durations(held), QUICKEST_SHARE))
         self.seconds = (model["n_frames"] - 1) / model["fps"]
         self._freeze()
 
@@ -151,7 +148,12 @@ class StepModel:
         self.whiteners = [np.linalg.inv(np.linalg.cholesky(np.asarray(c, dtype=np.float64)))
                           for c in mixture["covariances"]]  # fmt: skip
         self.dimensions = self.mixture_means.shape[1]
-        return _leaf_samples(tree["root"]) if tree else motion_model.draw_scores(mixture, 2000, 0)
+        held = _leaf_samples(tree["root"]) if tree else motion_model.draw_scores(mixture, 2000, 0)
+        # the quickest quarter of the model's motions swing their limbs fastest: drawn with far-out
+        # shapes, a frame jumped more than any capture (Bandai's steps at 30 fps; its raises: up
+        # to 1.35x the examples' p99.9 jump); the search passes them (errors_past_quickest)
+        self.least_frames = float(np.percentile(self.durations(held), QUICKEST_SHARE))
+        return held
 
     def durations(self, scores):
         """Frames each row of scores lasts (motion_model.time_function's end, for many rows)."""
@@ -218,11 +220,17 @@ class StepModel:
         one of the leaves' CHOICES samples of least error drawn with rng (so a seed varies the
         walk, and a straight walk does not repeat one pair of steps)."""
         held, examined = self.beam(target)
-        e = self.errors(held, target)
-        quick = self.durations(held) < self.least_frames
+        e = self.errors_past_quickest(held, target)
+        return held[rng.choice(np.argsort(e)[:CHOICES])], len(held) + examined
+
+    def errors_past_quickest(self, scores, target):
+        """self.errors of the rows of scores, infinite for those quicker than least_frames (unless
+        every one is)."""
+        e = self.errors(scores, target)
+        quick = self.durations(scores) < self.least_frames
         if not quick.all():
             e[quick] = np.inf
-        return held[rng.choice(np.argsort(e)[:CHOICES])], len(held) + examined
+        return e
 
     def beam(self, target):
         """(the samples of the leaves a beam of BEAM nodes reaches down the tree by self.errors,
