@@ -22,14 +22,11 @@ finishes its step and stands in that pose.
 """
 
 import json
-import threading
-import weakref
 
 import numpy as np
 
 from . import (course, foot_hold, inertialization, memory, model_actions, motion_model,
                prepared_models, standing)  # fmt: skip
-from .action_search import ActionModel
 from .database import Statement, StoreError
 from .placement import placed
 from .step_search import hip_heading, rotate_y, stance_side, wrap
@@ -688,28 +685,12 @@ def load(db, graph_name, interrupts=no_interrupts):
         model = models[int(node["model_id"])]
         if node.get("type") == "action":
             try:
-                model = _action_model(model)
+                model = prepared_models.action_model(model)
             except ValueError as e:
                 raise StoreError(f'graph "{graph_name}": action "{name}": {e}',
                                  sqlstate="22023") from None  # fmt: skip
         nodes[name] = model
     return graph, nodes, models[ids[0]].rig
-
-
-_ACTION_MODELS = weakref.WeakKeyDictionary()  # a prepared StepModel -> its ActionModel
-_ACTION_MODELS_LOCK = threading.Lock()
-
-
-def _action_model(model):
-    """The action's search over a prepared model, made once while the model is held (it keeps
-    features of its own: 20 ms a model)."""
-    with _ACTION_MODELS_LOCK:
-        found = _ACTION_MODELS.get(model)
-    if found is None:
-        found = ActionModel(model.model, model.tree, model.rig)
-        with _ACTION_MODELS_LOCK:
-            _ACTION_MODELS[model] = found
-    return found
 
 
 def _refuse_gone(graph_name, ids, found):

@@ -18,14 +18,17 @@ dropped first, but never one the call at hand wants: a graph larger than the bou
 until another call needs the room (Bandai's walking with six hand actions: 11 models, 76 MB).
 A StepModel is read-only once made, so syntheses running at once (the web server's
 avatar sessions run in threads) share it; the table is guarded by a lock, and a model two threads
-miss at once is prepared by both (the last one kept)."""
+miss at once is prepared by both (the last one kept). An action node's ActionModel is made once
+per prepared model too (action_model)."""
 
 import json
 import threading
+import weakref
 from collections import OrderedDict
 from dataclasses import dataclass
 
 from .database import Statement
+from .action_search import ActionModel
 from .step_search import Rig, StepModel
 
 MAX_MODELS = 32
@@ -143,3 +146,19 @@ def _key(row):
 
 
 PREPARED = PreparedModels()  # the process's
+
+
+_ACTIONS = weakref.WeakKeyDictionary()  # a prepared StepModel -> its ActionModel
+_ACTIONS_LOCK = threading.Lock()
+
+
+def action_model(model):
+    """The ActionModel of a prepared model (an action node's), made once while the model is held
+    (it keeps features of its own: 20 ms a model); read-only as the model is."""
+    with _ACTIONS_LOCK:
+        found = _ACTIONS.get(model)
+    if found is None:
+        found = ActionModel(model.model, model.tree, model.rig)
+        with _ACTIONS_LOCK:
+            _ACTIONS[model] = found
+    return found
